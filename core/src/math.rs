@@ -1,0 +1,210 @@
+//! The one place the core calls transcendental functions.
+//!
+//! Every `sin`, `cos`, `atan2`, `sqrt`, `exp` in the core goes through this
+//! module, so the backend can be swapped by a cargo feature and the two
+//! compared on the same code path:
+//!
+//! * `libm` (default): correctly rounded to within ~1 ulp; use this unless a
+//!   measurement says the tick is too slow.
+//! * `micromath`: fast approximations (relative error up to a few 1e-3 for
+//!   `atan2`, ~1e-3 for `sin`/`cos`); wins when both features are enabled.
+//!
+//! Also holds the small numeric helpers the algorithms share: angle
+//! wrapping, `sinc`, and `(1 - e^-x)/x`, each written to stay finite where a
+//! naive formula would divide by zero.
+
+#[cfg(not(any(feature = "libm", feature = "micromath")))]
+compile_error!("wmr-core needs a math backend: enable feature `libm` (default) or `micromath`");
+
+#[cfg(feature = "micromath")]
+use micromath::F32Ext as _;
+
+/// π as `f32`.
+pub const PI: f32 = core::f32::consts::PI;
+/// 2π as `f32`.
+pub const TAU: f32 = core::f32::consts::TAU;
+
+macro_rules! backend {
+    ($(#[$doc:meta])* $name:ident($($arg:ident),*) => libm::$libm:ident) => {
+        $(#[$doc])*
+        #[inline]
+        #[must_use]
+        pub fn $name($($arg: f32),*) -> f32 {
+            #[cfg(feature = "micromath")]
+            {
+                micromath::F32Ext::$name($($arg),*)
+            }
+            #[cfg(not(feature = "micromath"))]
+            {
+                libm::$libm($($arg),*)
+            }
+        }
+    };
+}
+
+backend!(
+    /// Sine of an angle in radians.
+    sin(x) => libm::sinf
+);
+backend!(
+    /// Cosine of an angle in radians.
+    cos(x) => libm::cosf
+);
+backend!(
+    /// Arc tangent, result in (-π/2, π/2).
+    atan(x) => libm::atanf
+);
+backend!(
+    /// Four-quadrant arc tangent of `y/x`, result in [-π, π].
+    atan2(y, x) => libm::atan2f
+);
+backend!(
+    /// Square root (NaN for negative input).
+    sqrt(x) => libm::sqrtf
+);
+backend!(
+    /// Natural exponential.
+    exp(x) => libm::expf
+);
+backend!(
+    /// Largest integer value not greater than `x`.
+    floor(x) => libm::floorf
+);
+
+/// `sqrt(x² + y²)`, without the overflow of the naive formula for |x|, |y| > 1e19.
+#[inline]
+#[must_use]
+pub fn hypot(x: f32, y: f32) -> f32 {
+    let ax = x.abs();
+    let ay = y.abs();
+    let big = if ax > ay { ax } else { ay };
+    let small = if ax > ay { ay } else { ax };
+    if big == 0.0 || !big.is_finite() {
+        // 0 for (0, 0); inf/NaN propagate as they should.
+        return big + small;
+    }
+    let ratio = small / big;
+    big * sqrt(1.0 + ratio * ratio)
+}
+
+/// Wraps an angle to the half-open interval (-π, π].
+///
+/// Non-finite input gives NaN (never a "valid-looking" angle): callers that
+/// feed actuators check finiteness downstream.
+#[must_use]
+pub fn wrap_angle(angle: f32) -> f32 {
+    if !angle.is_finite() {
+        return f32::NAN;
+    }
+    if angle > -PI && angle <= PI {
+        return angle;
+    }
+    let turns = floor((angle + PI) / TAU);
+    let mut wrapped = angle - turns * TAU; // in [-π, π) up to rounding
+    if wrapped <= -PI {
+        wrapped += TAU;
+    }
+    if wrapped > PI {
+        wrapped -= TAU;
+    }
+    wrapped
+}
+
+/// `sin(x)/x`, with the removable singularity at 0 filled in (`sinc(0) = 1`).
+#[inline]
+#[must_use]
+pub fn sinc(x: f32) -> f32 {
+    if x.abs() < 1.0e-3 {
+        // Taylor: 1 - x²/6 + x⁴/120; the x⁴ term is below f32 resolution here.
+        1.0 - x * x / 6.0
+    } else {
+        sin(x) / x
+    }
+}
+
+/// `(1 - e^{-x}) / x` for `x >= 0`, equal to 1 at `x = 0`.
+///
+/// The exact one-step gain of a first-order decay `ė = -a e + a u` held over
+/// a step: `1 - e^{-a h} = a h · one_minus_exp_neg_over_x(a h)`. Written so
+/// that it stays finite and accurate as `x → 0` (where `a` is a speed that
+/// may vanish).
+#[inline]
+#[must_use]
+pub fn one_minus_exp_neg_over_x(x: f32) -> f32 {
+    if x.abs() < 0.5 {
+        // Taylor series Σ (−x)^n/(n+1)!, to n = 7: the truncation error at
+        // |x| = 0.5 is 0.5⁸/9! ≈ 1e-8, below f32 resolution. The direct
+        // formula would lose up to 5 digits to cancellation here.
+        1.0 - x
+            * (1.0 / 2.0
+                - x * (1.0 / 6.0
+                    - x * (1.0 / 24.0
+                        - x * (1.0 / 120.0
+                            - x * (1.0 / 720.0 - x * (1.0 / 5040.0 - x / 40320.0))))))
+    } else {
+        (1.0 - exp(-x)) / x
+    }
+}
+
+/// Clamps `x` to `[lo, hi]`; NaN maps to `nan_to` so it never leaks out.
+#[inline]
+#[must_use]
+pub fn clamp_or(x: f32, lo: f32, hi: f32, nan_to: f32) -> f32 {
+    if x.is_nan() {
+        nan_to
+    } else if x < lo {
+        lo
+    } else if x > hi {
+        hi
+    } else {
+        x
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn wrap_angle_maps_to_half_open_interval() {
+        assert_eq!(wrap_angle(PI), PI);
+        assert_eq!(wrap_angle(-PI), PI);
+        assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-5);
+        assert!((wrap_angle(1.5 * PI) + 0.5 * PI).abs() < 1e-5);
+        assert!(wrap_angle(f32::NAN).is_nan());
+        assert!(wrap_angle(f32::INFINITY).is_nan());
+    }
+
+    #[test]
+    fn small_argument_branches_match_f64() {
+        for x in [0.0_f32, 1e-6, 9.9e-4, 1.01e-3, 0.1, 0.499, 0.501, 3.0] {
+            let xd = f64::from(x);
+            let sinc_ref = if x == 0.0 { 1.0 } else { xd.sin() / xd };
+            assert!((f64::from(sinc(x)) - sinc_ref).abs() < 1e-6, "sinc({x})");
+            // The f32 formula (1 - e^-x)/x cancels catastrophically near 0:
+            // compare against f64.
+            let phi_ref = if x == 0.0 { 1.0 } else { -(-xd).exp_m1() / xd };
+            let phi = f64::from(one_minus_exp_neg_over_x(x));
+            assert!((phi - phi_ref).abs() < 1e-6, "phi({x}) = {phi} vs {phi_ref}");
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn wrapped_angle_is_in_range_and_equivalent(a in -1.0e4_f32..1.0e4) {
+            let w = wrap_angle(a);
+            prop_assert!(w > -PI && w <= PI);
+            // Same direction: compare unit vectors (f32 loses ~|a|·ε in the turns).
+            let tol = 1e-6 * a.abs().max(1.0) * 4.0;
+            prop_assert!((libm::cosf(w) - libm::cosf(a)).abs() <= tol + 1e-5);
+            prop_assert!((libm::sinf(w) - libm::sinf(a)).abs() <= tol + 1e-5);
+        }
+
+        #[test]
+        fn hypot_matches_naive_in_safe_range(x in -1.0e6_f32..1.0e6, y in -1.0e6_f32..1.0e6) {
+            let naive = libm::sqrtf(x * x + y * y);
+            prop_assert!((hypot(x, y) - naive).abs() <= naive * 1e-6 + 1e-30);
+        }
+    }
+}

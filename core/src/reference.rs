@@ -1,0 +1,374 @@
+//! Reference trajectories evaluated from an integer tick count.
+//!
+//! Time is never accumulated as `t += h` in `f32` (over 480 s at 1 kHz that
+//! drifts by seconds, paper-001 slip 8): a [`TickClock`] turns the integer
+//! tick index `k` into `t = k·h` afresh at every tick, so the rounding error
+//! of `t` is one `f32` rounding (relative 6e-8), never a sum of them.
+//!
+//! Each trajectory gives position, velocity and acceleration (paper 001,
+//! Assumption 1 needs `ẋr, ẏr` and bounded `ẍr, ÿr`; the corrected `θ̇*` of
+//! (14)/(28) uses the accelerations) and the bounds `v_rm ≤ v_r ≤ v_rM` of
+//! (2) that the gain bound (15) is checked against.
+
+use crate::geometry::Vec2;
+use crate::math;
+
+/// Why a clock or trajectory was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ReferenceError {
+    /// Control period not finite and positive.
+    Period,
+    /// Amplitude / radius not finite and positive.
+    Size,
+    /// Angular rate / speed not finite and positive.
+    Rate,
+    /// Phase, centre, start point or direction not finite (or direction zero).
+    Placement,
+}
+
+/// Converts the integer tick index into seconds: `t = k·h`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TickClock {
+    period_s: f32,
+}
+
+impl TickClock {
+    /// A clock with a fixed period (the control step `h`), s.
+    ///
+    /// # Errors
+    /// [`ReferenceError::Period`] if not finite and positive.
+    pub fn new(period_s: f32) -> Result<Self, ReferenceError> {
+        if period_s.is_finite() && period_s > 0.0 {
+            Ok(Self { period_s })
+        } else {
+            Err(ReferenceError::Period)
+        }
+    }
+
+    /// The control period `h`, s.
+    #[must_use]
+    pub fn period_s(&self) -> f32 {
+        self.period_s
+    }
+
+    /// Time of tick `k`, s. One rounding, no accumulation; exact ticks are
+    /// representable up to `k = 2^24` (46 h at 10 ms), beyond which `t`
+    /// keeps a relative accuracy of 6e-8.
+    #[must_use]
+    pub fn time_s(&self, tick: u32) -> f32 {
+        tick as f32 * self.period_s
+    }
+}
+
+/// Position, velocity and acceleration of the reference point at one time.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ReferenceSample {
+    /// `(x_r, y_r)`, m.
+    pub position: Vec2,
+    /// `(ẋ_r, ẏ_r)`, m/s.
+    pub velocity: Vec2,
+    /// `(ẍ_r, ÿ_r)`, m/s².
+    pub acceleration: Vec2,
+}
+
+impl ReferenceSample {
+    /// Reference speed `v_r = |(ẋ_r, ẏ_r)|`, m/s.
+    #[must_use]
+    pub fn speed(&self) -> f32 {
+        self.velocity.norm()
+    }
+}
+
+/// Bounds `v_rm ≤ v_r(t) ≤ v_rM` of the reference speed (paper 001, eq. (2)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SpeedBounds {
+    /// `v_rm`, m/s (0 if the reference can stop: Assumption 1 fails).
+    pub min_m_s: f32,
+    /// `v_rM`, m/s.
+    pub max_m_s: f32,
+}
+
+/// The figure-eight of paper 001, eqs. (51)–(52), with a phase.
+///
+/// `x_r = h1·sin(2s)`, `y_r = h1·sin(s)`, with `s = h2·t + φ`. The paper's
+/// runs start at `(x_r, y_r) = (0, −5)`, which needs `φ = −π/2`
+/// (paper-001 slip 7); `φ = 0` gives the printed (51).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FigureEight {
+    h1_m: f32,
+    h2_rad_s: f32,
+    phase_rad: f32,
+}
+
+impl FigureEight {
+    /// `h1` (half-width, m), `h2` (rad/s) and phase `φ` (rad).
+    ///
+    /// # Errors
+    /// The first parameter out of range.
+    pub fn new(h1_m: f32, h2_rad_s: f32, phase_rad: f32) -> Result<Self, ReferenceError> {
+        if !(h1_m.is_finite() && h1_m > 0.0) {
+            return Err(ReferenceError::Size);
+        }
+        if !(h2_rad_s.is_finite() && h2_rad_s > 0.0) {
+            return Err(ReferenceError::Rate);
+        }
+        if !phase_rad.is_finite() {
+            return Err(ReferenceError::Placement);
+        }
+        Ok(Self {
+            h1_m,
+            h2_rad_s,
+            phase_rad,
+        })
+    }
+
+    /// The paper's figure-eight: `h1 = 5 m`, `h2 = 0.02 rad/s`, `φ = −π/2`.
+    #[must_use]
+    pub fn paper_001() -> Self {
+        Self {
+            h1_m: 5.0,
+            h2_rad_s: 0.02,
+            phase_rad: -0.5 * math::PI,
+        }
+    }
+
+    fn sample(&self, t_s: f32) -> ReferenceSample {
+        let (h1, h2) = (self.h1_m, self.h2_rad_s);
+        // Reduce the phase to (−π, π] before doubling it, so that sin/cos
+        // see small arguments however long the run.
+        let s = math::wrap_angle(h2 * t_s + self.phase_rad);
+        let (s1, c1) = (math::sin(s), math::cos(s));
+        let (s2, c2) = (2.0 * s1 * c1, c1 * c1 - s1 * s1);
+        ReferenceSample {
+            position: Vec2::new(h1 * s2, h1 * s1),
+            velocity: Vec2::new(2.0 * h1 * h2 * c2, h1 * h2 * c1),
+            acceleration: Vec2::new(-4.0 * h1 * h2 * h2 * s2, -h1 * h2 * h2 * s1),
+        }
+    }
+
+    fn speed_bounds(&self) -> SpeedBounds {
+        // v_r² = (h1 h2)² (4 cos²2s + cos²s). With c = cos²s ∈ [0, 1],
+        // 4(2c − 1)² + c is minimal at c = 15/32 (value 31/64) and maximal at
+        // c = 1 (value 5).
+        let scale = self.h1_m * self.h2_rad_s;
+        SpeedBounds {
+            min_m_s: scale * math::sqrt(31.0 / 64.0),
+            max_m_s: scale * math::sqrt(5.0),
+        }
+    }
+}
+
+/// A circle driven counter-clockwise (or clockwise for negative rate).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Circle {
+    centre: Vec2,
+    radius_m: f32,
+    rate_rad_s: f32,
+    phase_rad: f32,
+}
+
+impl Circle {
+    /// Centre (m), radius (m), angular rate (rad/s, sign = direction, not 0)
+    /// and the polar angle of the start point (rad).
+    ///
+    /// # Errors
+    /// The first parameter out of range.
+    pub fn new(
+        centre: Vec2,
+        radius_m: f32,
+        rate_rad_s: f32,
+        phase_rad: f32,
+    ) -> Result<Self, ReferenceError> {
+        if !(radius_m.is_finite() && radius_m > 0.0) {
+            return Err(ReferenceError::Size);
+        }
+        if !(rate_rad_s.is_finite() && rate_rad_s != 0.0) {
+            return Err(ReferenceError::Rate);
+        }
+        if !(centre.is_finite() && phase_rad.is_finite()) {
+            return Err(ReferenceError::Placement);
+        }
+        Ok(Self {
+            centre,
+            radius_m,
+            rate_rad_s,
+            phase_rad,
+        })
+    }
+
+    fn sample(&self, t_s: f32) -> ReferenceSample {
+        let a = math::wrap_angle(self.rate_rad_s * t_s + self.phase_rad);
+        let (s, c) = (math::sin(a), math::cos(a));
+        let (r, w) = (self.radius_m, self.rate_rad_s);
+        ReferenceSample {
+            position: Vec2::new(self.centre.x + r * c, self.centre.y + r * s),
+            velocity: Vec2::new(-r * w * s, r * w * c),
+            acceleration: Vec2::new(-r * w * w * c, -r * w * w * s),
+        }
+    }
+
+    fn speed_bounds(&self) -> SpeedBounds {
+        let v = self.radius_m * self.rate_rad_s.abs();
+        SpeedBounds {
+            min_m_s: v,
+            max_m_s: v,
+        }
+    }
+}
+
+/// A straight line at constant speed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StraightLine {
+    start: Vec2,
+    velocity: Vec2,
+}
+
+impl StraightLine {
+    /// Start point (m), heading (rad) and speed (m/s, positive).
+    ///
+    /// # Errors
+    /// The first parameter out of range.
+    pub fn new(start: Vec2, heading_rad: f32, speed_m_s: f32) -> Result<Self, ReferenceError> {
+        if !(speed_m_s.is_finite() && speed_m_s > 0.0) {
+            return Err(ReferenceError::Rate);
+        }
+        if !(start.is_finite() && heading_rad.is_finite()) {
+            return Err(ReferenceError::Placement);
+        }
+        Ok(Self {
+            start,
+            velocity: Vec2::new(
+                speed_m_s * math::cos(heading_rad),
+                speed_m_s * math::sin(heading_rad),
+            ),
+        })
+    }
+
+    fn sample(&self, t_s: f32) -> ReferenceSample {
+        ReferenceSample {
+            position: self.start + self.velocity.scaled(t_s),
+            velocity: self.velocity,
+            acceleration: Vec2::ZERO,
+        }
+    }
+
+    fn speed_bounds(&self) -> SpeedBounds {
+        let v = self.velocity.norm();
+        SpeedBounds {
+            min_m_s: v,
+            max_m_s: v,
+        }
+    }
+}
+
+/// The reference trajectories the core knows, as one `Copy` value (no `dyn`
+/// in the control loop; a scenario file names one of these).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Trajectory {
+    /// Paper 001's figure-eight (51).
+    FigureEight(FigureEight),
+    /// A circle.
+    Circle(Circle),
+    /// A straight line.
+    StraightLine(StraightLine),
+}
+
+impl Trajectory {
+    /// Position, velocity and acceleration at time `t_s` (s).
+    #[must_use]
+    pub fn sample(&self, t_s: f32) -> ReferenceSample {
+        match self {
+            Self::FigureEight(f) => f.sample(t_s),
+            Self::Circle(c) => c.sample(t_s),
+            Self::StraightLine(l) => l.sample(t_s),
+        }
+    }
+
+    /// Bounds of the reference speed over all time (paper 001, eq. (2)).
+    #[must_use]
+    pub fn speed_bounds(&self) -> SpeedBounds {
+        match self {
+            Self::FigureEight(f) => f.speed_bounds(),
+            Self::Circle(c) => c.speed_bounds(),
+            Self::StraightLine(l) => l.speed_bounds(),
+        }
+    }
+}
+
+impl From<FigureEight> for Trajectory {
+    fn from(f: FigureEight) -> Self {
+        Self::FigureEight(f)
+    }
+}
+impl From<Circle> for Trajectory {
+    fn from(c: Circle) -> Self {
+        Self::Circle(c)
+    }
+}
+impl From<StraightLine> for Trajectory {
+    fn from(l: StraightLine) -> Self {
+        Self::StraightLine(l)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Central differences of position/velocity match velocity/acceleration.
+    fn check_derivatives(traj: Trajectory) {
+        let dt = 1e-2_f32;
+        for i in 0..200 {
+            let t = i as f32 * 1.7;
+            let (a, b, c) = (traj.sample(t - dt), traj.sample(t), traj.sample(t + dt));
+            let vel = (c.position - a.position).scaled(0.5 / dt);
+            let acc = (c.velocity - a.velocity).scaled(0.5 / dt);
+            assert!((vel - b.velocity).norm() < 2e-3, "velocity at t={t}");
+            assert!((acc - b.acceleration).norm() < 2e-3, "acceleration at t={t}");
+        }
+    }
+
+    #[test]
+    fn derivatives_are_consistent() {
+        check_derivatives(FigureEight::paper_001().into());
+        check_derivatives(Circle::new(Vec2::new(1.0, 2.0), 3.0, -0.2, 0.3).unwrap().into());
+        check_derivatives(StraightLine::new(Vec2::new(1.0, 2.0), 0.4, 0.3).unwrap().into());
+    }
+
+    #[test]
+    fn paper_figure_eight_starts_at_0_minus_5() {
+        let s = Trajectory::from(FigureEight::paper_001()).sample(0.0);
+        assert!(s.position.x.abs() < 1e-5 && (s.position.y + 5.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn figure_eight_speed_bounds_hold_over_a_period() {
+        let traj = Trajectory::from(FigureEight::paper_001());
+        let b = traj.speed_bounds();
+        let (mut lo, mut hi) = (f32::MAX, 0.0_f32);
+        // One period of s is 2π/h2 = 314 s.
+        for k in 0..31_416 {
+            let v = traj.sample(k as f32 * 0.01).speed();
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        assert!(lo >= b.min_m_s * (1.0 - 1e-4) && lo < b.min_m_s * 1.001, "{lo} vs {b:?}");
+        assert!(hi <= b.max_m_s * (1.0 + 1e-4) && hi > b.max_m_s * 0.999, "{hi} vs {b:?}");
+    }
+
+    #[test]
+    fn clock_does_not_accumulate() {
+        let clock = TickClock::new(0.001).unwrap();
+        // 480 s at 1 kHz: one rounding, not 480 000 of them.
+        assert!((clock.time_s(480_000) - 480.0).abs() < 1e-4);
+        assert_eq!(TickClock::new(0.0), Err(ReferenceError::Period));
+    }
+}

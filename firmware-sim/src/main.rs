@@ -1,0 +1,2 @@
+//! Host simulator (placeholder).
+fn main() {}
