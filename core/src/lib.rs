@@ -14,9 +14,14 @@
     )
 )]
 
+pub mod devices;
+pub mod drive;
 pub mod geometry;
 pub mod heading_observer;
 pub mod math;
 pub mod odometry;
+pub mod output_feedback;
+pub mod pilot;
 pub mod reference;
+pub mod robot;
 pub mod tracking;

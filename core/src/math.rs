@@ -16,9 +16,6 @@
 #[cfg(not(any(feature = "libm", feature = "micromath")))]
 compile_error!("wmr-core needs a math backend: enable feature `libm` (default) or `micromath`");
 
-#[cfg(feature = "micromath")]
-use micromath::F32Ext as _;
-
 /// π as `f32`.
 pub const PI: f32 = core::f32::consts::PI;
 /// 2π as `f32`.
@@ -186,7 +183,10 @@ mod tests {
             // compare against f64.
             let phi_ref = if x == 0.0 { 1.0 } else { -(-xd).exp_m1() / xd };
             let phi = f64::from(one_minus_exp_neg_over_x(x));
-            assert!((phi - phi_ref).abs() < 1e-6, "phi({x}) = {phi} vs {phi_ref}");
+            assert!(
+                (phi - phi_ref).abs() < 1e-6,
+                "phi({x}) = {phi} vs {phi_ref}"
+            );
         }
     }
 

@@ -332,15 +332,26 @@ mod tests {
             let vel = (c.position - a.position).scaled(0.5 / dt);
             let acc = (c.velocity - a.velocity).scaled(0.5 / dt);
             assert!((vel - b.velocity).norm() < 2e-3, "velocity at t={t}");
-            assert!((acc - b.acceleration).norm() < 2e-3, "acceleration at t={t}");
+            assert!(
+                (acc - b.acceleration).norm() < 2e-3,
+                "acceleration at t={t}"
+            );
         }
     }
 
     #[test]
     fn derivatives_are_consistent() {
         check_derivatives(FigureEight::paper_001().into());
-        check_derivatives(Circle::new(Vec2::new(1.0, 2.0), 3.0, -0.2, 0.3).unwrap().into());
-        check_derivatives(StraightLine::new(Vec2::new(1.0, 2.0), 0.4, 0.3).unwrap().into());
+        check_derivatives(
+            Circle::new(Vec2::new(1.0, 2.0), 3.0, -0.2, 0.3)
+                .unwrap()
+                .into(),
+        );
+        check_derivatives(
+            StraightLine::new(Vec2::new(1.0, 2.0), 0.4, 0.3)
+                .unwrap()
+                .into(),
+        );
     }
 
     #[test]
@@ -360,8 +371,14 @@ mod tests {
             lo = lo.min(v);
             hi = hi.max(v);
         }
-        assert!(lo >= b.min_m_s * (1.0 - 1e-4) && lo < b.min_m_s * 1.001, "{lo} vs {b:?}");
-        assert!(hi <= b.max_m_s * (1.0 + 1e-4) && hi > b.max_m_s * 0.999, "{hi} vs {b:?}");
+        assert!(
+            lo >= b.min_m_s * (1.0 - 1e-4) && lo < b.min_m_s * 1.001,
+            "{lo} vs {b:?}"
+        );
+        assert!(
+            hi <= b.max_m_s * (1.0 + 1e-4) && hi > b.max_m_s * 0.999,
+            "{hi} vs {b:?}"
+        );
     }
 
     #[test]

@@ -1,0 +1,261 @@
+//! One control tick, devices to duties: the `Pilot`.
+//!
+//! ```text
+//! Measurement ──► wrapping counter deltas ──► exact-arc odometry ─┐
+//!  (raw encoder counters,                                         ├─► OutputFeedbackTracker ──► BodyVelocity
+//!   this tick's tag fix)  ───────────────────────────────────────┘     (observer (5) + law (27)–(28))     │
+//!                                                                                                        ▼
+//!                      MotorCommand ◄── signed duty ◄── speed loops ◄── limits ◄── wheel speeds ◄── Drive
+//! ```
+//!
+//! The `Pilot` is pure logic: it never touches a device. [`crate::robot::Robot`]
+//! reads the devices into a [`Measurement`], calls [`Pilot::step`] and writes
+//! the [`PilotOutput`]'s motor commands; the simulator and the firmware use
+//! the same path.
+//!
+//! # Encoder faults
+//! A tick with a failed (or implausible) encoder read is a *fault tick*:
+//! the odometry of that tick is unknown, so neither counter's origin moves
+//! (the next good read covers all the missed ticks, and its odometry is
+//! spread over them), the tracker sees zero motion, and the speed loops run
+//! feed-forward plus their held integral. After more than
+//! `max_encoder_fault_ticks` consecutive fault ticks the motors are stopped
+//! ([`PilotOutput::encoder_halt`]) until reads return. A read is implausible
+//! when a wheel moved more than twice the drive's maximum wheel speed
+//! allows; its counter origin is then dropped and re-taken.
+
+use crate::devices::MotorCommand;
+use crate::drive::{Drive, DriveConfig, DriveOutput};
+use crate::odometry::{CounterError, OdometryStep, WrappingCounter};
+use crate::output_feedback::{OutputFeedbackTracker, TagFix, TrackerConfig, TrackerOutput};
+
+/// Why a [`PilotConfig`] was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum PilotConfigError {
+    /// Encoder counter width outside 2..=32 bits.
+    EncoderBits,
+    /// The tracker's and the drive's control periods differ.
+    PeriodMismatch,
+}
+
+impl From<CounterError> for PilotConfigError {
+    fn from(_: CounterError) -> Self {
+        Self::EncoderBits
+    }
+}
+
+/// Validated configuration of a [`Pilot`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PilotConfig {
+    tracker: TrackerConfig,
+    drive: DriveConfig,
+    encoder_bits: u32,
+    max_encoder_fault_ticks: u32,
+}
+
+impl PilotConfig {
+    /// Default number of consecutive encoder fault ticks tolerated.
+    pub const DEFAULT_MAX_ENCODER_FAULT_TICKS: u32 = 5;
+
+    /// Combines a tracker and a drive configuration with the width of the
+    /// hardware encoder counters (16 for most STM32 timers, 32 for TIM2/TIM5).
+    ///
+    /// # Errors
+    /// A bad counter width, or periods that differ.
+    pub fn new(
+        tracker: TrackerConfig,
+        drive: DriveConfig,
+        encoder_bits: u32,
+    ) -> Result<Self, PilotConfigError> {
+        WrappingCounter::new(encoder_bits)?;
+        let (a, b) = (tracker.clock().period_s(), drive.period_s());
+        if (a - b).abs() > 1e-9 * a.abs().max(b.abs()) {
+            return Err(PilotConfigError::PeriodMismatch);
+        }
+        Ok(Self {
+            tracker,
+            drive,
+            encoder_bits,
+            max_encoder_fault_ticks: Self::DEFAULT_MAX_ENCODER_FAULT_TICKS,
+        })
+    }
+
+    /// Sets how many consecutive encoder fault ticks are bridged before the
+    /// motors are stopped.
+    #[must_use]
+    pub fn with_max_encoder_fault_ticks(mut self, ticks: u32) -> Self {
+        self.max_encoder_fault_ticks = ticks;
+        self
+    }
+
+    /// The tracker's configuration.
+    #[must_use]
+    pub fn tracker(&self) -> &TrackerConfig {
+        &self.tracker
+    }
+
+    /// The drive's configuration.
+    #[must_use]
+    pub fn drive(&self) -> &DriveConfig {
+        &self.drive
+    }
+}
+
+/// What the devices showed this tick.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Measurement {
+    /// Raw left encoder counter, `None` if the read failed.
+    pub left_count: Option<u32>,
+    /// Raw right encoder counter, `None` if the read failed.
+    pub right_count: Option<u32>,
+    /// A tag fix read this tick (already mapped to a floor position).
+    pub fix: Option<TagFix>,
+}
+
+/// Counters of the pilot's own fault handling.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PilotCounters {
+    /// Ticks with a missing encoder read.
+    pub encoder_fault_ticks: u32,
+    /// Encoder reads rejected as implausibly large jumps.
+    pub implausible_encoder_reads: u32,
+    /// Ticks on which the motors were stopped for encoder faults.
+    pub encoder_halt_ticks: u32,
+}
+
+/// The result of one tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PilotOutput {
+    /// Command for the left motor.
+    pub left: MotorCommand,
+    /// Command for the right motor.
+    pub right: MotorCommand,
+    /// Odometry of the last period (zero on a fault tick).
+    pub odometry: OdometryStep,
+    /// Tracker step (mode, estimate, reference, law).
+    pub tracker: TrackerOutput,
+    /// Drive step (wheel targets, duties, limits).
+    pub drive: DriveOutput,
+    /// Motors stopped for persistent encoder faults.
+    pub encoder_halt: bool,
+}
+
+/// Encoders → odometry → tracker → drive, one tick at a time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Pilot {
+    config: PilotConfig,
+    left_counter: WrappingCounter,
+    right_counter: WrappingCounter,
+    /// Ticks the next counter delta will span (since the counters' origin).
+    ticks_since_origin: u32,
+    /// Consecutive fault ticks (0 after a good read).
+    fault_run: u32,
+    tracker: OutputFeedbackTracker,
+    drive: Drive,
+    counters: PilotCounters,
+}
+
+impl Pilot {
+    /// A pilot at tick 0, motors at rest.
+    ///
+    /// # Errors
+    /// [`PilotConfigError::EncoderBits`] can not occur for a validated
+    /// configuration; construction is fallible like every other stage's.
+    pub fn new(config: PilotConfig) -> Result<Self, PilotConfigError> {
+        let counter = WrappingCounter::new(config.encoder_bits)?;
+        Ok(Self {
+            config,
+            left_counter: counter,
+            right_counter: counter,
+            ticks_since_origin: 0,
+            fault_run: 0,
+            tracker: OutputFeedbackTracker::new(config.tracker),
+            drive: Drive::new(config.drive),
+            counters: PilotCounters::default(),
+        })
+    }
+
+    /// The configuration.
+    #[must_use]
+    pub fn config(&self) -> &PilotConfig {
+        &self.config
+    }
+
+    /// The tracker (counters, configuration).
+    #[must_use]
+    pub fn tracker(&self) -> &OutputFeedbackTracker {
+        &self.tracker
+    }
+
+    /// The pilot's own counters.
+    #[must_use]
+    pub fn counters(&self) -> PilotCounters {
+        self.counters
+    }
+
+    /// One control tick.
+    pub fn step(&mut self, measurement: &Measurement) -> PilotOutput {
+        let odometry = self.odometry(measurement);
+        let tracker = self
+            .tracker
+            .step(&odometry.unwrap_or_default(), measurement.fix);
+
+        let encoder_halt = self.fault_run > self.config.max_encoder_fault_ticks;
+        let drive = if encoder_halt {
+            self.counters.encoder_halt_ticks = self.counters.encoder_halt_ticks.saturating_add(1);
+            self.drive.halt();
+            DriveOutput::default()
+        } else {
+            self.drive.step(tracker.command, odometry.map(|o| o.wheels))
+        };
+        PilotOutput {
+            left: MotorCommand::from_signed(drive.left_duty),
+            right: MotorCommand::from_signed(drive.right_duty),
+            odometry: odometry.unwrap_or_default(),
+            tracker,
+            drive,
+            encoder_halt,
+        }
+    }
+
+    /// Odometry of this tick, `None` on a fault tick.
+    fn odometry(&mut self, m: &Measurement) -> Option<OdometryStep> {
+        self.ticks_since_origin = self.ticks_since_origin.saturating_add(1);
+        let (Some(left_raw), Some(right_raw)) = (m.left_count, m.right_count) else {
+            self.fault_tick();
+            return None;
+        };
+        let (dl, dr) = (
+            self.left_counter.delta(left_raw),
+            self.right_counter.delta(right_raw),
+        );
+        let dt = self.ticks_since_origin as f32 * self.config.drive.period_s();
+        self.ticks_since_origin = 0;
+        let geometry = self.config.drive.geometry();
+        // Twice the drive's top wheel speed over the elapsed time, plus one
+        // count of quantization.
+        let plausible =
+            2.0 * self.config.drive.max_wheel_speed_rad_s() * dt / geometry.rad_per_count() + 1.0;
+        if (dl.unsigned_abs() as f32) > plausible || (dr.unsigned_abs() as f32) > plausible {
+            // This read is the new origin (delta() already took it); the
+            // motion since the last good read is lost, and counted.
+            self.counters.implausible_encoder_reads =
+                self.counters.implausible_encoder_reads.saturating_add(1);
+            self.fault_tick();
+            return None;
+        }
+        self.fault_run = 0;
+        Some(OdometryStep::from_counts(geometry, dl, dr, dt))
+    }
+
+    fn fault_tick(&mut self) {
+        self.fault_run = self.fault_run.saturating_add(1);
+        self.counters.encoder_fault_ticks = self.counters.encoder_fault_ticks.saturating_add(1);
+    }
+}

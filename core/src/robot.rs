@@ -1,0 +1,184 @@
+//! The robot: devices around a [`Pilot`].
+//!
+//! [`Robot::tick`] is the whole control tick of the firmware and of the
+//! simulator's full-stack runs: read both encoder counters, drain the RFID
+//! reader's UART (non-blocking, bounded work), look the tag up in the
+//! [`TagLocator`] (a tag table or a computed grid), run the [`Pilot`], write both motors. Device errors never
+//! stop the tick: each one is counted in [`RobotCounters`] and becomes a
+//! documented input to the pilot (a failed encoder read is a missing
+//! count; an unknown tag is no fix; a motor write error is retried next
+//! tick, and after it the motor is asked to stop).
+
+use embedded_hal::digital::OutputPin;
+use embedded_hal::pwm::SetDutyCycle;
+use embedded_io::{Read, ReadReady};
+
+use crate::devices::{
+    MotorCommand, MotorDriver, MotorFault, QuadratureCounter, RfidCounters, RfidReader, TagLocator,
+};
+use crate::output_feedback::TagFix;
+use crate::pilot::{Measurement, Pilot, PilotOutput};
+
+/// A motor that takes [`MotorCommand`]s (implemented by [`MotorDriver`];
+/// the seam where a board with a different driver plugs in).
+pub trait Motor {
+    /// Drives the motor.
+    ///
+    /// # Errors
+    /// The fault of the underlying peripheral.
+    fn drive(&mut self, command: MotorCommand) -> Result<(), MotorFault>;
+}
+
+impl<P: SetDutyCycle, D: OutputPin> Motor for MotorDriver<P, D> {
+    fn drive(&mut self, command: MotorCommand) -> Result<(), MotorFault> {
+        self.apply(command)
+    }
+}
+
+/// Counters of device-level faults (the RFID parser keeps its own).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RobotCounters {
+    /// Failed reads of the left encoder counter.
+    pub left_encoder_errors: u32,
+    /// Failed reads of the right encoder counter.
+    pub right_encoder_errors: u32,
+    /// Valid frames whose tag is not in the map.
+    pub unknown_tags: u32,
+    /// Failed motor writes (either motor).
+    pub motor_faults: u32,
+}
+
+/// What one tick did, for logging and telemetry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RobotTick {
+    /// The pilot's step.
+    pub pilot: PilotOutput,
+    /// The tag fix used this tick, if any.
+    pub fix: Option<TagFix>,
+    /// The last motor fault of this tick, if any.
+    pub motor_fault: Option<MotorFault>,
+}
+
+/// A robot: two encoders, two motors, an RFID reader, a tag locator, a pilot.
+pub struct Robot<EL, ER, ML, MR, U, T>
+where
+    U: Read + ReadReady,
+{
+    pilot: Pilot,
+    left_encoder: EL,
+    right_encoder: ER,
+    left_motor: ML,
+    right_motor: MR,
+    rfid: RfidReader<U>,
+    tags: T,
+    counters: RobotCounters,
+}
+
+impl<EL, ER, ML, MR, U, T> Robot<EL, ER, ML, MR, U, T>
+where
+    EL: QuadratureCounter,
+    ER: QuadratureCounter,
+    ML: Motor,
+    MR: Motor,
+    U: Read + ReadReady,
+    T: TagLocator,
+{
+    /// Assembles a robot. Motors are not touched until the first tick.
+    pub fn new(
+        pilot: Pilot,
+        (left_encoder, right_encoder): (EL, ER),
+        (left_motor, right_motor): (ML, MR),
+        rfid: RfidReader<U>,
+        tags: T,
+    ) -> Self {
+        Self {
+            pilot,
+            left_encoder,
+            right_encoder,
+            left_motor,
+            right_motor,
+            rfid,
+            tags,
+            counters: RobotCounters::default(),
+        }
+    }
+
+    /// The pilot.
+    #[must_use]
+    pub fn pilot(&self) -> &Pilot {
+        &self.pilot
+    }
+
+    /// Device fault counters.
+    #[must_use]
+    pub fn counters(&self) -> RobotCounters {
+        self.counters
+    }
+
+    /// The RFID parser's counters.
+    #[must_use]
+    pub fn rfid_counters(&self) -> RfidCounters {
+        self.rfid.counters()
+    }
+
+    /// The tag locator.
+    #[must_use]
+    pub fn tags(&self) -> &T {
+        &self.tags
+    }
+
+    /// One control tick: sense, decide, act.
+    pub fn tick(&mut self) -> RobotTick {
+        let left_count = self.left_encoder.raw_count().ok();
+        if left_count.is_none() {
+            self.counters.left_encoder_errors = self.counters.left_encoder_errors.saturating_add(1);
+        }
+        let right_count = self.right_encoder.raw_count().ok();
+        if right_count.is_none() {
+            self.counters.right_encoder_errors =
+                self.counters.right_encoder_errors.saturating_add(1);
+        }
+        let fix = self.rfid.poll().and_then(|id| match self.tags.locate(id) {
+            Some(position) => Some(TagFix {
+                position,
+                age_ticks: 0,
+            }),
+            None => {
+                self.counters.unknown_tags = self.counters.unknown_tags.saturating_add(1);
+                None
+            }
+        });
+        let pilot = self.pilot.step(&Measurement {
+            left_count,
+            right_count,
+            fix,
+        });
+        let mut motor_fault = None;
+        for result in [
+            drive_or_stop(&mut self.left_motor, pilot.left),
+            drive_or_stop(&mut self.right_motor, pilot.right),
+        ] {
+            if let Err(fault) = result {
+                self.counters.motor_faults = self.counters.motor_faults.saturating_add(1);
+                motor_fault = Some(fault);
+            }
+        }
+        RobotTick {
+            pilot,
+            fix,
+            motor_fault,
+        }
+    }
+}
+
+/// Drives a motor; on a fault, asks it to stop (best effort) and reports the fault.
+fn drive_or_stop<M: Motor>(motor: &mut M, command: MotorCommand) -> Result<(), MotorFault> {
+    motor.drive(command).inspect_err(|_| {
+        // The write failed half-way or not at all: a stop is the one command
+        // that is safe whatever state the driver is in. Its own failure adds
+        // nothing the first fault did not already report.
+        let _ = motor.drive(MotorCommand::STOP);
+    })
+}
