@@ -397,3 +397,119 @@ impl OutputFeedbackTracker {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reference::{FigureEight, StraightLine};
+
+    fn tracker(timeout: u32) -> OutputFeedbackTracker {
+        let line = StraightLine::new(Vec2::ZERO, 0.0, 0.2).unwrap();
+        let cfg = TrackerConfig::new(
+            HeadingObserverConfig::new(1.0, 0.01).unwrap(),
+            TrackingGains::new(0.05, 0.05, 1.0).unwrap(),
+            line.into(),
+            timeout,
+        )
+        .unwrap();
+        OutputFeedbackTracker::new(cfg)
+    }
+
+    fn moving(v: f32) -> OdometryStep {
+        OdometryStep {
+            ds_m: v * 0.01,
+            body: BodyVelocity {
+                v_m_s: v,
+                omega_rad_s: 0.0,
+            },
+            ..OdometryStep::default()
+        }
+    }
+
+    fn fix(x: f32, y: f32) -> Option<TagFix> {
+        Some(TagFix {
+            position: Vec2::new(x, y),
+            age_ticks: 0,
+        })
+    }
+
+    #[test]
+    fn stands_still_until_the_first_fix() {
+        let mut t = tracker(10);
+        for _ in 0..5 {
+            let out = t.step(&OdometryStep::default(), None);
+            assert_eq!(out.mode, TrackerMode::AwaitingFix);
+            assert_eq!(out.command, BodyVelocity::ZERO);
+        }
+        let out = t.step(&OdometryStep::default(), fix(0.0, 0.0));
+        assert_eq!(out.mode, TrackerMode::Tracking);
+        assert!(out.command.v_m_s > 0.1);
+    }
+
+    #[test]
+    fn failsafe_ramps_down_then_recovers() {
+        let mut t = tracker(10);
+        let mut out = t.step(&OdometryStep::default(), fix(0.0, 0.0));
+        let v0 = out.command.v_m_s;
+        // Ten ticks without a fix: still tracking on dead reckoning.
+        for _ in 0..10 {
+            out = t.step(&moving(v0), None);
+            assert_eq!(out.mode, TrackerMode::Tracking);
+        }
+        // The eleventh: failsafe, speed falls by decel·h = 0.005 m/s per tick.
+        let mut last = out.command.v_m_s;
+        for _ in 0..200 {
+            out = t.step(&moving(last), None);
+            assert_eq!(out.mode, TrackerMode::FixLost);
+            assert!(out.command.v_m_s <= last);
+            assert!(last - out.command.v_m_s <= 0.005 + 1e-6);
+            last = out.command.v_m_s;
+        }
+        assert_eq!(out.command, BodyVelocity::ZERO);
+        assert_eq!(t.counters().failsafe_entries, 1);
+        // A fix returns: tracking again (the reference has moved on).
+        out = t.step(&moving(0.0), fix(0.4, 0.0));
+        assert_eq!(out.mode, TrackerMode::Tracking);
+        assert!(out.command.v_m_s > 0.0);
+    }
+
+    #[test]
+    fn bad_and_stale_fixes_are_counted_and_ignored() {
+        let mut t = tracker(10);
+        t.step(&OdometryStep::default(), fix(f32::NAN, 0.0));
+        t.step(
+            &OdometryStep::default(),
+            Some(TagFix {
+                position: Vec2::ZERO,
+                age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS + 1,
+            }),
+        );
+        let c = t.counters();
+        assert_eq!((c.invalid_fixes, c.stale_fixes, c.fixes_used), (1, 1, 0));
+        assert_eq!(
+            t.step(&OdometryStep::default(), None).mode,
+            TrackerMode::AwaitingFix
+        );
+    }
+
+    #[test]
+    fn paper_gains_are_accepted_and_reported() {
+        let cfg = TrackerConfig::new(
+            HeadingObserverConfig::new(0.6, 0.01).unwrap(),
+            TrackingGains::new(0.11, 0.11, 0.1).unwrap(),
+            FigureEight::paper_001().into(),
+            100,
+        )
+        .unwrap();
+        assert!(!cfg.gain_bound().is_satisfied());
+        assert_eq!(
+            TrackerConfig::new(
+                *cfg.observer(),
+                TrackingGains::new(0.11, 0.11, 0.1).unwrap(),
+                FigureEight::paper_001().into(),
+                0
+            ),
+            Err(TrackerConfigError::FixTimeout)
+        );
+    }
+}

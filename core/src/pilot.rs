@@ -259,3 +259,106 @@ impl Pilot {
         self.counters.encoder_fault_ticks = self.counters.encoder_fault_ticks.saturating_add(1);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::drive::SpeedLoopGains;
+    use crate::geometry::{DiffDriveGeometry, Vec2};
+    use crate::heading_observer::HeadingObserverConfig;
+    use crate::reference::StraightLine;
+    use crate::tracking::TrackingGains;
+
+    fn pilot() -> Pilot {
+        let h = 0.01;
+        let tracker = TrackerConfig::new(
+            HeadingObserverConfig::new(1.0, h).unwrap(),
+            TrackingGains::new(0.05, 0.05, 1.0).unwrap(),
+            StraightLine::new(Vec2::ZERO, 0.0, 0.2).unwrap().into(),
+            50,
+        )
+        .unwrap();
+        let drive = DriveConfig::new(
+            DiffDriveGeometry::new(0.03, 0.2, 2048).unwrap(),
+            h,
+            20.0,
+            100.0,
+            SpeedLoopGains {
+                feedforward_duty_per_rad_s: 0.05,
+                kp_duty_per_rad_s: 0.02,
+                ki_duty_per_rad: 0.1,
+            },
+        )
+        .unwrap();
+        Pilot::new(PilotConfig::new(tracker, drive, 16).unwrap()).unwrap()
+    }
+
+    fn at(left: u32, right: u32) -> Measurement {
+        Measurement {
+            left_count: Some(left),
+            right_count: Some(right),
+            fix: Some(TagFix {
+                position: Vec2::ZERO,
+                age_ticks: 0,
+            }),
+        }
+    }
+
+    #[test]
+    fn missed_reads_are_bridged_then_halt() {
+        let mut p = pilot();
+        p.step(&at(100, 100));
+        let out = p.step(&at(110, 110));
+        assert!(!out.encoder_halt);
+        // Five missed ticks are bridged on feed-forward...
+        let missing = Measurement {
+            left_count: None,
+            ..at(0, 0)
+        };
+        for _ in 0..PilotConfig::DEFAULT_MAX_ENCODER_FAULT_TICKS {
+            assert!(!p.step(&missing).encoder_halt);
+        }
+        // ...the sixth stops the motors.
+        let out = p.step(&missing);
+        assert!(out.encoder_halt);
+        assert!(out.left.is_stop() && out.right.is_stop());
+        // A good read covers all seven ticks since the last one.
+        let out = p.step(&at(180, 180));
+        assert!(!out.encoder_halt);
+        let expected = 70.0 * p.config().drive().geometry().rad_per_count() / (7.0 * 0.01);
+        assert!((out.odometry.wheels.left_rad_s - expected).abs() < 1e-3);
+        assert_eq!(p.counters().encoder_fault_ticks, 6);
+    }
+
+    #[test]
+    fn implausible_jump_is_rejected() {
+        let mut p = pilot();
+        p.step(&at(0, 0));
+        let out = p.step(&at(30_000, 0));
+        assert_eq!(out.odometry, OdometryStep::default());
+        assert_eq!(p.counters().implausible_encoder_reads, 1);
+        // The jump became the new origin: the next tick is measured from it.
+        let out = p.step(&at(30_010, 10));
+        assert!(out.odometry.ds_m > 0.0);
+    }
+
+    #[test]
+    fn mismatched_periods_are_refused() {
+        let p = pilot();
+        let tracker = TrackerConfig::new(
+            HeadingObserverConfig::new(1.0, 0.02).unwrap(),
+            TrackingGains::new(0.05, 0.05, 1.0).unwrap(),
+            StraightLine::new(Vec2::ZERO, 0.0, 0.2).unwrap().into(),
+            50,
+        )
+        .unwrap();
+        assert_eq!(
+            PilotConfig::new(tracker, *p.config().drive(), 16),
+            Err(PilotConfigError::PeriodMismatch)
+        );
+        assert_eq!(
+            PilotConfig::new(*p.config().tracker(), *p.config().drive(), 40),
+            Err(PilotConfigError::EncoderBits)
+        );
+    }
+}

@@ -1,0 +1,101 @@
+//! Whole-stack properties of the `Pilot`: whatever the devices show — any
+//! counter values (wraps, jumps, missing reads) and any fix (NaN, ±Inf,
+//! far away, stale) — the motor commands are finite duties in [0, 1].
+
+use proptest::prelude::*;
+use wmr_core::drive::{DriveConfig, SpeedLoopGains};
+use wmr_core::geometry::{DiffDriveGeometry, Vec2};
+use wmr_core::heading_observer::HeadingObserverConfig;
+use wmr_core::output_feedback::{TagFix, TrackerConfig};
+use wmr_core::pilot::{Measurement, Pilot, PilotConfig};
+use wmr_core::reference::FigureEight;
+use wmr_core::tracking::TrackingGains;
+
+fn pilot() -> Pilot {
+    let h = 0.01;
+    let tracker = TrackerConfig::new(
+        HeadingObserverConfig::new(0.6, h).unwrap(),
+        TrackingGains::new(0.11, 0.11, 0.1).unwrap(),
+        FigureEight::paper_001().into(),
+        100,
+    )
+    .unwrap();
+    let drive = DriveConfig::new(
+        DiffDriveGeometry::new(0.03, 0.2, 2048).unwrap(),
+        h,
+        20.0,
+        100.0,
+        SpeedLoopGains {
+            feedforward_duty_per_rad_s: 0.05,
+            kp_duty_per_rad_s: 0.02,
+            ki_duty_per_rad: 0.1,
+        },
+    )
+    .unwrap();
+    Pilot::new(PilotConfig::new(tracker, drive, 16).unwrap()).unwrap()
+}
+
+fn any_coordinate() -> impl Strategy<Value = f32> {
+    prop_oneof![
+        4 => -20.0_f32..20.0,
+        1 => prop::num::f32::ANY,
+        1 => Just(f32::NAN),
+        1 => Just(f32::INFINITY),
+    ]
+}
+
+fn any_measurement() -> impl Strategy<Value = Measurement> {
+    (
+        prop::option::weighted(0.9, any::<u32>()),
+        prop::option::weighted(0.9, any::<u32>()),
+        prop::option::weighted(0.7, (any_coordinate(), any_coordinate(), 0_u32..5)),
+    )
+        .prop_map(|(l, r, fix)| Measurement {
+            left_count: l,
+            right_count: r,
+            fix: fix.map(|(x, y, age_ticks)| TagFix {
+                position: Vec2::new(x, y),
+                age_ticks,
+            }),
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    #[test]
+    fn motor_commands_are_always_finite_duties(
+        measurements in prop::collection::vec(any_measurement(), 1..300),
+    ) {
+        let mut p = pilot();
+        for m in &measurements {
+            let out = p.step(m);
+            for cmd in [out.left, out.right] {
+                prop_assert!(cmd.duty.is_finite() && (0.0..=1.0).contains(&cmd.duty), "{cmd:?}");
+            }
+            prop_assert!(out.tracker.command.is_finite(), "{:?}", out.tracker);
+        }
+    }
+
+    /// Plausible encoder motion (counter wrapping at full speed included)
+    /// with valid fixes: the tracker never reports a non-finite command.
+    #[test]
+    fn plausible_inputs_never_need_the_nan_guard(
+        start in any::<u16>(),
+        steps in prop::collection::vec((-40_i32..40, -40_i32..40, -10.0_f32..10.0, -10.0_f32..10.0), 1..300),
+    ) {
+        let mut p = pilot();
+        let (mut l, mut r) = (u32::from(start), u32::from(start));
+        for (dl, dr, x, y) in steps {
+            l = l.wrapping_add_signed(dl);
+            r = r.wrapping_add_signed(dr);
+            p.step(&Measurement {
+                left_count: Some(l),
+                right_count: Some(r),
+                fix: Some(TagFix { position: Vec2::new(x, y), age_ticks: 0 }),
+            });
+        }
+        prop_assert_eq!(p.tracker().counters().non_finite_commands, 0);
+        prop_assert_eq!(p.counters().implausible_encoder_reads, 0);
+    }
+}
