@@ -99,3 +99,42 @@ proptest! {
         prop_assert_eq!(p.counters().implausible_encoder_reads, 0);
     }
 }
+
+proptest! {
+    /// Wheels at (up to) full speed for long enough to wrap the 16-bit
+    /// counters several times: the pilot's odometry adds up to the true
+    /// wheel travel, to the last count.
+    #[test]
+    fn counter_wrap_at_full_speed_gives_true_odometry(
+        start in (any::<u16>(), any::<u16>()),
+        speed_fraction in (-1.0_f64..1.0, -1.0_f64..1.0),
+        ticks in 500_u32..3000,
+    ) {
+        let mut p = pilot();
+        let geometry = *p.config().drive().geometry();
+        let counts_per_rad = f64::from(geometry.counts_per_revolution()) / core::f64::consts::TAU;
+        // 20 rad/s is the drive's top wheel speed in `pilot()`.
+        let counts_per_tick = (20.0 * speed_fraction.0 * 0.01 * counts_per_rad,
+                               20.0 * speed_fraction.1 * 0.01 * counts_per_rad);
+        let (mut travelled_l, mut travelled_r) = (0.0_f64, 0.0_f64);
+        let (mut odo_l, mut odo_r) = (0.0_f64, 0.0_f64);
+        for k in 0..=ticks {
+            let true_l = (f64::from(k) * counts_per_tick.0).floor() as i64;
+            let true_r = (f64::from(k) * counts_per_tick.1).floor() as i64;
+            let raw = |start: u16, c: i64| (i64::from(start) + c).rem_euclid(1 << 16) as u32;
+            let out = p.step(&Measurement {
+                left_count: Some(raw(start.0, true_l)),
+                right_count: Some(raw(start.1, true_r)),
+                fix: None,
+            });
+            odo_l += f64::from(out.odometry.wheels.left_rad_s) * 0.01;
+            odo_r += f64::from(out.odometry.wheels.right_rad_s) * 0.01;
+            travelled_l = true_l as f64 / counts_per_rad;
+            travelled_r = true_r as f64 / counts_per_rad;
+        }
+        // f32 speeds summed in f64: a few ppm of the distance.
+        prop_assert!((odo_l - travelled_l).abs() < 1e-5 * travelled_l.abs() + 1e-4, "{odo_l} vs {travelled_l}");
+        prop_assert!((odo_r - travelled_r).abs() < 1e-5 * travelled_r.abs() + 1e-4, "{odo_r} vs {travelled_r}");
+        prop_assert_eq!(p.counters().implausible_encoder_reads, 0);
+    }
+}
