@@ -1,0 +1,38 @@
+//! Host simulator for `wmr-core`: runs the robot's `no_std` core against
+//! simulated plants and virtual devices.
+//!
+//! ```text
+//! Scenario (TOML) ──validate──► Setup (core configs + models) ──run──► RunResult
+//!                                                                      ├─ records (one per tick)
+//!                                                                      └─ Summary (errors, counters)
+//! ```
+//!
+//! * [`plant`]: the kinematic unicycle of paper 001 (exact arcs) and a
+//!   differential-drive body with first-order DC motors (RK4).
+//! * [`devices`]: virtual PWM, direction pins, quadrature encoders and an
+//!   RFID reader on a baud-timed UART, implementing the same traits as the
+//!   firmware's peripherals.
+//! * [`tags`]: the floor's tag grid (the core's `TagGrid` encoding) and the
+//!   nearest-tag lookup.
+//! * [`scenario`]: the TOML schema, its validation, the embedded scenarios.
+//! * [`mod@run`]: the loop, calling the core's tracker or controller directly
+//!   (unicycle) or its `Robot`/`Pilot` with virtual devices (diff drive).
+//! * [`output`]: CSV, JSON summary and PNG plot.
+//!
+//! ```no_run
+//! use firmware_sim::{run, Scenario};
+//! let scenario = Scenario::embedded("figure_eight_rfid")?;
+//! let result = run(&scenario, |_, _| {})?;
+//! assert!(result.summary.max_error_m < 0.1);
+//! # Ok::<(), firmware_sim::ScenarioError>(())
+//! ```
+
+pub mod devices;
+pub mod output;
+pub mod plant;
+pub mod run;
+pub mod scenario;
+pub mod tags;
+
+pub use run::{Record, RunResult, Summary, run};
+pub use scenario::{EMBEDDED, Scenario, ScenarioError, Setup};

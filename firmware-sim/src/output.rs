@@ -1,0 +1,400 @@
+//! Writing a run to disk: `run.csv`, `summary.json`, `run.png`, and the
+//! human-readable summary the CLI prints.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use crate::run::{Record, RunResult, Summary};
+
+/// Paths of the files [`write_all`] wrote.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OutputFiles {
+    /// One row per tick.
+    pub csv: PathBuf,
+    /// The summary, pretty JSON.
+    pub summary: PathBuf,
+    /// Trajectory and error plot, if plotting was asked for.
+    pub plot: Option<PathBuf>,
+}
+
+/// Writes `run.csv`, `summary.json` and (if `plot`) `run.png` into `dir`,
+/// creating it.
+///
+/// # Errors
+/// Any I/O or rendering error, with the file it concerns.
+pub fn write_all(dir: &Path, result: &RunResult, plot: bool) -> anyhow::Result<OutputFiles> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let files = OutputFiles {
+        csv: dir.join("run.csv"),
+        summary: dir.join("summary.json"),
+        plot: plot.then(|| dir.join("run.png")),
+    };
+    write_csv(&files.csv, &result.records)?;
+    write_summary(&files.summary, &result.summary)?;
+    if let Some(png) = &files.plot {
+        plot_png(png, result)?;
+    }
+    Ok(files)
+}
+
+/// Writes the records as CSV with a header row (empty cells for values a
+/// run does not have, e.g. duties on the unicycle).
+///
+/// # Errors
+/// I/O or serialization errors.
+pub fn write_csv(path: &Path, records: &[Record]) -> anyhow::Result<()> {
+    let mut w =
+        csv::Writer::from_path(path).with_context(|| format!("creating {}", path.display()))?;
+    for r in records {
+        w.serialize(r)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    w.flush()
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// Writes the summary as pretty JSON.
+///
+/// # Errors
+/// I/O or serialization errors.
+pub fn write_summary(path: &Path, summary: &Summary) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(summary)?;
+    std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))
+}
+
+/// The summary as text for a terminal.
+#[must_use]
+pub fn format_summary(s: &Summary) -> String {
+    let mut o = String::new();
+    let _ = writeln!(o, "scenario      {}", s.scenario);
+    let _ = writeln!(
+        o,
+        "setup         {} plant, {}, position {}, core path: {}",
+        s.plant, s.controller, s.position_source, s.code_path
+    );
+    let _ = writeln!(
+        o,
+        "run           {} ticks of {} s = {} s simulated in {:.2} s wall ({:.0}× real time)",
+        s.ticks,
+        s.period_s,
+        s.duration_s,
+        s.wall_time_s,
+        s.duration_s / s.wall_time_s.max(1e-9)
+    );
+    let _ = writeln!(
+        o,
+        "error t≥{:<5} max {:.4} m   mean {:.4} m   rms {:.4} m   ({} ticks)",
+        format!("{}s", s.transient_s),
+        s.max_error_m,
+        s.mean_error_m,
+        s.rms_error_m,
+        s.samples
+    );
+    let _ = writeln!(o, "final error   {:.4} m", s.final_error_m);
+    if let Some(h) = s.max_heading_error_rad {
+        let _ = writeln!(o, "heading est.  max |θ̂ − θ| after transient {h:.4} rad");
+    }
+    let g = &s.gain_bound;
+    let _ = match (g.satisfied, g.gamma) {
+        (true, Some(gamma)) => writeln!(
+            o,
+            "gain bound    (15) holds, γ = {gamma:.3}: {:.4} ≤ v ≤ {:.4} m/s guaranteed",
+            g.min_speed_m_s.unwrap_or(f64::NAN),
+            g.max_speed_m_s.unwrap_or(f64::NAN)
+        ),
+        (false, Some(gamma)) => writeln!(
+            o,
+            "gain bound    (15) VIOLATED: these gains need γ = {gamma:.3} ≥ 1 (no speed guarantee)"
+        ),
+        _ => writeln!(o, "gain bound    reference can stop: (15) cannot hold"),
+    };
+    let m = &s.mode_ticks;
+    let _ = writeln!(
+        o,
+        "modes         awaiting_fix {}  tracking {}  fix_lost {}  state_feedback {}",
+        m.awaiting_fix, m.tracking, m.fix_lost, m.state_feedback
+    );
+    if let Some(t) = &s.tracker {
+        let _ = writeln!(
+            o,
+            "tracker       fixes used {}  invalid {}  stale {}  dead-reckoned {}  failsafe entries {}  non-finite cmds {}  observer rejects {}",
+            t.fixes_used,
+            t.invalid_fixes,
+            t.stale_fixes,
+            t.dead_reckoned_steps,
+            t.failsafe_entries,
+            t.non_finite_commands,
+            t.observer_rejected_updates
+        );
+    }
+    if let Some(r) = &s.rfid {
+        let _ = writeln!(
+            o,
+            "rfid          frames ok {}  bad checksum {}  malformed {}  outside {}  read errors {}  superseded {}  unknown tags {}",
+            r.frames_ok,
+            r.bad_checksum,
+            r.malformed,
+            r.bytes_outside_frames,
+            r.read_errors,
+            r.superseded,
+            r.unknown_tags
+        );
+        let _ = writeln!(
+            o,
+            "reader model  sent {}  skipped (line busy) {}  dropped {}  corrupted bytes {}",
+            r.reader.frames_sent,
+            r.reader.skipped_line_busy,
+            r.reader.frames_dropped,
+            r.reader.bytes_corrupted
+        );
+    }
+    if let Some(p) = &s.pilot {
+        let _ = writeln!(
+            o,
+            "drive         speed-limited {}  accel-limited {} ticks  max |duty| {:.3}  encoder faults {}  implausible {}  halts {}  motor faults {}  reversals under drive {}  bad PWM writes {}",
+            p.speed_limited_ticks,
+            p.accel_limited_ticks,
+            p.max_abs_duty,
+            p.encoder_fault_ticks,
+            p.implausible_encoder_reads,
+            p.encoder_halt_ticks,
+            p.motor_faults,
+            p.reversals_under_drive,
+            p.out_of_range_pwm_writes
+        );
+    }
+    if let Some(n) = s.floor_tags {
+        let _ = writeln!(o, "floor         {n} tags");
+    }
+    if s.non_finite_ticks > 0 {
+        let _ = writeln!(
+            o,
+            "WARNING       {} ticks with non-finite values",
+            s.non_finite_ticks
+        );
+    }
+    o
+}
+
+/// Image size, px.
+const SIZE: (u32, u32) = (1800, 820);
+/// Font of all text.
+const FONT: &str = "sans-serif";
+
+/// Renders the trajectory vs the reference (left, equal axes) and the
+/// tracking error vs time on a log axis with the transient window shaded
+/// (right).
+///
+/// # Errors
+/// Rendering or file errors.
+pub fn plot_png(path: &Path, result: &RunResult) -> anyhow::Result<()> {
+    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE).map_err(plot_err)?;
+    let (left, right) = root.split_horizontally(SIZE.1 + 20);
+    trajectory_panel(&left, result)?;
+    error_panel(&right, result)?;
+    root.present()
+        .map_err(plot_err)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
+    anyhow::anyhow!("plot: {e:?}")
+}
+
+fn trajectory_panel(
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    result: &RunResult,
+) -> anyhow::Result<()> {
+    let records = &result.records;
+    let area = area
+        .titled(
+            &format!("{}: trajectory", result.summary.scenario),
+            (FONT, 24),
+        )
+        .map_err(plot_err)?;
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for r in records {
+        for (x, y) in [(r.x_m, r.y_m), (r.ref_x_m, r.ref_y_m)] {
+            if x.is_finite() && y.is_finite() {
+                lo = [lo[0].min(x), lo[1].min(y)];
+                hi = [hi[0].max(x), hi[1].max(y)];
+            }
+        }
+    }
+    if !(lo[0].is_finite() && lo[1].is_finite()) {
+        lo = [-1.0; 2];
+        hi = [1.0; 2];
+    }
+    // Equal axes: metres per pixel the same both ways.
+    let (margin, x_label, y_label) = (15_u32, 45_u32, 60_u32);
+    let (w, h) = area.dim_in_pixel();
+    let pw = f64::from(w.saturating_sub(2 * margin + y_label).max(1));
+    let ph = f64::from(h.saturating_sub(2 * margin + x_label).max(1));
+    let pad = 0.05 * (hi[0] - lo[0]).max(hi[1] - lo[1]).max(0.1);
+    let (cx, cy) = (0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]));
+    let scale = ((hi[0] - lo[0] + 2.0 * pad) / pw).max((hi[1] - lo[1] + 2.0 * pad) / ph);
+    let (hx, hy) = (0.5 * scale * pw, 0.5 * scale * ph);
+
+    let mut chart = ChartBuilder::on(&area)
+        .margin(margin)
+        .x_label_area_size(x_label)
+        .y_label_area_size(y_label)
+        .build_cartesian_2d(cx - hx..cx + hx, cy - hy..cy + hy)
+        .map_err(plot_err)?;
+    chart
+        .configure_mesh()
+        .x_desc("x [m]")
+        .y_desc("y [m]")
+        .label_style((FONT, 16))
+        .axis_desc_style((FONT, 18))
+        .draw()
+        .map_err(plot_err)?;
+    let step = (records.len() / 20_000).max(1);
+    chart
+        .draw_series(LineSeries::new(
+            records.iter().step_by(step).map(|r| (r.ref_x_m, r.ref_y_m)),
+            ShapeStyle::from(&RED).stroke_width(2),
+        ))
+        .map_err(plot_err)?
+        .label("reference")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+    chart
+        .draw_series(LineSeries::new(
+            records.iter().step_by(step).map(|r| (r.x_m, r.y_m)),
+            ShapeStyle::from(&BLUE).stroke_width(1),
+        ))
+        .map_err(plot_err)?
+        .label("robot (true)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    if let (Some(first), Some(last)) = (records.first(), records.last()) {
+        chart
+            .draw_series([
+                Circle::new((first.x_m, first.y_m), 5, BLUE.filled()),
+                Circle::new((first.ref_x_m, first.ref_y_m), 5, RED.filled()),
+                Circle::new((last.x_m, last.y_m), 5, BLACK.filled()),
+            ])
+            .map_err(plot_err)?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font((FONT, 16))
+        .draw()
+        .map_err(plot_err)?;
+    Ok(())
+}
+
+fn error_panel(
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    result: &RunResult,
+) -> anyhow::Result<()> {
+    let s = &result.summary;
+    let records = &result.records;
+    let area = area
+        .titled(
+            &format!(
+                "tracking error |p - p_ref|; after {} s: max {:.4} m, mean {:.4} m, rms {:.4} m",
+                s.transient_s, s.max_error_m, s.mean_error_m, s.rms_error_m
+            ),
+            (FONT, 22),
+        )
+        .map_err(plot_err)?;
+    let t_end = records.last().map_or(1.0, |r| r.t_s).max(1e-3);
+    let positive = records
+        .iter()
+        .map(|r| r.error_m)
+        .filter(|e| e.is_finite() && *e > 0.0);
+    let (e_min, e_max) = positive.fold((f64::INFINITY, 0.0_f64), |(lo, hi), e| {
+        (lo.min(e), hi.max(e))
+    });
+    let floor = if e_min.is_finite() {
+        (e_min * 0.5).max(1e-6)
+    } else {
+        1e-6
+    };
+    let ceil = (e_max * 2.0).max(floor * 10.0);
+
+    let mut chart = ChartBuilder::on(&area)
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..t_end, (floor..ceil).log_scale())
+        .map_err(plot_err)?;
+    chart
+        .configure_mesh()
+        .x_desc("t [s]")
+        .y_desc("error [m] (log)")
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .label_style((FONT, 16))
+        .axis_desc_style((FONT, 18))
+        .draw()
+        .map_err(plot_err)?;
+    if s.transient_s > 0.0 {
+        chart
+            .draw_series([Rectangle::new(
+                [(0.0, floor), (s.transient_s.min(t_end), ceil)],
+                RGBColor(200, 200, 200).mix(0.35).filled(),
+            )])
+            .map_err(plot_err)?
+            .label(format!(
+                "transient (t < {} s, not in the statistics)",
+                s.transient_s
+            ))
+            .legend(|(x, y)| {
+                Rectangle::new(
+                    [(x, y - 6), (x + 20, y + 6)],
+                    RGBColor(200, 200, 200).filled(),
+                )
+            });
+    }
+    let step = (records.len() / 20_000).max(1);
+    chart
+        .draw_series(LineSeries::new(
+            records
+                .iter()
+                .step_by(step)
+                .map(|r| (r.t_s, r.error_m.clamp(floor, ceil))),
+            ShapeStyle::from(&BLUE).stroke_width(1),
+        ))
+        .map_err(plot_err)?
+        .label("tracking error")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    if s.max_error_m.is_finite() && s.max_error_m > 0.0 {
+        let t0 = s.transient_s.min(t_end);
+        chart
+            .draw_series(LineSeries::new(
+                [(t0, s.max_error_m), (t_end, s.max_error_m)],
+                ShapeStyle::from(&RED).stroke_width(1),
+            ))
+            .map_err(plot_err)?
+            .label(format!("max after transient {:.4} m", s.max_error_m))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+        chart
+            .draw_series(LineSeries::new(
+                [(t0, s.mean_error_m), (t_end, s.mean_error_m)],
+                ShapeStyle::from(&GREEN).stroke_width(1),
+            ))
+            .map_err(plot_err)?
+            .label(format!("mean after transient {:.4} m", s.mean_error_m))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREEN.stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font((FONT, 16))
+        .draw()
+        .map_err(plot_err)?;
+    Ok(())
+}

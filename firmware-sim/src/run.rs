@@ -1,0 +1,1026 @@
+//! Running a scenario: the simulation loop, per-tick records and the summary.
+//!
+//! One control tick `k` (time `t_k = k·h`, computed from `k`, never summed):
+//!
+//! 1. the position source looks at the plant's pose at `t_k` (exact
+//!    position, nearest tag, or the virtual reader putting a frame on the
+//!    line);
+//! 2. the controller runs: the core's [`OutputFeedbackTracker`] or
+//!    [`TrackingController`] directly (unicycle plant), or the core's
+//!    [`Robot`] (diff-drive plant with the reader: encoders, UART, tag
+//!    grid, pilot, motor drivers, exactly the firmware's tick) or its
+//!    [`Pilot`] with the virtual encoders and motor drivers (diff-drive plant
+//!    with an exact or nearest-tag position, which no device delivers);
+//! 3. the tick is recorded (true pose at `t_k`, what the controller knew and
+//!    commanded);
+//! 4. the plant advances one period with what was commanded (unicycle: the
+//!    `(v, ω)`; diff drive: the duties on the virtual PWM pins, held).
+
+use std::time::Instant;
+
+use serde::Serialize;
+use wmr_core::devices::{MotorDriver, MotorWiring, QuadratureCounter, RfidReader, TagLocator};
+use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
+use wmr_core::heading_observer::{HeadingEstimate, HeadingObserver};
+use wmr_core::odometry::OdometryStep;
+use wmr_core::output_feedback::{OutputFeedbackTracker, TagFix, TrackerMode};
+use wmr_core::pilot::{Measurement, Pilot, PilotConfig, PilotOutput};
+use wmr_core::reference::{TickClock, Trajectory};
+use wmr_core::robot::{Motor, Robot};
+use wmr_core::tracking::{GainBound, TrackingController};
+
+use crate::devices::{
+    MotorSignals, ReaderConfig, ReaderModelCounters, VirtualDirectionPin, VirtualEncoder,
+    VirtualPwm, VirtualRfidReader, VirtualUart, WheelShaft,
+};
+use crate::plant::{DiffDriveParams, DiffDrivePlant, PlantPose, Unicycle, wrap_angle};
+use crate::scenario::{ControllerKind, PlantSetup, PositionSetup, Scenario, ScenarioError, Setup};
+use crate::tags::FloorTags;
+
+/// Ticks between two progress callbacks.
+const PROGRESS_EVERY: u32 = 1000;
+
+/// What the controller was doing at a tick.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Output feedback, no fix yet: standing still.
+    AwaitingFix,
+    /// Output feedback, tracking.
+    Tracking,
+    /// Output feedback, fixes lost: failsafe ramp-down.
+    FixLost,
+    /// State feedback (always tracking).
+    StateFeedback,
+}
+
+impl From<TrackerMode> for Mode {
+    fn from(m: TrackerMode) -> Self {
+        match m {
+            TrackerMode::AwaitingFix => Self::AwaitingFix,
+            TrackerMode::Tracking => Self::Tracking,
+            TrackerMode::FixLost => Self::FixLost,
+        }
+    }
+}
+
+/// One control tick (one CSV row).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Record {
+    /// Tick index `k`.
+    pub tick: u32,
+    /// `t = k·h`, s.
+    pub t_s: f64,
+    /// True x, m.
+    pub x_m: f64,
+    /// True y, m.
+    pub y_m: f64,
+    /// True heading, rad, wrapped to (−π, π].
+    pub theta_rad: f64,
+    /// Reference x at `t`, m.
+    pub ref_x_m: f64,
+    /// Reference y at `t`, m.
+    pub ref_y_m: f64,
+    /// Position the controller used (fix or dead-reckoned), m; empty before
+    /// the first fix.
+    pub est_x_m: Option<f64>,
+    /// Position the controller used, y, m.
+    pub est_y_m: Option<f64>,
+    /// Observer's `ẑ3` (estimate of cos θ); empty for state feedback.
+    pub est_cos: Option<f64>,
+    /// Observer's `ẑ4` (estimate of sin θ).
+    pub est_sin: Option<f64>,
+    /// `θ̂ = atan2(ẑ4, ẑ3)`, rad.
+    pub est_theta_rad: Option<f64>,
+    /// `θ̂ − θ`, wrapped, rad.
+    pub heading_error_rad: Option<f64>,
+    /// Commanded forward speed, m/s.
+    pub v_cmd_m_s: f64,
+    /// Commanded yaw rate, rad/s.
+    pub omega_cmd_rad_s: f64,
+    /// Signed duty of the left motor as its driver inputs show it (diff drive).
+    pub left_duty: Option<f64>,
+    /// Signed duty of the right motor (diff drive).
+    pub right_duty: Option<f64>,
+    /// A position fix reached the controller this tick.
+    pub fix: bool,
+    /// Controller mode after this tick.
+    pub mode: Mode,
+    /// Tracking error `|p_true − p_ref|`, m.
+    pub error_m: f64,
+}
+
+/// The gain bound (15) for the scenario's gains and reference.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct GainBoundReport {
+    /// Whether (15) holds (then `min/max_speed_m_s` are guaranteed).
+    pub satisfied: bool,
+    /// The `γ` the gains need (< 1 when satisfied); `None` when the
+    /// reference can stop.
+    pub gamma: Option<f64>,
+    /// Guaranteed lower bound on the commanded speed, m/s.
+    pub min_speed_m_s: Option<f64>,
+    /// Guaranteed upper bound on the commanded speed, m/s.
+    pub max_speed_m_s: Option<f64>,
+}
+
+impl From<GainBound> for GainBoundReport {
+    fn from(b: GainBound) -> Self {
+        match b {
+            GainBound::Satisfied {
+                gamma,
+                min_speed_m_s,
+                max_speed_m_s,
+            } => Self {
+                satisfied: true,
+                gamma: Some(f64::from(gamma)),
+                min_speed_m_s: Some(f64::from(min_speed_m_s)),
+                max_speed_m_s: Some(f64::from(max_speed_m_s)),
+            },
+            GainBound::Violated { gamma } => Self {
+                satisfied: false,
+                gamma: Some(f64::from(gamma)),
+                min_speed_m_s: None,
+                max_speed_m_s: None,
+            },
+            GainBound::ReferenceNotExciting => Self {
+                satisfied: false,
+                gamma: None,
+                min_speed_m_s: None,
+                max_speed_m_s: None,
+            },
+        }
+    }
+}
+
+/// Ticks spent in each mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct ModeTicks {
+    /// No fix yet.
+    pub awaiting_fix: u64,
+    /// Tracking (output feedback).
+    pub tracking: u64,
+    /// Failsafe.
+    pub fix_lost: u64,
+    /// State feedback.
+    pub state_feedback: u64,
+}
+
+/// The output-feedback tracker's counters (mirrors the core's
+/// `TrackerCounters`, plus the observer's rejected updates).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct TrackerReport {
+    /// Valid fixes used.
+    pub fixes_used: u32,
+    /// Fixes with a non-finite position.
+    pub invalid_fixes: u32,
+    /// Fixes older than the maximum age.
+    pub stale_fixes: u32,
+    /// Steps whose position was dead-reckoned.
+    pub dead_reckoned_steps: u32,
+    /// Times the failsafe engaged.
+    pub failsafe_entries: u32,
+    /// Non-finite commands replaced by zero.
+    pub non_finite_commands: u32,
+    /// Observer updates skipped for non-finite input.
+    pub observer_rejected_updates: u32,
+}
+
+impl TrackerReport {
+    fn of(tracker: &OutputFeedbackTracker) -> Self {
+        let c = tracker.counters();
+        Self {
+            fixes_used: c.fixes_used,
+            invalid_fixes: c.invalid_fixes,
+            stale_fixes: c.stale_fixes,
+            dead_reckoned_steps: c.dead_reckoned_steps,
+            failsafe_entries: c.failsafe_entries,
+            non_finite_commands: c.non_finite_commands,
+            observer_rejected_updates: tracker.observer_rejected_updates(),
+        }
+    }
+}
+
+/// RFID link counters: the core parser's (mirrors `RfidCounters`), the
+/// tag lookup's and the reader model's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct RfidReport {
+    /// Frames with a valid checksum.
+    pub frames_ok: u32,
+    /// Frames with a bad checksum.
+    pub bad_checksum: u32,
+    /// Aborted frames.
+    pub malformed: u32,
+    /// Bytes outside frames.
+    pub bytes_outside_frames: u32,
+    /// UART errors.
+    pub read_errors: u32,
+    /// Valid tags replaced by a later one in the same poll.
+    pub superseded: u32,
+    /// Valid frames whose tag the locator did not know.
+    pub unknown_tags: u32,
+    /// What the virtual reader sent, skipped and damaged.
+    pub reader: ReaderModelCounters,
+}
+
+/// The pilot's and the robot's device-fault counters (diff drive).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct PilotReport {
+    /// Ticks with a missing encoder read.
+    pub encoder_fault_ticks: u32,
+    /// Encoder reads rejected as implausible.
+    pub implausible_encoder_reads: u32,
+    /// Ticks with the motors stopped for encoder faults.
+    pub encoder_halt_ticks: u32,
+    /// Failed motor writes.
+    pub motor_faults: u32,
+    /// Ticks on which the drive's speed limit scaled the command.
+    pub speed_limited_ticks: u64,
+    /// Ticks on which the drive's acceleration limit acted.
+    pub accel_limited_ticks: u64,
+    /// Direction-pin changes under non-zero duty (expect 0).
+    pub reversals_under_drive: u32,
+    /// PWM writes above full scale (expect 0).
+    pub out_of_range_pwm_writes: u32,
+    /// Largest duty magnitude applied.
+    pub max_abs_duty: f64,
+}
+
+/// The figures of a run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Summary {
+    /// Scenario name.
+    pub scenario: String,
+    /// `unicycle` or `diff_drive`.
+    pub plant: &'static str,
+    /// `output_feedback` or `state_feedback`.
+    pub controller: &'static str,
+    /// `exact`, `nearest_tag` or `reader`.
+    pub position_source: &'static str,
+    /// Which core entry point ran: `tracker`, `controller`, `robot` or `pilot`.
+    pub code_path: &'static str,
+    /// Control ticks run.
+    pub ticks: u32,
+    /// Control period, s.
+    pub period_s: f64,
+    /// Simulated time, s.
+    pub duration_s: f64,
+    /// Statistics window start, s.
+    pub transient_s: f64,
+    /// Ticks in the statistics window.
+    pub samples: u64,
+    /// Largest tracking error over `t ≥ transient_s`, m.
+    pub max_error_m: f64,
+    /// Mean tracking error over `t ≥ transient_s`, m.
+    pub mean_error_m: f64,
+    /// RMS tracking error over `t ≥ transient_s`, m.
+    pub rms_error_m: f64,
+    /// Tracking error at the last tick, m.
+    pub final_error_m: f64,
+    /// Largest `|θ̂ − θ|` over `t ≥ transient_s`, rad (output feedback).
+    pub max_heading_error_rad: Option<f64>,
+    /// Ticks whose record holds a non-finite number (expect 0).
+    pub non_finite_ticks: u64,
+    /// The gain bound (15).
+    pub gain_bound: GainBoundReport,
+    /// Ticks per mode.
+    pub mode_ticks: ModeTicks,
+    /// Tracker counters (output feedback).
+    pub tracker: Option<TrackerReport>,
+    /// RFID link counters (reader source).
+    pub rfid: Option<RfidReport>,
+    /// Drive and device counters (diff drive).
+    pub pilot: Option<PilotReport>,
+    /// Tags on the simulated floor.
+    pub floor_tags: Option<usize>,
+    /// Wall-clock time of the run, s.
+    pub wall_time_s: f64,
+}
+
+/// Everything a run produced.
+#[derive(Debug, Clone)]
+pub struct RunResult {
+    /// The scenario run.
+    pub scenario: Scenario,
+    /// Its validated setup.
+    pub setup: Setup,
+    /// One record per tick.
+    pub records: Vec<Record>,
+    /// The figures.
+    pub summary: Summary,
+}
+
+/// Validates and runs a scenario. `progress(done, total)` is called every
+/// 1000 ticks and at the end.
+///
+/// # Errors
+/// The scenario's validation error.
+pub fn run(
+    scenario: &Scenario,
+    progress: impl FnMut(u64, u64),
+) -> Result<RunResult, ScenarioError> {
+    let setup = scenario.validate()?;
+    let wall = Instant::now();
+    let mut rig = Rig::new(&setup);
+    let mut records = Vec::with_capacity(setup.ticks as usize);
+    let mut progress = progress;
+    let total = u64::from(setup.ticks);
+    for k in 0..setup.ticks {
+        let t = f64::from(k) * setup.period_s;
+        records.push(rig.tick(k, t));
+        rig.advance(setup.period_s);
+        if (k + 1) % PROGRESS_EVERY == 0 {
+            progress(u64::from(k) + 1, total);
+        }
+    }
+    progress(total, total);
+    let summary = summarize(
+        scenario,
+        &setup,
+        &records,
+        &rig,
+        wall.elapsed().as_secs_f64(),
+    );
+    Ok(RunResult {
+        scenario: scenario.clone(),
+        setup,
+        records,
+        summary,
+    })
+}
+
+// ---------------------------------------------------------------------------
+// Position sources that do not go through the robot.
+
+/// Exact, nearest-tag, or reader + UART + core parser + tag grid.
+// One instance per run: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug)]
+enum Source {
+    Exact,
+    Nearest(FloorTags),
+    Reader {
+        model: VirtualRfidReader,
+        rfid: RfidReader<VirtualUart>,
+        floor: FloorTags,
+        unknown_tags: u32,
+    },
+}
+
+impl Source {
+    fn new(setup: &PositionSetup) -> Self {
+        match *setup {
+            PositionSetup::Exact => Self::Exact,
+            PositionSetup::NearestTag(floor) => Self::Nearest(floor),
+            PositionSetup::Reader(floor, config) => {
+                let (model, uart) = VirtualRfidReader::new(config, floor);
+                Self::Reader {
+                    model,
+                    rfid: RfidReader::new(uart),
+                    floor,
+                    unknown_tags: 0,
+                }
+            }
+        }
+    }
+
+    fn measure(&mut self, t_s: f64, pose: &PlantPose) -> Option<TagFix> {
+        let position = match self {
+            Self::Exact => Vec2::new(pose.x_m as f32, pose.y_m as f32),
+            Self::Nearest(floor) => floor.nearest(pose.x_m, pose.y_m).position,
+            Self::Reader {
+                model,
+                rfid,
+                floor,
+                unknown_tags,
+            } => {
+                model.update(t_s, pose);
+                let id = rfid.poll()?;
+                match floor.locate(id) {
+                    Some(p) => p,
+                    None => {
+                        *unknown_tags = unknown_tags.saturating_add(1);
+                        return None;
+                    }
+                }
+            }
+        };
+        Some(TagFix {
+            position,
+            age_ticks: 0,
+        })
+    }
+
+    fn floor_tags(&self) -> Option<usize> {
+        match self {
+            Self::Exact => None,
+            Self::Nearest(f) | Self::Reader { floor: f, .. } => Some(f.len()),
+        }
+    }
+
+    fn report(&self) -> Option<RfidReport> {
+        match self {
+            Self::Reader {
+                model,
+                rfid,
+                unknown_tags,
+                ..
+            } => Some(rfid_report(
+                rfid.counters(),
+                *unknown_tags,
+                model.counters(),
+            )),
+            _ => None,
+        }
+    }
+}
+
+fn rfid_report(
+    c: wmr_core::devices::RfidCounters,
+    unknown_tags: u32,
+    reader: ReaderModelCounters,
+) -> RfidReport {
+    RfidReport {
+        frames_ok: c.frames_ok,
+        bad_checksum: c.bad_checksum,
+        malformed: c.malformed,
+        bytes_outside_frames: c.bytes_outside_frames,
+        read_errors: c.read_errors,
+        superseded: c.superseded,
+        unknown_tags,
+        reader,
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Diff-drive hardware around the core.
+
+type VirtualMotor = MotorDriver<VirtualPwm, VirtualDirectionPin>;
+type SimRobot = Robot<
+    VirtualEncoder,
+    VirtualEncoder,
+    VirtualMotor,
+    VirtualMotor,
+    VirtualUart,
+    wmr_core::devices::TagGrid,
+>;
+
+/// The diff-drive body and its virtual devices' plant-side handles.
+#[derive(Debug)]
+struct Hardware {
+    plant: DiffDrivePlant,
+    signals: (MotorSignals, MotorSignals),
+    shafts: (WheelShaft, WheelShaft),
+    limits: (u64, u64),
+    max_abs_duty: f64,
+}
+
+/// The devices the core drives.
+struct Devices {
+    encoders: (VirtualEncoder, VirtualEncoder),
+    motors: (VirtualMotor, VirtualMotor),
+}
+
+impl Hardware {
+    fn new(
+        params: DiffDriveParams,
+        pose: PlantPose,
+        counts_per_rev: u32,
+        bits: u32,
+        pwm_max: u16,
+    ) -> (Self, Devices) {
+        let signals = (MotorSignals::new(pwm_max), MotorSignals::new(pwm_max));
+        let shafts = (WheelShaft::new(), WheelShaft::new());
+        let motor = |s: &MotorSignals| {
+            MotorDriver::new(
+                VirtualPwm::new(s.clone()),
+                VirtualDirectionPin::new(s.clone()),
+                MotorWiring::default(),
+            )
+        };
+        let devices = Devices {
+            encoders: (
+                VirtualEncoder::new(shafts.0.clone(), counts_per_rev, bits),
+                VirtualEncoder::new(shafts.1.clone(), counts_per_rev, bits),
+            ),
+            motors: (motor(&signals.0), motor(&signals.1)),
+        };
+        (
+            Self {
+                plant: DiffDrivePlant::new(params, pose),
+                signals,
+                shafts,
+                limits: (0, 0),
+                max_abs_duty: 0.0,
+            },
+            devices,
+        )
+    }
+
+    fn duties(&self) -> (f64, f64) {
+        (self.signals.0.signed_duty(), self.signals.1.signed_duty())
+    }
+
+    fn note(&mut self, out: &PilotOutput) {
+        self.limits.0 += u64::from(out.drive.speed_limited);
+        self.limits.1 += u64::from(out.drive.accel_limited);
+        let (l, r) = self.duties();
+        self.max_abs_duty = self.max_abs_duty.max(l.abs()).max(r.abs());
+    }
+
+    fn advance(&mut self, dt_s: f64) {
+        let (l, r) = self.duties();
+        self.plant.step(l, r, dt_s);
+        let (al, ar) = self.plant.wheel_angles_rad();
+        self.shafts.0.set_angle_rad(al);
+        self.shafts.1.set_angle_rad(ar);
+    }
+
+    fn report(&self, pilot: &Pilot, motor_faults: u32) -> PilotReport {
+        let c = pilot.counters();
+        let (l, r) = (self.signals.0.line(), self.signals.1.line());
+        PilotReport {
+            encoder_fault_ticks: c.encoder_fault_ticks,
+            implausible_encoder_reads: c.implausible_encoder_reads,
+            encoder_halt_ticks: c.encoder_halt_ticks,
+            motor_faults,
+            speed_limited_ticks: self.limits.0,
+            accel_limited_ticks: self.limits.1,
+            reversals_under_drive: l.reversals_under_drive + r.reversals_under_drive,
+            out_of_range_pwm_writes: l.out_of_range_writes + r.out_of_range_writes,
+            max_abs_duty: self.max_abs_duty,
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// The four ways a tick runs.
+
+/// What the controller side produced at one tick.
+struct Outcome {
+    reference: Vec2,
+    position: Option<Vec2>,
+    heading: Option<HeadingEstimate>,
+    command: BodyVelocity,
+    fix: bool,
+    mode: Mode,
+    duties: Option<(f64, f64)>,
+}
+
+impl Outcome {
+    fn of_tracker(out: &wmr_core::output_feedback::TrackerOutput, fix: bool) -> Self {
+        let awaiting = out.mode == TrackerMode::AwaitingFix;
+        Self {
+            reference: out.reference.position,
+            position: (!awaiting).then_some(out.position),
+            heading: Some(out.heading),
+            command: out.command,
+            fix,
+            mode: out.mode.into(),
+            duties: None,
+        }
+    }
+}
+
+// One instance per run: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
+enum Rig {
+    /// Unicycle + the core's output-feedback tracker.
+    Tracker {
+        plant: Unicycle,
+        tracker: OutputFeedbackTracker,
+        source: Source,
+        last: BodyVelocity,
+        period_s: f32,
+    },
+    /// Unicycle + the core's state-feedback law.
+    Controller {
+        plant: Unicycle,
+        controller: TrackingController,
+        trajectory: Trajectory,
+        clock: TickClock,
+        source: Source,
+        last: BodyVelocity,
+    },
+    /// Diff drive + the core's Robot (reader source).
+    Robot {
+        hw: Hardware,
+        robot: SimRobot,
+        reader: VirtualRfidReader,
+        floor: FloorTags,
+    },
+    /// Diff drive + the core's Pilot (exact / nearest-tag source).
+    Pilot {
+        hw: Hardware,
+        devices: Devices,
+        pilot: Pilot,
+        source: Source,
+        motor_faults: u32,
+    },
+}
+
+impl Rig {
+    fn new(setup: &Setup) -> Self {
+        let pose = setup.initial_pose;
+        match (setup.plant, setup.controller) {
+            (PlantSetup::Unicycle, ControllerKind::OutputFeedback) => {
+                let observer = HeadingObserver::with_initial_estimate(
+                    *setup.tracker.observer(),
+                    setup.initial_estimate,
+                )
+                .unwrap_or_else(|_| HeadingObserver::new(*setup.tracker.observer()));
+                Self::Tracker {
+                    plant: Unicycle::new(pose),
+                    tracker: OutputFeedbackTracker::with_observer(setup.tracker, observer),
+                    source: Source::new(&setup.position),
+                    last: BodyVelocity::ZERO,
+                    period_s: setup.period_s as f32,
+                }
+            }
+            (PlantSetup::Unicycle, ControllerKind::StateFeedback) => Self::Controller {
+                plant: Unicycle::new(pose),
+                controller: TrackingController::new(setup.gains),
+                trajectory: setup.trajectory,
+                clock: *setup.tracker.clock(),
+                source: Source::new(&setup.position),
+                last: BodyVelocity::ZERO,
+            },
+            (
+                PlantSetup::DiffDrive {
+                    params,
+                    encoder_counts_per_rev,
+                    encoder_bits,
+                    pwm_max_duty,
+                    pilot,
+                },
+                _,
+            ) => {
+                let (hw, devices) = Hardware::new(
+                    params,
+                    pose,
+                    encoder_counts_per_rev,
+                    encoder_bits,
+                    pwm_max_duty,
+                );
+                let pilot = new_pilot(pilot);
+                match setup.position {
+                    PositionSetup::Reader(floor, config) => {
+                        Self::robot(hw, devices, pilot, floor, config)
+                    }
+                    _ => Self::Pilot {
+                        hw,
+                        devices,
+                        pilot,
+                        source: Source::new(&setup.position),
+                        motor_faults: 0,
+                    },
+                }
+            }
+        }
+    }
+
+    fn robot(
+        hw: Hardware,
+        devices: Devices,
+        pilot: Pilot,
+        floor: FloorTags,
+        config: ReaderConfig,
+    ) -> Self {
+        let (reader, uart) = VirtualRfidReader::new(config, floor);
+        let robot = Robot::new(
+            pilot,
+            devices.encoders,
+            devices.motors,
+            RfidReader::new(uart),
+            *floor.grid(),
+        );
+        Self::Robot {
+            hw,
+            robot,
+            reader,
+            floor,
+        }
+    }
+
+    fn pose(&self) -> PlantPose {
+        match self {
+            Self::Tracker { plant, .. } | Self::Controller { plant, .. } => plant.pose(),
+            Self::Robot { hw, .. } | Self::Pilot { hw, .. } => hw.plant.pose(),
+        }
+    }
+
+    fn tick(&mut self, k: u32, t_s: f64) -> Record {
+        let pose = self.pose();
+        let outcome = match self {
+            Self::Tracker {
+                tracker,
+                source,
+                last,
+                period_s,
+                ..
+            } => {
+                let h = *period_s;
+                let odometry = OdometryStep {
+                    ds_m: last.v_m_s * h,
+                    dtheta_rad: last.omega_rad_s * h,
+                    body: *last,
+                    wheels: Default::default(),
+                };
+                let fix = source.measure(t_s, &pose);
+                let out = tracker.step(&odometry, fix);
+                *last = out.command;
+                Outcome::of_tracker(&out, fix.is_some())
+            }
+            Self::Controller {
+                controller,
+                trajectory,
+                clock,
+                source,
+                last,
+                ..
+            } => {
+                let reference = trajectory.sample(clock.time_s(k));
+                // Validation admits only sources with a position every tick.
+                let fix = source.measure(t_s, &pose);
+                let position =
+                    fix.map_or(Vec2::new(pose.x_m as f32, pose.y_m as f32), |f| f.position);
+                let law = controller.state_feedback(
+                    &reference,
+                    Pose {
+                        position,
+                        heading_rad: pose.wrapped_heading_rad() as f32,
+                    },
+                );
+                *last = if law.body.is_finite() {
+                    law.body
+                } else {
+                    BodyVelocity::ZERO
+                };
+                Outcome {
+                    reference: reference.position,
+                    position: Some(position),
+                    heading: None,
+                    command: *last,
+                    fix: fix.is_some(),
+                    mode: Mode::StateFeedback,
+                    duties: None,
+                }
+            }
+            Self::Robot {
+                hw, robot, reader, ..
+            } => {
+                reader.update(t_s, &pose);
+                let out = robot.tick();
+                hw.note(&out.pilot);
+                Outcome {
+                    duties: Some(hw.duties()),
+                    ..Outcome::of_tracker(&out.pilot.tracker, out.fix.is_some())
+                }
+            }
+            Self::Pilot {
+                hw,
+                devices,
+                pilot,
+                source,
+                motor_faults,
+            } => {
+                let fix = source.measure(t_s, &pose);
+                let measurement = Measurement {
+                    left_count: devices.encoders.0.raw_count().ok(),
+                    right_count: devices.encoders.1.raw_count().ok(),
+                    fix,
+                };
+                let out = pilot.step(&measurement);
+                for result in [
+                    drive(&mut devices.motors.0, out.left),
+                    drive(&mut devices.motors.1, out.right),
+                ] {
+                    *motor_faults += u32::from(!result);
+                }
+                hw.note(&out);
+                Outcome {
+                    duties: Some(hw.duties()),
+                    ..Outcome::of_tracker(&out.tracker, fix.is_some())
+                }
+            }
+        };
+        record(k, t_s, &pose, &outcome)
+    }
+
+    fn advance(&mut self, dt_s: f64) {
+        match self {
+            Self::Tracker { plant, last, .. } | Self::Controller { plant, last, .. } => {
+                plant.step(f64::from(last.v_m_s), f64::from(last.omega_rad_s), dt_s);
+            }
+            Self::Robot { hw, .. } | Self::Pilot { hw, .. } => hw.advance(dt_s),
+        }
+    }
+
+    fn code_path(&self) -> &'static str {
+        match self {
+            Self::Tracker { .. } => "tracker",
+            Self::Controller { .. } => "controller",
+            Self::Robot { .. } => "robot",
+            Self::Pilot { .. } => "pilot",
+        }
+    }
+}
+
+/// A pilot from a validated configuration.
+fn new_pilot(config: PilotConfig) -> Pilot {
+    // `PilotConfig::new` already checked the counter width, the only
+    // thing `Pilot::new` can refuse.
+    #[allow(clippy::expect_used)]
+    Pilot::new(config).expect("validated pilot configuration")
+}
+
+/// Drives a motor as `Robot::tick` does (stop on a fault); false on a fault.
+fn drive<M: Motor>(motor: &mut M, command: wmr_core::devices::MotorCommand) -> bool {
+    if motor.drive(command).is_ok() {
+        true
+    } else {
+        let _ = motor.drive(wmr_core::devices::MotorCommand::STOP);
+        false
+    }
+}
+
+fn record(k: u32, t_s: f64, pose: &PlantPose, o: &Outcome) -> Record {
+    let (rx, ry) = (f64::from(o.reference.x), f64::from(o.reference.y));
+    let theta = pose.wrapped_heading_rad();
+    let est_theta = o.heading.map(|h| f64::from(h.heading_rad()));
+    Record {
+        tick: k,
+        t_s,
+        x_m: pose.x_m,
+        y_m: pose.y_m,
+        theta_rad: theta,
+        ref_x_m: rx,
+        ref_y_m: ry,
+        est_x_m: o.position.map(|p| f64::from(p.x)),
+        est_y_m: o.position.map(|p| f64::from(p.y)),
+        est_cos: o.heading.map(|h| f64::from(h.cos_theta)),
+        est_sin: o.heading.map(|h| f64::from(h.sin_theta)),
+        est_theta_rad: est_theta,
+        heading_error_rad: est_theta.map(|e| wrap_angle(e - theta)),
+        v_cmd_m_s: f64::from(o.command.v_m_s),
+        omega_cmd_rad_s: f64::from(o.command.omega_rad_s),
+        left_duty: o.duties.map(|d| d.0),
+        right_duty: o.duties.map(|d| d.1),
+        fix: o.fix,
+        mode: o.mode,
+        error_m: (pose.x_m - rx).hypot(pose.y_m - ry),
+    }
+}
+
+impl Record {
+    /// Whether every number in the record is finite.
+    #[must_use]
+    pub fn is_finite(&self) -> bool {
+        let opt = |v: Option<f64>| v.is_none_or(f64::is_finite);
+        [
+            self.x_m,
+            self.y_m,
+            self.theta_rad,
+            self.ref_x_m,
+            self.ref_y_m,
+            self.v_cmd_m_s,
+            self.omega_cmd_rad_s,
+            self.error_m,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
+            && [
+                self.est_x_m,
+                self.est_y_m,
+                self.est_cos,
+                self.est_sin,
+                self.est_theta_rad,
+                self.heading_error_rad,
+                self.left_duty,
+                self.right_duty,
+            ]
+            .into_iter()
+            .all(opt)
+    }
+}
+
+/// Error statistics over the records with `t ≥ from_s`:
+/// `(samples, max, mean, rms)`.
+#[must_use]
+pub fn error_stats(records: &[Record], from_s: f64) -> (u64, f64, f64, f64) {
+    let mut n = 0_u64;
+    let (mut max, mut sum, mut sum_sq) = (0.0_f64, 0.0, 0.0);
+    for r in records.iter().filter(|r| r.t_s >= from_s - 1e-9) {
+        n += 1;
+        max = max.max(r.error_m);
+        sum += r.error_m;
+        sum_sq += r.error_m * r.error_m;
+    }
+    if n == 0 {
+        return (0, f64::NAN, f64::NAN, f64::NAN);
+    }
+    let nf = n as f64;
+    (n, max, sum / nf, (sum_sq / nf).sqrt())
+}
+
+fn summarize(
+    scenario: &Scenario,
+    setup: &Setup,
+    records: &[Record],
+    rig: &Rig,
+    wall_s: f64,
+) -> Summary {
+    let (samples, max, mean, rms) = error_stats(records, setup.transient_s);
+    let mut modes = ModeTicks::default();
+    for r in records {
+        match r.mode {
+            Mode::AwaitingFix => modes.awaiting_fix += 1,
+            Mode::Tracking => modes.tracking += 1,
+            Mode::FixLost => modes.fix_lost += 1,
+            Mode::StateFeedback => modes.state_feedback += 1,
+        }
+    }
+    let max_heading_error_rad = records
+        .iter()
+        .filter(|r| r.t_s >= setup.transient_s - 1e-9)
+        .filter_map(|r| r.heading_error_rad)
+        .map(f64::abs)
+        .reduce(f64::max);
+    let (tracker, rfid, pilot, floor_tags) = match rig {
+        Rig::Tracker {
+            tracker, source, ..
+        } => (
+            Some(TrackerReport::of(tracker)),
+            source.report(),
+            None,
+            source.floor_tags(),
+        ),
+        Rig::Controller { source, .. } => (None, source.report(), None, source.floor_tags()),
+        Rig::Robot {
+            hw,
+            robot,
+            reader,
+            floor,
+        } => (
+            Some(TrackerReport::of(robot.pilot().tracker())),
+            Some(rfid_report(
+                robot.rfid_counters(),
+                robot.counters().unknown_tags,
+                reader.counters(),
+            )),
+            Some(hw.report(robot.pilot(), robot.counters().motor_faults)),
+            Some(floor.len()),
+        ),
+        Rig::Pilot {
+            hw,
+            pilot,
+            source,
+            motor_faults,
+            ..
+        } => (
+            Some(TrackerReport::of(pilot.tracker())),
+            source.report(),
+            Some(hw.report(pilot, *motor_faults)),
+            source.floor_tags(),
+        ),
+    };
+    let gain_bound = match setup.controller {
+        ControllerKind::OutputFeedback => setup.tracker.gain_bound(),
+        ControllerKind::StateFeedback => setup.gains.check_bound(setup.trajectory.speed_bounds()),
+    };
+    Summary {
+        scenario: scenario.name.clone(),
+        plant: match setup.plant {
+            PlantSetup::Unicycle => "unicycle",
+            PlantSetup::DiffDrive { .. } => "diff_drive",
+        },
+        controller: match setup.controller {
+            ControllerKind::OutputFeedback => "output_feedback",
+            ControllerKind::StateFeedback => "state_feedback",
+        },
+        position_source: match setup.position {
+            PositionSetup::Exact => "exact",
+            PositionSetup::NearestTag(_) => "nearest_tag",
+            PositionSetup::Reader(..) => "reader",
+        },
+        code_path: rig.code_path(),
+        ticks: setup.ticks,
+        period_s: setup.period_s,
+        duration_s: f64::from(setup.ticks) * setup.period_s,
+        transient_s: setup.transient_s,
+        samples,
+        max_error_m: max,
+        mean_error_m: mean,
+        rms_error_m: rms,
+        final_error_m: records.last().map_or(f64::NAN, |r| r.error_m),
+        max_heading_error_rad,
+        non_finite_ticks: records.iter().filter(|r| !r.is_finite()).count() as u64,
+        gain_bound: gain_bound.into(),
+        mode_ticks: modes,
+        tracker,
+        rfid,
+        pilot,
+        floor_tags,
+        wall_time_s: wall_s,
+    }
+}

@@ -1,0 +1,1236 @@
+//! Scenarios: what to simulate, as TOML, validated into the core's configs.
+//!
+//! A scenario file names every quantity with its unit (`period_s`, `h1_m`);
+//! everything but `name`, `duration_s` and the reference has a default (the
+//! paper's section 6.3.2 values where the paper gives one). Unknown keys are
+//! errors, and every validation error names the offending field:
+//!
+//! ```text
+//! scenario field `observer.gain_per_m`: must be finite and > 0 (got -1)
+//! ```
+//!
+//! [`Scenario::validate`] turns a scenario into a [`Setup`]: the core's own
+//! validated configurations ([`TrackerConfig`], [`PilotConfig`], ...) plus the
+//! simulator's plant, floor and reader models.
+
+use std::f64::consts::FRAC_PI_2;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use wmr_core::drive::{DriveConfig, SpeedLoopGains};
+use wmr_core::geometry::{DiffDriveGeometry, Vec2};
+use wmr_core::heading_observer::{HeadingEstimate, HeadingObserverConfig};
+use wmr_core::output_feedback::TrackerConfig;
+use wmr_core::pilot::PilotConfig;
+use wmr_core::reference::{Circle, FigureEight, StraightLine, Trajectory};
+use wmr_core::tracking::TrackingGains;
+
+use crate::devices::{LinkFaults, ReaderConfig, ReaderMode};
+use crate::plant::{DiffDriveParams, PlantPose};
+use crate::tags::FloorTags;
+
+/// Why a scenario was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    #[error("cannot read scenario file {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// Not valid TOML, or not the scenario schema (the message names the
+    /// key and the line).
+    #[error("scenario is not valid: {0}")]
+    Parse(String),
+    /// A value out of range or inconsistent with another.
+    #[error("scenario field `{field}`: {reason}")]
+    Invalid {
+        /// Dotted path of the field, e.g. `plant.wheel_radius_m`.
+        field: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+}
+
+impl ScenarioError {
+    fn invalid(field: &str, reason: impl Into<String>) -> Self {
+        Self::Invalid {
+            field: field.to_owned(),
+            reason: reason.into(),
+        }
+    }
+
+    /// The offending field's dotted path, for [`Self::Invalid`].
+    #[must_use]
+    pub fn field(&self) -> Option<&str> {
+        match self {
+            Self::Invalid { field, .. } => Some(field),
+            _ => None,
+        }
+    }
+}
+
+/// A simulation scenario (the TOML file's top level).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Short name (used for the default output directory).
+    pub name: String,
+    /// Free text.
+    #[serde(default)]
+    pub description: String,
+    /// Simulated time, s.
+    pub duration_s: f64,
+    /// Control period `h`, s.
+    #[serde(default = "defaults::period_s")]
+    pub period_s: f64,
+    /// Error statistics are taken over `t ≥ transient_s`, s.
+    #[serde(default)]
+    pub transient_s: f64,
+    /// The reference trajectory.
+    pub reference: ReferenceSpec,
+    /// Initial pose and observer estimate.
+    #[serde(default)]
+    pub initial: InitialSpec,
+    /// Tracking law and gains.
+    #[serde(default)]
+    pub controller: ControllerSpec,
+    /// Heading observer (output feedback only).
+    #[serde(default)]
+    pub observer: ObserverSpec,
+    /// The simulated robot body.
+    #[serde(default)]
+    pub plant: PlantSpec,
+    /// Drive limits and speed loops (`diff_drive` plant only).
+    #[serde(default)]
+    pub drive: Option<DriveSpec>,
+    /// Where the position measurement comes from.
+    #[serde(default)]
+    pub position: PositionSpec,
+    /// What the tracker does when fixes stop.
+    #[serde(default)]
+    pub failsafe: FailsafeSpec,
+}
+
+/// The reference trajectory.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ReferenceSpec {
+    /// Paper 001's figure-eight, `x = h1 sin 2s`, `y = h1 sin s`, `s = h2 t + φ`.
+    FigureEight {
+        /// Half-width `h1`, m.
+        #[serde(default = "defaults::h1_m")]
+        h1_m: f64,
+        /// Rate `h2`, rad/s.
+        #[serde(default = "defaults::h2_rad_s")]
+        h2_rad_s: f64,
+        /// Phase `φ`, rad (−π/2 starts at (0, −h1), as the paper's runs).
+        #[serde(default = "defaults::phase_rad")]
+        phase_rad: f64,
+    },
+    /// A circle.
+    Circle {
+        /// Centre `[x, y]`, m.
+        #[serde(default)]
+        center_m: [f64; 2],
+        /// Radius, m.
+        radius_m: f64,
+        /// Angular rate, rad/s (negative: clockwise).
+        rate_rad_s: f64,
+        /// Polar angle of the start point, rad.
+        #[serde(default)]
+        phase_rad: f64,
+    },
+    /// A straight line at constant speed.
+    Line {
+        /// Start `[x, y]`, m.
+        #[serde(default)]
+        start_m: [f64; 2],
+        /// Direction, rad.
+        #[serde(default)]
+        heading_rad: f64,
+        /// Speed, m/s.
+        speed_m_s: f64,
+    },
+}
+
+/// Initial pose of the robot and of the observer's estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSpec {
+    /// x, m.
+    #[serde(default)]
+    pub x_m: f64,
+    /// y, m.
+    #[serde(default)]
+    pub y_m: f64,
+    /// Heading θ(0), rad.
+    #[serde(default)]
+    pub heading_rad: f64,
+    /// Observer's initial `ẑ3` (estimate of cos θ); 0 = heading unknown.
+    #[serde(default)]
+    pub estimate_cos: f64,
+    /// Observer's initial `ẑ4` (estimate of sin θ).
+    #[serde(default)]
+    pub estimate_sin: f64,
+}
+
+/// Which tracking law.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ControllerKind {
+    /// Observer (5) + law (27)–(28): position only (paper 001, Theorem 3).
+    #[default]
+    OutputFeedback,
+    /// Law (14) with the true heading (paper 001, Theorem 2).
+    StateFeedback,
+}
+
+/// Tracking law and gains.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControllerSpec {
+    /// Which law.
+    #[serde(default)]
+    pub kind: ControllerKind,
+    /// `k1`, m/s.
+    #[serde(default = "defaults::k12")]
+    pub k1: f64,
+    /// `k2`, m/s.
+    #[serde(default = "defaults::k12")]
+    pub k2: f64,
+    /// `k3`, 1/s.
+    #[serde(default = "defaults::k3")]
+    pub k3: f64,
+}
+
+impl Default for ControllerSpec {
+    fn default() -> Self {
+        Self {
+            kind: ControllerKind::default(),
+            k1: defaults::k12(),
+            k2: defaults::k12(),
+            k3: defaults::k3(),
+        }
+    }
+}
+
+/// Heading observer parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObserverSpec {
+    /// Observer gain `L`, 1/m.
+    #[serde(default = "defaults::gain_per_m")]
+    pub gain_per_m: f64,
+    /// Speed below which position changes are ignored, m/s.
+    #[serde(default = "defaults::min_speed_m_s")]
+    pub min_speed_m_s: f64,
+}
+
+impl Default for ObserverSpec {
+    fn default() -> Self {
+        Self {
+            gain_per_m: defaults::gain_per_m(),
+            min_speed_m_s: defaults::min_speed_m_s(),
+        }
+    }
+}
+
+/// The simulated robot body.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PlantSpec {
+    /// Paper 001's kinematic unicycle (1): commands are velocities. The
+    /// core's tracker (or controller) is called directly.
+    #[default]
+    Unicycle,
+    /// Two DC motors, PWM drivers, quadrature encoders: runs the core's
+    /// `Robot` (or `Pilot`) against virtual devices.
+    DiffDrive {
+        /// Wheel radius, m.
+        #[serde(default = "defaults::wheel_radius_m")]
+        wheel_radius_m: f64,
+        /// Track width, m.
+        #[serde(default = "defaults::track_width_m")]
+        track_width_m: f64,
+        /// Motor + wheel time constant `τ`, s.
+        #[serde(default = "defaults::motor_time_constant_s")]
+        motor_time_constant_s: f64,
+        /// Wheel speed at full duty, rad/s.
+        #[serde(default = "defaults::wheel_speed_at_full_duty_rad_s")]
+        wheel_speed_at_full_duty_rad_s: f64,
+        /// Quadrature counts per wheel revolution.
+        #[serde(default = "defaults::encoder_counts_per_rev")]
+        encoder_counts_per_rev: u32,
+        /// Width of the hardware encoder counters, bits.
+        #[serde(default = "defaults::encoder_bits")]
+        encoder_bits: u32,
+        /// PWM full-scale duty, steps.
+        #[serde(default = "defaults::pwm_max_duty")]
+        pwm_max_duty: u16,
+        /// RK4 substeps per control period.
+        #[serde(default = "defaults::substeps")]
+        substeps: u32,
+    },
+}
+
+/// Drive limits and per-wheel speed loops (`diff_drive` plant only).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveSpec {
+    /// Wheel speed limit, rad/s.
+    #[serde(default = "defaults::max_wheel_speed_rad_s")]
+    pub max_wheel_speed_rad_s: f64,
+    /// Wheel acceleration limit, rad/s².
+    #[serde(default = "defaults::max_wheel_accel_rad_s2")]
+    pub max_wheel_accel_rad_s2: f64,
+    /// Feed-forward, duty per rad/s (default: 1 / wheel speed at full duty).
+    #[serde(default)]
+    pub feedforward_duty_per_rad_s: Option<f64>,
+    /// Proportional gain, duty per rad/s.
+    #[serde(default = "defaults::kp_duty_per_rad_s")]
+    pub kp_duty_per_rad_s: f64,
+    /// Integral gain, duty per rad.
+    #[serde(default = "defaults::ki_duty_per_rad")]
+    pub ki_duty_per_rad: f64,
+}
+
+impl Default for DriveSpec {
+    fn default() -> Self {
+        Self {
+            max_wheel_speed_rad_s: defaults::max_wheel_speed_rad_s(),
+            max_wheel_accel_rad_s2: defaults::max_wheel_accel_rad_s2(),
+            feedforward_duty_per_rad_s: None,
+            kp_duty_per_rad_s: defaults::kp_duty_per_rad_s(),
+            ki_duty_per_rad: defaults::ki_duty_per_rad(),
+        }
+    }
+}
+
+/// When the virtual reader reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ReaderModeSpec {
+    /// The nearest tag, every tick (paper 001, section 6.3.2).
+    #[default]
+    Paper,
+    /// Tags within `read_radius_m`, on entry and every `repeat_interval_s`.
+    Range,
+}
+
+/// Where the position measurement comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PositionSpec {
+    /// The true position, every tick.
+    #[default]
+    Exact,
+    /// The nearest tag's position, every tick, with no reader or UART in
+    /// between (paper 001, section 6.3.2).
+    NearestTag {
+        /// Tag spacing, m.
+        #[serde(default = "defaults::spacing_m")]
+        spacing_m: f64,
+        /// A lattice point `[x, y]`, m.
+        #[serde(default)]
+        offset_m: [f64; 2],
+        /// Margin around the reference and start when `extent_m` is not given, m.
+        #[serde(default = "defaults::margin_m")]
+        margin_m: f64,
+        /// Covered rectangle `[x_min, y_min, x_max, y_max]`, m (default: automatic).
+        #[serde(default)]
+        extent_m: Option<[f64; 4]>,
+    },
+    /// Frames from a virtual RFID reader over a virtual UART, parsed by the
+    /// core's reader and looked up in the core's tag grid.
+    Reader {
+        /// Tag spacing, m.
+        #[serde(default = "defaults::spacing_m")]
+        spacing_m: f64,
+        /// A lattice point `[x, y]`, m.
+        #[serde(default)]
+        offset_m: [f64; 2],
+        /// Margin around the reference and start when `extent_m` is not given, m.
+        #[serde(default = "defaults::margin_m")]
+        margin_m: f64,
+        /// Covered rectangle `[x_min, y_min, x_max, y_max]`, m (default: automatic).
+        #[serde(default)]
+        extent_m: Option<[f64; 4]>,
+        /// `paper` (nearest tag every tick) or `range`.
+        #[serde(default)]
+        mode: ReaderModeSpec,
+        /// Read radius around the antenna (`range` mode), m.
+        #[serde(default = "defaults::read_radius_m")]
+        read_radius_m: f64,
+        /// Antenna ahead of the axle midpoint, m.
+        #[serde(default)]
+        antenna_offset_m: f64,
+        /// Line speed, baud.
+        #[serde(default = "defaults::baud")]
+        baud: u32,
+        /// Repeat interval while a tag stays in range (`range` mode), s.
+        #[serde(default = "defaults::repeat_interval_s")]
+        repeat_interval_s: f64,
+        /// Probability that a byte arrives with a flipped bit.
+        #[serde(default)]
+        corrupt_byte_probability: f64,
+        /// Probability that a frame is lost.
+        #[serde(default)]
+        drop_frame_probability: f64,
+        /// Seed of the fault RNG.
+        #[serde(default = "defaults::seed")]
+        seed: u64,
+    },
+}
+
+/// What the tracker does when fixes stop.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FailsafeSpec {
+    /// Time without a valid fix before the failsafe engages, s.
+    #[serde(default = "defaults::fix_timeout_s")]
+    pub fix_timeout_s: f64,
+    /// Failsafe deceleration, m/s².
+    #[serde(default = "defaults::decel_m_s2")]
+    pub decel_m_s2: f64,
+}
+
+impl Default for FailsafeSpec {
+    fn default() -> Self {
+        Self {
+            fix_timeout_s: defaults::fix_timeout_s(),
+            decel_m_s2: defaults::decel_m_s2(),
+        }
+    }
+}
+
+/// Default values (serde needs functions).
+mod defaults {
+    pub fn period_s() -> f64 {
+        0.01
+    }
+    pub fn h1_m() -> f64 {
+        5.0
+    }
+    pub fn h2_rad_s() -> f64 {
+        0.02
+    }
+    pub fn phase_rad() -> f64 {
+        -super::FRAC_PI_2
+    }
+    pub fn k12() -> f64 {
+        0.11
+    }
+    pub fn k3() -> f64 {
+        0.1
+    }
+    pub fn gain_per_m() -> f64 {
+        0.6
+    }
+    pub fn min_speed_m_s() -> f64 {
+        f64::from(wmr_core::heading_observer::HeadingObserverConfig::DEFAULT_MIN_SPEED_M_S)
+    }
+    pub fn wheel_radius_m() -> f64 {
+        0.03
+    }
+    pub fn track_width_m() -> f64 {
+        0.2
+    }
+    pub fn motor_time_constant_s() -> f64 {
+        0.05
+    }
+    pub fn wheel_speed_at_full_duty_rad_s() -> f64 {
+        20.0
+    }
+    pub fn encoder_counts_per_rev() -> u32 {
+        2048
+    }
+    pub fn encoder_bits() -> u32 {
+        16
+    }
+    pub fn pwm_max_duty() -> u16 {
+        1000
+    }
+    pub fn substeps() -> u32 {
+        10
+    }
+    pub fn max_wheel_speed_rad_s() -> f64 {
+        18.0
+    }
+    pub fn max_wheel_accel_rad_s2() -> f64 {
+        50.0
+    }
+    pub fn kp_duty_per_rad_s() -> f64 {
+        0.02
+    }
+    pub fn ki_duty_per_rad() -> f64 {
+        0.5
+    }
+    pub fn spacing_m() -> f64 {
+        0.1
+    }
+    pub fn margin_m() -> f64 {
+        1.0
+    }
+    pub fn read_radius_m() -> f64 {
+        0.05
+    }
+    pub fn baud() -> u32 {
+        115_200
+    }
+    pub fn repeat_interval_s() -> f64 {
+        0.1
+    }
+    pub fn seed() -> u64 {
+        1
+    }
+    pub fn fix_timeout_s() -> f64 {
+        0.5
+    }
+    pub fn decel_m_s2() -> f64 {
+        f64::from(wmr_core::output_feedback::TrackerConfig::DEFAULT_FAILSAFE_DECEL_M_S2)
+    }
+}
+
+/// The scenarios shipped with the simulator, as `(file name, TOML text)`.
+/// The first is the default.
+pub const EMBEDDED: &[(&str, &str)] = &[
+    (
+        "figure_eight_rfid",
+        include_str!("../scenarios/figure_eight_rfid.toml"),
+    ),
+    (
+        "figure_eight_rfid_full_stack",
+        include_str!("../scenarios/figure_eight_rfid_full_stack.toml"),
+    ),
+    (
+        "figure_eight_exact",
+        include_str!("../scenarios/figure_eight_exact.toml"),
+    ),
+    (
+        "figure_eight_state_feedback",
+        include_str!("../scenarios/figure_eight_state_feedback.toml"),
+    ),
+];
+
+/// The TOML text of an embedded scenario, by file name (without `.toml`).
+#[must_use]
+pub fn embedded_source(name: &str) -> Option<&'static str> {
+    let name = name.strip_suffix(".toml").unwrap_or(name);
+    EMBEDDED.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
+}
+
+/// The validated plant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PlantSetup {
+    /// Kinematic unicycle.
+    Unicycle,
+    /// Differential drive with motors, PWM and encoders.
+    DiffDrive {
+        /// Plant parameters.
+        params: DiffDriveParams,
+        /// Encoder counts per wheel revolution.
+        encoder_counts_per_rev: u32,
+        /// Encoder counter width, bits.
+        encoder_bits: u32,
+        /// PWM full scale, steps.
+        pwm_max_duty: u16,
+        /// The core's pilot configuration (tracker + drive + encoder width).
+        pilot: PilotConfig,
+    },
+}
+
+/// The validated position source.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PositionSetup {
+    /// True position every tick.
+    Exact,
+    /// Nearest tag every tick, no reader.
+    NearestTag(FloorTags),
+    /// Virtual reader + UART + the core's parser and tag grid.
+    Reader(FloorTags, ReaderConfig),
+}
+
+/// A validated scenario: the core's configurations and the simulator's models.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Setup {
+    /// Control ticks to run.
+    pub ticks: u32,
+    /// Control period, s.
+    pub period_s: f64,
+    /// Statistics start at this time, s.
+    pub transient_s: f64,
+    /// Which law.
+    pub controller: ControllerKind,
+    /// The reference.
+    pub trajectory: Trajectory,
+    /// The gains.
+    pub gains: TrackingGains,
+    /// The output-feedback tracker's configuration (also built for state
+    /// feedback, for its gain-bound report).
+    pub tracker: TrackerConfig,
+    /// The observer's initial estimate.
+    pub initial_estimate: HeadingEstimate,
+    /// The robot's initial pose.
+    pub initial_pose: PlantPose,
+    /// The plant.
+    pub plant: PlantSetup,
+    /// The position source.
+    pub position: PositionSetup,
+}
+
+fn positive(field: &str, v: f64) -> Result<f64, ScenarioError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(ScenarioError::invalid(
+            field,
+            format!("must be finite and > 0 (got {v})"),
+        ))
+    }
+}
+
+fn non_negative(field: &str, v: f64) -> Result<f64, ScenarioError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(ScenarioError::invalid(
+            field,
+            format!("must be finite and ≥ 0 (got {v})"),
+        ))
+    }
+}
+
+fn finite(field: &str, v: f64) -> Result<f64, ScenarioError> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(ScenarioError::invalid(
+            field,
+            format!("must be finite (got {v})"),
+        ))
+    }
+}
+
+fn probability(field: &str, v: f64) -> Result<f64, ScenarioError> {
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(ScenarioError::invalid(
+            field,
+            format!("must be a probability in [0, 1] (got {v})"),
+        ))
+    }
+}
+
+/// `f32` of a validated `f64` (the core's precision).
+fn f(v: f64) -> f32 {
+    v as f32
+}
+
+impl Scenario {
+    /// Parses and validates a scenario from TOML text.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Parse`] for bad TOML or schema (unknown or missing
+    /// keys, wrong types), [`ScenarioError::Invalid`] for bad values.
+    pub fn from_toml_str(text: &str) -> Result<Self, ScenarioError> {
+        let scenario: Self =
+            toml::from_str(text).map_err(|e| ScenarioError::Parse(e.to_string()))?;
+        scenario.validate()?;
+        Ok(scenario)
+    }
+
+    /// Reads, parses and validates a scenario file.
+    ///
+    /// # Errors
+    /// As [`Self::from_toml_str`], plus [`ScenarioError::Io`].
+    pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::from_toml_str(&text).map_err(|e| match e {
+            ScenarioError::Parse(m) => ScenarioError::Parse(format!("{}: {m}", path.display())),
+            other => other,
+        })
+    }
+
+    /// An embedded scenario by name (see [`EMBEDDED`]).
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] (field `name`) for an unknown name; an
+    /// embedded scenario that does not parse is a bug, caught by the tests.
+    pub fn embedded(name: &str) -> Result<Self, ScenarioError> {
+        let text = embedded_source(name).ok_or_else(|| {
+            let names: Vec<&str> = EMBEDDED.iter().map(|(n, _)| *n).collect();
+            ScenarioError::invalid(
+                "name",
+                format!("no embedded scenario `{name}` (have: {})", names.join(", ")),
+            )
+        })?;
+        Self::from_toml_str(text)
+    }
+
+    /// The default scenario: paper 001, section 6.3.2 (figure-eight, nearest
+    /// RFID tag every tick, unicycle).
+    #[must_use]
+    pub fn default_scenario() -> Self {
+        // The embedded scenarios are checked by the tests.
+        #[allow(clippy::expect_used)]
+        Self::embedded(EMBEDDED[0].0).expect("embedded default scenario is valid")
+    }
+
+    /// The scenario as TOML.
+    ///
+    /// # Errors
+    /// Never for a scenario that was parsed (all values representable).
+    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
+        toml::to_string_pretty(self)
+    }
+
+    /// Checks every value and builds the core's configurations.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] naming the first bad field.
+    pub fn validate(&self) -> Result<Setup, ScenarioError> {
+        if self.name.trim().is_empty() {
+            return Err(ScenarioError::invalid("name", "must not be empty"));
+        }
+        let period_s = positive("period_s", self.period_s)?;
+        let duration_s = positive("duration_s", self.duration_s)?;
+        let transient_s = non_negative("transient_s", self.transient_s)?;
+        if transient_s >= duration_s {
+            return Err(ScenarioError::invalid(
+                "transient_s",
+                format!(
+                    "must be less than duration_s ({duration_s} s), or no error statistics remain"
+                ),
+            ));
+        }
+        let ticks = (duration_s / period_s).round();
+        if ticks < 1.0 || ticks >= f64::from(u32::MAX) {
+            return Err(ScenarioError::invalid(
+                "duration_s",
+                format!("gives {ticks} ticks of {period_s} s; need 1 ..= 2^32 − 2"),
+            ));
+        }
+        let ticks = ticks as u32;
+
+        let trajectory = self.reference.build()?;
+        let c = &self.controller;
+        let gains = TrackingGains::new(
+            f(positive("controller.k1", c.k1)?),
+            f(positive("controller.k2", c.k2)?),
+            f(positive("controller.k3", c.k3)?),
+        )
+        .map_err(|e| ScenarioError::invalid("controller", format!("{e:?}")))?;
+
+        let gain_per_m = positive("observer.gain_per_m", self.observer.gain_per_m)?;
+        let min_speed = non_negative("observer.min_speed_m_s", self.observer.min_speed_m_s)?;
+        let observer = HeadingObserverConfig::new(f(gain_per_m), f(period_s))
+            .and_then(|o| o.with_min_speed(f(min_speed)))
+            .map_err(|e| {
+                ScenarioError::invalid("observer", format!("refused by the core: {e:?}"))
+            })?;
+        let timeout_s = positive("failsafe.fix_timeout_s", self.failsafe.fix_timeout_s)?;
+        let decel = positive("failsafe.decel_m_s2", self.failsafe.decel_m_s2)?;
+        let fix_timeout_ticks = (timeout_s / period_s - 1e-9).ceil().max(1.0);
+        if fix_timeout_ticks >= f64::from(u32::MAX) {
+            return Err(ScenarioError::invalid(
+                "failsafe.fix_timeout_s",
+                "too long for a u32 tick count",
+            ));
+        }
+        let tracker = TrackerConfig::new(observer, gains, trajectory, fix_timeout_ticks as u32)
+            .and_then(|t| t.with_failsafe_decel(f(decel)))
+            .map_err(|e| {
+                ScenarioError::invalid("failsafe", format!("refused by the core: {e:?}"))
+            })?;
+
+        let i = &self.initial;
+        let initial_pose = PlantPose::new(
+            finite("initial.x_m", i.x_m)?,
+            finite("initial.y_m", i.y_m)?,
+            finite("initial.heading_rad", i.heading_rad)?,
+        );
+        let initial_estimate = HeadingEstimate {
+            cos_theta: f(finite("initial.estimate_cos", i.estimate_cos)?),
+            sin_theta: f(finite("initial.estimate_sin", i.estimate_sin)?),
+        };
+
+        let plant = self.plant_setup(period_s, tracker)?;
+        let position = self.position_setup(&trajectory, duration_s, period_s)?;
+
+        if matches!(plant, PlantSetup::DiffDrive { .. })
+            && initial_estimate != HeadingEstimate::default()
+        {
+            return Err(ScenarioError::invalid(
+                "initial.estimate_cos",
+                "the diff_drive plant runs the core's Pilot, whose observer always starts at (0, 0)",
+            ));
+        }
+        match (self.controller.kind, &plant, &position) {
+            (ControllerKind::StateFeedback, PlantSetup::DiffDrive { .. }, _) => {
+                return Err(ScenarioError::invalid(
+                    "controller.kind",
+                    "state_feedback runs on the unicycle plant only (the robot's pilot is output feedback)",
+                ));
+            }
+            (ControllerKind::StateFeedback, _, PositionSetup::Reader(..)) => {
+                return Err(ScenarioError::invalid(
+                    "position.kind",
+                    "state_feedback needs a position every tick: use exact or nearest_tag",
+                ));
+            }
+            _ => {}
+        }
+
+        Ok(Setup {
+            ticks,
+            period_s,
+            transient_s,
+            controller: self.controller.kind,
+            trajectory,
+            gains,
+            tracker,
+            initial_estimate,
+            initial_pose,
+            plant,
+            position,
+        })
+    }
+
+    fn plant_setup(
+        &self,
+        period_s: f64,
+        tracker: TrackerConfig,
+    ) -> Result<PlantSetup, ScenarioError> {
+        match self.plant {
+            PlantSpec::Unicycle => {
+                if self.drive.is_some() {
+                    return Err(ScenarioError::invalid(
+                        "drive",
+                        "only used with plant.kind = \"diff_drive\"; remove the [drive] table",
+                    ));
+                }
+                Ok(PlantSetup::Unicycle)
+            }
+            PlantSpec::DiffDrive {
+                wheel_radius_m,
+                track_width_m,
+                motor_time_constant_s,
+                wheel_speed_at_full_duty_rad_s,
+                encoder_counts_per_rev,
+                encoder_bits,
+                pwm_max_duty,
+                substeps,
+            } => {
+                let params = DiffDriveParams {
+                    wheel_radius_m: positive("plant.wheel_radius_m", wheel_radius_m)?,
+                    track_width_m: positive("plant.track_width_m", track_width_m)?,
+                    motor_time_constant_s: positive(
+                        "plant.motor_time_constant_s",
+                        motor_time_constant_s,
+                    )?,
+                    wheel_speed_at_full_duty_rad_s: positive(
+                        "plant.wheel_speed_at_full_duty_rad_s",
+                        wheel_speed_at_full_duty_rad_s,
+                    )?,
+                    substeps,
+                };
+                if substeps == 0 {
+                    return Err(ScenarioError::invalid("plant.substeps", "must be ≥ 1"));
+                }
+                if encoder_counts_per_rev == 0 {
+                    return Err(ScenarioError::invalid(
+                        "plant.encoder_counts_per_rev",
+                        "must be ≥ 1",
+                    ));
+                }
+                if !(2..=32).contains(&encoder_bits) {
+                    return Err(ScenarioError::invalid(
+                        "plant.encoder_bits",
+                        format!("must be in 2 ..= 32 (got {encoder_bits})"),
+                    ));
+                }
+                if pwm_max_duty == 0 {
+                    return Err(ScenarioError::invalid("plant.pwm_max_duty", "must be ≥ 1"));
+                }
+                let geometry = DiffDriveGeometry::new(
+                    f(params.wheel_radius_m),
+                    f(params.track_width_m),
+                    encoder_counts_per_rev,
+                )
+                .map_err(|e| ScenarioError::invalid("plant", format!("{e:?}")))?;
+                let d = self.drive.unwrap_or_default();
+                let feedforward = match d.feedforward_duty_per_rad_s {
+                    Some(v) => non_negative("drive.feedforward_duty_per_rad_s", v)?,
+                    None => 1.0 / params.wheel_speed_at_full_duty_rad_s,
+                };
+                let drive = DriveConfig::new(
+                    geometry,
+                    f(period_s),
+                    f(positive(
+                        "drive.max_wheel_speed_rad_s",
+                        d.max_wheel_speed_rad_s,
+                    )?),
+                    f(positive(
+                        "drive.max_wheel_accel_rad_s2",
+                        d.max_wheel_accel_rad_s2,
+                    )?),
+                    SpeedLoopGains {
+                        feedforward_duty_per_rad_s: f(feedforward),
+                        kp_duty_per_rad_s: f(non_negative(
+                            "drive.kp_duty_per_rad_s",
+                            d.kp_duty_per_rad_s,
+                        )?),
+                        ki_duty_per_rad: f(non_negative(
+                            "drive.ki_duty_per_rad",
+                            d.ki_duty_per_rad,
+                        )?),
+                    },
+                )
+                .map_err(|e| ScenarioError::invalid("drive", format!("{e:?}")))?;
+                let pilot = PilotConfig::new(tracker, drive, encoder_bits)
+                    .map_err(|e| ScenarioError::invalid("plant", format!("{e:?}")))?;
+                Ok(PlantSetup::DiffDrive {
+                    params,
+                    encoder_counts_per_rev,
+                    encoder_bits,
+                    pwm_max_duty,
+                    pilot,
+                })
+            }
+        }
+    }
+
+    fn position_setup(
+        &self,
+        trajectory: &Trajectory,
+        duration_s: f64,
+        period_s: f64,
+    ) -> Result<PositionSetup, ScenarioError> {
+        let floor =
+            |spacing_m: f64, offset_m: [f64; 2], margin_m: f64, extent_m: Option<[f64; 4]>| {
+                let spacing_m = positive("position.spacing_m", spacing_m)?;
+                finite("position.offset_m", offset_m[0])?;
+                finite("position.offset_m", offset_m[1])?;
+                let (min, max) = match extent_m {
+                    Some(e) => {
+                        for v in e {
+                            finite("position.extent_m", v)?;
+                        }
+                        ([e[0], e[1]], [e[2], e[3]])
+                    }
+                    None => {
+                        let margin = non_negative("position.margin_m", margin_m)?;
+                        let (mut lo, mut hi) = reference_bounds(trajectory, duration_s, period_s);
+                        lo = [lo[0].min(self.initial.x_m), lo[1].min(self.initial.y_m)];
+                        hi = [hi[0].max(self.initial.x_m), hi[1].max(self.initial.y_m)];
+                        (
+                            [lo[0] - margin, lo[1] - margin],
+                            [hi[0] + margin, hi[1] + margin],
+                        )
+                    }
+                };
+                FloorTags::covering(spacing_m, offset_m, min, max)
+                    .map_err(|e| ScenarioError::invalid("position.extent_m", e.to_string()))
+            };
+        match self.position {
+            PositionSpec::Exact => Ok(PositionSetup::Exact),
+            PositionSpec::NearestTag {
+                spacing_m,
+                offset_m,
+                margin_m,
+                extent_m,
+            } => Ok(PositionSetup::NearestTag(floor(
+                spacing_m, offset_m, margin_m, extent_m,
+            )?)),
+            PositionSpec::Reader {
+                spacing_m,
+                offset_m,
+                margin_m,
+                extent_m,
+                mode,
+                read_radius_m,
+                antenna_offset_m,
+                baud,
+                repeat_interval_s,
+                corrupt_byte_probability,
+                drop_frame_probability,
+                seed,
+            } => {
+                let floor = floor(spacing_m, offset_m, margin_m, extent_m)?;
+                let mode = match mode {
+                    ReaderModeSpec::Paper => ReaderMode::Paper,
+                    ReaderModeSpec::Range => ReaderMode::Range {
+                        read_radius_m: positive("position.read_radius_m", read_radius_m)?,
+                        repeat_interval_s: positive(
+                            "position.repeat_interval_s",
+                            repeat_interval_s,
+                        )?,
+                    },
+                };
+                if baud == 0 {
+                    return Err(ScenarioError::invalid("position.baud", "must be ≥ 1"));
+                }
+                Ok(PositionSetup::Reader(
+                    floor,
+                    ReaderConfig {
+                        mode,
+                        antenna_offset_m: finite("position.antenna_offset_m", antenna_offset_m)?,
+                        baud,
+                        faults: LinkFaults {
+                            corrupt_byte_probability: probability(
+                                "position.corrupt_byte_probability",
+                                corrupt_byte_probability,
+                            )?,
+                            drop_frame_probability: probability(
+                                "position.drop_frame_probability",
+                                drop_frame_probability,
+                            )?,
+                            seed,
+                        },
+                    },
+                ))
+            }
+        }
+    }
+}
+
+impl ReferenceSpec {
+    /// The core trajectory.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] naming the bad `reference.*` field.
+    pub fn build(&self) -> Result<Trajectory, ScenarioError> {
+        let v =
+            |field: &str, e| ScenarioError::invalid(field, format!("refused by the core: {e:?}"));
+        Ok(match *self {
+            Self::FigureEight {
+                h1_m,
+                h2_rad_s,
+                phase_rad,
+            } => FigureEight::new(
+                f(positive("reference.h1_m", h1_m)?),
+                f(positive("reference.h2_rad_s", h2_rad_s)?),
+                f(finite("reference.phase_rad", phase_rad)?),
+            )
+            .map_err(|e| v("reference", e))?
+            .into(),
+            Self::Circle {
+                center_m,
+                radius_m,
+                rate_rad_s,
+                phase_rad,
+            } => {
+                let rate = finite("reference.rate_rad_s", rate_rad_s)?;
+                if rate == 0.0 {
+                    return Err(ScenarioError::invalid(
+                        "reference.rate_rad_s",
+                        "must not be 0",
+                    ));
+                }
+                Circle::new(
+                    Vec2::new(
+                        f(finite("reference.center_m", center_m[0])?),
+                        f(finite("reference.center_m", center_m[1])?),
+                    ),
+                    f(positive("reference.radius_m", radius_m)?),
+                    f(rate),
+                    f(finite("reference.phase_rad", phase_rad)?),
+                )
+                .map_err(|e| v("reference", e))?
+                .into()
+            }
+            Self::Line {
+                start_m,
+                heading_rad,
+                speed_m_s,
+            } => StraightLine::new(
+                Vec2::new(
+                    f(finite("reference.start_m", start_m[0])?),
+                    f(finite("reference.start_m", start_m[1])?),
+                ),
+                f(finite("reference.heading_rad", heading_rad)?),
+                f(positive("reference.speed_m_s", speed_m_s)?),
+            )
+            .map_err(|e| v("reference", e))?
+            .into(),
+        })
+    }
+}
+
+/// Bounding box of the reference over `[0, duration_s]`, sampled at
+/// `max(period, 0.05 s)`, `([x_min, y_min], [x_max, y_max])`.
+#[must_use]
+pub fn reference_bounds(
+    trajectory: &Trajectory,
+    duration_s: f64,
+    period_s: f64,
+) -> ([f64; 2], [f64; 2]) {
+    let step = period_s.max(0.05);
+    let n = (duration_s / step).ceil() as u64;
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    for k in 0..=n {
+        let t = (k as f64 * step).min(duration_s);
+        let p = trajectory.sample(t as f32).position;
+        let (x, y) = (f64::from(p.x), f64::from(p.y));
+        lo = [lo[0].min(x), lo[1].min(y)];
+        hi = [hi[0].max(x), hi[1].max(y)];
+    }
+    (lo, hi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = r#"
+        name = "t"
+        duration_s = 10.0
+        [reference]
+        kind = "figure_eight"
+    "#;
+
+    fn err_of(text: &str) -> ScenarioError {
+        Scenario::from_toml_str(text).unwrap_err()
+    }
+
+    #[test]
+    fn embedded_scenarios_parse_and_validate() {
+        assert_eq!(EMBEDDED.len(), 4);
+        for (name, text) in EMBEDDED {
+            let s = Scenario::from_toml_str(text).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(&s.name, name);
+            // Round trip through TOML.
+            let again = Scenario::from_toml_str(&s.to_toml_string().unwrap()).unwrap();
+            assert_eq!(again, s);
+        }
+        assert_eq!(Scenario::default_scenario().name, "figure_eight_rfid");
+        assert!(embedded_source("figure_eight_exact.toml").is_some());
+        assert_eq!(
+            Scenario::embedded("nope").unwrap_err().field(),
+            Some("name")
+        );
+    }
+
+    #[test]
+    fn minimal_scenario_takes_the_paper_defaults() {
+        let s = Scenario::from_toml_str(MINIMAL).unwrap();
+        let setup = s.validate().unwrap();
+        assert_eq!(setup.ticks, 1000);
+        assert_eq!(s.controller.k1, 0.11);
+        assert_eq!(s.observer.gain_per_m, 0.6);
+        assert_eq!(setup.position, PositionSetup::Exact);
+        assert_eq!(setup.plant, PlantSetup::Unicycle);
+        let p = setup.trajectory.sample(0.0).position;
+        assert!(p.x.abs() < 1e-5 && (p.y + 5.0).abs() < 1e-5);
+        assert_eq!(setup.tracker.fix_timeout_ticks(), 50);
+    }
+
+    #[test]
+    fn unknown_keys_are_refused_with_their_name() {
+        let e = err_of(&format!("{MINIMAL}\nperiod_ms = 10\n")).to_string();
+        assert!(e.contains("period_ms"), "{e}");
+        let e =
+            err_of(&MINIMAL.replace("kind = \"figure_eight\"", "kind = \"figure_eight\"\nh1 = 3"))
+                .to_string();
+        assert!(e.contains("h1"), "{e}");
+        let e = err_of(&format!(
+            "{MINIMAL}\n[plant]\nkind = \"diff_drive\"\nradius_m = 0.1\n"
+        ))
+        .to_string();
+        assert!(e.contains("radius_m"), "{e}");
+        let e = err_of(&MINIMAL.replace("figure_eight", "spiral")).to_string();
+        assert!(e.contains("spiral"), "{e}");
+        let e = err_of("name = \"x\"\n[reference]\nkind = \"figure_eight\"\n").to_string();
+        assert!(e.contains("duration_s"), "{e}");
+    }
+
+    #[test]
+    fn bad_values_name_their_field() {
+        let cases = [
+            ("[observer]\ngain_per_m = -1.0", "observer.gain_per_m"),
+            ("[observer]\nmin_speed_m_s = -1.0", "observer.min_speed_m_s"),
+            ("[controller]\nk3 = 0.0", "controller.k3"),
+            (
+                "[plant]\nkind = \"diff_drive\"\nwheel_radius_m = 0.0",
+                "plant.wheel_radius_m",
+            ),
+            (
+                "[plant]\nkind = \"diff_drive\"\nencoder_bits = 40",
+                "plant.encoder_bits",
+            ),
+            ("[drive]\nkp_duty_per_rad_s = 0.1", "drive"),
+            (
+                "[plant]\nkind = \"diff_drive\"\n[drive]\nmax_wheel_speed_rad_s = 0.0",
+                "drive.max_wheel_speed_rad_s",
+            ),
+            (
+                "[position]\nkind = \"nearest_tag\"\nspacing_m = 0.0",
+                "position.spacing_m",
+            ),
+            (
+                "[position]\nkind = \"nearest_tag\"\nspacing_m = 1e-5",
+                "position.extent_m",
+            ),
+            ("[position]\nkind = \"reader\"\nbaud = 0", "position.baud"),
+            (
+                "[position]\nkind = \"reader\"\ndrop_frame_probability = 1.5",
+                "position.drop_frame_probability",
+            ),
+            (
+                "[position]\nkind = \"reader\"\n[controller]\nkind = \"state_feedback\"",
+                "position.kind",
+            ),
+            (
+                "[plant]\nkind = \"diff_drive\"\n[controller]\nkind = \"state_feedback\"",
+                "controller.kind",
+            ),
+            ("[failsafe]\nfix_timeout_s = 0.0", "failsafe.fix_timeout_s"),
+            ("[failsafe]\ndecel_m_s2 = -2.0", "failsafe.decel_m_s2"),
+            ("[initial]\nx_m = nan", "initial.x_m"),
+            (
+                "[initial]\nestimate_cos = 1.0\n[plant]\nkind = \"diff_drive\"",
+                "initial.estimate_cos",
+            ),
+            ("transient_s = 20.0", "transient_s"),
+            ("period_s = -0.01", "period_s"),
+        ];
+        for (extra, field) in cases {
+            // Top-level keys must come before the tables.
+            let text = if extra.starts_with('[') {
+                format!("{MINIMAL}\n{extra}\n")
+            } else {
+                format!("{extra}\n{MINIMAL}")
+            };
+            let e = err_of(&text);
+            assert_eq!(e.field(), Some(field), "{extra}: {e}");
+            assert!(e.to_string().contains(field));
+        }
+        let e = err_of(&MINIMAL.replace(
+            "kind = \"figure_eight\"",
+            "kind = \"figure_eight\"\nh2_rad_s = -0.1",
+        ));
+        assert_eq!(e.field(), Some("reference.h2_rad_s"));
+    }
+
+    #[test]
+    fn floor_covers_the_reference_and_the_start() {
+        let text = format!(
+            "{MINIMAL}\n[initial]\ny_m = -6.0\n[position]\nkind = \"nearest_tag\"\nmargin_m = 0.5\n"
+        );
+        let setup = Scenario::from_toml_str(&text).unwrap().validate().unwrap();
+        let PositionSetup::NearestTag(floor) = setup.position else {
+            panic!("nearest tag expected");
+        };
+        let (lo, hi) = floor.bounds();
+        // The start (0, −6) with its margin, and the reference's start (0, −5).
+        assert!(lo[1] <= -6.5 + 1e-9 && hi[1] >= -4.5, "{lo:?} {hi:?}");
+    }
+}

@@ -1,0 +1,83 @@
+//! The command-line interface.
+
+use std::process::Command;
+
+fn sim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_firmware-sim"))
+}
+
+#[test]
+fn bad_scenario_file_fails_with_the_field_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.toml");
+    std::fs::write(
+        &path,
+        "name = \"bad\"\nduration_s = 10.0\n[reference]\nkind = \"figure_eight\"\n[observer]\ngain_per_m = -1.0\n",
+    )
+    .unwrap();
+    let out = sim()
+        .arg("run")
+        .arg(&path)
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("observer.gain_per_m"), "{err}");
+
+    std::fs::write(&path, "name = \"bad\"\nduration_s = 10.0\nspeed = 3\n").unwrap();
+    let out = sim().arg("run").arg(&path).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("speed") && err.contains("bad.toml"), "{err}");
+
+    let out = sim().args(["run", "/nonexistent/x.toml"]).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/x.toml"));
+}
+
+#[test]
+fn run_writes_outputs_and_prints_the_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = sim()
+        .args([
+            "run",
+            "figure_eight_rfid",
+            "--duration-s",
+            "5",
+            "--no-plot",
+            "--out",
+        ])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("figure_eight_rfid") && text.contains("max"),
+        "{text}"
+    );
+    assert!(dir.path().join("run.csv").exists());
+    assert!(dir.path().join("summary.json").exists());
+    assert!(!dir.path().join("run.png").exists());
+}
+
+#[test]
+fn scenarios_are_listed_and_shown() {
+    let out = sim().arg("scenarios").output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    for (name, _) in firmware_sim::EMBEDDED {
+        assert!(text.contains(name), "{text}");
+    }
+    let out = sim().args(["show", "figure_eight_exact"]).output().unwrap();
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stdout).contains("gain_per_m = 4.0"));
+    let out = sim().args(["scenario-template", "nope"]).output().unwrap();
+    assert!(!out.status.success());
+}
