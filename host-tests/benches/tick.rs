@@ -5,43 +5,20 @@
 //! regressions of the same code on the development machine.
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use host_tests::paper_pilot;
 use std::hint::black_box;
-use wmr_core::drive::{DriveConfig, SpeedLoopGains};
-use wmr_core::geometry::{BodyVelocity, DiffDriveGeometry, Vec2};
+use wmr_core::geometry::{BodyVelocity, Vec2};
 use wmr_core::heading_observer::{HeadingEstimate, HeadingObserver, HeadingObserverConfig};
-use wmr_core::output_feedback::{TagFix, TrackerConfig};
-use wmr_core::pilot::{Measurement, Pilot, PilotConfig};
+use wmr_core::output_feedback::TagFix;
+use wmr_core::pilot::Measurement;
 use wmr_core::reference::{FigureEight, Trajectory};
 use wmr_core::tracking::{TrackingController, TrackingGains};
 
 const H: f32 = 0.01;
 
-fn pilot() -> Pilot {
-    let tracker = TrackerConfig::new(
-        HeadingObserverConfig::new(0.6, H).unwrap(),
-        TrackingGains::new(0.11, 0.11, 0.1).unwrap(),
-        FigureEight::paper_001().into(),
-        100,
-    )
-    .unwrap();
-    let drive = DriveConfig::new(
-        DiffDriveGeometry::new(0.03, 0.2, 2048).unwrap(),
-        H,
-        20.0,
-        100.0,
-        SpeedLoopGains {
-            feedforward_duty_per_rad_s: 0.05,
-            kp_duty_per_rad_s: 0.02,
-            ki_duty_per_rad: 0.1,
-        },
-    )
-    .unwrap();
-    Pilot::new(PilotConfig::new(tracker, drive, 16).unwrap()).unwrap()
-}
-
 fn bench(c: &mut Criterion) {
     c.bench_function("pilot_tick", |b| {
-        let mut p = pilot();
+        let mut p = paper_pilot();
         let mut k: u32 = 0;
         b.iter(|| {
             k = k.wrapping_add(1);

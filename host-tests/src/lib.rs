@@ -2,7 +2,44 @@
 //! papers' simulations (`paper_001_*.rs`) and whole-stack properties
 //! (`robustness.rs`). This library only holds what they share.
 
-use wmr_core::reference::ReferenceSample;
+use wmr_core::drive::{DriveConfig, SpeedLoopGains};
+use wmr_core::geometry::DiffDriveGeometry;
+use wmr_core::heading_observer::HeadingObserverConfig;
+use wmr_core::output_feedback::TrackerConfig;
+use wmr_core::pilot::{Pilot, PilotConfig};
+use wmr_core::reference::{FigureEight, ReferenceSample};
+use wmr_core::tracking::TrackingGains;
+
+/// Control period of [`paper_pilot`], s.
+pub const PAPER_PILOT_PERIOD_S: f32 = 0.01;
+
+/// A pilot with paper 001 §6.3.2's observer and gains on its figure-eight,
+/// driving a small robot (wheel radius 3 cm, track 20 cm, 2048 counts/rev,
+/// 16-bit counters, 20 rad/s top wheel speed, 10 ms tick).
+#[must_use]
+pub fn paper_pilot() -> Pilot {
+    let h = PAPER_PILOT_PERIOD_S;
+    let tracker = TrackerConfig::new(
+        HeadingObserverConfig::new(0.6, h).expect("valid observer"),
+        TrackingGains::new(0.11, 0.11, 0.1).expect("valid gains"),
+        FigureEight::paper_001().into(),
+        100,
+    )
+    .expect("valid tracker");
+    let drive = DriveConfig::new(
+        DiffDriveGeometry::new(0.03, 0.2, 2048).expect("valid geometry"),
+        h,
+        20.0,
+        100.0,
+        SpeedLoopGains {
+            feedforward_duty_per_rad_s: 0.05,
+            kp_duty_per_rad_s: 0.02,
+            ki_duty_per_rad: 0.1,
+        },
+    )
+    .expect("valid drive");
+    Pilot::new(PilotConfig::new(tracker, drive, 16).expect("valid pilot")).expect("valid pilot")
+}
 
 /// Heading of the reference's velocity, `θ_r = atan2(ẏ_r, ẋ_r)` (paper 001, (52)).
 #[must_use]

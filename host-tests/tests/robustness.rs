@@ -2,38 +2,11 @@
 //! counter values (wraps, jumps, missing reads) and any fix (NaN, ±Inf,
 //! far away, stale) — the motor commands are finite duties in [0, 1].
 
+use host_tests::paper_pilot;
 use proptest::prelude::*;
-use wmr_core::drive::{DriveConfig, SpeedLoopGains};
-use wmr_core::geometry::{DiffDriveGeometry, Vec2};
-use wmr_core::heading_observer::HeadingObserverConfig;
-use wmr_core::output_feedback::{TagFix, TrackerConfig};
-use wmr_core::pilot::{Measurement, Pilot, PilotConfig};
-use wmr_core::reference::FigureEight;
-use wmr_core::tracking::TrackingGains;
-
-fn pilot() -> Pilot {
-    let h = 0.01;
-    let tracker = TrackerConfig::new(
-        HeadingObserverConfig::new(0.6, h).unwrap(),
-        TrackingGains::new(0.11, 0.11, 0.1).unwrap(),
-        FigureEight::paper_001().into(),
-        100,
-    )
-    .unwrap();
-    let drive = DriveConfig::new(
-        DiffDriveGeometry::new(0.03, 0.2, 2048).unwrap(),
-        h,
-        20.0,
-        100.0,
-        SpeedLoopGains {
-            feedforward_duty_per_rad_s: 0.05,
-            kp_duty_per_rad_s: 0.02,
-            ki_duty_per_rad: 0.1,
-        },
-    )
-    .unwrap();
-    Pilot::new(PilotConfig::new(tracker, drive, 16).unwrap()).unwrap()
-}
+use wmr_core::geometry::Vec2;
+use wmr_core::output_feedback::TagFix;
+use wmr_core::pilot::Measurement;
 
 fn any_coordinate() -> impl Strategy<Value = f32> {
     prop_oneof![
@@ -67,7 +40,7 @@ proptest! {
     fn motor_commands_are_always_finite_duties(
         measurements in prop::collection::vec(any_measurement(), 1..300),
     ) {
-        let mut p = pilot();
+        let mut p = paper_pilot();
         for m in &measurements {
             let out = p.step(m);
             for cmd in [out.left, out.right] {
@@ -84,7 +57,7 @@ proptest! {
         start in any::<u16>(),
         steps in prop::collection::vec((-40_i32..40, -40_i32..40, -10.0_f32..10.0, -10.0_f32..10.0), 1..300),
     ) {
-        let mut p = pilot();
+        let mut p = paper_pilot();
         let (mut l, mut r) = (u32::from(start), u32::from(start));
         for (dl, dr, x, y) in steps {
             l = l.wrapping_add_signed(dl);
@@ -110,10 +83,10 @@ proptest! {
         speed_fraction in (-1.0_f64..1.0, -1.0_f64..1.0),
         ticks in 500_u32..3000,
     ) {
-        let mut p = pilot();
+        let mut p = paper_pilot();
         let geometry = *p.config().drive().geometry();
         let counts_per_rad = f64::from(geometry.counts_per_revolution()) / core::f64::consts::TAU;
-        // 20 rad/s is the drive's top wheel speed in `pilot()`.
+        // 20 rad/s is the drive's top wheel speed in `paper_pilot()`.
         let counts_per_tick = (20.0 * speed_fraction.0 * 0.01 * counts_per_rad,
                                20.0 * speed_fraction.1 * 0.01 * counts_per_rad);
         let (mut travelled_l, mut travelled_r) = (0.0_f64, 0.0_f64);
