@@ -24,6 +24,7 @@ use crate::math;
 /// Why a drive configuration was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum DriveConfigError {
     /// Control period not finite and positive.
     Period,

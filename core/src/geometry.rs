@@ -168,6 +168,7 @@ impl WheelSpeeds {
 /// Why a [`DiffDriveGeometry`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum GeometryError {
     /// Wheel radius not finite and positive.
     WheelRadius,

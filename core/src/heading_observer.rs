@@ -52,6 +52,7 @@ use crate::math;
 /// Why a [`HeadingObserverConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ObserverConfigError {
     /// Observer gain `L` not finite and positive.
     Gain,

@@ -24,4 +24,5 @@ pub mod output_feedback;
 pub mod pilot;
 pub mod reference;
 pub mod robot;
+pub mod spec;
 pub mod tracking;

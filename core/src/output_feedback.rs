@@ -44,6 +44,7 @@ use crate::tracking::{GainBound, TrackingCommand, TrackingController, TrackingGa
 /// Why a [`TrackerConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum TrackerConfigError {
     /// Control period not finite and positive.
     Period,
@@ -180,6 +181,7 @@ pub struct TagFix {
 /// What the tracker is doing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum TrackerMode {
     /// No valid fix yet: standing still.
     #[default]
@@ -193,6 +195,7 @@ pub enum TrackerMode {
 /// Counters of everything the tracker refused or worked around.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct TrackerCounters {
     /// Valid fixes used.
     pub fixes_used: u32,

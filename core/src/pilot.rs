@@ -32,6 +32,7 @@ use crate::output_feedback::{OutputFeedbackTracker, TagFix, TrackerConfig, Track
 /// Why a [`PilotConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum PilotConfigError {
     /// Encoder counter width outside 2..=32 bits.
     EncoderBits,
@@ -118,6 +119,7 @@ pub struct Measurement {
 /// Counters of the pilot's own fault handling.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PilotCounters {
     /// Ticks with a missing encoder read.
     pub encoder_fault_ticks: u32,

@@ -16,6 +16,7 @@ use crate::math;
 /// Why a clock or trajectory was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ReferenceError {
     /// Control period not finite and positive.
     Period,

@@ -38,6 +38,7 @@ impl<P: SetDutyCycle, D: OutputPin> Motor for MotorDriver<P, D> {
 /// Counters of device-level faults (the RFID parser keeps its own).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct RobotCounters {
     /// Failed reads of the left encoder counter.
     pub left_encoder_errors: u32,

@@ -51,6 +51,7 @@ use crate::reference::{ReferenceSample, SpeedBounds};
 /// Why tracking gains were refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum GainError {
     /// `k1` not finite and positive.
     K1,

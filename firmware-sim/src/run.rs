@@ -652,6 +652,7 @@ impl Rig {
                     encoder_bits,
                     pwm_max_duty,
                     pilot,
+                    ..
                 },
                 _,
             ) => {

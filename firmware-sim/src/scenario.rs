@@ -17,12 +17,11 @@ use std::f64::consts::FRAC_PI_2;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
-use wmr_core::drive::{DriveConfig, SpeedLoopGains};
-use wmr_core::geometry::{DiffDriveGeometry, Vec2};
-use wmr_core::heading_observer::{HeadingEstimate, HeadingObserverConfig};
+use wmr_core::heading_observer::HeadingEstimate;
 use wmr_core::output_feedback::TrackerConfig;
 use wmr_core::pilot::PilotConfig;
-use wmr_core::reference::{Circle, FigureEight, StraightLine, Trajectory};
+use wmr_core::reference::Trajectory;
+use wmr_core::spec::{self as core_spec, PilotSpec, SpecError, TrackerSpec, TrajectorySpec};
 use wmr_core::tracking::TrackingGains;
 
 use crate::devices::{LinkFaults, ReaderConfig, ReaderMode};
@@ -539,6 +538,8 @@ pub enum PlantSetup {
         pwm_max_duty: u16,
         /// The core's pilot configuration (tracker + drive + encoder width).
         pilot: PilotConfig,
+        /// The spec it was built from (what the HIL link sends the firmware).
+        pilot_spec: PilotSpec,
     },
 }
 
@@ -623,6 +624,21 @@ fn probability(field: &str, v: f64) -> Result<f64, ScenarioError> {
             format!("must be a probability in [0, 1] (got {v})"),
         ))
     }
+}
+
+/// A refusal of the core's spec builder, named by the scenario table it
+/// came from.
+fn spec_refusal(e: SpecError) -> ScenarioError {
+    let field = match e {
+        SpecError::Trajectory(_) => "reference",
+        SpecError::Gains(_) => "controller",
+        SpecError::Observer(_) => "observer",
+        SpecError::Tracker(_) => "failsafe",
+        SpecError::Geometry(_) | SpecError::Pilot(_) => "plant",
+        SpecError::Drive(_) => "drive",
+        SpecError::TagGrid(_) => "position",
+    };
+    ScenarioError::invalid(field, format!("refused by the core: {e:?}"))
 }
 
 /// `f32` of a validated `f64` (the core's precision).
@@ -719,22 +735,18 @@ impl Scenario {
         }
         let ticks = ticks as u32;
 
-        let trajectory = self.reference.build()?;
+        let trajectory_spec = self.reference.spec()?;
+        let trajectory = trajectory_spec.build().map_err(|e| {
+            ScenarioError::invalid("reference", format!("refused by the core: {e:?}"))
+        })?;
         let c = &self.controller;
-        let gains = TrackingGains::new(
+        let gains = [
             f(positive("controller.k1", c.k1)?),
             f(positive("controller.k2", c.k2)?),
             f(positive("controller.k3", c.k3)?),
-        )
-        .map_err(|e| ScenarioError::invalid("controller", format!("{e:?}")))?;
-
+        ];
         let gain_per_m = positive("observer.gain_per_m", self.observer.gain_per_m)?;
         let min_speed = non_negative("observer.min_speed_m_s", self.observer.min_speed_m_s)?;
-        let observer = HeadingObserverConfig::new(f(gain_per_m), f(period_s))
-            .and_then(|o| o.with_min_speed(f(min_speed)))
-            .map_err(|e| {
-                ScenarioError::invalid("observer", format!("refused by the core: {e:?}"))
-            })?;
         let timeout_s = positive("failsafe.fix_timeout_s", self.failsafe.fix_timeout_s)?;
         let decel = positive("failsafe.decel_m_s2", self.failsafe.decel_m_s2)?;
         let fix_timeout_ticks = (timeout_s / period_s - 1e-9).ceil().max(1.0);
@@ -744,11 +756,19 @@ impl Scenario {
                 "too long for a u32 tick count",
             ));
         }
-        let tracker = TrackerConfig::new(observer, gains, trajectory, fix_timeout_ticks as u32)
-            .and_then(|t| t.with_failsafe_decel(f(decel)))
-            .map_err(|e| {
-                ScenarioError::invalid("failsafe", format!("refused by the core: {e:?}"))
-            })?;
+        let tracker_spec = TrackerSpec {
+            period_s: f(period_s),
+            trajectory: trajectory_spec,
+            gains,
+            observer_gain_per_m: f(gain_per_m),
+            observer_min_speed_m_s: f(min_speed),
+            fix_timeout_ticks: fix_timeout_ticks as u32,
+            failsafe_decel_m_s2: f(decel),
+            max_fix_age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
+        };
+        let tracker = tracker_spec.build().map_err(spec_refusal)?;
+        let gains = TrackingGains::new(gains[0], gains[1], gains[2])
+            .map_err(|e| ScenarioError::invalid("controller", format!("{e:?}")))?;
 
         let i = &self.initial;
         let initial_pose = PlantPose::new(
@@ -761,7 +781,7 @@ impl Scenario {
             sin_theta: f(finite("initial.estimate_sin", i.estimate_sin)?),
         };
 
-        let plant = self.plant_setup(period_s, tracker)?;
+        let plant = self.plant_setup(tracker_spec)?;
         let position = self.position_setup(&trajectory, duration_s, period_s)?;
 
         if matches!(plant, PlantSetup::DiffDrive { .. })
@@ -803,11 +823,7 @@ impl Scenario {
         })
     }
 
-    fn plant_setup(
-        &self,
-        period_s: f64,
-        tracker: TrackerConfig,
-    ) -> Result<PlantSetup, ScenarioError> {
+    fn plant_setup(&self, tracker: TrackerSpec) -> Result<PlantSetup, ScenarioError> {
         match self.plant {
             PlantSpec::Unicycle => {
                 if self.drive.is_some() {
@@ -859,29 +875,25 @@ impl Scenario {
                 if pwm_max_duty == 0 {
                     return Err(ScenarioError::invalid("plant.pwm_max_duty", "must be ≥ 1"));
                 }
-                let geometry = DiffDriveGeometry::new(
-                    f(params.wheel_radius_m),
-                    f(params.track_width_m),
-                    encoder_counts_per_rev,
-                )
-                .map_err(|e| ScenarioError::invalid("plant", format!("{e:?}")))?;
                 let d = self.drive.unwrap_or_default();
                 let feedforward = match d.feedforward_duty_per_rad_s {
                     Some(v) => non_negative("drive.feedforward_duty_per_rad_s", v)?,
                     None => 1.0 / params.wheel_speed_at_full_duty_rad_s,
                 };
-                let drive = DriveConfig::new(
-                    geometry,
-                    f(period_s),
-                    f(positive(
-                        "drive.max_wheel_speed_rad_s",
-                        d.max_wheel_speed_rad_s,
-                    )?),
-                    f(positive(
-                        "drive.max_wheel_accel_rad_s2",
-                        d.max_wheel_accel_rad_s2,
-                    )?),
-                    SpeedLoopGains {
+                let pilot_spec = PilotSpec {
+                    tracker,
+                    drive: core_spec::DriveSpec {
+                        wheel_radius_m: f(params.wheel_radius_m),
+                        track_width_m: f(params.track_width_m),
+                        encoder_counts_per_rev,
+                        max_wheel_speed_rad_s: f(positive(
+                            "drive.max_wheel_speed_rad_s",
+                            d.max_wheel_speed_rad_s,
+                        )?),
+                        max_wheel_accel_rad_s2: f(positive(
+                            "drive.max_wheel_accel_rad_s2",
+                            d.max_wheel_accel_rad_s2,
+                        )?),
                         feedforward_duty_per_rad_s: f(feedforward),
                         kp_duty_per_rad_s: f(non_negative(
                             "drive.kp_duty_per_rad_s",
@@ -892,16 +904,17 @@ impl Scenario {
                             d.ki_duty_per_rad,
                         )?),
                     },
-                )
-                .map_err(|e| ScenarioError::invalid("drive", format!("{e:?}")))?;
-                let pilot = PilotConfig::new(tracker, drive, encoder_bits)
-                    .map_err(|e| ScenarioError::invalid("plant", format!("{e:?}")))?;
+                    encoder_bits,
+                    max_encoder_fault_ticks: PilotConfig::DEFAULT_MAX_ENCODER_FAULT_TICKS,
+                };
+                let pilot = pilot_spec.build().map_err(spec_refusal)?;
                 Ok(PlantSetup::DiffDrive {
                     params,
                     encoder_counts_per_rev,
                     encoder_bits,
                     pwm_max_duty,
                     pilot,
+                    pilot_spec,
                 })
             }
         }
@@ -1007,20 +1020,26 @@ impl ReferenceSpec {
     /// # Errors
     /// [`ScenarioError::Invalid`] naming the bad `reference.*` field.
     pub fn build(&self) -> Result<Trajectory, ScenarioError> {
-        let v =
-            |field: &str, e| ScenarioError::invalid(field, format!("refused by the core: {e:?}"));
+        self.spec()?
+            .build()
+            .map_err(|e| ScenarioError::invalid("reference", format!("refused by the core: {e:?}")))
+    }
+
+    /// The core's plain spec of the reference (checked field by field).
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] naming the bad `reference.*` field.
+    pub fn spec(&self) -> Result<TrajectorySpec, ScenarioError> {
         Ok(match *self {
             Self::FigureEight {
                 h1_m,
                 h2_rad_s,
                 phase_rad,
-            } => FigureEight::new(
-                f(positive("reference.h1_m", h1_m)?),
-                f(positive("reference.h2_rad_s", h2_rad_s)?),
-                f(finite("reference.phase_rad", phase_rad)?),
-            )
-            .map_err(|e| v("reference", e))?
-            .into(),
+            } => TrajectorySpec::FigureEight {
+                h1_m: f(positive("reference.h1_m", h1_m)?),
+                h2_rad_s: f(positive("reference.h2_rad_s", h2_rad_s)?),
+                phase_rad: f(finite("reference.phase_rad", phase_rad)?),
+            },
             Self::Circle {
                 center_m,
                 radius_m,
@@ -1034,32 +1053,28 @@ impl ReferenceSpec {
                         "must not be 0",
                     ));
                 }
-                Circle::new(
-                    Vec2::new(
+                TrajectorySpec::Circle {
+                    center_m: [
                         f(finite("reference.center_m", center_m[0])?),
                         f(finite("reference.center_m", center_m[1])?),
-                    ),
-                    f(positive("reference.radius_m", radius_m)?),
-                    f(rate),
-                    f(finite("reference.phase_rad", phase_rad)?),
-                )
-                .map_err(|e| v("reference", e))?
-                .into()
+                    ],
+                    radius_m: f(positive("reference.radius_m", radius_m)?),
+                    rate_rad_s: f(rate),
+                    phase_rad: f(finite("reference.phase_rad", phase_rad)?),
+                }
             }
             Self::Line {
                 start_m,
                 heading_rad,
                 speed_m_s,
-            } => StraightLine::new(
-                Vec2::new(
+            } => TrajectorySpec::Line {
+                start_m: [
                     f(finite("reference.start_m", start_m[0])?),
                     f(finite("reference.start_m", start_m[1])?),
-                ),
-                f(finite("reference.heading_rad", heading_rad)?),
-                f(positive("reference.speed_m_s", speed_m_s)?),
-            )
-            .map_err(|e| v("reference", e))?
-            .into(),
+                ],
+                heading_rad: f(finite("reference.heading_rad", heading_rad)?),
+                speed_m_s: f(positive("reference.speed_m_s", speed_m_s)?),
+            },
         })
     }
 }

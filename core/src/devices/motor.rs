@@ -13,6 +13,7 @@ use embedded_hal::pwm::{self, SetDutyCycle};
 /// robot forward, whatever the motor's mounting; see [`MotorWiring`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Direction {
     /// Drives the robot forward.
     Forward,
@@ -27,6 +28,7 @@ pub enum Direction {
 /// [`MotorDriver::apply`] always calls) brings them back into range.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct MotorCommand {
     /// Duty-cycle magnitude, fraction in `[0, 1]`.
     pub duty: f32,

@@ -101,6 +101,7 @@ fn hex_value(c: u8) -> Option<u8> {
 /// What the reader has seen and thrown away. All counters saturate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct RfidCounters {
     /// Complete frames with a valid checksum.
     pub frames_ok: u32,

@@ -23,6 +23,7 @@ pub const GRID_MARKER: u64 = 0x5A;
 /// Why a [`TagGrid`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum TagGridError {
     /// Spacing not finite and positive.
     Spacing,

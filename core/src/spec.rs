@@ -1,0 +1,380 @@
+//! Plain-data descriptions of a pilot, validated into its configuration.
+//!
+//! A [`PilotSpec`] holds the numbers a robot integrator writes down (wheel
+//! radius, gains, limits, the reference), in SI units, with no invariants of
+//! its own. [`PilotSpec::build`] passes each of them through the validating
+//! constructor of the core type it belongs to and returns the
+//! [`PilotConfig`], or the first refusal as a small `Copy` [`SpecError`].
+//!
+//! Why a separate plain type: the validated configurations keep their
+//! fields private, so nothing can bypass their checks. A spec is what can be
+//! compiled into a firmware image as a `const`, written in a scenario file,
+//! or sent over the hardware-in-the-loop link (behind the `serde` feature),
+//! and every one of those paths ends in the same constructors, so the
+//! simulator and the firmware build bit-identical configurations from the
+//! same spec.
+
+use crate::devices::{TagGrid, TagGridError};
+use crate::drive::{DriveConfig, DriveConfigError, SpeedLoopGains};
+use crate::geometry::{DiffDriveGeometry, GeometryError, Vec2};
+use crate::heading_observer::{HeadingObserverConfig, ObserverConfigError};
+use crate::output_feedback::{TrackerConfig, TrackerConfigError};
+use crate::pilot::{PilotConfig, PilotConfigError};
+use crate::reference::{Circle, FigureEight, ReferenceError, StraightLine, Trajectory};
+use crate::tracking::{GainError, TrackingGains};
+
+/// Why a spec was refused: the part, and that part's own error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum SpecError {
+    /// The reference trajectory.
+    Trajectory(ReferenceError),
+    /// The tracking gains `k1, k2, k3`.
+    Gains(GainError),
+    /// The heading observer.
+    Observer(ObserverConfigError),
+    /// The tracker (fix timeout, failsafe deceleration, period).
+    Tracker(TrackerConfigError),
+    /// The robot's geometry.
+    Geometry(GeometryError),
+    /// The drive (limits, speed loop).
+    Drive(DriveConfigError),
+    /// The pilot (encoder counter width, periods).
+    Pilot(PilotConfigError),
+    /// The floor-tag grid.
+    TagGrid(TagGridError),
+}
+
+/// A reference trajectory by its parameters (SI units, radians).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum TrajectorySpec {
+    /// [`FigureEight::new`]: half-width `h1_m`, rate `h2_rad_s`, phase.
+    FigureEight {
+        /// `h1`, m.
+        h1_m: f32,
+        /// `h2`, rad/s.
+        h2_rad_s: f32,
+        /// Phase `φ`, rad.
+        phase_rad: f32,
+    },
+    /// [`Circle::new`].
+    Circle {
+        /// Centre, m.
+        center_m: [f32; 2],
+        /// Radius, m.
+        radius_m: f32,
+        /// Angular rate, rad/s (sign gives the sense).
+        rate_rad_s: f32,
+        /// Phase at `t = 0`, rad.
+        phase_rad: f32,
+    },
+    /// [`StraightLine::new`].
+    Line {
+        /// Start point, m.
+        start_m: [f32; 2],
+        /// Direction, rad.
+        heading_rad: f32,
+        /// Speed, m/s.
+        speed_m_s: f32,
+    },
+}
+
+impl TrajectorySpec {
+    /// The validated trajectory.
+    ///
+    /// # Errors
+    /// The constructor's refusal.
+    pub fn build(&self) -> Result<Trajectory, ReferenceError> {
+        Ok(match *self {
+            Self::FigureEight {
+                h1_m,
+                h2_rad_s,
+                phase_rad,
+            } => FigureEight::new(h1_m, h2_rad_s, phase_rad)?.into(),
+            Self::Circle {
+                center_m: [cx, cy],
+                radius_m,
+                rate_rad_s,
+                phase_rad,
+            } => Circle::new(Vec2::new(cx, cy), radius_m, rate_rad_s, phase_rad)?.into(),
+            Self::Line {
+                start_m: [x, y],
+                heading_rad,
+                speed_m_s,
+            } => StraightLine::new(Vec2::new(x, y), heading_rad, speed_m_s)?.into(),
+        })
+    }
+}
+
+/// The output-feedback tracker of paper 001: period, reference, gains,
+/// observer and failsafe.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct TrackerSpec {
+    /// Control period `h`, s.
+    pub period_s: f32,
+    /// The reference.
+    pub trajectory: TrajectorySpec,
+    /// Gains `[k1, k2, k3]` of the law (27)–(28).
+    pub gains: [f32; 3],
+    /// Observer gain `L`, 1/m.
+    pub observer_gain_per_m: f32,
+    /// Speed below which the observer only rotates its estimate, m/s.
+    pub observer_min_speed_m_s: f32,
+    /// Ticks without a valid fix before the failsafe engages.
+    pub fix_timeout_ticks: u32,
+    /// Failsafe deceleration, m/s².
+    pub failsafe_decel_m_s2: f32,
+    /// Age beyond which a fix is stale, ticks.
+    pub max_fix_age_ticks: u32,
+}
+
+impl TrackerSpec {
+    /// The validated tracker configuration.
+    ///
+    /// # Errors
+    /// The first part refused.
+    pub fn build(&self) -> Result<TrackerConfig, SpecError> {
+        let trajectory = self.trajectory.build().map_err(SpecError::Trajectory)?;
+        let [k1, k2, k3] = self.gains;
+        let gains = TrackingGains::new(k1, k2, k3).map_err(SpecError::Gains)?;
+        let observer = HeadingObserverConfig::new(self.observer_gain_per_m, self.period_s)
+            .and_then(|o| o.with_min_speed(self.observer_min_speed_m_s))
+            .map_err(SpecError::Observer)?;
+        TrackerConfig::new(observer, gains, trajectory, self.fix_timeout_ticks)
+            .and_then(|t| t.with_failsafe_decel(self.failsafe_decel_m_s2))
+            .map(|t| t.with_max_fix_age(self.max_fix_age_ticks))
+            .map_err(SpecError::Tracker)
+    }
+}
+
+/// The drive: geometry, wheel limits and the speed loop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DriveSpec {
+    /// Wheel radius, m.
+    pub wheel_radius_m: f32,
+    /// Distance between the wheels' contact points, m.
+    pub track_width_m: f32,
+    /// Encoder counts per wheel revolution (after quadrature decoding).
+    pub encoder_counts_per_rev: u32,
+    /// Wheel speed limit, rad/s.
+    pub max_wheel_speed_rad_s: f32,
+    /// Wheel acceleration limit, rad/s².
+    pub max_wheel_accel_rad_s2: f32,
+    /// Feed-forward duty per rad/s.
+    pub feedforward_duty_per_rad_s: f32,
+    /// Proportional gain, duty per rad/s.
+    pub kp_duty_per_rad_s: f32,
+    /// Integral gain, duty per rad.
+    pub ki_duty_per_rad: f32,
+}
+
+impl DriveSpec {
+    /// The validated drive configuration for control period `period_s`.
+    ///
+    /// # Errors
+    /// The first part refused.
+    pub fn build(&self, period_s: f32) -> Result<DriveConfig, SpecError> {
+        let geometry = DiffDriveGeometry::new(
+            self.wheel_radius_m,
+            self.track_width_m,
+            self.encoder_counts_per_rev,
+        )
+        .map_err(SpecError::Geometry)?;
+        DriveConfig::new(
+            geometry,
+            period_s,
+            self.max_wheel_speed_rad_s,
+            self.max_wheel_accel_rad_s2,
+            SpeedLoopGains {
+                feedforward_duty_per_rad_s: self.feedforward_duty_per_rad_s,
+                kp_duty_per_rad_s: self.kp_duty_per_rad_s,
+                ki_duty_per_rad: self.ki_duty_per_rad,
+            },
+        )
+        .map_err(SpecError::Drive)
+    }
+}
+
+/// Everything a [`crate::pilot::Pilot`] needs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct PilotSpec {
+    /// Tracker (its period is the control period).
+    pub tracker: TrackerSpec,
+    /// Drive.
+    pub drive: DriveSpec,
+    /// Width of the hardware encoder counters, bits (16 on most STM32 timers).
+    pub encoder_bits: u32,
+    /// Consecutive encoder fault ticks bridged before the motors stop.
+    pub max_encoder_fault_ticks: u32,
+}
+
+impl PilotSpec {
+    /// The validated pilot configuration.
+    ///
+    /// # Errors
+    /// The first part refused.
+    pub fn build(&self) -> Result<PilotConfig, SpecError> {
+        let tracker = self.tracker.build()?;
+        let drive = self.drive.build(self.tracker.period_s)?;
+        PilotConfig::new(tracker, drive, self.encoder_bits)
+            .map(|p| p.with_max_encoder_fault_ticks(self.max_encoder_fault_ticks))
+            .map_err(SpecError::Pilot)
+    }
+}
+
+/// A regular floor-tag grid ([`TagGrid::new`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct TagGridSpec {
+    /// Position of tag (row 0, column 0), m.
+    pub origin_m: [f32; 2],
+    /// Spacing between neighbours, m.
+    pub spacing_m: f32,
+    /// Rows (along y).
+    pub rows: u16,
+    /// Columns (along x).
+    pub columns: u16,
+}
+
+impl TagGridSpec {
+    /// The validated grid.
+    ///
+    /// # Errors
+    /// [`SpecError::TagGrid`].
+    pub fn build(&self) -> Result<TagGrid, SpecError> {
+        let [x, y] = self.origin_m;
+        TagGrid::new(Vec2::new(x, y), self.spacing_m, self.rows, self.columns)
+            .map_err(SpecError::TagGrid)
+    }
+
+    /// The spec of a grid (inverse of [`Self::build`]).
+    #[must_use]
+    pub fn of(grid: &TagGrid) -> Self {
+        let origin = grid.origin();
+        Self {
+            origin_m: [origin.x, origin.y],
+            spacing_m: grid.spacing_m(),
+            rows: grid.rows(),
+            columns: grid.columns(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pilot::Pilot;
+
+    fn paper_spec() -> PilotSpec {
+        PilotSpec {
+            tracker: TrackerSpec {
+                period_s: 0.01,
+                trajectory: TrajectorySpec::FigureEight {
+                    h1_m: 5.0,
+                    h2_rad_s: 0.02,
+                    phase_rad: -core::f32::consts::FRAC_PI_2,
+                },
+                gains: [0.5, 0.5, 1.0],
+                observer_gain_per_m: 10.0,
+                observer_min_speed_m_s: 1e-3,
+                fix_timeout_ticks: 50,
+                failsafe_decel_m_s2: 0.5,
+                max_fix_age_ticks: 2,
+            },
+            drive: DriveSpec {
+                wheel_radius_m: 0.05,
+                track_width_m: 0.3,
+                encoder_counts_per_rev: 2048,
+                max_wheel_speed_rad_s: 20.0,
+                max_wheel_accel_rad_s2: 40.0,
+                feedforward_duty_per_rad_s: 0.05,
+                kp_duty_per_rad_s: 0.05,
+                ki_duty_per_rad: 0.5,
+            },
+            encoder_bits: 16,
+            max_encoder_fault_ticks: 5,
+        }
+    }
+
+    #[test]
+    fn paper_spec_builds_the_same_as_the_constructors() {
+        let spec = paper_spec();
+        let config = spec.build().unwrap();
+        assert_eq!(config.tracker().clock().period_s(), 0.01);
+        assert_eq!(
+            *config.tracker().trajectory(),
+            Trajectory::from(FigureEight::paper_001())
+        );
+        assert_eq!(config.tracker().fix_timeout_ticks(), 50);
+        assert_eq!(config.drive().geometry().counts_per_revolution(), 2048);
+        assert!(Pilot::new(config).is_ok());
+    }
+
+    #[test]
+    fn each_refusal_names_its_part() {
+        let mut s = paper_spec();
+        s.tracker.gains[1] = f32::NAN;
+        assert_eq!(s.build(), Err(SpecError::Gains(GainError::K2)));
+        let mut s = paper_spec();
+        s.tracker.trajectory = TrajectorySpec::Line {
+            start_m: [0.0, 0.0],
+            heading_rad: 0.0,
+            speed_m_s: -1.0,
+        };
+        assert_eq!(s.build(), Err(SpecError::Trajectory(ReferenceError::Rate)));
+        let mut s = paper_spec();
+        s.tracker.observer_gain_per_m = 0.0;
+        assert_eq!(
+            s.build(),
+            Err(SpecError::Observer(ObserverConfigError::Gain))
+        );
+        let mut s = paper_spec();
+        s.tracker.fix_timeout_ticks = 0;
+        assert_eq!(
+            s.build(),
+            Err(SpecError::Tracker(TrackerConfigError::FixTimeout))
+        );
+        let mut s = paper_spec();
+        s.drive.track_width_m = f32::INFINITY;
+        assert_eq!(
+            s.build(),
+            Err(SpecError::Geometry(GeometryError::TrackWidth))
+        );
+        let mut s = paper_spec();
+        s.drive.ki_duty_per_rad = -1.0;
+        assert_eq!(
+            s.build(),
+            Err(SpecError::Drive(DriveConfigError::SpeedLoopGain))
+        );
+        let mut s = paper_spec();
+        s.encoder_bits = 33;
+        assert_eq!(
+            s.build(),
+            Err(SpecError::Pilot(PilotConfigError::EncoderBits))
+        );
+    }
+
+    #[test]
+    fn grid_spec_round_trips() {
+        let spec = TagGridSpec {
+            origin_m: [-6.0, -6.5],
+            spacing_m: 0.1,
+            rows: 130,
+            columns: 120,
+        };
+        let grid = spec.build().unwrap();
+        assert_eq!(TagGridSpec::of(&grid), spec);
+        let bad = TagGridSpec { rows: 0, ..spec };
+        assert_eq!(bad.build(), Err(SpecError::TagGrid(TagGridError::Size)));
+    }
+}
