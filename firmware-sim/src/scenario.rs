@@ -522,6 +522,8 @@ pub fn embedded_source(name: &str) -> Option<&'static str> {
 }
 
 /// The validated plant.
+// One per run: the size difference between the variants does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PlantSetup {
     /// Kinematic unicycle.
