@@ -1,0 +1,580 @@
+//! The lock-step hardware-in-the-loop link between the firmware and the
+//! host simulator, defined once for both sides.
+//!
+//! # Protocol
+//! The firmware runs its board's devices as proxies over one serial port
+//! (USART1 of QEMU's `netduinoplus2`). The host is the world: it plays the
+//! motors, encoders and RFID reader.
+//!
+//! ```text
+//! firmware                                   host (firmware-sim hil)
+//!    │ ── Hello ─────────────────────────────────► │  after reset
+//!    │ ◄───────────────── Configure{pilot, grid} ─ │
+//!    │ ── Configured | Refused(SpecError) ───────► │
+//!    │ ◄───────── Tick{k, encoder counters, UART bytes}
+//!    │ ── Ticked{k, duties, directions, estimate, counters}
+//!    │                 ... once per control tick ...
+//!    │ ◄──────────────────────────────── Finish ─ │
+//!    │ ── Finished{stack high-water} ────────────► │  then exits (semihosting)
+//! ```
+//!
+//! Each side sends the next message only after the answer to the last, so
+//! the run is deterministic whatever the speed of QEMU or of the host.
+//!
+//! # Framing
+//! One frame is `COBS(postcard(Frame{seq, body}) ‖ CRC-32(…) as LE u32) ‖ 0x00`.
+//! - **postcard** (serde) encodes the message compactly (varints).
+//! - **CRC-32** (ISO-HDLC, the Ethernet/zlib polynomial) over the postcard
+//!   bytes catches corruption that still decodes; COBS alone does not.
+//! - **COBS** removes every zero byte, so `0x00` marks the end of a frame and
+//!   a receiver resynchronises at the next `0x00` after any garbage.
+//! - **`seq`** counts each side's frames from 0 (wrapping); a receiver
+//!   counts gaps (lost frames) and repeats.
+//!
+//! Nothing allocates; buffers are sized by [`MAX_FRAME_BYTES`].
+
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing
+    )
+)]
+
+use serde::{Deserialize, Serialize};
+use wmr_core::devices::RfidCounters;
+use wmr_core::output_feedback::{TrackerCounters, TrackerMode};
+use wmr_core::pilot::PilotCounters;
+use wmr_core::robot::RobotCounters;
+use wmr_core::spec::{PilotSpec, SpecError, TagGridSpec};
+
+/// Bump when a message changes shape; both sides refuse a mismatch.
+pub const PROTOCOL_VERSION: u16 = 1;
+
+/// Largest encoded frame, bytes, including COBS overhead and the `0x00`.
+pub const MAX_FRAME_BYTES: usize = 512;
+
+/// Largest postcard payload plus CRC before COBS (COBS adds 1 byte per 254).
+const MAX_RAW_BYTES: usize = MAX_FRAME_BYTES - MAX_FRAME_BYTES / 254 - 2;
+
+/// UART bytes the host can hand over in one tick. At 115 200 Bd a 10 ms
+/// tick carries at most 116 bytes.
+pub const MAX_UART_BYTES_PER_TICK: usize = 160;
+
+/// What the host sends.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum HostMessage {
+    /// Build the pilot and the tag grid (the firmware validates them with
+    /// the core's constructors, as the simulator does).
+    Configure(Configure),
+    /// One control tick's device readings.
+    Tick(TickInput),
+    /// End of run: report and stop.
+    Finish,
+}
+
+/// Configuration of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Configure {
+    /// [`PROTOCOL_VERSION`] of the host.
+    pub protocol: u16,
+    /// The pilot.
+    pub pilot: PilotSpec,
+    /// The floor-tag grid.
+    pub grid: TagGridSpec,
+    /// Full-scale PWM duty the motor proxies report in, steps.
+    pub pwm_max_duty: u16,
+}
+
+/// What the devices show at one control tick.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TickInput {
+    /// Tick index `k` (`t = k·h`), from 0.
+    pub tick: u32,
+    /// Raw left encoder counter; `None` models a failed read.
+    pub left_count: Option<u32>,
+    /// Raw right encoder counter; `None` models a failed read.
+    pub right_count: Option<u32>,
+    /// Bytes the RFID reader's UART received since the last tick.
+    pub uart: heapless::Vec<u8, MAX_UART_BYTES_PER_TICK>,
+}
+
+/// What the firmware sends.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TargetMessage {
+    /// Sent once after reset.
+    Hello {
+        /// [`PROTOCOL_VERSION`] of the firmware.
+        protocol: u16,
+    },
+    /// The configuration was accepted.
+    Configured,
+    /// The configuration was refused (or its protocol version differs).
+    Refused(Refusal),
+    /// One tick done.
+    Ticked(TickOutput),
+    /// Answer to [`HostMessage::Finish`].
+    Finished(Finished),
+}
+
+/// Why a configuration was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Refusal {
+    /// The host speaks another protocol version (the firmware's).
+    Protocol(u16),
+    /// The core refused the spec.
+    Spec(SpecError),
+    /// A tick arrived before any configuration.
+    NotConfigured,
+}
+
+/// One motor as the firmware drove it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MotorOutput {
+    /// PWM duty, steps of [`Configure::pwm_max_duty`].
+    pub duty: u16,
+    /// Direction pin high.
+    pub direction_high: bool,
+}
+
+/// What the firmware did at one tick.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TickOutput {
+    /// The tick index this answers.
+    pub tick: u32,
+    /// Left motor.
+    pub left: MotorOutput,
+    /// Right motor.
+    pub right: MotorOutput,
+    /// Tracker mode after the tick.
+    pub mode: TrackerMode,
+    /// Reference position, m.
+    pub reference_m: [f32; 2],
+    /// Position used by the law (fix or dead-reckoned), m.
+    pub position_m: [f32; 2],
+    /// Heading estimate `(cos θ̂, sin θ̂)`.
+    pub heading: [f32; 2],
+    /// Body command `(v m/s, ω rad/s)`.
+    pub command: [f32; 2],
+    /// A tag fix was used this tick.
+    pub fix: bool,
+    /// Diagnostic counters.
+    pub counters: Diagnostics,
+}
+
+/// Every counter of the firmware, cumulative since configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Diagnostics {
+    /// The RFID frame parser.
+    pub rfid: RfidCounters,
+    /// Device faults of the robot.
+    pub robot: RobotCounters,
+    /// Encoder fault handling of the pilot.
+    pub pilot: PilotCounters,
+    /// Fix handling of the tracker.
+    pub tracker: TrackerCounters,
+    /// The link itself.
+    pub link: LinkCounters,
+    /// UART bytes the proxy could not buffer (overrun), lost.
+    pub uart_overruns: u32,
+}
+
+/// Faults of the link, as one side saw them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LinkCounters {
+    /// Frames received and accepted.
+    pub frames_ok: u32,
+    /// Frames dropped: bad COBS, bad CRC, undecodable, or too long.
+    pub corrupt_frames: u32,
+    /// Frames missing between two accepted ones (by sequence number).
+    pub sequence_gaps: u32,
+    /// Times the link was silent past the timeout (motors stopped).
+    pub timeouts: u32,
+    /// Messages that made no sense in the current state (e.g. a tick
+    /// before the configuration), answered with a refusal.
+    pub unexpected_messages: u32,
+}
+
+/// The end-of-run report.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Finished {
+    /// Ticks run.
+    pub ticks: u32,
+    /// Deepest stack use since reset, bytes (stack painting).
+    pub peak_stack_bytes: u32,
+    /// Final counters.
+    pub counters: Diagnostics,
+}
+
+/// A message with its sequence number.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Frame<M> {
+    /// Sender's frame count, from 0, wrapping.
+    pub seq: u32,
+    /// The message.
+    pub body: M,
+}
+
+/// Why a frame could not be encoded or decoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LinkError {
+    /// The message does not fit in [`MAX_FRAME_BYTES`] (encoding), or the
+    /// received frame was longer (decoding).
+    TooLong,
+    /// Not valid COBS.
+    Cobs,
+    /// Shorter than a CRC.
+    TooShort,
+    /// CRC mismatch.
+    Crc,
+    /// postcard could not decode the payload as the expected message.
+    Decode,
+}
+
+const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// Encodes `frame` into `out`; returns the frame's bytes (ending in `0x00`).
+///
+/// # Errors
+/// [`LinkError::TooLong`] if the frame does not fit.
+pub fn encode<'a, M: Serialize>(
+    frame: &Frame<M>,
+    out: &'a mut [u8; MAX_FRAME_BYTES],
+) -> Result<&'a [u8], LinkError> {
+    let mut raw = [0_u8; MAX_RAW_BYTES];
+    let payload_len = postcard::to_slice(frame, &mut raw)
+        .map_err(|_| LinkError::TooLong)?
+        .len();
+    let crc = CRC.checksum(raw.get(..payload_len).ok_or(LinkError::TooLong)?);
+    raw.get_mut(payload_len..payload_len + 4)
+        .ok_or(LinkError::TooLong)?
+        .copy_from_slice(&crc.to_le_bytes());
+    let raw = raw.get(..payload_len + 4).ok_or(LinkError::TooLong)?;
+    // Leave the last byte for the terminator.
+    let (body, _) = out.split_at_mut(MAX_FRAME_BYTES - 1);
+    let n = cobs::try_encode(raw, body).map_err(|_| LinkError::TooLong)?;
+    let terminator = out.get_mut(n).ok_or(LinkError::TooLong)?;
+    *terminator = 0;
+    out.get(..=n).ok_or(LinkError::TooLong)
+}
+
+/// Decodes one frame's COBS bytes (without the `0x00`), in place.
+///
+/// # Errors
+/// Which check failed.
+pub fn decode<'de, M: Deserialize<'de>>(cobs_bytes: &'de mut [u8]) -> Result<Frame<M>, LinkError> {
+    let n = cobs::decode_in_place(cobs_bytes).map_err(|_| LinkError::Cobs)?;
+    let raw = cobs_bytes.get(..n).ok_or(LinkError::Cobs)?;
+    let payload_len = n.checked_sub(4).ok_or(LinkError::TooShort)?;
+    let (payload, crc_bytes) = raw.split_at(payload_len);
+    let mut crc = [0_u8; 4];
+    crc.copy_from_slice(crc_bytes);
+    if CRC.checksum(payload) != u32::from_le_bytes(crc) {
+        return Err(LinkError::Crc);
+    }
+    postcard::from_bytes(payload).map_err(|_| LinkError::Decode)
+}
+
+/// Collects received bytes into frames (split at `0x00`).
+///
+/// Feed bytes with [`Self::push`]; a complete frame comes back as
+/// `Some(Ok(frame))` or `Some(Err(why))`. Too-long frames are discarded up
+/// to the next `0x00` and reported once, as [`LinkError::TooLong`].
+#[derive(Debug)]
+pub struct Receiver {
+    buf: [u8; MAX_FRAME_BYTES],
+    len: usize,
+    overflowed: bool,
+    next_seq: Option<u32>,
+    counters: LinkCounters,
+}
+
+impl Default for Receiver {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Receiver {
+    /// An empty receiver.
+    #[must_use]
+    pub const fn new() -> Self {
+        Self {
+            buf: [0; MAX_FRAME_BYTES],
+            len: 0,
+            overflowed: false,
+            next_seq: None,
+            counters: LinkCounters {
+                frames_ok: 0,
+                corrupt_frames: 0,
+                sequence_gaps: 0,
+                timeouts: 0,
+                unexpected_messages: 0,
+            },
+        }
+    }
+
+    /// Takes one byte; returns a message when a frame ends. Corrupt frames
+    /// and sequence gaps are counted here ([`Self::counters`]).
+    pub fn push<M: for<'de> Deserialize<'de>>(&mut self, byte: u8) -> Option<Result<M, LinkError>> {
+        if byte != 0 {
+            match self.buf.get_mut(self.len) {
+                Some(slot) => {
+                    *slot = byte;
+                    self.len += 1;
+                }
+                None => self.overflowed = true,
+            }
+            return None;
+        }
+        let len = core::mem::take(&mut self.len);
+        if core::mem::take(&mut self.overflowed) {
+            self.counters.corrupt_frames = self.counters.corrupt_frames.saturating_add(1);
+            return Some(Err(LinkError::TooLong));
+        }
+        if len == 0 {
+            // Back-to-back terminators: an empty frame, used to flush a line.
+            return None;
+        }
+        let result = self
+            .buf
+            .get_mut(..len)
+            .ok_or(LinkError::TooLong)
+            .and_then(decode::<M>);
+        Some(match result {
+            Ok(frame) => {
+                self.counters.frames_ok = self.counters.frames_ok.saturating_add(1);
+                if let Some(expected) = self.next_seq {
+                    let gap = frame.seq.wrapping_sub(expected);
+                    // A gap larger than half the range is a repeat or a
+                    // restart of the peer; count it as one gap.
+                    let gap = if gap > u32::MAX / 2 { 1 } else { gap };
+                    self.counters.sequence_gaps = self.counters.sequence_gaps.saturating_add(gap);
+                }
+                self.next_seq = Some(frame.seq.wrapping_add(1));
+                Ok(frame.body)
+            }
+            Err(e) => {
+                self.counters.corrupt_frames = self.counters.corrupt_frames.saturating_add(1);
+                Err(e)
+            }
+        })
+    }
+
+    /// Counts a silent-link timeout.
+    pub fn note_timeout(&mut self) {
+        self.counters.timeouts = self.counters.timeouts.saturating_add(1);
+    }
+
+    /// Counts a message that made no sense in the current state.
+    pub fn note_unexpected(&mut self) {
+        self.counters.unexpected_messages = self.counters.unexpected_messages.saturating_add(1);
+    }
+
+    /// The counters.
+    #[must_use]
+    pub fn counters(&self) -> LinkCounters {
+        self.counters
+    }
+}
+
+/// Numbers outgoing frames.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Sender {
+    seq: u32,
+}
+
+impl Sender {
+    /// Encodes the next frame into `out`.
+    ///
+    /// # Errors
+    /// [`LinkError::TooLong`].
+    pub fn frame<'a, M: Serialize>(
+        &mut self,
+        body: M,
+        out: &'a mut [u8; MAX_FRAME_BYTES],
+    ) -> Result<&'a [u8], LinkError> {
+        let bytes = encode(
+            &Frame {
+                seq: self.seq,
+                body,
+            },
+            out,
+        )?;
+        self.seq = self.seq.wrapping_add(1);
+        Ok(bytes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use wmr_core::spec::{DriveSpec, TrackerSpec, TrajectorySpec};
+
+    fn configure() -> HostMessage {
+        HostMessage::Configure(Configure {
+            protocol: PROTOCOL_VERSION,
+            pilot: PilotSpec {
+                tracker: TrackerSpec {
+                    period_s: 0.01,
+                    trajectory: TrajectorySpec::FigureEight {
+                        h1_m: 5.0,
+                        h2_rad_s: 0.02,
+                        phase_rad: -core::f32::consts::FRAC_PI_2,
+                    },
+                    gains: [0.5, 0.5, 1.0],
+                    observer_gain_per_m: 10.0,
+                    observer_min_speed_m_s: 1e-3,
+                    fix_timeout_ticks: 50,
+                    failsafe_decel_m_s2: 0.5,
+                    max_fix_age_ticks: 2,
+                },
+                drive: DriveSpec {
+                    wheel_radius_m: 0.05,
+                    track_width_m: 0.3,
+                    encoder_counts_per_rev: 2048,
+                    max_wheel_speed_rad_s: 20.0,
+                    max_wheel_accel_rad_s2: 40.0,
+                    feedforward_duty_per_rad_s: 0.05,
+                    kp_duty_per_rad_s: 0.05,
+                    ki_duty_per_rad: 0.5,
+                },
+                encoder_bits: 16,
+                max_encoder_fault_ticks: 5,
+            },
+            grid: TagGridSpec {
+                origin_m: [-6.0, -6.0],
+                spacing_m: 0.1,
+                rows: 130,
+                columns: 130,
+            },
+            pwm_max_duty: 1000,
+        })
+    }
+
+    fn full_tick() -> HostMessage {
+        let mut uart = heapless::Vec::new();
+        for i in 0..MAX_UART_BYTES_PER_TICK {
+            let _ = uart.push(u8::try_from(i % 251).unwrap_or(0));
+        }
+        HostMessage::Tick(TickInput {
+            tick: u32::MAX,
+            left_count: Some(u32::MAX),
+            right_count: None,
+            uart,
+        })
+    }
+
+    fn feed<M: for<'de> Deserialize<'de>>(
+        rx: &mut Receiver,
+        bytes: &[u8],
+    ) -> Vec<Result<M, LinkError>> {
+        bytes.iter().filter_map(|&b| rx.push(b)).collect()
+    }
+
+    #[test]
+    fn messages_round_trip_and_fit() {
+        let mut tx = Sender::default();
+        let mut rx = Receiver::new();
+        let mut out = [0; MAX_FRAME_BYTES];
+        for msg in [configure(), full_tick(), HostMessage::Finish] {
+            let bytes = tx.frame(msg.clone(), &mut out).unwrap().to_vec();
+            assert_eq!(bytes.last(), Some(&0));
+            assert!(!bytes[..bytes.len() - 1].contains(&0));
+            assert_eq!(feed::<HostMessage>(&mut rx, &bytes), vec![Ok(msg)]);
+        }
+        assert_eq!(rx.counters().frames_ok, 3);
+        assert_eq!(rx.counters().sequence_gaps, 0);
+    }
+
+    #[test]
+    fn a_flipped_bit_is_caught_and_the_next_frame_still_decodes() {
+        let mut tx = Sender::default();
+        let mut rx = Receiver::new();
+        let mut out = [0; MAX_FRAME_BYTES];
+        let good = tx.frame(configure(), &mut out).unwrap().to_vec();
+        let mut bad = good.clone();
+        bad[10] ^= 0x04;
+        let next = tx.frame(HostMessage::Finish, &mut out).unwrap().to_vec();
+        let got = feed::<HostMessage>(&mut rx, &[bad, next].concat());
+        assert_eq!(got.len(), 2);
+        assert!(got[0].is_err());
+        assert_eq!(got[1], Ok(HostMessage::Finish));
+        assert_eq!(rx.counters().corrupt_frames, 1);
+        // The corrupt frame still used a sequence number.
+        assert_eq!(rx.counters().sequence_gaps, 0);
+    }
+
+    #[test]
+    fn sequence_gaps_are_counted() {
+        let mut tx = Sender::default();
+        let mut rx = Receiver::new();
+        let mut out = [0; MAX_FRAME_BYTES];
+        let first = tx.frame(HostMessage::Finish, &mut out).unwrap().to_vec();
+        for _ in 0..3 {
+            tx.frame(HostMessage::Finish, &mut out).unwrap();
+        }
+        let fifth = tx.frame(HostMessage::Finish, &mut out).unwrap().to_vec();
+        let got = feed::<HostMessage>(&mut rx, &[first, fifth].concat());
+        assert_eq!(got.len(), 2);
+        assert_eq!(rx.counters().sequence_gaps, 3);
+    }
+
+    #[test]
+    fn an_overlong_frame_is_dropped_whole() {
+        let mut rx = Receiver::new();
+        let junk = vec![0x55_u8; MAX_FRAME_BYTES * 2];
+        let got = feed::<HostMessage>(&mut rx, &[junk.as_slice(), &[0]].concat());
+        assert_eq!(got, vec![Err(LinkError::TooLong)]);
+        let mut out = [0; MAX_FRAME_BYTES];
+        let ok = Sender::default()
+            .frame(HostMessage::Finish, &mut out)
+            .unwrap()
+            .to_vec();
+        assert_eq!(
+            feed::<HostMessage>(&mut rx, &ok),
+            vec![Ok(HostMessage::Finish)]
+        );
+    }
+
+    proptest! {
+        #[test]
+        fn garbage_never_panics_and_rarely_passes(bytes in proptest::collection::vec(any::<u8>(), 0..2048)) {
+            let mut rx = Receiver::new();
+            let got = feed::<HostMessage>(&mut rx, &bytes);
+            let c = rx.counters();
+            prop_assert_eq!(got.len() as u32, c.frames_ok + c.corrupt_frames);
+        }
+
+        #[test]
+        fn any_single_byte_corruption_is_rejected(pos in 0_usize..400, flip in 1_u8..=255) {
+            let mut out = [0; MAX_FRAME_BYTES];
+            let good = Sender::default().frame(configure(), &mut out).unwrap().to_vec();
+            let pos = pos % (good.len() - 1);
+            let mut bad = good.clone();
+            bad[pos] ^= flip;
+            let mut rx = Receiver::new();
+            let got = feed::<HostMessage>(&mut rx, &bad);
+            // A corrupted byte may become 0x00 and split the frame; no piece
+            // may decode as a message.
+            prop_assert!(got.iter().all(Result::is_err), "{:?}", got);
+        }
+    }
+}
