@@ -45,6 +45,9 @@
     )
 )]
 
+pub mod proxy;
+pub mod session;
+
 use serde::{Deserialize, Serialize};
 use wmr_core::devices::RfidCounters;
 use wmr_core::output_feedback::{TrackerCounters, TrackerMode};

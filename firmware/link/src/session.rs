@@ -1,0 +1,277 @@
+//! The firmware's side of a HIL run: messages in, the core's robot in the
+//! middle, messages out. Board-independent (the QEMU board feeds it bytes
+//! from USART1), so it is tested on the host too.
+
+use wmr_core::devices::{MotorDriver, MotorWiring, TagGrid};
+use wmr_core::pilot::Pilot;
+use wmr_core::robot::Robot;
+use wmr_core::spec::SpecError;
+
+use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
+use crate::{
+    Configure, Diagnostics, Finished, HostMessage, LinkCounters, PROTOCOL_VERSION, Refusal,
+    TargetMessage, TickOutput,
+};
+
+/// The robot a HIL session runs: the core's [`Robot`] on proxy devices.
+pub type ProxyRobot<'a> = Robot<
+    ProxyEncoder<'a>,
+    ProxyEncoder<'a>,
+    MotorDriver<ProxyPwm<'a>, ProxyPin<'a>>,
+    MotorDriver<ProxyPwm<'a>, ProxyPin<'a>>,
+    ProxyUart<'a>,
+    TagGrid,
+>;
+
+/// A run in progress.
+pub struct Session<'a> {
+    bus: &'a ProxyBus,
+    robot: Option<ProxyRobot<'a>>,
+    ticks: u32,
+}
+
+impl<'a> Session<'a> {
+    /// A session over `bus`, not yet configured.
+    #[must_use]
+    pub fn new(bus: &'a ProxyBus) -> Self {
+        Self {
+            bus,
+            robot: None,
+            ticks: 0,
+        }
+    }
+
+    /// Whether a configuration was accepted.
+    #[must_use]
+    pub fn is_configured(&self) -> bool {
+        self.robot.is_some()
+    }
+
+    /// Handles one message; `link` are the receiver's counters and
+    /// `peak_stack_bytes` the stack high-water mark (reported on `Finish`).
+    /// Returns the answer and whether the run is over.
+    pub fn handle(
+        &mut self,
+        message: &HostMessage,
+        link: LinkCounters,
+        peak_stack_bytes: impl FnOnce() -> u32,
+    ) -> (TargetMessage, bool) {
+        match message {
+            HostMessage::Configure(c) => (self.configure(c), false),
+            HostMessage::Tick(input) => match self.robot.as_mut() {
+                None => (TargetMessage::Refused(Refusal::NotConfigured), false),
+                Some(robot) => {
+                    self.bus.load(input);
+                    let out = robot.tick();
+                    self.ticks = self.ticks.saturating_add(1);
+                    let t = &out.pilot.tracker;
+                    (
+                        TargetMessage::Ticked(TickOutput {
+                            tick: input.tick,
+                            left: self.bus.motor(Side::Left),
+                            right: self.bus.motor(Side::Right),
+                            mode: t.mode,
+                            reference_m: [t.reference.position.x, t.reference.position.y],
+                            position_m: [t.position.x, t.position.y],
+                            heading: [t.heading.cos_theta, t.heading.sin_theta],
+                            command: [t.command.v_m_s, t.command.omega_rad_s],
+                            fix: out.fix.is_some(),
+                            counters: self.diagnostics(link),
+                        }),
+                        false,
+                    )
+                }
+            },
+            HostMessage::Finish => (
+                TargetMessage::Finished(Finished {
+                    ticks: self.ticks,
+                    peak_stack_bytes: peak_stack_bytes(),
+                    counters: self.diagnostics(link),
+                }),
+                true,
+            ),
+        }
+    }
+
+    /// The link went silent: stop the motors (the robot would otherwise
+    /// drive on its last command with no sensor data).
+    pub fn link_silent(&mut self) {
+        self.bus.stop_motors();
+    }
+
+    /// All counters now.
+    #[must_use]
+    pub fn diagnostics(&self, link: LinkCounters) -> Diagnostics {
+        let mut d = Diagnostics {
+            link,
+            uart_overruns: self.bus.uart_overruns(),
+            ..Diagnostics::default()
+        };
+        if let Some(robot) = &self.robot {
+            d.rfid = robot.rfid_counters();
+            d.robot = robot.counters();
+            d.pilot = robot.pilot().counters();
+            d.tracker = robot.pilot().tracker().counters();
+        }
+        d
+    }
+
+    fn configure(&mut self, c: &Configure) -> TargetMessage {
+        if c.protocol != PROTOCOL_VERSION {
+            return TargetMessage::Refused(Refusal::Protocol(PROTOCOL_VERSION));
+        }
+        let built = c.pilot.build().and_then(|config| {
+            let pilot = Pilot::new(config).map_err(SpecError::Pilot)?;
+            Ok((pilot, c.grid.build()?))
+        });
+        match built {
+            Err(e) => TargetMessage::Refused(Refusal::Spec(e)),
+            Ok((pilot, grid)) => {
+                let bus = self.bus;
+                bus.reset(c.pwm_max_duty);
+                let motor = |side| {
+                    MotorDriver::new(
+                        bus.pwm(side),
+                        bus.direction_pin(side),
+                        MotorWiring::default(),
+                    )
+                };
+                self.robot = Some(Robot::new(
+                    pilot,
+                    (bus.encoder(Side::Left), bus.encoder(Side::Right)),
+                    (motor(Side::Left), motor(Side::Right)),
+                    wmr_core::devices::RfidReader::new(bus.uart()),
+                    grid,
+                ));
+                self.ticks = 0;
+                TargetMessage::Configured
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::TickInput;
+    use wmr_core::devices::encode_frame;
+    use wmr_core::output_feedback::TrackerMode;
+    use wmr_core::spec::{DriveSpec, PilotSpec, TagGridSpec, TrackerSpec, TrajectorySpec};
+
+    pub(crate) fn configure() -> Configure {
+        Configure {
+            protocol: PROTOCOL_VERSION,
+            pilot: PilotSpec {
+                tracker: TrackerSpec {
+                    period_s: 0.01,
+                    trajectory: TrajectorySpec::Line {
+                        start_m: [0.0, 0.0],
+                        heading_rad: 0.0,
+                        speed_m_s: 0.2,
+                    },
+                    gains: [0.5, 0.5, 1.0],
+                    observer_gain_per_m: 10.0,
+                    observer_min_speed_m_s: 1e-3,
+                    fix_timeout_ticks: 50,
+                    failsafe_decel_m_s2: 0.5,
+                    max_fix_age_ticks: 2,
+                },
+                drive: DriveSpec {
+                    wheel_radius_m: 0.05,
+                    track_width_m: 0.3,
+                    encoder_counts_per_rev: 2048,
+                    max_wheel_speed_rad_s: 20.0,
+                    max_wheel_accel_rad_s2: 40.0,
+                    feedforward_duty_per_rad_s: 0.05,
+                    kp_duty_per_rad_s: 0.05,
+                    ki_duty_per_rad: 0.5,
+                },
+                encoder_bits: 16,
+                max_encoder_fault_ticks: 5,
+            },
+            grid: TagGridSpec {
+                origin_m: [-1.0, -1.0],
+                spacing_m: 0.1,
+                rows: 21,
+                columns: 21,
+            },
+            pwm_max_duty: 1000,
+        }
+    }
+
+    #[test]
+    fn configure_then_tick_drives_the_proxies() {
+        let bus = ProxyBus::new();
+        let mut s = Session::new(&bus);
+        let link = LinkCounters::default();
+        let tick = |k, uart: &[u8]| {
+            HostMessage::Tick(TickInput {
+                tick: k,
+                left_count: Some(0),
+                right_count: Some(0),
+                uart: heapless::Vec::from_slice(uart).unwrap(),
+            })
+        };
+        assert_eq!(
+            s.handle(&tick(0, &[]), link, || 0).0,
+            TargetMessage::Refused(Refusal::NotConfigured)
+        );
+        let mut bad = configure();
+        bad.pilot.tracker.gains[0] = -1.0;
+        assert!(matches!(
+            s.handle(&HostMessage::Configure(bad), link, || 0).0,
+            TargetMessage::Refused(Refusal::Spec(SpecError::Gains(_)))
+        ));
+        assert_eq!(
+            s.handle(&HostMessage::Configure(configure()), link, || 0).0,
+            TargetMessage::Configured
+        );
+        // The tag at row 10, column 12 of the grid: (0.2, 0.0).
+        let frame = encode_frame(TagGrid::id(10, 12));
+        let (answer, done) = s.handle(&tick(0, &frame), link, || 0);
+        assert!(!done);
+        let TargetMessage::Ticked(out) = answer else {
+            panic!("{answer:?}")
+        };
+        assert!(out.fix);
+        assert_eq!(out.mode, TrackerMode::Tracking);
+        assert!((out.position_m[0] - 0.2).abs() < 1e-6);
+        assert_eq!(out.counters.rfid.frames_ok, 1);
+        let (answer, done) = s.handle(&HostMessage::Finish, link, || 1234);
+        assert!(done);
+        assert!(matches!(
+            answer,
+            TargetMessage::Finished(Finished {
+                ticks: 1,
+                peak_stack_bytes: 1234,
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn a_silent_link_stops_the_motors() {
+        let bus = ProxyBus::new();
+        let mut s = Session::new(&bus);
+        let link = LinkCounters::default();
+        s.handle(&HostMessage::Configure(configure()), link, || 0);
+        // Behind the reference with a fix every tick: the robot drives.
+        let mut driven = false;
+        for k in 0..50 {
+            let frame = encode_frame(TagGrid::id(10, 10));
+            let msg = HostMessage::Tick(TickInput {
+                tick: k,
+                left_count: Some(0),
+                right_count: Some(0),
+                uart: heapless::Vec::from_slice(&frame).unwrap(),
+            });
+            if let (TargetMessage::Ticked(out), _) = s.handle(&msg, link, || 0) {
+                driven |= out.left.duty > 0 || out.right.duty > 0;
+            }
+        }
+        assert!(driven);
+        s.link_silent();
+        assert_eq!(bus.motor(Side::Left).duty, 0);
+        assert_eq!(bus.motor(Side::Right).duty, 0);
+    }
+}

@@ -1,0 +1,177 @@
+//! QEMU `netduinoplus2` board (STM32F405 model): hardware-in-the-loop.
+//!
+//! QEMU models the F405's USARTs, timers and the Cortex-M4 core, but no
+//! motors, encoders or RFID reader, and no RCC (clock setup is skipped: the
+//! model runs at its fixed 168 MHz). So the robot's devices are proxies
+//! (`wmr_link::proxy`) and USART1, which QEMU connects to a host chardev
+//! (`-serial unix:…`), carries the lock-step link to `firmware-sim hil`:
+//!
+//! - The **control tick** is the arrival of the host's `Tick` frame: in
+//!   lock-step the simulator is the clock, which makes the run
+//!   deterministic whatever QEMU's speed. (The real board's tick comes from
+//!   a hardware timer; see `board::blackpill`.)
+//! - **SysTick** (core clock, 1 ms) times the link: after
+//!   [`LINK_TIMEOUT_MS`] without a valid frame while a run is configured,
+//!   the firmware counts a timeout and stops the motors, as a robot must
+//!   when its sensors go silent. It drives again on the next tick frame.
+//! - **Corrupt frames** (bad COBS/CRC/postcard, too long) are dropped and
+//!   counted; the receiver resynchronises at the next `0x00`.
+//! - **Logs** go out with defmt over semihosting (QEMU's stdout; decode with
+//!   the firmware ELF). The run ends on the host's `Finish`: the firmware
+//!   answers with its stack high-water mark and exits through semihosting.
+
+use cortex_m::peripheral::SYST;
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
+use defmt_semihosting as _;
+use stm32f4xx_hal::pac;
+use wmr_link::proxy::ProxyBus;
+use wmr_link::session::Session;
+use wmr_link::{HostMessage, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver, Sender, TargetMessage};
+
+/// Core clock of the `netduinoplus2` model, Hz.
+const CORE_CLOCK_HZ: u32 = 168_000_000;
+
+/// Silence on the link, while configured, after which the motors stop, ms
+/// (five 10 ms control periods).
+pub const LINK_TIMEOUT_MS: u32 = 50;
+
+/// USART1 by register: QEMU's model needs no baud rate or GPIO setup.
+struct Usart1 {
+    regs: pac::USART1,
+}
+
+impl Usart1 {
+    fn new(regs: pac::USART1, rcc: &pac::RCC) -> Self {
+        // No effect under QEMU (no RCC model); right on silicon.
+        rcc.apb2enr().modify(|_, w| w.usart1en().set_bit());
+        regs.cr1()
+            .write(|w| w.ue().set_bit().te().set_bit().re().set_bit());
+        Self { regs }
+    }
+
+    fn read_byte(&mut self) -> Option<u8> {
+        let sr = self.regs.sr().read();
+        if sr.ore().bit_is_set() {
+            defmt::warn!("USART1 overrun");
+        }
+        sr.rxne()
+            .bit_is_set()
+            .then(|| self.regs.dr().read().dr().bits().to_le_bytes()[0])
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            while self.regs.sr().read().txe().bit_is_clear() {}
+            self.regs.dr().write(|w| w.dr().set(u16::from(b)));
+        }
+    }
+}
+
+/// A 1 ms time base from SysTick.
+struct Millis {
+    syst: SYST,
+}
+
+impl Millis {
+    fn new(mut syst: SYST) -> Self {
+        syst.set_clock_source(SystClkSource::Core);
+        syst.set_reload(CORE_CLOCK_HZ / 1000 - 1);
+        syst.clear_current();
+        syst.enable_counter();
+        Self { syst }
+    }
+
+    /// Whether a millisecond passed since the last call that said so.
+    fn elapsed(&mut self) -> bool {
+        self.syst.has_wrapped()
+    }
+}
+
+/// Encodes and sends one message (a frame that does not fit is a bug in
+/// the message sizes, caught by the link's tests; it is logged and dropped).
+fn send(serial: &mut Usart1, tx: &mut Sender, message: TargetMessage) {
+    let mut out = [0_u8; MAX_FRAME_BYTES];
+    match tx.frame(message, &mut out) {
+        Ok(bytes) => serial.write(bytes),
+        Err(e) => defmt::error!("answer not sent: {}", e),
+    }
+}
+
+/// The firmware: serve the link until the host says `Finish`.
+pub fn run() -> ! {
+    let (Some(dp), Some(cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
+        // Only possible if something took them before `main`.
+        debug::exit(EXIT_FAILURE);
+        loop {
+            cortex_m::asm::wfi();
+        }
+    };
+    let mut serial = Usart1::new(dp.USART1, &dp.RCC);
+    let mut millis = Millis::new(cp.SYST);
+    let bus = ProxyBus::new();
+    let mut session = Session::new(&bus);
+    let mut rx = Receiver::new();
+    let mut tx = Sender::default();
+    defmt::info!(
+        "wmr-firmware (QEMU board), link protocol {}",
+        PROTOCOL_VERSION
+    );
+    send(
+        &mut serial,
+        &mut tx,
+        TargetMessage::Hello {
+            protocol: PROTOCOL_VERSION,
+        },
+    );
+
+    let mut silent_ms: u32 = 0;
+    let mut stopped_for_silence = false;
+    loop {
+        if let Some(byte) = serial.read_byte() {
+            match rx.push::<HostMessage>(byte) {
+                None => {}
+                Some(Err(e)) => defmt::warn!("corrupt frame dropped: {}", e),
+                Some(Ok(message)) => {
+                    silent_ms = 0;
+                    if stopped_for_silence {
+                        defmt::info!("link back");
+                        stopped_for_silence = false;
+                    }
+                    let (answer, done) =
+                        session.handle(&message, rx.counters(), crate::stack::peak_bytes);
+                    match answer {
+                        TargetMessage::Configured => defmt::info!("configured"),
+                        TargetMessage::Refused(why) => {
+                            rx.note_unexpected();
+                            defmt::warn!("refused: {}", why);
+                        }
+                        _ => {}
+                    }
+                    send(&mut serial, &mut tx, answer);
+                    if done {
+                        defmt::info!("finished; peak stack {} B", crate::stack::peak_bytes());
+                        debug::exit(EXIT_SUCCESS);
+                    }
+                }
+            }
+        } else if millis.elapsed() && session.is_configured() && !stopped_for_silence {
+            silent_ms = silent_ms.saturating_add(1);
+            if silent_ms >= LINK_TIMEOUT_MS {
+                rx.note_timeout();
+                session.link_silent();
+                stopped_for_silence = true;
+                defmt::warn!("link silent for {} ms: motors stopped", silent_ms);
+            }
+        }
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    defmt::error!("panic: {}", defmt::Display2Format(info));
+    debug::exit(EXIT_FAILURE);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}

@@ -1,0 +1,48 @@
+//! The robot firmware: the core's `Pilot` (through its `Robot`) as the only
+//! control logic, on one of two boards chosen by a cargo feature:
+//!
+//! - `board-qemu` (default): QEMU's `netduinoplus2` (STM32F405). The devices
+//!   are proxies over USART1 and the host simulator plays the hardware in
+//!   lock-step (`firmware-sim hil`); see [`board::qemu`].
+//! - `board-blackpill`: an STM32F411 "Black Pill" robot board; see
+//!   [`board::blackpill`] for the pinout and how to flash it.
+//!
+//! Build with `cargo xtask firmware` (both boards) or
+//! `cargo build -p wmr-firmware --release --target thumbv7em-none-eabihf
+//! [--no-default-features --features board-blackpill]`.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod board;
+#[cfg(target_os = "none")]
+mod stack;
+
+#[cfg(all(
+    target_os = "none",
+    feature = "board-qemu",
+    feature = "board-blackpill"
+))]
+compile_error!("choose one board: `board-qemu` or `board-blackpill`");
+#[cfg(all(
+    target_os = "none",
+    not(feature = "board-qemu"),
+    not(feature = "board-blackpill")
+))]
+compile_error!("choose a board feature: `board-qemu` or `board-blackpill`");
+
+#[cfg(target_os = "none")]
+#[cortex_m_rt::entry]
+fn main() -> ! {
+    board::run()
+}
+
+/// On the host this crate is a stub, so that workspace-wide host commands
+/// pass over it.
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!(
+        "wmr-firmware runs on a microcontroller: build it with `cargo xtask firmware` \
+         (thumbv7em-none-eabihf) and run it under QEMU with `firmware-sim hil`"
+    );
+    std::process::exit(2);
+}
