@@ -18,6 +18,8 @@
 //! * [`mod@run`]: the loop, calling the core's tracker or controller directly
 //!   (unicycle) or its `Robot`/`Pilot` with virtual devices (diff drive).
 //! * [`output`]: CSV, JSON summary and PNG plot.
+//! * [`hil`]: the same runs with the control tick in the real firmware
+//!   under QEMU, in lock-step over a serial link.
 //!
 //! ```no_run
 //! use firmware_sim::{run, Scenario};
@@ -28,6 +30,7 @@
 //! ```
 
 pub mod devices;
+pub mod hil;
 pub mod output;
 pub mod plant;
 pub mod run;

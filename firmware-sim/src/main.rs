@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use firmware_sim::hil::{HilOptions, run_hil};
 use firmware_sim::output::{format_summary, write_all};
 use firmware_sim::scenario::{EMBEDDED, Scenario, embedded_source};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -40,6 +41,29 @@ enum Command {
         /// Print the summary as JSON instead of text.
         #[arg(long)]
         json: bool,
+    },
+    /// Run a diff-drive + RFID-reader scenario with the control tick in the
+    /// real firmware under QEMU (lock-step hardware-in-the-loop); writes the
+    /// same files as `run`, plus the firmware's defmt log.
+    Hil {
+        /// Scenario file or embedded name; default:
+        /// `figure_eight_rfid_full_stack`.
+        scenario: Option<String>,
+        /// Output directory (default: out/<scenario name>-hil).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Firmware ELF (default: build the QEMU-board firmware with cargo).
+        #[arg(long)]
+        firmware: Option<PathBuf>,
+        /// Override the scenario's duration, s.
+        #[arg(long)]
+        duration_s: Option<f64>,
+        /// Longest wait for any answer of the firmware, s.
+        #[arg(long, default_value_t = 10.0)]
+        timeout_s: f64,
+        /// Do not render run.png.
+        #[arg(long)]
+        no_plot: bool,
     },
     /// List the embedded scenarios.
     Scenarios,
@@ -79,6 +103,58 @@ fn real_main() -> anyhow::Result<()> {
             print!("{text}");
             Ok(())
         }
+        Command::Hil {
+            scenario,
+            out,
+            firmware,
+            duration_s,
+            timeout_s,
+            no_plot,
+        } => {
+            let mut scenario = match scenario {
+                None => Scenario::embedded("figure_eight_rfid_full_stack")?,
+                Some(arg) => load(&arg)?,
+            };
+            if let Some(d) = duration_s {
+                scenario.duration_s = d;
+                if scenario.transient_s >= d {
+                    scenario.transient_s = 0.0;
+                }
+            }
+            anyhow::ensure!(
+                timeout_s.is_finite() && timeout_s > 0.0,
+                "--timeout-s must be positive"
+            );
+            let out =
+                out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}-hil", scenario.name)));
+            std::fs::create_dir_all(&out)?;
+            let options = HilOptions {
+                firmware,
+                log: Some(out.join("firmware.defmt")),
+                answer_timeout: std::time::Duration::from_secs_f64(timeout_s),
+            };
+            let bar = progress_bar(&scenario, 0.0)?;
+            let run = run_hil(&scenario, &options, |done, _| bar.set_position(done));
+            bar.finish_and_clear();
+            let run = run?;
+            let files = write_all(&out, &run.result, !no_plot)?;
+            print!("{}", format_summary(&run.result.summary));
+            println!(
+                "firmware      {} (defmt log: {})",
+                run.firmware.display(),
+                out.join("firmware.defmt").display()
+            );
+            println!(
+                "wrote         {}, {}{}",
+                files.csv.display(),
+                files.summary.display(),
+                files
+                    .plot
+                    .map(|p| format!(", {}", p.display()))
+                    .unwrap_or_default()
+            );
+            Ok(())
+        }
         Command::Run {
             scenario,
             out,
@@ -89,14 +165,7 @@ fn real_main() -> anyhow::Result<()> {
         } => {
             let mut scenario = match scenario {
                 None => Scenario::default_scenario(),
-                Some(arg) => {
-                    let path = PathBuf::from(&arg);
-                    if !path.exists() && embedded_source(&arg).is_some() {
-                        Scenario::embedded(&arg)?
-                    } else {
-                        Scenario::from_file(&path)?
-                    }
-                }
+                Some(arg) => load(&arg)?,
             };
             if let Some(d) = duration_s {
                 scenario.duration_s = d;
@@ -134,11 +203,30 @@ fn real_main() -> anyhow::Result<()> {
     }
 }
 
+/// A scenario file, or an embedded scenario by name.
+fn load(arg: &str) -> anyhow::Result<Scenario> {
+    let path = PathBuf::from(arg);
+    Ok(if !path.exists() && embedded_source(arg).is_some() {
+        Scenario::embedded(arg)?
+    } else {
+        Scenario::from_file(&path)?
+    })
+}
+
 /// Runs with a progress bar on stderr (hidden when stderr is not a
 /// terminal, and for runs under 20 000 ticks).
 fn run_with_progress(scenario: &Scenario) -> anyhow::Result<firmware_sim::RunResult> {
+    let bar = progress_bar(scenario, 20_000.0)?;
+    let result = firmware_sim::run(scenario, |done, _| bar.set_position(done));
+    bar.finish_and_clear();
+    Ok(result?)
+}
+
+/// A progress bar on stderr for runs of at least `min_ticks` (hidden when
+/// stderr is not a terminal).
+fn progress_bar(scenario: &Scenario, min_ticks: f64) -> anyhow::Result<ProgressBar> {
     let ticks = (scenario.duration_s / scenario.period_s).round();
-    let bar = if std::io::stderr().is_terminal() && ticks >= 20_000.0 {
+    Ok(if std::io::stderr().is_terminal() && ticks >= min_ticks {
         let bar = ProgressBar::with_draw_target(Some(ticks as u64), ProgressDrawTarget::stderr());
         bar.set_style(
             ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ticks ({eta})")
@@ -149,8 +237,5 @@ fn run_with_progress(scenario: &Scenario) -> anyhow::Result<firmware_sim::RunRes
         bar
     } else {
         ProgressBar::hidden()
-    };
-    let result = firmware_sim::run(scenario, |done, _| bar.set_position(done));
-    bar.finish_and_clear();
-    Ok(result?)
+    })
 }

@@ -168,6 +168,26 @@ pub fn format_summary(s: &Summary) -> String {
             p.out_of_range_pwm_writes
         );
     }
+    if let Some(h) = &s.hil {
+        let (f, l) = (&h.firmware_link, &h.host_link);
+        let _ = writeln!(
+            o,
+            "firmware      {} ticks under QEMU  peak stack {} B  UART overruns {}",
+            h.firmware_ticks, h.peak_stack_bytes, h.uart_overruns
+        );
+        let _ = writeln!(
+            o,
+            "link          firmware saw: ok {} corrupt {} gaps {} timeouts {} unexpected {};  host saw: ok {} corrupt {} gaps {}",
+            f.frames_ok,
+            f.corrupt_frames,
+            f.sequence_gaps,
+            f.timeouts,
+            f.unexpected_messages,
+            l.frames_ok,
+            l.corrupt_frames,
+            l.sequence_gaps
+        );
+    }
     if let Some(n) = s.floor_tags {
         let _ = writeln!(o, "floor         {n} tags");
     }

@@ -23,11 +23,16 @@ use wmr_core::devices::{MotorDriver, MotorWiring, QuadratureCounter, RfidReader,
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
 use wmr_core::heading_observer::{HeadingEstimate, HeadingObserver};
 use wmr_core::odometry::OdometryStep;
+use wmr_core::output_feedback::TrackerCounters;
 use wmr_core::output_feedback::{OutputFeedbackTracker, TagFix, TrackerMode};
-use wmr_core::pilot::{Measurement, Pilot, PilotConfig, PilotOutput};
+use wmr_core::pilot::{Measurement, Pilot, PilotConfig, PilotCounters};
 use wmr_core::reference::{TickClock, Trajectory};
 use wmr_core::robot::{Motor, Robot};
+use wmr_core::spec::TagGridSpec;
 use wmr_core::tracking::{GainBound, TrackingController};
+use wmr_link::{
+    Configure, Diagnostics, MAX_UART_BYTES_PER_TICK, MotorOutput, TickInput, TickOutput,
+};
 
 use crate::devices::{
     MotorSignals, ReaderConfig, ReaderModelCounters, VirtualDirectionPin, VirtualEncoder,
@@ -188,7 +193,10 @@ pub struct TrackerReport {
 
 impl TrackerReport {
     fn of(tracker: &OutputFeedbackTracker) -> Self {
-        let c = tracker.counters();
+        Self::from_counters(tracker.counters(), tracker.observer_rejected_updates())
+    }
+
+    fn from_counters(c: TrackerCounters, observer_rejected_updates: u32) -> Self {
         Self {
             fixes_used: c.fixes_used,
             invalid_fixes: c.invalid_fixes,
@@ -196,7 +204,7 @@ impl TrackerReport {
             dead_reckoned_steps: c.dead_reckoned_steps,
             failsafe_entries: c.failsafe_entries,
             non_finite_commands: c.non_finite_commands,
-            observer_rejected_updates: tracker.observer_rejected_updates(),
+            observer_rejected_updates,
         }
     }
 }
@@ -295,6 +303,9 @@ pub struct Summary {
     pub floor_tags: Option<usize>,
     /// Wall-clock time of the run, s.
     pub wall_time_s: f64,
+    /// Hardware-in-the-loop figures (`hil` runs only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hil: Option<crate::hil::HilReport>,
 }
 
 /// Everything a run produced.
@@ -320,14 +331,82 @@ pub fn run(
     progress: impl FnMut(u64, u64),
 ) -> Result<RunResult, ScenarioError> {
     let setup = scenario.validate()?;
+    let rig = Rig::new(&setup);
+    simulate(scenario, setup, rig, progress).map_err(|e| {
+        // Local rigs never fail a tick.
+        ScenarioError::invalid("(run)", e.to_string())
+    })
+}
+
+/// A robot whose control tick runs elsewhere (the firmware under QEMU,
+/// over the HIL link): it gets the devices' readings, answers with what it
+/// drove.
+pub trait TargetLink {
+    /// One lock-step exchange.
+    ///
+    /// # Errors
+    /// The link failed (timeout, corrupt or unexpected answer).
+    fn tick(&mut self, input: &TickInput) -> anyhow::Result<TickOutput>;
+}
+
+/// Runs a diff-drive + reader scenario with the control tick on `target`
+/// (already configured with [`hil_configuration`]); the plant, encoders and
+/// RFID reader are the same as in [`run`].
+///
+/// # Errors
+/// A scenario this cannot run remotely, or a link failure.
+pub fn run_with_target(
+    scenario: &Scenario,
+    target: &mut dyn TargetLink,
+    progress: impl FnMut(u64, u64),
+) -> anyhow::Result<RunResult> {
+    let setup = scenario.validate()?;
+    let rig = Rig::remote(&setup, target)?;
+    simulate(scenario, setup, rig, progress)
+}
+
+/// What the firmware must be configured with to run `setup` (diff-drive
+/// plant with a reader only: the firmware's devices are encoders, motors
+/// and the reader's UART).
+///
+/// # Errors
+/// A scenario whose position source or plant no device delivers.
+pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
+    let (
+        PlantSetup::DiffDrive {
+            pwm_max_duty,
+            pilot_spec,
+            ..
+        },
+        PositionSetup::Reader(floor, _),
+    ) = (setup.plant, setup.position)
+    else {
+        anyhow::bail!(
+            "hardware-in-the-loop runs need plant.kind = \"diff_drive\" and position.kind = \"reader\" \
+             (the firmware senses through encoders and the RFID reader's UART only)"
+        );
+    };
+    Ok(Configure {
+        protocol: wmr_link::PROTOCOL_VERSION,
+        pilot: pilot_spec,
+        grid: TagGridSpec::of(floor.grid()),
+        pwm_max_duty,
+    })
+}
+
+fn simulate(
+    scenario: &Scenario,
+    setup: Setup,
+    mut rig: Rig<'_>,
+    progress: impl FnMut(u64, u64),
+) -> anyhow::Result<RunResult> {
     let wall = Instant::now();
-    let mut rig = Rig::new(&setup);
     let mut records = Vec::with_capacity(setup.ticks as usize);
     let mut progress = progress;
     let total = u64::from(setup.ticks);
     for k in 0..setup.ticks {
         let t = f64::from(k) * setup.period_s;
-        records.push(rig.tick(k, t));
+        records.push(rig.tick(k, t)?);
         rig.advance(setup.period_s);
         if (k + 1) % PROGRESS_EVERY == 0 {
             progress(u64::from(k) + 1, total);
@@ -521,9 +600,9 @@ impl Hardware {
         (self.signals.0.signed_duty(), self.signals.1.signed_duty())
     }
 
-    fn note(&mut self, out: &PilotOutput) {
-        self.limits.0 += u64::from(out.drive.speed_limited);
-        self.limits.1 += u64::from(out.drive.accel_limited);
+    fn note(&mut self, speed_limited: bool, accel_limited: bool) {
+        self.limits.0 += u64::from(speed_limited);
+        self.limits.1 += u64::from(accel_limited);
         let (l, r) = self.duties();
         self.max_abs_duty = self.max_abs_duty.max(l.abs()).max(r.abs());
     }
@@ -536,8 +615,7 @@ impl Hardware {
         self.shafts.1.set_angle_rad(ar);
     }
 
-    fn report(&self, pilot: &Pilot, motor_faults: u32) -> PilotReport {
-        let c = pilot.counters();
+    fn report(&self, c: PilotCounters, motor_faults: u32) -> PilotReport {
         let (l, r) = (self.signals.0.line(), self.signals.1.line());
         PilotReport {
             encoder_fault_ticks: c.encoder_fault_ticks,
@@ -584,7 +662,7 @@ impl Outcome {
 
 // One instance per run: the variants' sizes do not matter.
 #[allow(clippy::large_enum_variant)]
-enum Rig {
+enum Rig<'t> {
     /// Unicycle + the core's output-feedback tracker.
     Tracker {
         plant: Unicycle,
@@ -617,9 +695,64 @@ enum Rig {
         source: Source,
         motor_faults: u32,
     },
+    /// Diff drive + reader, with the robot's tick on a [`TargetLink`].
+    Remote {
+        hw: Hardware,
+        encoders: (VirtualEncoder, VirtualEncoder),
+        drivers: [(VirtualPwm, VirtualDirectionPin); 2],
+        reader: VirtualRfidReader,
+        uart: VirtualUart,
+        floor: FloorTags,
+        target: &'t mut dyn TargetLink,
+        last: Diagnostics,
+        pwm_refusals: u32,
+    },
 }
 
-impl Rig {
+impl<'t> Rig<'t> {
+    fn remote(setup: &Setup, target: &'t mut dyn TargetLink) -> anyhow::Result<Self> {
+        hil_configuration(setup)?;
+        let (
+            PlantSetup::DiffDrive {
+                params,
+                encoder_counts_per_rev,
+                encoder_bits,
+                pwm_max_duty,
+                ..
+            },
+            PositionSetup::Reader(floor, config),
+        ) = (setup.plant, setup.position)
+        else {
+            anyhow::bail!("not a diff-drive reader scenario");
+        };
+        let (hw, devices) = Hardware::new(
+            params,
+            setup.initial_pose,
+            encoder_counts_per_rev,
+            encoder_bits,
+            pwm_max_duty,
+        );
+        let driver = |s: &MotorSignals| {
+            (
+                VirtualPwm::new(s.clone()),
+                VirtualDirectionPin::new(s.clone()),
+            )
+        };
+        let drivers = [driver(&hw.signals.0), driver(&hw.signals.1)];
+        let (reader, uart) = VirtualRfidReader::new(config, floor);
+        Ok(Self::Remote {
+            hw,
+            encoders: devices.encoders,
+            drivers,
+            reader,
+            uart,
+            floor,
+            target,
+            last: Diagnostics::default(),
+            pwm_refusals: 0,
+        })
+    }
+
     fn new(setup: &Setup) -> Self {
         let pose = setup.initial_pose;
         match (setup.plant, setup.controller) {
@@ -706,11 +839,13 @@ impl Rig {
     fn pose(&self) -> PlantPose {
         match self {
             Self::Tracker { plant, .. } | Self::Controller { plant, .. } => plant.pose(),
-            Self::Robot { hw, .. } | Self::Pilot { hw, .. } => hw.plant.pose(),
+            Self::Robot { hw, .. } | Self::Pilot { hw, .. } | Self::Remote { hw, .. } => {
+                hw.plant.pose()
+            }
         }
     }
 
-    fn tick(&mut self, k: u32, t_s: f64) -> Record {
+    fn tick(&mut self, k: u32, t_s: f64) -> anyhow::Result<Record> {
         let pose = self.pose();
         let outcome = match self {
             Self::Tracker {
@@ -772,7 +907,7 @@ impl Rig {
             } => {
                 reader.update(t_s, &pose);
                 let out = robot.tick();
-                hw.note(&out.pilot);
+                hw.note(out.pilot.drive.speed_limited, out.pilot.drive.accel_limited);
                 Outcome {
                     duties: Some(hw.duties()),
                     ..Outcome::of_tracker(&out.pilot.tracker, out.fix.is_some())
@@ -798,14 +933,64 @@ impl Rig {
                 ] {
                     *motor_faults += u32::from(!result);
                 }
-                hw.note(&out);
+                hw.note(out.drive.speed_limited, out.drive.accel_limited);
                 Outcome {
                     duties: Some(hw.duties()),
                     ..Outcome::of_tracker(&out.tracker, fix.is_some())
                 }
             }
+            Self::Remote {
+                hw,
+                encoders,
+                drivers,
+                reader,
+                uart,
+                target,
+                last,
+                pwm_refusals,
+                ..
+            } => {
+                reader.update(t_s, &pose);
+                let input = TickInput {
+                    tick: k,
+                    left_count: encoders.0.raw_count().ok(),
+                    right_count: encoders.1.raw_count().ok(),
+                    uart: drain_uart(uart),
+                };
+                let out = target.tick(&input)?;
+                anyhow::ensure!(
+                    out.tick == k,
+                    "the firmware answered tick {} to tick {k}",
+                    out.tick
+                );
+                let now = [hw.signals.0.line(), hw.signals.1.line()];
+                for (((pwm, pin), motor), line) in
+                    drivers.iter_mut().zip([out.left, out.right]).zip(now)
+                {
+                    *pwm_refusals += u32::from(!apply_motor(pwm, pin, line.direction_high, motor));
+                }
+                hw.note(out.speed_limited, out.accel_limited);
+                *last = out.counters;
+                let awaiting = out.mode == TrackerMode::AwaitingFix;
+                let [x, y] = out.position_m;
+                let [cos_theta, sin_theta] = out.heading;
+                let [v_m_s, omega_rad_s] = out.command;
+                let [rx, ry] = out.reference_m;
+                Outcome {
+                    reference: Vec2::new(rx, ry),
+                    position: (!awaiting).then_some(Vec2::new(x, y)),
+                    heading: Some(HeadingEstimate {
+                        cos_theta,
+                        sin_theta,
+                    }),
+                    command: BodyVelocity { v_m_s, omega_rad_s },
+                    fix: out.fix,
+                    mode: out.mode.into(),
+                    duties: Some(hw.duties()),
+                }
+            }
         };
-        record(k, t_s, &pose, &outcome)
+        Ok(record(k, t_s, &pose, &outcome))
     }
 
     fn advance(&mut self, dt_s: f64) {
@@ -813,7 +998,9 @@ impl Rig {
             Self::Tracker { plant, last, .. } | Self::Controller { plant, last, .. } => {
                 plant.step(f64::from(last.v_m_s), f64::from(last.omega_rad_s), dt_s);
             }
-            Self::Robot { hw, .. } | Self::Pilot { hw, .. } => hw.advance(dt_s),
+            Self::Robot { hw, .. } | Self::Pilot { hw, .. } | Self::Remote { hw, .. } => {
+                hw.advance(dt_s);
+            }
         }
     }
 
@@ -823,8 +1010,38 @@ impl Rig {
             Self::Controller { .. } => "controller",
             Self::Robot { .. } => "robot",
             Self::Pilot { .. } => "pilot",
+            Self::Remote { .. } => "firmware",
         }
     }
+}
+
+/// Every byte the UART has ready now, up to what one link frame carries
+/// (the rest stays on the line for the next tick, as in a local run).
+fn drain_uart(uart: &mut VirtualUart) -> heapless::Vec<u8, MAX_UART_BYTES_PER_TICK> {
+    let mut bytes = heapless::Vec::new();
+    let mut buf = [0_u8; MAX_UART_BYTES_PER_TICK];
+    let Ok(n) = embedded_io::Read::read(uart, &mut buf);
+    // `buf` holds `MAX_UART_BYTES_PER_TICK` bytes: `n` always fits.
+    let _ = bytes.extend_from_slice(&buf[..n]);
+    bytes
+}
+
+/// Puts what the firmware drove on a virtual motor's inputs, in the order
+/// the core's `MotorDriver` does (duty to 0 before the direction changes);
+/// false if the PWM refused the duty.
+fn apply_motor(
+    pwm: &mut VirtualPwm,
+    pin: &mut VirtualDirectionPin,
+    direction_high_now: bool,
+    motor: MotorOutput,
+) -> bool {
+    use embedded_hal::digital::{OutputPin, PinState};
+    use embedded_hal::pwm::SetDutyCycle;
+    if motor.direction_high != direction_high_now && pwm.set_duty_cycle(0).is_err() {
+        return false;
+    }
+    let Ok(()) = pin.set_state(PinState::from(motor.direction_high));
+    pwm.set_duty_cycle(motor.duty).is_ok()
 }
 
 /// A pilot from a validated configuration.
@@ -928,7 +1145,7 @@ fn summarize(
     scenario: &Scenario,
     setup: &Setup,
     records: &[Record],
-    rig: &Rig,
+    rig: &Rig<'_>,
     wall_s: f64,
 ) -> Summary {
     let (samples, max, mean, rms) = error_stats(records, setup.transient_s);
@@ -969,7 +1186,27 @@ fn summarize(
                 robot.counters().unknown_tags,
                 reader.counters(),
             )),
-            Some(hw.report(robot.pilot(), robot.counters().motor_faults)),
+            Some(hw.report(robot.pilot().counters(), robot.counters().motor_faults)),
+            Some(floor.len()),
+        ),
+        Rig::Remote {
+            hw,
+            reader,
+            floor,
+            last,
+            pwm_refusals,
+            ..
+        } => (
+            Some(TrackerReport::from_counters(
+                last.tracker,
+                last.observer_rejected_updates,
+            )),
+            Some(rfid_report(
+                last.rfid,
+                last.robot.unknown_tags,
+                reader.counters(),
+            )),
+            Some(hw.report(last.pilot, last.robot.motor_faults + *pwm_refusals)),
             Some(floor.len()),
         ),
         Rig::Pilot {
@@ -981,7 +1218,7 @@ fn summarize(
         } => (
             Some(TrackerReport::of(pilot.tracker())),
             source.report(),
-            Some(hw.report(pilot, *motor_faults)),
+            Some(hw.report(pilot.counters(), *motor_faults)),
             source.floor_tags(),
         ),
     };
@@ -1023,5 +1260,6 @@ fn summarize(
         pilot,
         floor_tags,
         wall_time_s: wall_s,
+        hil: None,
     }
 }

@@ -54,7 +54,7 @@ pub enum ScenarioError {
 }
 
 impl ScenarioError {
-    fn invalid(field: &str, reason: impl Into<String>) -> Self {
+    pub(crate) fn invalid(field: &str, reason: impl Into<String>) -> Self {
         Self::Invalid {
             field: field.to_owned(),
             reason: reason.into(),

@@ -172,6 +172,10 @@ pub struct TickOutput {
     pub command: [f32; 2],
     /// A tag fix was used this tick.
     pub fix: bool,
+    /// The drive's wheel-speed limit scaled the command this tick.
+    pub speed_limited: bool,
+    /// The drive's acceleration limit acted this tick.
+    pub accel_limited: bool,
     /// Diagnostic counters.
     pub counters: Diagnostics,
 }
@@ -188,6 +192,8 @@ pub struct Diagnostics {
     pub pilot: PilotCounters,
     /// Fix handling of the tracker.
     pub tracker: TrackerCounters,
+    /// Observer updates skipped for non-finite input.
+    pub observer_rejected_updates: u32,
     /// The link itself.
     pub link: LinkCounters,
     /// UART bytes the proxy could not buffer (overrun), lost.

@@ -76,6 +76,8 @@ impl<'a> Session<'a> {
                             heading: [t.heading.cos_theta, t.heading.sin_theta],
                             command: [t.command.v_m_s, t.command.omega_rad_s],
                             fix: out.fix.is_some(),
+                            speed_limited: out.pilot.drive.speed_limited,
+                            accel_limited: out.pilot.drive.accel_limited,
                             counters: self.diagnostics(link),
                         }),
                         false,
@@ -112,6 +114,7 @@ impl<'a> Session<'a> {
             d.robot = robot.counters();
             d.pilot = robot.pilot().counters();
             d.tracker = robot.pilot().tracker().counters();
+            d.observer_rejected_updates = robot.pilot().tracker().observer_rejected_updates();
         }
         d
     }

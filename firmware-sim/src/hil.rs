@@ -1,0 +1,387 @@
+//! Hardware-in-the-loop: the real firmware binary under QEMU, in lock-step
+//! with the simulator.
+//!
+//! ```text
+//! firmware-sim                         qemu-system-arm -M netduinoplus2
+//!  plant, encoders, RFID reader ─Tick─► USART1 ─► wmr-firmware (board-qemu)
+//!  virtual PWM + DIR pins ◄──Ticked──── USART1 ◄─ core Robot on link proxies
+//! ```
+//!
+//! USART1 is a unix socket (`-serial unix:PATH,server=on,wait=on`): QEMU
+//! waits for the simulator to connect before it starts the CPU. The
+//! firmware's defmt log (semihosting, QEMU's stdout) is saved raw next to
+//! the run (`firmware.defmt`; decode with `defmt-print -e ELF`). The run
+//! ends with `Finish`: the firmware reports its stack high-water mark and
+//! exits through semihosting; QEMU is killed if it does not exit.
+
+use std::io::{Read, Write};
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail, ensure};
+use serde::Serialize;
+use wmr_link::{
+    Finished, HostMessage, LinkCounters, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver, Refusal,
+    Sender, TargetMessage, TickInput, TickOutput,
+};
+
+use crate::run::{RunResult, TargetLink, hil_configuration, run_with_target};
+use crate::scenario::Scenario;
+
+/// The QEMU binary looked for on `PATH`.
+pub const QEMU: &str = "qemu-system-arm";
+/// The firmware's target triple.
+pub const FIRMWARE_TARGET: &str = "thumbv7em-none-eabihf";
+
+/// How to run the firmware.
+#[derive(Debug, Clone)]
+pub struct HilOptions {
+    /// Firmware ELF; `None` builds it with cargo (`board-qemu`, release).
+    pub firmware: Option<PathBuf>,
+    /// Where QEMU's stdout (the defmt log) goes; `None` discards it.
+    pub log: Option<PathBuf>,
+    /// Longest wait for any answer of the firmware.
+    pub answer_timeout: Duration,
+}
+
+impl Default for HilOptions {
+    fn default() -> Self {
+        Self {
+            firmware: None,
+            log: None,
+            answer_timeout: Duration::from_secs(10),
+        }
+    }
+}
+
+/// What the HIL run adds to the summary.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct HilReport {
+    /// Ticks the firmware ran.
+    pub firmware_ticks: u32,
+    /// The firmware's deepest stack use since reset, bytes.
+    pub peak_stack_bytes: u32,
+    /// The link as the firmware saw it.
+    pub firmware_link: LinkCounters,
+    /// The link as the simulator saw it.
+    pub host_link: LinkCounters,
+    /// UART bytes the firmware's proxy buffer lost.
+    pub uart_overruns: u32,
+}
+
+/// A run through the firmware.
+#[derive(Debug, Clone)]
+pub struct HilRun {
+    /// The same records and summary as a local run.
+    pub result: RunResult,
+    /// The link and target figures.
+    pub report: HilReport,
+    /// The firmware that ran.
+    pub firmware: PathBuf,
+}
+
+/// The workspace root (this crate's parent directory, fixed at build time).
+#[must_use]
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+}
+
+/// Builds the QEMU-board firmware (release) with cargo and returns its ELF.
+///
+/// `target_dir`: cargo's target directory (`None`: the workspace's).
+///
+/// # Errors
+/// cargo missing or the build failing.
+pub fn build_firmware(target_dir: Option<&Path>) -> anyhow::Result<PathBuf> {
+    let root = workspace_root();
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let mut cmd = Command::new(cargo);
+    cmd.current_dir(&root).args([
+        "build",
+        "--quiet",
+        "--release",
+        "--package",
+        "wmr-firmware",
+        "--bin",
+        "wmr-firmware",
+        "--target",
+        FIRMWARE_TARGET,
+    ]);
+    if let Some(dir) = target_dir {
+        cmd.arg("--target-dir").arg(dir);
+    }
+    let status = cmd
+        .status()
+        .context("running cargo to build the firmware")?;
+    ensure!(
+        status.success(),
+        "building the firmware failed ({status}); is the target installed? \
+         `rustup target add {FIRMWARE_TARGET}`"
+    );
+    let dir = target_dir.map_or_else(|| root.join("target"), Path::to_path_buf);
+    Ok(dir
+        .join(FIRMWARE_TARGET)
+        .join("release")
+        .join("wmr-firmware"))
+}
+
+/// Runs `scenario` with its control tick in the firmware under QEMU.
+///
+/// # Errors
+/// QEMU missing or failing, the firmware refusing the configuration, not
+/// answering in time, or answering with corrupt or unexpected frames.
+pub fn run_hil(
+    scenario: &Scenario,
+    options: &HilOptions,
+    progress: impl FnMut(u64, u64),
+) -> anyhow::Result<HilRun> {
+    let setup = scenario.validate()?;
+    let configure = hil_configuration(&setup)?;
+    let firmware = match &options.firmware {
+        Some(path) => path.clone(),
+        None => build_firmware(None)?,
+    };
+    ensure!(
+        firmware.is_file(),
+        "no firmware ELF at {}",
+        firmware.display()
+    );
+    let mut target = QemuTarget::start(&firmware, options)?;
+    match target.exchange(&HostMessage::Configure(configure))? {
+        TargetMessage::Configured => {}
+        TargetMessage::Refused(why) => bail!("the firmware refused the configuration: {why:?}"),
+        other => bail!("unexpected answer to Configure: {other:?}"),
+    }
+    let mut result = run_with_target(scenario, &mut target, progress)?;
+    let finished = target.finish()?;
+    let report = HilReport {
+        firmware_ticks: finished.ticks,
+        peak_stack_bytes: finished.peak_stack_bytes,
+        firmware_link: finished.counters.link,
+        host_link: target.rx.counters(),
+        uart_overruns: finished.counters.uart_overruns,
+    };
+    result.summary.hil = Some(report);
+    Ok(HilRun {
+        result,
+        report,
+        firmware,
+    })
+}
+
+/// QEMU running the firmware, and the socket to its USART1.
+pub struct QemuTarget {
+    child: Child,
+    stream: UnixStream,
+    rx: Receiver,
+    tx: Sender,
+    timeout: Duration,
+    // Keeps the socket's directory alive.
+    _dir: tempfile::TempDir,
+}
+
+impl Drop for QemuTarget {
+    fn drop(&mut self) {
+        // Normally QEMU has exited after `Finish`; on any error it is killed.
+        if matches!(self.child.try_wait(), Ok(None)) {
+            let _ = self.child.kill();
+        }
+        let _ = self.child.wait();
+    }
+}
+
+impl QemuTarget {
+    /// Starts QEMU with `firmware` and waits for its `Hello`.
+    ///
+    /// # Errors
+    /// QEMU missing, failing to start, or the firmware not saying hello.
+    pub fn start(firmware: &Path, options: &HilOptions) -> anyhow::Result<Self> {
+        let dir = tempfile::Builder::new()
+            .prefix("wmr-hil")
+            .tempdir()
+            .context("creating a directory for the link socket")?;
+        let socket = dir.path().join("usart1.sock");
+        let stdout = match &options.log {
+            Some(path) => Stdio::from(
+                std::fs::File::create(path)
+                    .with_context(|| format!("creating {}", path.display()))?,
+            ),
+            None => Stdio::null(),
+        };
+        let mut child = Command::new(QEMU)
+            .args([
+                "-M",
+                "netduinoplus2",
+                "-display",
+                "none",
+                "-monitor",
+                "none",
+            ])
+            .args(["-semihosting-config", "enable=on,target=native"])
+            .arg("-serial")
+            .arg(format!("unix:{},server=on,wait=on", socket.display()))
+            .arg("-kernel")
+            .arg(firmware)
+            .stdin(Stdio::null())
+            .stdout(stdout)
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| {
+                if e.kind() == std::io::ErrorKind::NotFound {
+                    anyhow::anyhow!(
+                        "`{QEMU}` not found: install it (Debian/Ubuntu: \
+                         `apt-get install qemu-system-arm`), or run `cargo xtask ci`, which does"
+                    )
+                } else {
+                    anyhow::Error::new(e).context(format!("starting {QEMU}"))
+                }
+            })?;
+        let deadline = Instant::now() + options.answer_timeout;
+        let stream = loop {
+            if let Ok(s) = UnixStream::connect(&socket) {
+                break s;
+            }
+            if let Ok(Some(status)) = child.try_wait() {
+                let mut err = String::new();
+                if let Some(mut e) = child.stderr.take() {
+                    let _ = e.read_to_string(&mut err);
+                }
+                bail!("{QEMU} exited at start ({status}): {}", err.trim());
+            }
+            if Instant::now() > deadline {
+                let _ = child.kill();
+                bail!(
+                    "{QEMU} did not open its serial socket within {:?}",
+                    options.answer_timeout
+                );
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        let mut target = Self {
+            child,
+            stream,
+            rx: Receiver::new(),
+            tx: Sender::default(),
+            timeout: options.answer_timeout,
+            _dir: dir,
+        };
+        match target.receive()? {
+            TargetMessage::Hello { protocol } if protocol == PROTOCOL_VERSION => Ok(target),
+            TargetMessage::Hello { protocol } => bail!(
+                "the firmware speaks link protocol {protocol}, this simulator {PROTOCOL_VERSION}: rebuild one of them"
+            ),
+            other => bail!("expected Hello from the firmware, got {other:?}"),
+        }
+    }
+
+    /// Sends raw bytes (tests of the firmware's reaction to garbage).
+    ///
+    /// # Errors
+    /// The socket failed.
+    pub fn send_raw(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
+        self.stream
+            .write_all(bytes)
+            .context("writing to the firmware's USART1")
+    }
+
+    /// Sends one message, without waiting.
+    ///
+    /// # Errors
+    /// The socket failed.
+    pub fn send(&mut self, message: &HostMessage) -> anyhow::Result<()> {
+        let mut out = [0_u8; MAX_FRAME_BYTES];
+        let bytes = self
+            .tx
+            .frame(message, &mut out)
+            .map_err(|e| anyhow::anyhow!("message too long for the link: {e:?}"))?
+            .to_vec();
+        self.send_raw(&bytes)
+    }
+
+    /// Waits for the next message from the firmware.
+    ///
+    /// # Errors
+    /// Timeout, a closed socket, or a corrupt frame (the link is a local
+    /// socket: corruption means a firmware bug, so it is not retried).
+    pub fn receive(&mut self) -> anyhow::Result<TargetMessage> {
+        let deadline = Instant::now() + self.timeout;
+        let mut buf = [0_u8; 1];
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            ensure!(
+                !left.is_zero(),
+                "the firmware did not answer within {:?}",
+                self.timeout
+            );
+            self.stream.set_read_timeout(Some(left))?;
+            match self.stream.read(&mut buf) {
+                Ok(0) => bail!("the firmware closed the link (QEMU exited?)"),
+                Ok(_) => {}
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) =>
+                {
+                    continue;
+                }
+                Err(e) => {
+                    return Err(anyhow::Error::new(e).context("reading the firmware's USART1"));
+                }
+            }
+            if let Some(frame) = self.rx.push::<TargetMessage>(buf[0]) {
+                return frame
+                    .map_err(|e| anyhow::anyhow!("corrupt frame from the firmware: {e:?}"));
+            }
+        }
+    }
+
+    /// Sends a message and waits for the answer.
+    ///
+    /// # Errors
+    /// As [`Self::send`] and [`Self::receive`].
+    pub fn exchange(&mut self, message: &HostMessage) -> anyhow::Result<TargetMessage> {
+        self.send(message)?;
+        self.receive()
+    }
+
+    /// Ends the run: `Finish`, the firmware's report, QEMU's exit.
+    ///
+    /// # Errors
+    /// A wrong answer, or QEMU not exiting cleanly.
+    pub fn finish(&mut self) -> anyhow::Result<Finished> {
+        let finished = match self.exchange(&HostMessage::Finish)? {
+            TargetMessage::Finished(f) => f,
+            other => bail!("unexpected answer to Finish: {other:?}"),
+        };
+        let deadline = Instant::now() + self.timeout;
+        loop {
+            if let Some(status) = self.child.try_wait()? {
+                ensure!(status.success(), "QEMU exited with {status} after Finish");
+                return Ok(finished);
+            }
+            ensure!(
+                Instant::now() < deadline,
+                "QEMU did not exit within {:?} after Finish",
+                self.timeout
+            );
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+}
+
+impl TargetLink for QemuTarget {
+    fn tick(&mut self, input: &TickInput) -> anyhow::Result<TickOutput> {
+        match self.exchange(&HostMessage::Tick(input.clone()))? {
+            TargetMessage::Ticked(out) => Ok(out),
+            TargetMessage::Refused(Refusal::NotConfigured) => {
+                bail!("the firmware was not configured (did it reset?)")
+            }
+            other => bail!("unexpected answer to tick {}: {other:?}", input.tick),
+        }
+    }
+}
