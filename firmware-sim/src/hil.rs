@@ -23,8 +23,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, bail, ensure};
 use serde::Serialize;
 use wmr_link::{
-    Finished, HostMessage, LinkCounters, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver, Refusal,
-    Sender, TargetMessage, TickInput, TickOutput,
+    Diagnostics, Finished, HostMessage, LinkCounters, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver,
+    Refusal, Sender, TargetMessage, TickInput, TickOutput,
 };
 
 use crate::run::{RunResult, TargetLink, hil_configuration, run_with_target};
@@ -157,7 +157,9 @@ pub fn run_hil(
         other => bail!("unexpected answer to Configure: {other:?}"),
     }
     let mut result = run_with_target(scenario, &mut target, progress)?;
-    let finished = target.finish()?;
+    let finished = target
+        .finished
+        .ok_or_else(|| anyhow::anyhow!("the run ended without the firmware's report"))?;
     let report = HilReport {
         firmware_ticks: finished.ticks,
         peak_stack_bytes: finished.peak_stack_bytes,
@@ -180,6 +182,11 @@ pub struct QemuTarget {
     rx: Receiver,
     tx: Sender,
     timeout: Duration,
+    /// Bytes read from the socket and not yet given to `rx`.
+    pending: Vec<u8>,
+    pending_at: usize,
+    /// The firmware's end-of-run report, once received.
+    finished: Option<Finished>,
     // Keeps the socket's directory alive.
     _dir: tempfile::TempDir,
 }
@@ -267,6 +274,9 @@ impl QemuTarget {
             rx: Receiver::new(),
             tx: Sender::default(),
             timeout: options.answer_timeout,
+            pending: Vec::with_capacity(4096),
+            pending_at: 0,
+            finished: None,
             _dir: dir,
         };
         match target.receive()? {
@@ -309,8 +319,14 @@ impl QemuTarget {
     /// socket: corruption means a firmware bug, so it is not retried).
     pub fn receive(&mut self) -> anyhow::Result<TargetMessage> {
         let deadline = Instant::now() + self.timeout;
-        let mut buf = [0_u8; 1];
         loop {
+            while let Some(&byte) = self.pending.get(self.pending_at) {
+                self.pending_at += 1;
+                if let Some(frame) = self.rx.push::<TargetMessage>(byte) {
+                    return frame
+                        .map_err(|e| anyhow::anyhow!("corrupt frame from the firmware: {e:?}"));
+                }
+            }
             let left = deadline.saturating_duration_since(Instant::now());
             ensure!(
                 !left.is_zero(),
@@ -318,24 +334,22 @@ impl QemuTarget {
                 self.timeout
             );
             self.stream.set_read_timeout(Some(left))?;
-            match self.stream.read(&mut buf) {
+            self.pending.resize(4096, 0);
+            self.pending_at = 0;
+            match self.stream.read(&mut self.pending) {
                 Ok(0) => bail!("the firmware closed the link (QEMU exited?)"),
-                Ok(_) => {}
+                Ok(n) => self.pending.truncate(n),
                 Err(e)
                     if matches!(
                         e.kind(),
                         std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
                     ) =>
                 {
-                    continue;
+                    self.pending.clear();
                 }
                 Err(e) => {
                     return Err(anyhow::Error::new(e).context("reading the firmware's USART1"));
                 }
-            }
-            if let Some(frame) = self.rx.push::<TargetMessage>(buf[0]) {
-                return frame
-                    .map_err(|e| anyhow::anyhow!("corrupt frame from the firmware: {e:?}"));
             }
         }
     }
@@ -353,7 +367,7 @@ impl QemuTarget {
     ///
     /// # Errors
     /// A wrong answer, or QEMU not exiting cleanly.
-    pub fn finish(&mut self) -> anyhow::Result<Finished> {
+    pub fn end(&mut self) -> anyhow::Result<Finished> {
         let finished = match self.exchange(&HostMessage::Finish)? {
             TargetMessage::Finished(f) => f,
             other => bail!("unexpected answer to Finish: {other:?}"),
@@ -362,6 +376,7 @@ impl QemuTarget {
         loop {
             if let Some(status) = self.child.try_wait()? {
                 ensure!(status.success(), "QEMU exited with {status} after Finish");
+                self.finished = Some(finished);
                 return Ok(finished);
             }
             ensure!(
@@ -383,5 +398,9 @@ impl TargetLink for QemuTarget {
             }
             other => bail!("unexpected answer to tick {}: {other:?}", input.tick),
         }
+    }
+
+    fn finish(&mut self) -> anyhow::Result<Diagnostics> {
+        Ok(self.end()?.counters)
     }
 }

@@ -347,6 +347,12 @@ pub trait TargetLink {
     /// # Errors
     /// The link failed (timeout, corrupt or unexpected answer).
     fn tick(&mut self, input: &TickInput) -> anyhow::Result<TickOutput>;
+
+    /// Ends the run; returns the target's final counters.
+    ///
+    /// # Errors
+    /// The link failed.
+    fn finish(&mut self) -> anyhow::Result<Diagnostics>;
 }
 
 /// Runs a diff-drive + reader scenario with the control tick on `target`
@@ -413,6 +419,9 @@ fn simulate(
         }
     }
     progress(total, total);
+    if let Rig::Remote { target, last, .. } = &mut rig {
+        *last = target.finish()?;
+    }
     let summary = summarize(
         scenario,
         &setup,
@@ -946,7 +955,6 @@ impl<'t> Rig<'t> {
                 reader,
                 uart,
                 target,
-                last,
                 pwm_refusals,
                 ..
             } => {
@@ -970,7 +978,6 @@ impl<'t> Rig<'t> {
                     *pwm_refusals += u32::from(!apply_motor(pwm, pin, line.direction_high, motor));
                 }
                 hw.note(out.speed_limited, out.accel_limited);
-                *last = out.counters;
                 let awaiting = out.mode == TrackerMode::AwaitingFix;
                 let [x, y] = out.position_m;
                 let [cos_theta, sin_theta] = out.heading;

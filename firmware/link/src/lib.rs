@@ -12,10 +12,10 @@
 //!    │ ◄───────────────── Configure{pilot, grid} ─ │
 //!    │ ── Configured | Refused(SpecError) ───────► │
 //!    │ ◄───────── Tick{k, encoder counters, UART bytes}
-//!    │ ── Ticked{k, duties, directions, estimate, counters}
+//!    │ ── Ticked{k, duties, directions, estimate, drive limits}
 //!    │                 ... once per control tick ...
 //!    │ ◄──────────────────────────────── Finish ─ │
-//!    │ ── Finished{stack high-water} ────────────► │  then exits (semihosting)
+//!    │ ── Finished{ticks, stack, all counters} ──► │  then exits (semihosting)
 //! ```
 //!
 //! Each side sends the next message only after the answer to the last, so
@@ -176,8 +176,6 @@ pub struct TickOutput {
     pub speed_limited: bool,
     /// The drive's acceleration limit acted this tick.
     pub accel_limited: bool,
-    /// Diagnostic counters.
-    pub counters: Diagnostics,
 }
 
 /// Every counter of the firmware, cumulative since configuration.
@@ -225,6 +223,9 @@ pub struct Finished {
     pub ticks: u32,
     /// Deepest stack use since reset, bytes (stack painting).
     pub peak_stack_bytes: u32,
+    /// The motors as they are now (stopped if the link went silent since
+    /// the last tick).
+    pub motors: [MotorOutput; 2],
     /// Final counters.
     pub counters: Diagnostics,
 }

@@ -1,0 +1,174 @@
+//! Hardware-in-the-loop: the release firmware (QEMU board) under
+//! `qemu-system-arm -M netduinoplus2`, in lock-step with the simulator.
+//!
+//! Needs `qemu-system-arm` (the README's test command installs it) and the
+//! firmware ELF: `WMR_FIRMWARE_ELF` if set (`cargo xtask ci` builds it
+//! first), else it is built here into `target/hil-firmware` (a separate
+//! target directory, so that the nested cargo never waits on this test's
+//! own build lock).
+
+use std::path::PathBuf;
+use std::sync::OnceLock;
+use std::time::Duration;
+
+use firmware_sim::hil::{HilOptions, QemuTarget, build_firmware, run_hil, workspace_root};
+use firmware_sim::{Scenario, run};
+use wmr_core::spec::SpecError;
+use wmr_core::tracking::GainError;
+use wmr_link::{HostMessage, Refusal, TargetMessage, TickInput};
+
+fn firmware() -> PathBuf {
+    static ELF: OnceLock<PathBuf> = OnceLock::new();
+    ELF.get_or_init(|| match std::env::var_os("WMR_FIRMWARE_ELF") {
+        Some(path) => PathBuf::from(path),
+        None => build_firmware(Some(&workspace_root().join("target").join("hil-firmware")))
+            .expect("build the QEMU-board firmware"),
+    })
+    .clone()
+}
+
+fn options() -> HilOptions {
+    HilOptions {
+        firmware: Some(firmware()),
+        log: None,
+        answer_timeout: Duration::from_secs(20),
+    }
+}
+
+/// Section 6.3.2's figure-eight through the full device stack, with the
+/// tick in the firmware: the same records as the host run, bit for bit.
+#[test]
+fn firmware_under_qemu_tracks_the_figure_eight_exactly_as_the_host_run() {
+    let scenario = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    let host = run(&scenario, |_, _| {}).unwrap();
+    let hil = run_hil(&scenario, &options(), |_, _| {}).unwrap();
+    let (h, f) = (&host.records, &hil.result.records);
+    assert_eq!(h.len(), f.len());
+
+    let mut max_position_diff = 0.0_f64;
+    let mut first_difference = None;
+    for (a, b) in h.iter().zip(f) {
+        let d = (a.x_m - b.x_m).hypot(a.y_m - b.y_m);
+        max_position_diff = max_position_diff.max(d);
+        if first_difference.is_none() && format!("{a:?}") != format!("{b:?}") {
+            first_difference = Some(a.tick);
+        }
+    }
+    let s = &hil.result.summary;
+    let report = s.hil.expect("hil report");
+    println!(
+        "HIL {} ticks: max |Δposition| host vs firmware {max_position_diff:e} m, \
+         first differing record: {first_difference:?}; firmware error after {} s: \
+         max {:.4} mean {:.4} rms {:.4} m; peak stack {} B; link {:?}",
+        f.len(),
+        s.transient_s,
+        s.max_error_m,
+        s.mean_error_m,
+        s.rms_error_m,
+        report.peak_stack_bytes,
+        report.firmware_link
+    );
+    // Same f32 code (libm in software, IEEE single-precision add/mul/div/
+    // sqrt on both the x86-64 SSE unit and the Cortex-M4 FPU, no fused
+    // multiply-add contraction in Rust) on the same inputs: identical.
+    assert_eq!(first_difference, None, "records differ");
+    assert_eq!(max_position_diff, 0.0);
+    // The paper's bounds (section 6.3.2) hold on the firmware too.
+    assert!(s.max_error_m <= 0.05 && s.mean_error_m <= 0.01);
+    assert_eq!(report.firmware_ticks, scenario_ticks(&scenario));
+    assert_eq!(report.firmware_link.corrupt_frames, 0);
+    assert_eq!(report.firmware_link.sequence_gaps, 0);
+    assert_eq!(report.host_link.corrupt_frames, 0);
+    assert_eq!(report.uart_overruns, 0);
+    assert!(report.peak_stack_bytes > 0);
+}
+
+fn scenario_ticks(s: &Scenario) -> u32 {
+    (s.duration_s / s.period_s).round() as u32
+}
+
+fn configure() -> wmr_link::Configure {
+    let scenario = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    firmware_sim::run::hil_configuration(&scenario.validate().unwrap()).unwrap()
+}
+
+fn tick(k: u32, counts: u32) -> HostMessage {
+    // A valid frame for the grid tag nearest the figure-eight's start.
+    let frame = wmr_core::devices::encode_frame(wmr_core::devices::TagGrid::id(1, 60));
+    HostMessage::Tick(TickInput {
+        tick: k,
+        left_count: Some(counts),
+        right_count: Some(counts),
+        uart: heapless::Vec::from_slice(&frame).unwrap(),
+    })
+}
+
+/// The firmware refuses what the core refuses, and ticks before a
+/// configuration; it counts corrupt frames and carries on; a silent link
+/// stops the motors.
+#[test]
+fn firmware_reacts_to_bad_configuration_corrupt_frames_and_silence() {
+    let mut target = QemuTarget::start(&firmware(), &options()).unwrap();
+
+    assert_eq!(
+        target.exchange(&tick(0, 0)).unwrap(),
+        TargetMessage::Refused(Refusal::NotConfigured)
+    );
+    let mut bad = configure();
+    bad.pilot.tracker.gains[2] = f32::NAN;
+    assert_eq!(
+        target.exchange(&HostMessage::Configure(bad)).unwrap(),
+        TargetMessage::Refused(Refusal::Spec(SpecError::Gains(GainError::K3)))
+    );
+    let mut old = configure();
+    old.protocol = wmr_link::PROTOCOL_VERSION + 1;
+    assert_eq!(
+        target.exchange(&HostMessage::Configure(old)).unwrap(),
+        TargetMessage::Refused(Refusal::Protocol(wmr_link::PROTOCOL_VERSION))
+    );
+    assert_eq!(
+        target
+            .exchange(&HostMessage::Configure(configure()))
+            .unwrap(),
+        TargetMessage::Configured
+    );
+
+    // Garbage, then a frame with a flipped byte: both dropped and counted,
+    // and the next good frame is answered.
+    target.send_raw(&[0x13, 0x37, 0xFF, 0x00]).unwrap();
+    let mut out = [0_u8; wmr_link::MAX_FRAME_BYTES];
+    let mut damaged = wmr_link::Sender::default()
+        .frame(tick(0, 0), &mut out)
+        .unwrap()
+        .to_vec();
+    damaged[5] ^= 0x40;
+    target.send_raw(&damaged).unwrap();
+
+    // Drive for a while: the robot starts behind its reference and moves.
+    let mut driven = false;
+    for k in 0..100 {
+        match target.exchange(&tick(k, k * 3)).unwrap() {
+            TargetMessage::Ticked(out) => {
+                assert_eq!(out.tick, k);
+                driven |= out.left.duty > 0 || out.right.duty > 0;
+            }
+            other => panic!("tick {k}: {other:?}"),
+        }
+    }
+    assert!(driven, "the robot never drove");
+
+    // Silence well past the firmware's 50 ms link timeout.
+    std::thread::sleep(Duration::from_millis(400));
+    let finished = match target.exchange(&HostMessage::Finish).unwrap() {
+        TargetMessage::Finished(f) => f,
+        other => panic!("{other:?}"),
+    };
+    println!("firmware after the fault drill: {finished:?}");
+    let link = finished.counters.link;
+    assert_eq!(link.corrupt_frames, 2, "garbage + damaged frame");
+    assert!(link.timeouts >= 1, "silence not noticed");
+    assert!(link.unexpected_messages >= 3, "the refusals are counted");
+    assert_eq!(finished.motors[0].duty, 0, "left motor still driven");
+    assert_eq!(finished.motors[1].duty, 0, "right motor still driven");
+    assert_eq!(finished.ticks, 100);
+}
