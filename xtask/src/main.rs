@@ -2,10 +2,14 @@
 //! on every machine.
 //!
 //! * `ci` — installs what is missing (rust targets and components via
-//!   rustup), then runs every check: rustfmt, clippy `-D warnings` on the
-//!   host and on both microcontroller targets (each math backend, with and
-//!   without defmt), all tests, the cross builds of the core, rustdoc with
-//!   `-D warnings`, and the default simulator scenario end to end.
+//!   rustup, `qemu-system-arm` via apt-get), then runs every check:
+//!   rustfmt, clippy `-D warnings` on the host and on the microcontroller
+//!   targets (the core with each math backend, with and without defmt; the
+//!   link; the firmware with each board), the cross builds, all tests
+//!   (the hardware-in-the-loop tests run the QEMU-board firmware), rustdoc
+//!   with `-D warnings`, and the default simulator scenario end to end.
+//! * `firmware` — release ELFs of both boards, copied to
+//!   `target/firmware/wmr-firmware-<board>.elf`.
 //! * `bench` — criterion benchmark of one control tick (host).
 
 use std::process::{Command, ExitCode};
@@ -18,6 +22,11 @@ fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_default();
     let result = match task.as_str() {
         "ci" => ci(),
+        "firmware" => build_firmware().map(|elfs| {
+            for (board, elf) in elfs {
+                println!("{board:<10} {}", elf.display());
+            }
+        }),
         "bench" => cargo(&["bench", "-p", "host-tests", "--bench", "tick"], &[]),
         _ => {
             eprintln!("usage: cargo xtask <ci|bench>");
@@ -66,8 +75,49 @@ fn ci() -> Result {
             })?;
         }
     }
-    step("tests (workspace)", || {
-        cargo(&["test", "--workspace", "--all-targets"], &[])
+    step("clippy link thumbv7em-none-eabihf", || {
+        cargo(
+            &[
+                "clippy",
+                "-p",
+                "wmr-link",
+                "--target",
+                FIRMWARE_TARGET,
+                "--features",
+                "wmr-core/libm",
+                "--",
+                "-D",
+                "warnings",
+            ],
+            &[],
+        )
+    })?;
+    for (board, features) in BOARDS {
+        step(&format!("clippy firmware {board}"), || {
+            let mut args = vec![
+                "clippy",
+                "-p",
+                "wmr-firmware",
+                "--release",
+                "--target",
+                FIRMWARE_TARGET,
+            ];
+            args.extend_from_slice(features);
+            args.extend_from_slice(&["--", "-D", "warnings"]);
+            cargo(&args, &[])
+        })?;
+    }
+    let elfs = build_firmware()?;
+    let qemu_elf = elfs
+        .iter()
+        .find(|(board, _)| *board == "qemu")
+        .map(|(_, elf)| elf.display().to_string())
+        .ok_or("no QEMU-board firmware")?;
+    step("tests (workspace, HIL under QEMU)", || {
+        cargo(
+            &["test", "--workspace", "--all-targets"],
+            &[("WMR_FIRMWARE_ELF", &qemu_elf)],
+        )
     })?;
     step("doc tests (core)", || {
         cargo(&["test", "-p", "wmr-core", "--doc"], &[])
@@ -80,9 +130,9 @@ fn ci() -> Result {
             )
         })?;
     }
-    step("rustdoc -D warnings (core)", || {
+    step("rustdoc -D warnings (core, link)", || {
         cargo(
-            &["doc", "-p", "wmr-core", "--no-deps"],
+            &["doc", "-p", "wmr-core", "-p", "wmr-link", "--no-deps"],
             &[("RUSTDOCFLAGS", "-D warnings")],
         )
     })?;
@@ -108,8 +158,87 @@ fn ci() -> Result {
     Ok(())
 }
 
+/// The firmware's target.
+const FIRMWARE_TARGET: &str = "thumbv7em-none-eabihf";
+
+/// Firmware boards and the cargo features that select them.
+const BOARDS: [(&str, &[&str]); 2] = [
+    ("qemu", &[]),
+    (
+        "blackpill",
+        &["--no-default-features", "--features", "board-blackpill"],
+    ),
+];
+
+/// Builds the release firmware of each board and copies each ELF to
+/// `target/firmware/wmr-firmware-<board>.elf` (both boards build the same
+/// binary name into the same directory).
+fn build_firmware() -> std::result::Result<Vec<(&'static str, std::path::PathBuf)>, String> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .ok_or("no workspace root")?
+        .to_path_buf();
+    let out_dir = root.join("target").join("firmware");
+    std::fs::create_dir_all(&out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
+    let mut elfs = Vec::new();
+    for (board, features) in BOARDS {
+        step(&format!("build firmware {board} (release)"), || {
+            let mut args = vec![
+                "build",
+                "-p",
+                "wmr-firmware",
+                "--release",
+                "--bin",
+                "wmr-firmware",
+                "--target",
+                FIRMWARE_TARGET,
+            ];
+            args.extend_from_slice(features);
+            cargo(&args, &[])
+        })?;
+        let built = root
+            .join("target")
+            .join(FIRMWARE_TARGET)
+            .join("release")
+            .join("wmr-firmware");
+        let elf = out_dir.join(format!("wmr-firmware-{board}.elf"));
+        std::fs::copy(&built, &elf).map_err(|e| format!("{}: {e}", built.display()))?;
+        elfs.push((board, elf));
+    }
+    Ok(elfs)
+}
+
+/// `qemu-system-arm` for the hardware-in-the-loop tests, installed with
+/// apt-get when missing (with sudo when not root).
+fn install_qemu() -> Result {
+    if output("qemu-system-arm", &["--version"]).is_ok() {
+        return Ok(());
+    }
+    eprintln!("qemu-system-arm missing: installing it with apt-get");
+    let root = output("id", &["-u"]).is_ok_and(|uid| uid.trim() == "0");
+    let apt = |args: &[&str]| {
+        if root {
+            run("apt-get", args, &[("DEBIAN_FRONTEND", "noninteractive")])
+        } else {
+            let mut with_sudo = vec!["apt-get"];
+            with_sudo.extend_from_slice(args);
+            run("sudo", &with_sudo, &[("DEBIAN_FRONTEND", "noninteractive")])
+        }
+    };
+    apt(&["update", "-q"])?;
+    apt(&[
+        "install",
+        "-y",
+        "-q",
+        "--no-install-recommends",
+        "qemu-system-arm",
+    ])?;
+    output("qemu-system-arm", &["--version"]).map(|_| ())
+}
+
 /// Rust targets and components the checks need, installed when missing.
 fn install_prerequisites() -> Result {
+    install_qemu()?;
     let installed = output("rustup", &["target", "list", "--installed"])?;
     let missing: Vec<&str> = TARGETS
         .iter()
