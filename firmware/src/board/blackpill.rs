@@ -1,8 +1,572 @@
-//! STM32F411 "Black Pill" board (being written).
+//! STM32F411 "Black Pill" robot board (STM32F411CEU6, 25 MHz crystal): the
+//! core's `Robot` on real peripherals, one control tick per period of a
+//! hardware timer.
+//!
+//! # Pinout
+//!
+//! | Function                           | Pin        | Peripheral     | AF  |
+//! |------------------------------------|------------|----------------|-----|
+//! | Left wheel encoder A               | PB4        | TIM3_CH1       | AF2 |
+//! | Left wheel encoder B               | PB5        | TIM3_CH2       | AF2 |
+//! | Right wheel encoder A              | PB6        | TIM4_CH1       | AF2 |
+//! | Right wheel encoder B              | PB7        | TIM4_CH2       | AF2 |
+//! | Left motor PWM (magnitude)         | PA8        | TIM1_CH1       | AF1 |
+//! | Right motor PWM (magnitude)        | PA9        | TIM1_CH2       | AF1 |
+//! | Left motor DIR                     | PB12       | GPIO push-pull | —   |
+//! | Right motor DIR                    | PB13       | GPIO push-pull | —   |
+//! | RFID reader TX → MCU RX            | PA3        | USART2_RX      | AF7 |
+//! | MCU TX → RFID reader (unused)      | PA2        | USART2_TX      | AF7 |
+//! | Heartbeat LED (on board, low = on) | PC13       | GPIO push-pull | —   |
+//! | Debug probe (SWD)                  | PA13, PA14 | SWDIO, SWCLK   | AF0 |
+//!
+//! Internal: TIM5 is the control tick, the IWDG (on the ~32 kHz LSI) the
+//! watchdog, the DWT cycle counter times each tick. The encoder inputs get
+//! the internal pull-ups (for open-collector encoders). The PWM and DIR
+//! lines need **external pull-downs** on the driver side: from reset until
+//! they are configured, and after a watchdog reset, they float.
+//!
+//! The motor drivers are PWM + DIR, sign-magnitude (DRV8871/MC33926/Cytron
+//! MDD class): PWM duty is the voltage magnitude, DIR high is forward for
+//! the left motor; the right motor is mounted mirror-image, so its DIR is
+//! inverted (`MotorWiring { reversed: true }`) and so is its encoder count.
+//! The RFID reader is an RDM6300-style 125 kHz module sending 14-byte ASCII
+//! frames at 9600 Bd 8N1; it runs on 5 V, so put a divider or level shifter
+//! on its TX line unless PA3 is confirmed 5 V tolerant for the package used.
+//!
+//! # Clock tree
+//!
+//! ```text
+//! HSE 25 MHz ─► PLL  /M 25 = 1 MHz, ×N 384 = VCO 384 MHz
+//!                    /P 4 ─► SYSCLK 96 MHz   (/Q 8 = 48 MHz, unused)
+//! SYSCLK ─► AHB /1 = HCLK 96 MHz: core, DWT, flash (3 wait states, caches on)
+//!        ├► APB1 /2 = 48 MHz: USART2 (BRR 5000: 9600 Bd exactly)
+//!        │          timers ×2 = 96 MHz: TIM3, TIM4 (encoders),
+//!        │                              TIM5 (PSC 95 → 1 MHz, ARR 9999 → 100 Hz tick)
+//!        └► APB2 /1 = 96 MHz: TIM1 (PSC 0, ARR 4799 → 20 kHz PWM, 4800 duty steps)
+//! LSI ~32 kHz ─► IWDG (/8, reload ~200 → 50 ms)
+//! ```
+//!
+//! # Timing
+//!
+//! - **Control tick**: TIM5 counts microseconds and sets its update flag
+//!   every [`TICK_US`] = the pilot spec's `period_s` (10 ms, 100 Hz). The
+//!   loop polls the flag (no interrupts); while it waits it pumps the RFID
+//!   UART into a ring buffer (the USART has no FIFO; see
+//!   `blackpill::devices`). A tick that finds the flag already set has
+//!   overrun its period: it is counted, logged (once per status interval) and
+//!   runs at once, so the schedule stays on the timer's grid.
+//! - **Tick work**: `Robot::tick` (encoders, RFID poll, tag lookup, pilot,
+//!   motors), then the watchdog is fed, then events and status are logged.
+//!   The time from the tick to the next pump of the UART is measured with
+//!   the DWT cycle counter and its maximum logged every second; it must stay
+//!   under one UART byte time (1.04 ms) or an RFID byte is overrun (counted).
+//! - **Watchdog**: the IWDG resets the MCU if it is not fed for
+//!   [`WATCHDOG_MS`] = 50 ms (five periods; 34 to 94 ms over the LSI's
+//!   17–47 kHz tolerance). It is started first thing, so a hang anywhere,
+//!   including a dead crystal during clock setup, ends in a reset.
+//! - **Logs**: defmt over RTT: a status line and the fault counters every
+//!   [`LOG_EVERY_TICKS`] ticks (1 s), the stack high-water mark once at
+//!   [`STACK_LOG_AT_TICK`] (10 s), tracker mode changes, encoder halts,
+//!   overruns. The heartbeat LED toggles every 0.5 s while the loop runs.
+//!
+//! # Faults
+//!
+//! - **Device faults** during a tick are the core's business (`Robot::tick`
+//!   counts them and the pilot reacts: missing encoder reads bridged then
+//!   motors stopped, unknown tags ignored, lost fixes → failsafe
+//!   deceleration). The counters are logged every second.
+//! - **Configuration refused** (the compiled-in [`PILOT`] spec, the USART2
+//!   or the TIM5 setup): the motors are held at duty 0, the error is logged
+//!   every 5 s, the LED blinks fast (5 Hz) and the watchdog keeps being fed,
+//!   until the board is reflashed. Never a panic.
+//! - **Peripherals already taken** (impossible after a reset): an error is
+//!   logged and the core sleeps; nothing is configured, so the motor lines
+//!   float (external pull-downs).
+//! - **Panic** (a bug: the loop has no panicking path): `panic-probe` prints
+//!   the message over defmt and faults the core; the watchdog then resets
+//!   the MCU within 50 ms, during which the PWM keeps its last duty. Under a
+//!   debugger, a halted core (breakpoint, panic) freezes the IWDG and TIM5
+//!   and **disables the TIM1 PWM outputs** (DBGMCU freeze bits), so the
+//!   motors stop while the core is halted.
+//!
+//! # Flash and run
+//!
+//! With a debug probe (ST-Link, CMSIS-DAP, J-Link) on the SWD header and
+//! [probe-rs](https://probe.rs) installed (`cargo install probe-rs-tools`),
+//! from the workspace root:
+//!
+//! ```text
+//! DEFMT_LOG=info cargo run -p wmr-firmware --release \
+//!     --target thumbv7em-none-eabihf --no-default-features --features board-blackpill
+//! ```
+//!
+//! The runner in `.cargo/config.toml` (`probe-rs run --chip STM32F411CEUx`)
+//! flashes the ELF, resets the board and prints the decoded defmt log until
+//! Ctrl-C. Without `DEFMT_LOG`, defmt keeps only `error` messages (it is
+//! not set in `.cargo/config.toml` because `[env]` would change the QEMU
+//! board's image too).
+//!
+//! The pilot runs from power-on: it commands zero until the first valid tag
+//! fix (tracker `AwaitingFix`), then tracks the reference.
 
-/// The firmware.
+mod devices;
+mod tags;
+
+use core::cell::Cell;
+
+use cortex_m::peripheral::DWT;
+use defmt_rtt as _;
+use heapless::spsc::Queue;
+use panic_probe as _;
+use stm32f4xx_hal::gpio::{Output, PB12, PB13, PC13, PinState, PushPull};
+use stm32f4xx_hal::nb;
+use stm32f4xx_hal::pac;
+use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::rcc::Config as ClockConfig;
+use stm32f4xx_hal::serial::Config as SerialConfig;
+use stm32f4xx_hal::serial::config::StopBits;
+use stm32f4xx_hal::timer::{self, CounterUs, PwmChannel};
+use stm32f4xx_hal::watchdog::IndependentWatchdog;
+use wmr_core::devices::{MotorDriver, MotorWiring, RfidReader};
+use wmr_core::heading_observer::HeadingObserverConfig;
+use wmr_core::output_feedback::{TrackerConfig, TrackerMode};
+use wmr_core::pilot::{Pilot, PilotConfig};
+use wmr_core::robot::{Robot, RobotTick};
+use wmr_core::spec::{DriveSpec, PilotSpec, SpecError, TrackerSpec, TrajectorySpec};
+
+use devices::{Encoder, LineErrors, RfidPump, RfidUart};
+use tags::{FlashTagTable, SITE_TAGS};
+
+/// The pilot, compiled in: paper 001's figure-eight (`h1` 5 m, `h2`
+/// 0.02 rad/s, phase −π/2) with the simulator's
+/// `figure_eight_rfid_full_stack` scenario for everything else (its TOML
+/// file and `firmware-sim`'s scenario defaults), so that the robot runs the
+/// configuration the simulator validated.
+pub const PILOT: PilotSpec = PilotSpec {
+    tracker: TrackerSpec {
+        period_s: 0.01,
+        trajectory: TrajectorySpec::FigureEight {
+            h1_m: 5.0,
+            h2_rad_s: 0.02,
+            phase_rad: -core::f32::consts::FRAC_PI_2,
+        },
+        gains: [0.11, 0.11, 0.1],
+        observer_gain_per_m: 0.6,
+        observer_min_speed_m_s: HeadingObserverConfig::DEFAULT_MIN_SPEED_M_S,
+        // failsafe.fix_timeout_s = 0.5 s at 10 ms.
+        fix_timeout_ticks: 50,
+        failsafe_decel_m_s2: TrackerConfig::DEFAULT_FAILSAFE_DECEL_M_S2,
+        max_fix_age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
+    },
+    drive: DriveSpec {
+        wheel_radius_m: 0.03,
+        track_width_m: 0.2,
+        encoder_counts_per_rev: 2048,
+        max_wheel_speed_rad_s: 18.0,
+        max_wheel_accel_rad_s2: 50.0,
+        // 1 / (20 rad/s wheel speed at full duty).
+        feedforward_duty_per_rad_s: 0.05,
+        kp_duty_per_rad_s: 0.02,
+        ki_duty_per_rad: 0.5,
+    },
+    // TIM3 and TIM4 are 16-bit.
+    encoder_bits: 16,
+    max_encoder_fault_ticks: PilotConfig::DEFAULT_MAX_ENCODER_FAULT_TICKS,
+};
+
+/// Control period, µs: the pilot's `period_s`, rounded.
+pub const TICK_US: u32 = (PILOT.tracker.period_s * 1.0e6 + 0.5) as u32;
+
+/// Watchdog timeout, ms (nominal: the LSI runs at 17–47 kHz).
+pub const WATCHDOG_MS: u32 = 50;
+
+/// Ticks between two status logs (1 s).
+pub const LOG_EVERY_TICKS: u32 = 100;
+
+/// The tick at which the stack high-water mark is logged, once (10 s in,
+/// when every code path of the tick has run). Finding it scans the unused
+/// stack (most of the 128 KiB RAM, over a millisecond): longer than one
+/// RFID byte time, so a byte arriving then may be overrun (counted, and the
+/// frame it belonged to dropped by the parser). Once, not periodically, so
+/// that a running robot does not lose fixes to its own diagnostics.
+pub const STACK_LOG_AT_TICK: u32 = 1_000;
+
+/// Ticks between two heartbeat LED toggles (0.5 s).
+const HEARTBEAT_TICKS: u32 = 50;
+
+/// Periods between two LED toggles while halted on a fault (0.1 s).
+const FAULT_BLINK_PERIODS: u32 = 10;
+
+/// Periods between two repetitions of the fault log while halted (5 s).
+const FAULT_LOG_PERIODS: u32 = 500;
+
+const _: () = {
+    assert!(
+        TICK_US >= 1_000 && TICK_US <= 100_000,
+        "control period out of 1..=100 ms"
+    );
+    // At the LSI's fastest (47 kHz) the timeout shrinks to 68 %.
+    assert!(
+        WATCHDOG_MS * 1_000 * 2 / 3 >= 3 * TICK_US,
+        "the watchdog must outlast three control periods"
+    );
+};
+
+/// The Black Pill's crystal, Hz.
+const HSE_HZ: u32 = 25_000_000;
+/// System clock, Hz (96 MHz: the PLL's 48 MHz output is exact, for USB).
+const SYSCLK_HZ: u32 = 96_000_000;
+/// APB1 clock, Hz (its maximum is 50 MHz).
+const PCLK1_HZ: u32 = 48_000_000;
+/// APB2 clock, Hz.
+const PCLK2_HZ: u32 = 96_000_000;
+/// Motor PWM frequency, Hz (above hearing, within the drivers' range).
+const PWM_HZ: u32 = 20_000;
+/// RFID reader line speed, Bd (8N1).
+const RFID_BAUD: u32 = 9_600;
+/// Bytes of the RFID receive ring (one slot stays free: 127 bytes, 130 ms
+/// of reader output at 9600 Bd).
+const RFID_RING_BYTES: usize = 128;
+
+/// Left motor: TIM1_CH1 (PA8) + DIR on PB12.
+type LeftMotor = MotorDriver<PwmChannel<pac::TIM1, 0>, PB12<Output<PushPull>>>;
+/// Right motor: TIM1_CH2 (PA9) + DIR on PB13.
+type RightMotor = MotorDriver<PwmChannel<pac::TIM1, 1>, PB13<Output<PushPull>>>;
+/// The on-board LED (active low).
+type Led = PC13<Output<PushPull>>;
+/// The robot on this board's devices.
+type BoardRobot<'a> = Robot<
+    Encoder<pac::TIM3>,
+    Encoder<pac::TIM4>,
+    LeftMotor,
+    RightMotor,
+    RfidUart<'a>,
+    FlashTagTable,
+>;
+
+/// Why the firmware is not driving.
+#[derive(Debug, Clone, Copy, defmt::Format)]
+enum Fault {
+    /// The compiled-in pilot spec was refused.
+    Pilot(SpecError),
+    /// USART2 refused its configuration.
+    RfidUart,
+    /// TIM5 refused the control period.
+    TickTimer(timer::Error),
+}
+
+/// The firmware: set the board up, then run the control loop forever.
 pub fn run() -> ! {
+    let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
+        // Only possible if something took them before `main`.
+        defmt::error!("peripherals already taken: nothing configured, motors unpowered");
+        loop {
+            cortex_m::asm::wfi();
+        }
+    };
+
+    // While the core is halted by a debugger: freeze the watchdog and the
+    // tick, and disable TIM1's outputs (advanced timers do that when frozen).
+    dp.DBGMCU
+        .apb1_fz()
+        .modify(|_, w| w.dbg_iwdg_stop().set_bit().dbg_tim5_stop().set_bit());
+    dp.DBGMCU
+        .apb2_fz()
+        .modify(|_, w| w.dbg_tim1_stop().set_bit());
+    // First, so that a hang in the setup (a dead crystal) ends in a reset.
+    let mut watchdog = IndependentWatchdog::new(dp.IWDG);
+    watchdog.start(WATCHDOG_MS.millis());
+
+    let mut rcc = dp.RCC.freeze(
+        ClockConfig::hse(HSE_HZ.Hz())
+            .sysclk(SYSCLK_HZ.Hz())
+            .pclk1(PCLK1_HZ.Hz())
+            .pclk2(PCLK2_HZ.Hz()),
+    );
+    let sysclk_hz = rcc.clocks.sysclk().raw();
+    cp.DCB.enable_trace();
+    cp.DWT.enable_cycle_counter();
+
+    let gpioa = dp.GPIOA.split(&mut rcc);
+    let gpiob = dp.GPIOB.split(&mut rcc);
+    let gpioc = dp.GPIOC.split(&mut rcc);
+    let mut led: Led = gpioc.pc13.into_push_pull_output_in_state(PinState::High);
+
+    // Motors first, at duty 0: everything after this can fail, and the
+    // fault path holds them stopped.
+    let (_pwm_timer, (left_pwm, right_pwm, ..)) = dp.TIM1.pwm_hz(PWM_HZ.Hz(), &mut rcc);
+    let mut left_pwm = left_pwm.with(gpioa.pa8);
+    let mut right_pwm = right_pwm.with(gpioa.pa9);
+    left_pwm.set_duty(0);
+    right_pwm.set_duty(0);
+    left_pwm.enable();
+    right_pwm.enable();
+    let mut left_motor: LeftMotor = MotorDriver::new(
+        left_pwm,
+        gpiob.pb12.into_push_pull_output_in_state(PinState::Low),
+        MotorWiring { reversed: false },
+    );
+    let mut right_motor: RightMotor = MotorDriver::new(
+        right_pwm,
+        gpiob.pb13.into_push_pull_output_in_state(PinState::Low),
+        MotorWiring { reversed: true },
+    );
+    stop_motors(&mut left_motor, &mut right_motor);
+
+    let left_encoder = Encoder::new(
+        dp.TIM3.qei(
+            (
+                gpiob.pb4.into_alternate::<2>().internal_pull_up(true),
+                gpiob.pb5.into_alternate::<2>().internal_pull_up(true),
+            ),
+            &mut rcc,
+        ),
+        false,
+    );
+    let right_encoder = Encoder::new(
+        dp.TIM4.qei(
+            (
+                gpiob.pb6.into_alternate::<2>().internal_pull_up(true),
+                gpiob.pb7.into_alternate::<2>().internal_pull_up(true),
+            ),
+            &mut rcc,
+        ),
+        true,
+    );
+
+    let serial_config = SerialConfig::default()
+        .baudrate(RFID_BAUD.bps())
+        .wordlength_8()
+        .parity_none()
+        .stopbits(StopBits::STOP1);
+    let Ok(serial) = dp
+        .USART2
+        .serial::<u8>((gpioa.pa2, gpioa.pa3), serial_config, &mut rcc)
+    else {
+        halt(
+            Fault::RfidUart,
+            watchdog,
+            left_motor,
+            right_motor,
+            led,
+            sysclk_hz,
+        )
+    };
+    // The reader only talks; its TX pin stays configured, idle high.
+    let (_rfid_tx, rfid_rx) = serial.split();
+    let line_errors = Cell::new(LineErrors::default());
+    let mut ring: Queue<u8, RFID_RING_BYTES> = Queue::new();
+    let (ring_in, ring_out) = ring.split();
+    let mut pump = RfidPump::new(rfid_rx, ring_in, &line_errors);
+    let rfid = RfidReader::new(RfidUart::new(ring_out, &line_errors));
+
+    let pilot = match PILOT
+        .build()
+        .and_then(|config| Pilot::new(config).map_err(SpecError::Pilot))
+    {
+        Ok(pilot) => pilot,
+        Err(e) => halt(
+            Fault::Pilot(e),
+            watchdog,
+            left_motor,
+            right_motor,
+            led,
+            sysclk_hz,
+        ),
+    };
+    let mut tick_timer = dp.TIM5.counter_us(&mut rcc);
+    if let Err(e) = tick_timer.start(TICK_US.micros()) {
+        halt(
+            Fault::TickTimer(e),
+            watchdog,
+            left_motor,
+            right_motor,
+            led,
+            sysclk_hz,
+        );
+    }
+    let mut robot: BoardRobot<'_> = Robot::new(
+        pilot,
+        (left_encoder, right_encoder),
+        (left_motor, right_motor),
+        rfid,
+        SITE_TAGS,
+    );
+
+    defmt::info!(
+        "wmr-firmware (Black Pill): SYSCLK {=u32} Hz, tick {=u32} us, watchdog {=u32} ms, {=usize} tags",
+        sysclk_hz,
+        TICK_US,
+        WATCHDOG_MS,
+        SITE_TAGS.len()
+    );
+
+    let cycles_per_us = (sysclk_hz / 1_000_000).max(1);
+    let mut stats = LoopStats::default();
     loop {
-        cortex_m::asm::wfi();
+        let overrun = wait_for_tick(&mut tick_timer, &mut pump);
+        let started = DWT::cycle_count();
+        let step = robot.tick();
+        watchdog.feed();
+
+        stats.ticks = stats.ticks.wrapping_add(1);
+        if overrun {
+            stats.overruns = stats.overruns.saturating_add(1);
+            if !stats.overrun_logged {
+                defmt::warn!(
+                    "tick {=u32} overran its {=u32} us period (total {=u32})",
+                    stats.ticks,
+                    TICK_US,
+                    stats.overruns
+                );
+                stats.overrun_logged = true;
+            }
+        }
+        stats.log_events(&step);
+        if stats.ticks.is_multiple_of(HEARTBEAT_TICKS) {
+            led.toggle();
+        }
+        if stats.ticks.is_multiple_of(LOG_EVERY_TICKS) {
+            log_status(&robot, &step, &stats, line_errors.get(), cycles_per_us);
+            stats.max_work_cycles = 0;
+            stats.overrun_logged = false;
+        }
+        // Everything between two pumps of the RFID UART, logging included
+        // (a status tick's own time counts in the next interval).
+        let work_cycles = DWT::cycle_count().wrapping_sub(started);
+        stats.max_work_cycles = stats.max_work_cycles.max(work_cycles);
+    }
+}
+
+/// Waits for the next control tick, pumping the RFID UART meanwhile.
+/// Returns whether the tick was already due on arrival (an overrun).
+fn wait_for_tick(timer: &mut CounterUs<pac::TIM5>, rfid: &mut RfidPump<'_>) -> bool {
+    if tick_due(timer) {
+        return true;
+    }
+    loop {
+        rfid.pump();
+        if tick_due(timer) {
+            return false;
+        }
+    }
+}
+
+/// Whether the tick timer's update flag was set (and clears it). The HAL's
+/// `wait` has no other error than `WouldBlock` once started; any other is
+/// taken as due, so the loop can never stall on it.
+fn tick_due(timer: &mut CounterUs<pac::TIM5>) -> bool {
+    !matches!(timer.wait(), Err(nb::Error::WouldBlock))
+}
+
+/// Sets both motors' duty to 0. The HAL's PWM and GPIO writes cannot fail
+/// (`Infallible`), so there is no error to handle.
+fn stop_motors(left: &mut LeftMotor, right: &mut RightMotor) {
+    let _ = left.stop();
+    let _ = right.stop();
+}
+
+/// The fault path: motors held stopped, error logged every 5 s, LED
+/// blinking fast, watchdog fed, forever. Timed by busy-waiting one control
+/// period, so that it does not depend on the tick timer.
+fn halt(
+    fault: Fault,
+    mut watchdog: IndependentWatchdog,
+    mut left: LeftMotor,
+    mut right: RightMotor,
+    mut led: Led,
+    sysclk_hz: u32,
+) -> ! {
+    let period_cycles = sysclk_hz / 1_000_000 * TICK_US;
+    let mut periods: u32 = 0;
+    loop {
+        stop_motors(&mut left, &mut right);
+        watchdog.feed();
+        if periods.is_multiple_of(FAULT_LOG_PERIODS) {
+            defmt::error!("halted, motors stopped: {}", fault);
+        }
+        if periods.is_multiple_of(FAULT_BLINK_PERIODS) {
+            led.toggle();
+        }
+        periods = periods.wrapping_add(1);
+        cortex_m::asm::delay(period_cycles);
+    }
+}
+
+/// What the loop tracks between two status logs.
+#[derive(Default)]
+struct LoopStats {
+    /// Ticks run.
+    ticks: u32,
+    /// Ticks that found their period already over.
+    overruns: u32,
+    /// An overrun was logged in this status interval.
+    overrun_logged: bool,
+    /// Longest tick in this status interval, CPU cycles.
+    max_work_cycles: u32,
+    /// Tracker mode of the previous tick.
+    mode: Option<TrackerMode>,
+    /// Motors were stopped for encoder faults on the previous tick.
+    encoder_halt: bool,
+}
+
+impl LoopStats {
+    /// Logs what changed this tick: the tracker's mode, the encoder halt,
+    /// a motor fault.
+    fn log_events(&mut self, step: &RobotTick) {
+        let mode = step.pilot.tracker.mode;
+        if self.mode != Some(mode) {
+            defmt::info!("tick {=u32}: tracker {}", self.ticks, mode);
+            self.mode = Some(mode);
+        }
+        if step.pilot.encoder_halt != self.encoder_halt {
+            if step.pilot.encoder_halt {
+                defmt::warn!(
+                    "tick {=u32}: encoder reads failing, motors stopped",
+                    self.ticks
+                );
+            } else {
+                defmt::info!("tick {=u32}: encoder reads back", self.ticks);
+            }
+            self.encoder_halt = step.pilot.encoder_halt;
+        }
+        if let Some(fault) = step.motor_fault {
+            defmt::warn!("tick {=u32}: motor fault {}", self.ticks, fault);
+        }
+    }
+}
+
+/// The once-a-second status: mode, position, reference, duties, timing and
+/// counters; at [`STACK_LOG_AT_TICK`], the stack high-water mark.
+fn log_status(
+    robot: &BoardRobot<'_>,
+    step: &RobotTick,
+    stats: &LoopStats,
+    line_errors: LineErrors,
+    cycles_per_us: u32,
+) {
+    let tracker = &step.pilot.tracker;
+    defmt::info!(
+        "tick {=u32} {} pos ({=f32}, {=f32}) m ref ({=f32}, {=f32}) m duty L {=f32} R {=f32} | tick max {=u32} us, overruns {=u32}",
+        stats.ticks,
+        tracker.mode,
+        tracker.position.x,
+        tracker.position.y,
+        tracker.reference.position.x,
+        tracker.reference.position.y,
+        step.pilot.left.signed(),
+        step.pilot.right.signed(),
+        stats.max_work_cycles / cycles_per_us,
+        stats.overruns
+    );
+    defmt::info!(
+        "counters: robot {} rfid {} pilot {} uart {}",
+        robot.counters(),
+        robot.rfid_counters(),
+        robot.pilot().counters(),
+        line_errors
+    );
+    if stats.ticks == STACK_LOG_AT_TICK {
+        defmt::info!("peak stack {=u32} B", crate::stack::peak_bytes());
     }
 }
