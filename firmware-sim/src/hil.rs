@@ -10,7 +10,8 @@
 //! USART1 is a unix socket (`-serial unix:PATH,server=on,wait=on`): QEMU
 //! waits for the simulator to connect before it starts the CPU. The
 //! firmware's defmt log (semihosting, QEMU's stdout) is saved raw next to
-//! the run (`firmware.defmt`; decode with `defmt-print -e ELF`). The run
+//! the run (`firmware.defmt`) and decoded with the ELF's format table into
+//! `firmware.log`. The run
 //! ends with `Finish`: the firmware reports its stack high-water mark and
 //! exits through semihosting; QEMU is killed if it does not exit.
 
@@ -80,6 +81,34 @@ pub struct HilRun {
     pub report: HilReport,
     /// The firmware that ran.
     pub firmware: PathBuf,
+}
+
+/// Decodes a raw defmt log (the firmware's semihosting output) with the
+/// firmware ELF's format table, one line per message.
+///
+/// # Errors
+/// The ELF has no defmt table, or a file cannot be read.
+pub fn decode_defmt_log(elf: &Path, raw_log: &Path) -> anyhow::Result<String> {
+    let elf_bytes = std::fs::read(elf).with_context(|| format!("reading {}", elf.display()))?;
+    let table = defmt_decoder::Table::parse(&elf_bytes)?
+        .ok_or_else(|| anyhow::anyhow!("{} has no defmt table", elf.display()))?;
+    let raw = std::fs::read(raw_log).with_context(|| format!("reading {}", raw_log.display()))?;
+    let mut decoder = table.new_stream_decoder();
+    decoder.received(&raw);
+    let mut text = String::new();
+    loop {
+        match decoder.decode() {
+            Ok(frame) => {
+                text.push_str(&frame.display(false).to_string());
+                text.push('\n');
+            }
+            Err(defmt_decoder::DecodeError::UnexpectedEof) => break,
+            Err(defmt_decoder::DecodeError::Malformed) => {
+                text.push_str("(malformed defmt frame skipped)\n");
+            }
+        }
+    }
+    Ok(text)
 }
 
 /// The workspace root (this crate's parent directory, fixed at build time).
@@ -168,6 +197,14 @@ pub fn run_hil(
         uart_overruns: finished.counters.uart_overruns,
     };
     result.summary.hil = Some(report);
+    if let Some(raw) = &options.log {
+        // QEMU has exited: the log is complete. It is diagnostics, so a
+        // failure to decode it is reported, not fatal.
+        let text = decode_defmt_log(&firmware, raw)
+            .unwrap_or_else(|e| format!("(defmt log not decoded: {e:#})\n"));
+        let path = raw.with_extension("log");
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
     Ok(HilRun {
         result,
         report,

@@ -140,9 +140,9 @@ fn real_main() -> anyhow::Result<()> {
             let files = write_all(&out, &run.result, !no_plot)?;
             print!("{}", format_summary(&run.result.summary));
             println!(
-                "firmware      {} (defmt log: {})",
+                "firmware      {} (log: {})",
                 run.firmware.display(),
-                out.join("firmware.defmt").display()
+                out.join("firmware.log").display()
             );
             println!(
                 "wrote         {}, {}{}",
