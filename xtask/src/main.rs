@@ -11,6 +11,20 @@
 //! * `firmware` — release ELFs of both boards, copied to
 //!   `target/firmware/wmr-firmware-<board>.elf`.
 //! * `bench` — criterion benchmark of one control tick (host).
+//! * `bench-target` — instructions per call of the tick and its stages on
+//!   the target (QEMU `netduinoplus2`, `-icount shift=0`), for each math
+//!   backend; writes `target/bench-target.md` and README.md's
+//!   `bench-target` section (if its markers are there).
+//! * `size` — flash and static RAM of the release firmware (each board
+//!   that builds) and its biggest symbols; writes `target/size.md`.
+//! * `opt-levels` — firmware size and tick instructions for each release
+//!   opt-level (3, 2, s, z); writes `target/opt-levels.md`. Slow: every
+//!   level rebuilds all dependencies.
+
+mod bench_target;
+mod opt_levels;
+mod size;
+mod target;
 
 use std::process::{Command, ExitCode};
 use std::time::Instant;
@@ -28,8 +42,11 @@ fn main() -> ExitCode {
             }
         }),
         "bench" => cargo(&["bench", "-p", "host-tests", "--bench", "tick"], &[]),
+        "bench-target" => bench_target::bench_target(),
+        "size" => size::size(),
+        "opt-levels" => opt_levels::opt_levels(),
         _ => {
-            eprintln!("usage: cargo xtask <ci|bench>");
+            eprintln!("usage: cargo xtask <ci|firmware|bench|bench-target|size|opt-levels>");
             return ExitCode::from(2);
         }
     };

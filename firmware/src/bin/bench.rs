@@ -1,22 +1,722 @@
-//! On-target instruction-count benchmark (placeholder: being written).
+//! On-target benchmark: instructions per call of the control tick and of its
+//! stages, and the peak stack of one tick, under QEMU.
+//!
+//! Run by `cargo xtask bench-target`, which builds it for each math backend
+//! and runs
+//!
+//! ```text
+//! qemu-system-arm -M netduinoplus2 -icount shift=0 -nographic \
+//!     -semihosting-config enable=on,target=native -kernel <ELF>
+//! ```
+//!
+//! # Method
+//! With `-icount shift=0` QEMU advances its virtual clock by exactly 1 ns per
+//! guest instruction, and SysTick on the core clock (168 MHz on
+//! `netduinoplus2`) counts that clock: 0.168 SysTick counts per instruction,
+//! deterministic whatever the host's speed. The binary
+//!
+//! 1. calibrates counts per instruction against a `subs`/`bne` loop (2
+//!    instructions per iteration; cross-checked with a block of `nop`s) and
+//!    refuses to report if it is not 0.168 (QEMU run without `-icount`);
+//! 2. measures the empty measurement (SysTick reads and `black_box`), and
+//!    subtracts it from every sample;
+//! 3. drives a robot along paper 001's figure-eight (a tag fix and a 14-byte
+//!    RFID frame every tick, wrapping 16-bit encoder counters) and times,
+//!    each in its own `#[inline(never)]` function with its inputs through
+//!    `black_box`: the odometry (two counter deltas and `OdometryStep::
+//!    from_counts`), the heading observer update, the output-feedback law,
+//!    one wheel speed loop, `Pilot::step`, and the whole `Robot::tick` over
+//!    the HIL link's proxy devices (encoders, RFID frame parsing, tag
+//!    lookup, pilot, both motor drivers);
+//! 4. paints a window below the stack pointer, runs one tick and reports the
+//!    bytes the tick used below its caller's stack pointer.
+//!
+//! A sample is one call, quantized to one SysTick count (≈ 6 instructions):
+//! the mean over the samples (whose start phases differ) is good to about
+//! an instruction, median/min/max to ±6. Counts include the call and the
+//! loading of the arguments. Instructions are a proxy for Cortex-M4 cycles,
+//! not cycles (QEMU models no wait states, pipeline or FPU latencies).
+//!
+//! # Output (semihosting, one record a line)
+//! ```text
+//! wmr-bench backend=<libm|micromath> samples=<n>
+//! calibration counts_per_instruction=<f> loop_counts_per_iteration=<f> nop_counts_per_instruction=<f> overhead_instructions=<f>
+//! bench <name> mean=<f> median=<i> min=<i> max=<i> n=<i>
+//! stack robot_tick bytes=<i>
+//! done
+//! ```
+//! then the program exits through semihosting (status 0, or 1 on failure).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
-#[cortex_m_rt::entry]
-fn main() -> ! {
-    cortex_m_semihosting::debug::exit(cortex_m_semihosting::debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
+mod on_target {
+    use core::hint::black_box;
+
+    use cortex_m::peripheral::SYST;
+    use cortex_m::peripheral::syst::SystClkSource;
+    use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
+    use cortex_m_semihosting::hprintln;
+    // Links the device crate: it provides the interrupt vectors.
+    use stm32f4xx_hal as _;
+
+    use wmr_core::devices::{MotorDriver, MotorWiring, RfidReader, TagGrid, TagId, encode_frame};
+    use wmr_core::drive::{SpeedLoopGains, WheelSpeedLoop};
+    use wmr_core::geometry::{BodyVelocity, DiffDriveGeometry, Vec2};
+    use wmr_core::heading_observer::{HeadingEstimate, HeadingObserver};
+    use wmr_core::math;
+    use wmr_core::odometry::{OdometryStep, WrappingCounter};
+    use wmr_core::output_feedback::TagFix;
+    use wmr_core::pilot::{Measurement, Pilot, PilotOutput};
+    use wmr_core::reference::{ReferenceSample, Trajectory};
+    use wmr_core::robot::{Robot, RobotTick};
+    use wmr_core::spec::{DriveSpec, PilotSpec, TagGridSpec, TrackerSpec, TrajectorySpec};
+    use wmr_core::tracking::{TrackingCommand, TrackingController, TrackingGains};
+    use wmr_link::TickInput;
+    use wmr_link::proxy::{ProxyBus, Side};
+    use wmr_link::session::ProxyRobot;
+
+    /// Math backend this binary was built with.
+    const BACKEND: &str = if cfg!(feature = "micromath") {
+        "micromath"
+    } else {
+        "libm"
+    };
+
+    /// Core clock of QEMU's `netduinoplus2`, Hz.
+    const CORE_CLOCK_HZ: f32 = 168.0e6;
+    /// SysTick counts per instruction under `-icount shift=0` (1 ns each).
+    const EXPECTED_COUNTS_PER_INSTRUCTION: f32 = CORE_CLOCK_HZ * 1.0e-9;
+    /// SysTick is a 24-bit down-counter.
+    const SYSTICK_MASK: u32 = 0x00FF_FFFF;
+
+    /// Timed calls per stage.
+    const SAMPLES: usize = 200;
+    /// Ticks run before sampling starts (observer and loops settle).
+    const WARMUP_TICKS: u32 = 20;
+    /// Ticks whose stack is measured (the maximum is reported).
+    const STACK_TICKS: u32 = 10;
+    /// Bytes painted below the stack pointer before a stack-measured tick.
+    const STACK_WINDOW_BYTES: usize = 16 * 1024;
+    /// Instructions in the `nop` block of the cross-check.
+    const NOP_BLOCK: u32 = 4000;
+
+    /// The control period, s.
+    const PERIOD_S: f32 = 0.01;
+    /// PWM full scale of the motor proxies, steps.
+    const PWM_MAX_DUTY: u16 = 1000;
+
+    /// Paper 001's figure-eight and observer gain, on a small robot (as
+    /// `host_tests::paper_pilot` and the simulator's defaults).
+    fn pilot_spec() -> PilotSpec {
+        PilotSpec {
+            tracker: TrackerSpec {
+                period_s: PERIOD_S,
+                trajectory: TrajectorySpec::FigureEight {
+                    h1_m: 5.0,
+                    h2_rad_s: 0.02,
+                    phase_rad: -core::f32::consts::FRAC_PI_2,
+                },
+                gains: [0.11, 0.11, 0.1],
+                observer_gain_per_m: 0.6,
+                observer_min_speed_m_s: 1.0e-3,
+                fix_timeout_ticks: 100,
+                failsafe_decel_m_s2: 0.5,
+                max_fix_age_ticks: 2,
+            },
+            drive: DriveSpec {
+                wheel_radius_m: 0.03,
+                track_width_m: 0.2,
+                encoder_counts_per_rev: 2048,
+                max_wheel_speed_rad_s: 20.0,
+                max_wheel_accel_rad_s2: 100.0,
+                feedforward_duty_per_rad_s: 0.05,
+                kp_duty_per_rad_s: 0.02,
+                ki_duty_per_rad: 0.1,
+            },
+            encoder_bits: 16,
+            max_encoder_fault_ticks: 5,
+        }
+    }
+
+    /// Tags every 10 cm over the figure-eight (±5 m) with a 1 m margin.
+    const GRID: TagGridSpec = TagGridSpec {
+        origin_m: [-6.0, -6.0],
+        spacing_m: 0.1,
+        rows: 121,
+        columns: 121,
+    };
+
+    // ---------------------------------------------------------------- timing
+
+    /// `f(input)` and the SysTick counts it took (the counter runs down and
+    /// wraps every 2^24 counts, ≈ 100 ms of virtual time: far longer than
+    /// any call).
+    ///
+    /// `black_box` pins the work between the two reads: `input` is complete
+    /// before the first read and opaque to `f`, and the result is taken
+    /// before the second read. Inside the window are only the call, the
+    /// function, and one `black_box` each way (counted in the empty
+    /// measurement).
+    #[inline(always)]
+    fn timed<I, R>(input: &I, f: impl FnOnce(&I) -> R) -> (u32, R) {
+        let input = black_box(input);
+        let start = SYST::get_current();
+        let result = black_box(f(black_box(input)));
+        let end = SYST::get_current();
+        (start.wrapping_sub(end) & SYSTICK_MASK, result)
+    }
+
+    /// `iterations` (≥ 1) turns of a `subs`/`bne` loop: 2 instructions each.
+    #[inline(never)]
+    fn spin(iterations: u32) {
+        let iterations = iterations.max(1);
+        // SAFETY: a countdown in one register; it touches no memory, no
+        // stack and no other register, and ends (iterations ≥ 1).
+        #[allow(unsafe_code)]
+        unsafe {
+            core::arch::asm!(
+                "2:",
+                "subs {n}, {n}, #1",
+                "bne 2b",
+                n = inout(reg) iterations => _,
+                options(nomem, nostack),
+            );
+        }
+    }
+
+    /// Exactly [`NOP_BLOCK`] `nop`s.
+    #[inline(never)]
+    fn nops() {
+        // SAFETY: `nop`s only.
+        #[allow(unsafe_code)]
+        unsafe {
+            core::arch::asm!(
+                ".rept {n}",
+                "nop",
+                ".endr",
+                n = const NOP_BLOCK,
+                options(nomem, nostack, preserves_flags),
+            );
+        }
+    }
+
+    /// Mean of SysTick counts over `n` runs of `f`.
+    fn mean_counts(n: u32, mut f: impl FnMut() -> u32) -> f32 {
+        let total: u64 = (0..n).map(|_| u64::from(f())).sum();
+        total as f32 / n as f32
+    }
+
+    /// Counts → instructions.
+    #[derive(Clone, Copy)]
+    struct Calibration {
+        counts_per_instruction: f32,
+        overhead_instructions: f32,
+    }
+
+    impl Calibration {
+        fn instructions(self, counts: f32) -> f32 {
+            counts / self.counts_per_instruction - self.overhead_instructions
+        }
+    }
+
+    /// Per-call SysTick counts of one stage.
+    struct Stage {
+        name: &'static str,
+        counts: [u32; SAMPLES],
+        n: usize,
+    }
+
+    impl Stage {
+        const fn new(name: &'static str) -> Self {
+            Self {
+                name,
+                counts: [0; SAMPLES],
+                n: 0,
+            }
+        }
+
+        fn record(&mut self, counts: u32) {
+            if let Some(slot) = self.counts.get_mut(self.n) {
+                *slot = counts;
+                self.n += 1;
+            }
+        }
+
+        fn report(&self, cal: Calibration) {
+            let Some(samples) = self.counts.get(..self.n).filter(|s| !s.is_empty()) else {
+                hprintln!("bench {} no-samples", self.name);
+                return;
+            };
+            let mut sorted = [0_u32; SAMPLES];
+            let sorted = &mut sorted[..samples.len()];
+            sorted.copy_from_slice(samples);
+            sorted.sort_unstable();
+            let total: u64 = samples.iter().map(|&c| u64::from(c)).sum();
+            let instr = |c: u32| nearest(cal.instructions(c as f32));
+            hprintln!(
+                "bench {} mean={:.1} median={} min={} max={} n={}",
+                self.name,
+                cal.instructions(total as f32 / samples.len() as f32),
+                instr(sorted[sorted.len() / 2]),
+                instr(sorted[0]),
+                instr(sorted[sorted.len() - 1]),
+                samples.len()
+            );
+        }
+    }
+
+    /// Nearest integer (of a value that fits an `i32`).
+    fn nearest(x: f32) -> i32 {
+        math::floor(x + 0.5) as i32
+    }
+
+    // ------------------------------------------------------------- the world
+
+    /// One tick of the world: the robot on the reference, its encoders, the
+    /// tag under it.
+    struct Reading {
+        tick: u32,
+        reference: ReferenceSample,
+        counts: [u32; 2],
+        tag: TagId,
+        tag_position: Vec2,
+    }
+
+    /// A robot driving exactly along the reference (its wheels integrate
+    /// the reference's `v`, `ω`), reading the nearest floor tag every tick.
+    struct World {
+        trajectory: Trajectory,
+        geometry: DiffDriveGeometry,
+        grid: TagGrid,
+        wheel_angle_rad: [f32; 2],
+    }
+
+    /// Encoder counters start here, so that they wrap at 16 bits early on.
+    const COUNTER_START: i32 = 65_000;
+
+    impl World {
+        fn reading(&mut self, tick: u32) -> Reading {
+            let reference = self.trajectory.sample(tick as f32 * PERIOD_S);
+            let vel = reference.velocity;
+            let acc = reference.acceleration;
+            let v = vel.norm();
+            let omega = if v > 1e-6 {
+                (vel.x * acc.y - vel.y * acc.x) / (v * v)
+            } else {
+                0.0
+            };
+            let wheels = self.geometry.wheels_from_body(BodyVelocity {
+                v_m_s: v,
+                omega_rad_s: omega,
+            });
+            let [left, right] = &mut self.wheel_angle_rad;
+            *left += wheels.left_rad_s * PERIOD_S;
+            *right += wheels.right_rad_s * PERIOD_S;
+            let count = |angle: f32| {
+                let counts = nearest(angle / self.geometry.rad_per_count());
+                COUNTER_START.wrapping_add(counts).cast_unsigned() & 0xFFFF
+            };
+            let counts = [count(*left), count(*right)];
+            let origin = self.grid.origin();
+            let spacing = self.grid.spacing_m();
+            let cell = |x: f32, n: u16| nearest(x / spacing).clamp(0, i32::from(n) - 1) as u16;
+            let column = cell(reference.position.x - origin.x, self.grid.columns());
+            let row = cell(reference.position.y - origin.y, self.grid.rows());
+            let tag = TagGrid::id(row, column);
+            let tag_position = self.grid.position(tag).unwrap_or(reference.position);
+            Reading {
+                tick,
+                reference,
+                counts,
+                tag,
+                tag_position,
+            }
+        }
+    }
+
+    // ------------------------------------------------------- timed functions
+
+    #[inline(never)]
+    fn odometry(
+        counters: &mut [WrappingCounter; 2],
+        &(geometry, raw, dt_s): &(DiffDriveGeometry, [u32; 2], f32),
+    ) -> OdometryStep {
+        let [left, right] = counters;
+        let dl = left.delta(raw[0]);
+        let dr = right.delta(raw[1]);
+        OdometryStep::from_counts(&geometry, dl, dr, dt_s)
+    }
+
+    #[inline(never)]
+    fn observer_update(
+        observer: &mut HeadingObserver,
+        &(body, delta_position): &(BodyVelocity, Vec2),
+    ) -> HeadingEstimate {
+        observer.update(body, delta_position);
+        observer.estimate()
+    }
+
+    #[inline(never)]
+    fn output_feedback(
+        law: &mut TrackingController,
+        (reference, position, estimate): &(ReferenceSample, Vec2, HeadingEstimate),
+    ) -> TrackingCommand {
+        law.output_feedback(reference, *position, *estimate)
+    }
+
+    #[inline(never)]
+    fn speed_loop(
+        speed_loop: &mut WheelSpeedLoop,
+        (gains, period_s, target_rad_s, measured_rad_s): &(SpeedLoopGains, f32, f32, Option<f32>),
+    ) -> f32 {
+        speed_loop.update(gains, *period_s, *target_rad_s, *measured_rad_s)
+    }
+
+    #[inline(never)]
+    fn pilot_step(pilot: &mut Pilot, measurement: &Measurement) -> PilotOutput {
+        pilot.step(measurement)
+    }
+
+    #[inline(never)]
+    fn robot_tick(robot: &mut ProxyRobot<'_>) -> RobotTick {
+        robot.tick()
+    }
+
+    /// Bytes of stack one [`robot_tick`] uses below this function's stack
+    /// pointer; `None` if it used the whole painted window.
+    #[inline(never)]
+    fn tick_stack_bytes(robot: &mut ProxyRobot<'_>) -> Option<u32> {
+        let paint = cortex_m_rt::STACK_PAINT_VALUE;
+        // The stack region's low end: cortex-m-rt's linker symbol (set by
+        // flip-link too, when the stack is placed below the statics); only
+        // its address is used.
+        #[allow(unsafe_code)]
+        unsafe extern "C" {
+            static _stack_end: u32;
+        }
+        let floor = (&raw const _stack_end) as usize;
+        let sp = cortex_m::register::msp::read() as usize;
+        let window = STACK_WINDOW_BYTES.min(sp.saturating_sub(floor)) & !3;
+        let bottom = sp - window;
+        // SAFETY: writes `paint` to the words of [bottom, sp): free stack
+        // below this function's frame (the stack pointer of a Rust function
+        // does not move after its prologue) and above the statics; no
+        // interrupt is enabled, so nothing else uses that memory now. The
+        // loop uses registers only.
+        #[allow(unsafe_code)]
+        unsafe {
+            core::arch::asm!(
+                "2:",
+                "cmp {p}, {top}",
+                "bhs 3f",
+                "str {v}, [{p}], #4",
+                "b 2b",
+                "3:",
+                p = inout(reg) bottom => _,
+                top = in(reg) sp,
+                v = in(reg) paint,
+                options(nostack),
+            );
+        }
+        black_box(robot_tick(black_box(robot)));
+        let mut addr = bottom;
+        while addr < sp {
+            // SAFETY: `addr` is word-aligned (sp is, and the window is a
+            // multiple of 4) and inside the RAM just painted; a volatile
+            // read of RAM has no side effects.
+            #[allow(unsafe_code)]
+            let word = unsafe { core::ptr::read_volatile(addr as *const u32) };
+            if word != paint {
+                break;
+            }
+            addr += 4;
+        }
+        (addr > bottom).then(|| u32::try_from(sp - addr).unwrap_or(u32::MAX))
+    }
+
+    /// One math-backend call per sample, over a spread of arguments.
+    fn bench_math(cal: Calibration) {
+        type MathFn = fn(&[f32; 2]) -> f32;
+        type Arguments = fn(usize) -> [f32; 2];
+        /// `k`-th of `SAMPLES` points spread over `[a, b]`.
+        fn spread(k: usize, a: f32, b: f32) -> f32 {
+            a + (b - a) * k as f32 / (SAMPLES - 1) as f32
+        }
+        let cases: [(&str, MathFn, Arguments); 6] = [
+            (
+                "math_sin",
+                |x| math::sin(x[0]),
+                |k| [spread(k, -3.2, 3.2), 0.0],
+            ),
+            (
+                "math_cos",
+                |x| math::cos(x[0]),
+                |k| [spread(k, -3.2, 3.2), 0.0],
+            ),
+            (
+                "math_atan",
+                |x| math::atan(x[0]),
+                |k| [spread(k, -4.0, 4.0), 0.0],
+            ),
+            (
+                "math_atan2",
+                |x| math::atan2(x[0], x[1]),
+                |k| {
+                    let a = spread(k, -3.1, 3.1);
+                    [math::sin(a), math::cos(a)]
+                },
+            ),
+            (
+                "math_exp",
+                |x| math::exp(x[0]),
+                |k| [spread(k, -0.2, 0.0), 0.0],
+            ),
+            (
+                "math_sqrt",
+                |x| math::sqrt(x[0]),
+                |k| [spread(k, 0.01, 50.0), 0.0],
+            ),
+        ];
+        for (name, f, input) in cases {
+            let mut stage = Stage::new(name);
+            for k in 0..SAMPLES {
+                stage.record(timed(&input(k), |x| call_math(f, x)).0);
+            }
+            stage.report(cal);
+        }
+    }
+
+    /// A math function behind a call, as the core calls it.
+    #[inline(never)]
+    fn call_math(f: fn(&[f32; 2]) -> f32, x: &[f32; 2]) -> f32 {
+        f(x)
+    }
+
+    // ------------------------------------------------------------------ main
+
+    fn fail(why: &str) -> ! {
+        hprintln!("error {}", why);
+        debug::exit(EXIT_FAILURE);
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
+    fn calibrate() -> Calibration {
+        const SHORT: u32 = 1_000;
+        const LONG: u32 = 101_000;
+        let short = mean_counts(4, || timed(&SHORT, |&n| spin(n)).0);
+        let long = mean_counts(4, || timed(&LONG, |&n| spin(n)).0);
+        let loop_counts_per_iteration = (long - short) / (LONG - SHORT) as f32;
+        // The loop's two instructions per iteration, checked against a
+        // block of single instructions.
+        let counts_per_instruction = 0.5 * loop_counts_per_iteration;
+        let empty = mean_counts(SAMPLES as u32, || timed(&0_u32, |_| ()).0);
+        let nop_block = mean_counts(SAMPLES as u32, || timed(&0_u32, |_| nops()).0);
+        let nop_counts_per_instruction = (nop_block - empty) / NOP_BLOCK as f32;
+        let cal = Calibration {
+            counts_per_instruction,
+            overhead_instructions: empty / counts_per_instruction,
+        };
+        hprintln!(
+            "calibration counts_per_instruction={:.5} loop_counts_per_iteration={:.5} \
+             nop_counts_per_instruction={:.4} overhead_instructions={:.1}",
+            counts_per_instruction,
+            loop_counts_per_iteration,
+            nop_counts_per_instruction,
+            cal.overhead_instructions
+        );
+        let off = |x: f32| (x / EXPECTED_COUNTS_PER_INSTRUCTION - 1.0).abs() > 0.01;
+        if off(counts_per_instruction) || off(nop_counts_per_instruction) {
+            fail(
+                "SysTick does not count 0.168 per instruction: run QEMU with \
+                 `-icount shift=0` (netduinoplus2, 168 MHz)",
+            );
+        }
+        cal
+    }
+
+    #[cortex_m_rt::entry]
+    fn main() -> ! {
+        let Some(mut cp) = cortex_m::Peripherals::take() else {
+            fail("core peripherals already taken");
+        };
+        cp.SYST.set_clock_source(SystClkSource::Core);
+        cp.SYST.set_reload(SYSTICK_MASK);
+        cp.SYST.clear_current();
+        cp.SYST.enable_counter();
+
+        hprintln!("wmr-bench backend={} samples={}", BACKEND, SAMPLES);
+        let cal = calibrate();
+
+        let spec = pilot_spec();
+        let (Ok(config), Ok(grid)) = (spec.build(), GRID.build()) else {
+            fail("bench configuration refused");
+        };
+        let [k1, k2, k3] = spec.tracker.gains;
+        let (Ok(pilot), Ok(gains)) = (Pilot::new(config), TrackingGains::new(k1, k2, k3)) else {
+            fail("bench pilot refused");
+        };
+        let drive = *config.drive();
+        let geometry = *drive.geometry();
+        let mut world = World {
+            trajectory: *config.tracker().trajectory(),
+            geometry,
+            grid,
+            wheel_angle_rad: [0.0; 2],
+        };
+
+        // Stage by stage, each with its own state, fed from the world and
+        // from the previous stage's output.
+        let Ok(counter) = WrappingCounter::new(spec.encoder_bits) else {
+            fail("bench counter refused");
+        };
+        let mut counters = [counter; 2];
+        let mut observer = HeadingObserver::new(*config.tracker().observer());
+        let mut law = TrackingController::new(gains);
+        let mut wheel_loop = WheelSpeedLoop::default();
+        let mut lone_pilot = pilot;
+
+        // The whole tick: the firmware's robot on the HIL link's proxies.
+        let bus = ProxyBus::new();
+        bus.reset(PWM_MAX_DUTY);
+        let motor = |side| {
+            MotorDriver::new(
+                bus.pwm(side),
+                bus.direction_pin(side),
+                MotorWiring::default(),
+            )
+        };
+        let mut robot: ProxyRobot<'_> = Robot::new(
+            pilot,
+            (bus.encoder(Side::Left), bus.encoder(Side::Right)),
+            (motor(Side::Left), motor(Side::Right)),
+            RfidReader::new(bus.uart()),
+            grid,
+        );
+        let load = |r: &Reading| {
+            let Ok(uart) = heapless::Vec::from_slice(&encode_frame(r.tag)) else {
+                fail("RFID frame does not fit a tick's UART bytes");
+            };
+            bus.load(&TickInput {
+                tick: r.tick,
+                left_count: Some(r.counts[0]),
+                right_count: Some(r.counts[1]),
+                uart,
+            });
+        };
+
+        let mut stages = [
+            Stage::new("odometry"),
+            Stage::new("heading_observer"),
+            Stage::new("output_feedback"),
+            Stage::new("wheel_speed_loop"),
+            Stage::new("pilot_step"),
+            Stage::new("robot_tick"),
+        ];
+        let mut previous_tag = None;
+        let mut estimate = HeadingEstimate::default();
+        for k in 0..WARMUP_TICKS + SAMPLES as u32 {
+            let r = world.reading(k);
+            let mut c = [0_u32; 6];
+
+            let odo;
+            (c[0], odo) = timed(&(geometry, r.counts, PERIOD_S), |i| {
+                odometry(&mut counters, i)
+            });
+            if let Some(previous) = previous_tag {
+                (c[1], estimate) = timed(&(odo.body, r.tag_position - previous), |i| {
+                    observer_update(&mut observer, i)
+                });
+            }
+            previous_tag = Some(r.tag_position);
+            let command;
+            (c[2], command) = timed(&(r.reference, r.tag_position, estimate), |i| {
+                output_feedback(&mut law, i)
+            });
+            let target = geometry.wheels_from_body(command.body).left_rad_s;
+            let input = (
+                *drive.speed_loop(),
+                PERIOD_S,
+                target,
+                Some(odo.wheels.left_rad_s),
+            );
+            (c[3], _) = timed(&input, |i| speed_loop(&mut wheel_loop, i));
+            let measurement = Measurement {
+                left_count: Some(r.counts[0]),
+                right_count: Some(r.counts[1]),
+                fix: Some(TagFix {
+                    position: r.tag_position,
+                    age_ticks: 0,
+                }),
+            };
+            (c[4], _) = timed(&measurement, |m| pilot_step(&mut lone_pilot, m));
+            load(&r);
+            (c[5], _) = timed(&(), |()| robot_tick(&mut robot));
+
+            if k >= WARMUP_TICKS {
+                for (stage, &counts) in stages.iter_mut().zip(&c) {
+                    stage.record(counts);
+                }
+            }
+        }
+        for stage in &stages {
+            stage.report(cal);
+        }
+        bench_math(cal);
+
+        let mut peak = Some(0_u32);
+        for k in 0..STACK_TICKS {
+            load(&world.reading(WARMUP_TICKS + SAMPLES as u32 + k));
+            peak = peak
+                .zip(tick_stack_bytes(&mut robot))
+                .map(|(a, b)| a.max(b));
+        }
+        match peak {
+            Some(bytes) => hprintln!("stack robot_tick bytes={}", bytes),
+            None => fail("the tick used the whole painted stack window"),
+        }
+
+        // The robot must have run the whole path: a frame and a fix every
+        // tick, no device fault.
+        let rfid = robot.rfid_counters();
+        let faults = robot.counters();
+        let fixes = robot.pilot().tracker().counters().fixes_used;
+        hprintln!(
+            "check frames_ok={} unknown_tags={} encoder_errors={} fixes_used={}",
+            rfid.frames_ok,
+            faults.unknown_tags,
+            faults.left_encoder_errors + faults.right_encoder_errors,
+            fixes
+        );
+        let ticks = WARMUP_TICKS + SAMPLES as u32 + STACK_TICKS;
+        if rfid.frames_ok != ticks || fixes + 1 < ticks || faults != Default::default() {
+            fail("the bench robot did not read a tag and track every tick");
+        }
+        hprintln!("done");
+        debug::exit(EXIT_SUCCESS);
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
+    #[panic_handler]
+    fn panic(info: &core::panic::PanicInfo) -> ! {
+        hprintln!("error panic: {}", info);
+        debug::exit(EXIT_FAILURE);
+        loop {
+            cortex_m::asm::wfi();
+        }
     }
 }
 
-#[cfg(target_os = "none")]
-#[panic_handler]
-fn panic(_: &core::panic::PanicInfo) -> ! {
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
+/// On the host this binary is a stub, so that workspace-wide host commands
+/// pass over it.
 #[cfg(not(target_os = "none"))]
-fn main() {}
+fn main() {
+    eprintln!(
+        "wmr-bench runs on a microcontroller under QEMU: use `cargo xtask bench-target` \
+         (thumbv7em-none-eabihf)"
+    );
+    std::process::exit(2);
+}

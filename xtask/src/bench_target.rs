@@ -1,0 +1,321 @@
+//! `cargo xtask bench-target`: instructions per call on the target, under
+//! QEMU, for each math backend (see `firmware/src/bin/bench.rs`).
+
+use std::fmt::Write as _;
+use std::time::Duration;
+
+use crate::target::{
+    Build, grouped, qemu, qemu_version, rustc_version, update_readme, write_report,
+};
+
+/// The math backends: name and the firmware features that select it.
+pub const BACKENDS: [(&str, &[&str]); 2] = [("libm", &[]), ("micromath", &["micromath"])];
+
+/// Markers of the generated part of README.md.
+const README_START: &str = "<!-- bench-target:start -->";
+const README_END: &str = "<!-- bench-target:end -->";
+
+/// Where the table is always written (relative to the workspace root).
+pub const REPORT: &str = "target/bench-target.md";
+
+/// A whole run takes well under a second of host time.
+const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// Stages of the main table: the bench's name and the row label.
+const STAGES: [(&str, &str); 6] = [
+    (
+        "odometry",
+        "odometry (2 counter deltas + `OdometryStep::from_counts`)",
+    ),
+    (
+        "heading_observer",
+        "heading observer (`HeadingObserver::update`)",
+    ),
+    (
+        "output_feedback",
+        "output-feedback law (`TrackingController::output_feedback`)",
+    ),
+    (
+        "wheel_speed_loop",
+        "wheel speed loop (`WheelSpeedLoop::update`, one wheel)",
+    ),
+    ("pilot_step", "`Pilot::step`"),
+    (
+        "robot_tick",
+        "whole tick (`Robot::tick` over the HIL proxies, one RFID frame)",
+    ),
+];
+
+/// Math backend calls, per call.
+const MATH: [(&str, &str); 6] = [
+    ("math_sin", "`sin`"),
+    ("math_cos", "`cos`"),
+    ("math_atan", "`atan`"),
+    ("math_atan2", "`atan2`"),
+    ("math_exp", "`exp`"),
+    ("math_sqrt", "`sqrt`"),
+];
+
+/// One stage's instruction counts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stat {
+    /// Bench name.
+    pub name: String,
+    /// Mean instructions per call.
+    pub mean: f64,
+    /// Median, instructions (±1 SysTick count).
+    pub median: i64,
+    /// Smallest sample, instructions.
+    pub min: i64,
+    /// Largest sample, instructions.
+    pub max: i64,
+}
+
+/// What one run of `wmr-bench` reported.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Report {
+    /// Math backend the binary was built with.
+    pub backend: String,
+    /// Samples per stage.
+    pub samples: u32,
+    /// SysTick counts per instruction found by the calibration.
+    pub counts_per_instruction: f64,
+    /// The measurement's own instructions (subtracted).
+    pub overhead_instructions: f64,
+    /// Every `bench` line.
+    pub stats: Vec<Stat>,
+    /// Peak stack of one tick below its caller's stack pointer, bytes.
+    pub tick_stack_bytes: u64,
+}
+
+impl Report {
+    /// The stage called `name`.
+    pub fn stat(&self, name: &str) -> Option<&Stat> {
+        self.stats.iter().find(|s| s.name == name)
+    }
+}
+
+/// `key=value` fields of a line.
+fn field<T: std::str::FromStr>(line: &str, key: &str) -> Result<T, String> {
+    line.split_whitespace()
+        .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
+        .ok_or_else(|| format!("no `{key}=` in `{line}`"))?
+        .parse()
+        .map_err(|_| format!("bad `{key}=` in `{line}`"))
+}
+
+/// Parses the bench's semihosting output.
+pub fn parse(output: &str) -> Result<Report, String> {
+    let mut report = Report {
+        backend: String::new(),
+        samples: 0,
+        counts_per_instruction: 0.0,
+        overhead_instructions: 0.0,
+        stats: Vec::new(),
+        tick_stack_bytes: 0,
+    };
+    let (mut header, mut calibrated, mut stack, mut done) = (false, false, false, false);
+    for line in output.lines().map(str::trim) {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("wmr-bench") => {
+                report.backend = field(line, "backend")?;
+                report.samples = field(line, "samples")?;
+                header = true;
+            }
+            Some("calibration") => {
+                report.counts_per_instruction = field(line, "counts_per_instruction")?;
+                report.overhead_instructions = field(line, "overhead_instructions")?;
+                calibrated = true;
+            }
+            Some("bench") => {
+                let name = words.next().ok_or_else(|| format!("no name in `{line}`"))?;
+                report.stats.push(Stat {
+                    name: name.to_string(),
+                    mean: field(line, "mean")?,
+                    median: field(line, "median")?,
+                    min: field(line, "min")?,
+                    max: field(line, "max")?,
+                });
+            }
+            Some("stack") if words.next() == Some("robot_tick") => {
+                report.tick_stack_bytes = field(line, "bytes")?;
+                stack = true;
+            }
+            Some("error") => return Err(format!("the bench failed: {line}")),
+            Some("done") => done = true,
+            _ => {}
+        }
+    }
+    match (header, calibrated, stack, done) {
+        (true, true, true, true) => Ok(report),
+        _ => Err(format!("incomplete bench output:\n{output}")),
+    }
+}
+
+/// Builds `wmr-bench` for one backend (`label` names the ELF's copy) and
+/// runs it under QEMU.
+pub fn run_backend(
+    backend: &str,
+    features: &[&str],
+    env: &[(&str, &str)],
+    label: &str,
+) -> Result<Report, String> {
+    let elf = Build {
+        bins: &["wmr-bench"],
+        features,
+        env,
+        ..Build::default()
+    }
+    .run(label)?;
+    let elf = elf.first().ok_or("no ELF built")?;
+    eprintln!("    running {} under QEMU (-icount shift=0)", elf.display());
+    let output = qemu(elf, QEMU_TIMEOUT)?;
+    let report = parse(&output).map_err(|e| format!("{}: {e}", elf.display()))?;
+    if report.backend != backend {
+        return Err(format!(
+            "{} says backend {}, expected {backend}",
+            elf.display(),
+            report.backend
+        ));
+    }
+    Ok(report)
+}
+
+/// The task.
+pub fn bench_target() -> crate::Result {
+    let mut reports = Vec::new();
+    for (backend, features) in BACKENDS {
+        eprintln!("\n==> wmr-bench, {backend}");
+        reports.push(run_backend(
+            backend,
+            features,
+            &[],
+            &format!("bench-{backend}"),
+        )?);
+    }
+    let table = markdown(&reports);
+    print!("\n{table}");
+    let path = write_report(REPORT, &table)?;
+    eprintln!("\nwritten to {}", path.display());
+    if update_readme(README_START, README_END, &table)? {
+        eprintln!("README.md updated between {README_START} and {README_END}");
+    }
+    Ok(())
+}
+
+/// `mean (min–max)`.
+fn cell(stat: Option<&Stat>) -> String {
+    stat.map_or_else(
+        || "–".into(),
+        |s| {
+            format!(
+                "{} ({}–{})",
+                grouped(s.mean.round().max(0.0) as u64),
+                grouped(s.min.max(0) as u64),
+                grouped(s.max.max(0) as u64)
+            )
+        },
+    )
+}
+
+/// The report's markdown (one column per backend).
+pub fn markdown(reports: &[Report]) -> String {
+    let mut md = String::new();
+    let header = |md: &mut String, first: &str| {
+        let _ = write!(md, "| {first} |");
+        for r in reports {
+            let _ = write!(md, " {} |", r.backend);
+        }
+        md.push_str("\n| --- |");
+        for _ in reports {
+            md.push_str(" ---: |");
+        }
+        md.push('\n');
+    };
+    let samples = reports.first().map_or(0, |r| r.samples);
+    let opt_level = std::env::var("CARGO_PROFILE_RELEASE_OPT_LEVEL")
+        .map(|l| format!(", `CARGO_PROFILE_RELEASE_OPT_LEVEL={l}`"))
+        .unwrap_or_default();
+    let _ = writeln!(
+        md,
+        "Instructions per call on the target: `wmr-bench` (release{opt_level}, \
+         thumbv7em-none-eabihf, {}) under {} `netduinoplus2` (STM32F405, \
+         Cortex-M4F) with `-icount shift=0`. Mean over {samples} calls along paper \
+         001's figure-eight, min–max in parentheses (±6: one SysTick count); the \
+         call and the loading of its arguments included. Instructions are a proxy \
+         for Cortex-M4 cycles, not cycles: QEMU models no flash wait states, \
+         pipeline or FPU latencies (`vdiv.f32`, `vsqrt.f32`: 14 cycles each). \
+         Regenerate with `cargo xtask bench-target`.\n",
+        rustc_version(),
+        qemu_version()
+    );
+    header(&mut md, "stage");
+    for (name, label) in STAGES {
+        let _ = write!(md, "| {label} |");
+        for r in reports {
+            let _ = write!(md, " {} |", cell(r.stat(name)));
+        }
+        md.push('\n');
+    }
+    let _ = write!(md, "| tick peak stack (below the caller's SP) |");
+    for r in reports {
+        let _ = write!(md, " {} B |", grouped(r.tick_stack_bytes));
+    }
+    md.push_str("\n\nThe math backend alone, per call:\n\n");
+    header(&mut md, "function");
+    for (name, label) in MATH {
+        let _ = write!(md, "| {label} |");
+        for r in reports {
+            let _ = write!(md, " {} |", cell(r.stat(name)));
+        }
+        md.push('\n');
+    }
+    md.push_str("\nCalibration:");
+    for r in reports {
+        let _ = write!(
+            md,
+            " {} {:.5} SysTick counts per instruction (expected 0.168), {:.1} \
+             instructions of measurement overhead subtracted;",
+            r.backend, r.counts_per_instruction, r.overhead_instructions
+        );
+    }
+    md.pop();
+    md.push_str(".\n");
+    md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OUTPUT: &str = "\
+wmr-bench backend=libm samples=200
+calibration counts_per_instruction=0.16800 loop_counts_per_iteration=0.33601 nop_counts_per_instruction=0.1683 overhead_instructions=2.0
+bench odometry mean=73.7 median=75 min=69 max=75 n=200
+bench robot_tick mean=10227.0 median=9266 min=9052 max=11432 n=200
+stack robot_tick bytes=776
+check frames_ok=230 unknown_tags=0 encoder_errors=0 mode=tracking
+done
+";
+
+    #[test]
+    fn parses_the_bench_output() {
+        let r = parse(OUTPUT).unwrap();
+        assert_eq!(r.backend, "libm");
+        assert_eq!(r.samples, 200);
+        assert_eq!(r.tick_stack_bytes, 776);
+        let tick = r.stat("robot_tick").unwrap();
+        assert_eq!((tick.min, tick.max), (9052, 11432));
+        assert!((tick.mean - 10227.0).abs() < 1e-9);
+        let md = markdown(&[r]);
+        assert!(md.contains("| 10 227 (9 052–11 432) |"), "{md}");
+        assert!(md.contains("| 776 B |"), "{md}");
+    }
+
+    #[test]
+    fn refuses_incomplete_or_failed_runs() {
+        assert!(parse(&OUTPUT.replace("done\n", "")).is_err());
+        assert!(parse("wmr-bench backend=libm samples=1\nerror SysTick\n").is_err());
+    }
+}

@@ -1,0 +1,239 @@
+//! Building the firmware package for the microcontroller and running its
+//! binaries under QEMU: shared by `bench-target`, `size` and `opt-levels`.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::thread;
+use std::time::{Duration, Instant};
+
+/// The firmware's target.
+pub const TARGET: &str = "thumbv7em-none-eabihf";
+
+/// QEMU's Arm system emulator (the firmware's `netduinoplus2` machine).
+const QEMU: &str = "qemu-system-arm";
+
+/// The workspace root (xtask's parent directory).
+pub fn workspace_root() -> PathBuf {
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    manifest.parent().unwrap_or(manifest).to_path_buf()
+}
+
+/// xtask's own cargo target directory. Builds elsewhere in `target/` (other
+/// tasks, an editor, a colleague's shell) cannot swap an ELF between its
+/// build and its use here, and an opt-level override here invalidates
+/// nothing there.
+pub fn target_dir() -> PathBuf {
+    workspace_root().join("target").join("xtask")
+}
+
+/// One release build of `wmr-firmware` binaries.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Build<'a> {
+    /// `--bin` names.
+    pub bins: &'a [&'a str],
+    /// `--no-default-features` (the default feature is `board-qemu`).
+    pub no_default_features: bool,
+    /// `--features`.
+    pub features: &'a [&'a str],
+    /// Extra environment (e.g. `CARGO_PROFILE_RELEASE_OPT_LEVEL`).
+    pub env: &'a [(&'a str, &'a str)],
+}
+
+impl Build<'_> {
+    /// Builds, then copies each ELF to `target/xtask/elf/<label>/<bin>`,
+    /// where the next build (other features, other opt-level) leaves it be.
+    /// Returns the copies, in the order of `bins`.
+    pub fn run(&self, label: &str) -> Result<Vec<PathBuf>, String> {
+        let dir = target_dir();
+        let dir_arg = dir.to_string_lossy().into_owned();
+        let features = self.features.join(",");
+        let mut args = vec![
+            "build",
+            "-p",
+            "wmr-firmware",
+            "--release",
+            "--target",
+            TARGET,
+            "--target-dir",
+            &dir_arg,
+        ];
+        for bin in self.bins {
+            args.extend(["--bin", bin]);
+        }
+        if self.no_default_features {
+            args.push("--no-default-features");
+        }
+        if !features.is_empty() {
+            args.extend(["--features", &features]);
+        }
+        crate::cargo(&args, self.env)?;
+        let out = dir.join("elf").join(label);
+        std::fs::create_dir_all(&out).map_err(|e| format!("create {}: {e}", out.display()))?;
+        self.bins
+            .iter()
+            .map(|bin| {
+                let built = dir.join(TARGET).join("release").join(bin);
+                let copy = out.join(bin);
+                std::fs::copy(&built, &copy)
+                    .map_err(|e| format!("copy {} to {}: {e}", built.display(), copy.display()))?;
+                Ok(copy)
+            })
+            .collect()
+    }
+}
+
+/// Runs an ELF on QEMU's `netduinoplus2` with `-icount shift=0` (one
+/// instruction per virtual nanosecond) and semihosting, and returns its
+/// output. Fails if QEMU is missing, the program exits non-zero, or it
+/// runs longer than `timeout`.
+pub fn qemu(elf: &Path, timeout: Duration) -> Result<String, String> {
+    let mut child = Command::new(QEMU)
+        .args([
+            "-M",
+            "netduinoplus2",
+            "-icount",
+            "shift=0",
+            "-nographic",
+            "-monitor",
+            "none",
+            "-semihosting-config",
+            "enable=on,target=native",
+            "-kernel",
+        ])
+        .arg(elf)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| {
+            if e.kind() == std::io::ErrorKind::NotFound {
+                format!(
+                    "`{QEMU}` not found: install QEMU's Arm system emulator, 7.2 or \
+                     later (Debian/Ubuntu: `apt-get install qemu-system-arm`)"
+                )
+            } else {
+                format!("cannot start {QEMU}: {e}")
+            }
+        })?;
+    let drain = |pipe: Option<Box<dyn Read + Send>>| {
+        thread::spawn(move || {
+            let mut bytes = Vec::new();
+            if let Some(mut pipe) = pipe {
+                // A read error ends the capture; what was read is kept.
+                let _ = pipe.read_to_end(&mut bytes);
+            }
+            String::from_utf8_lossy(&bytes).into_owned()
+        })
+    };
+    let stdout = drain(child.stdout.take().map(|p| Box::new(p) as _));
+    let stderr = drain(child.stderr.take().map(|p| Box::new(p) as _));
+    let started = Instant::now();
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(status)) => break Ok(status),
+            Ok(None) if started.elapsed() > timeout => {
+                // Best effort: the child may have exited just now.
+                let _ = child.kill();
+                let _ = child.wait();
+                break Err(format!(
+                    "{} did not finish within {} s under {QEMU}",
+                    elf.display(),
+                    timeout.as_secs()
+                ));
+            }
+            Ok(None) => thread::sleep(Duration::from_millis(20)),
+            Err(e) => break Err(format!("waiting for {QEMU}: {e}")),
+        }
+    };
+    let out = stdout.join().unwrap_or_default();
+    let err = stderr.join().unwrap_or_default();
+    match status {
+        Ok(status) if status.success() => Ok(out),
+        Ok(status) => Err(format!(
+            "{} failed under {QEMU} ({status}):\n{out}{err}",
+            elf.display()
+        )),
+        Err(e) => Err(format!("{e}:\n{out}{err}")),
+    }
+}
+
+/// QEMU's version (`7.2.22`), for the reports.
+pub fn qemu_version() -> String {
+    crate::output(QEMU, &["--version"])
+        .ok()
+        .and_then(|v| {
+            let line = v.lines().next()?;
+            let version = line.split("version ").nth(1)?.split_whitespace().next()?;
+            Some(format!("QEMU {version}"))
+        })
+        .unwrap_or_else(|| "QEMU".into())
+}
+
+/// `rustc --version`, for the reports.
+pub fn rustc_version() -> String {
+    let rustc = std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
+    crate::output(&rustc, &["--version"])
+        .map(|v| v.trim().to_string())
+        .unwrap_or_else(|_| "rustc (version unknown)".into())
+}
+
+/// Writes `text` to `path` (under the workspace root), creating its folder.
+pub fn write_report(path: &str, text: &str) -> Result<PathBuf, String> {
+    let path = workspace_root().join(path);
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| format!("create {}: {e}", dir.display()))?;
+    }
+    std::fs::write(&path, text).map_err(|e| format!("write {}: {e}", path.display()))?;
+    Ok(path)
+}
+
+/// Replaces what lies between the `start` and `end` markers of the
+/// workspace's README.md with `body`, if both markers are there (in that
+/// order). Returns whether the README now holds `body`.
+pub fn update_readme(start: &str, end: &str, body: &str) -> Result<bool, String> {
+    let path = workspace_root().join("README.md");
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        return Ok(false);
+    };
+    let Some(s) = text.find(start) else {
+        return Ok(false);
+    };
+    let after_start = s + start.len();
+    let Some(e) = text[after_start..].find(end).map(|e| e + after_start) else {
+        return Err(format!(
+            "README.md has `{start}` but no `{end}` after it: not updated"
+        ));
+    };
+    let updated = format!("{}\n{body}{}", &text[..after_start], &text[e..]);
+    if updated != text {
+        std::fs::write(&path, updated).map_err(|e| format!("write {}: {e}", path.display()))?;
+    }
+    Ok(true)
+}
+
+/// `1234567` → `1 234 567` (thin-space-free, for markdown tables).
+pub fn grouped(n: u64) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(' ');
+        }
+        out.push(c);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::grouped;
+
+    #[test]
+    fn groups_thousands() {
+        assert_eq!(grouped(0), "0");
+        assert_eq!(grouped(999), "999");
+        assert_eq!(grouped(1000), "1 000");
+        assert_eq!(grouped(1_234_567), "1 234 567");
+    }
+}
