@@ -2,8 +2,8 @@
 //! `qemu-system-arm -M netduinoplus2`, in lock-step with the simulator.
 //!
 //! Needs `qemu-system-arm` (the README's test command installs it) and the
-//! firmware ELF: `WMR_FIRMWARE_ELF` if set (`cargo xtask ci` builds it
-//! first), else it is built here into `target/hil-firmware` (a separate
+//! firmware ELF: `WMR_FIRMWARE_ELF` if set (absolute, or relative to the
+//! workspace root; `cargo xtask ci` builds it first), else it is built here into `target/hil-firmware` (a separate
 //! target directory, so that the nested cargo never waits on this test's
 //! own build lock).
 
@@ -20,7 +20,9 @@ use wmr_link::{HostMessage, Refusal, TargetMessage, TickInput};
 fn firmware() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
     ELF.get_or_init(|| match std::env::var_os("WMR_FIRMWARE_ELF") {
-        Some(path) => PathBuf::from(path),
+        // A relative path is taken from the workspace root (tests run in
+        // `host-tests/`).
+        Some(path) => workspace_root().join(path),
         None => build_firmware(Some(&workspace_root().join("target").join("hil-firmware")))
             .expect("build the QEMU-board firmware"),
     })

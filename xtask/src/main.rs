@@ -2,12 +2,15 @@
 //! on every machine.
 //!
 //! * `ci` — installs what is missing (rust targets and components via
-//!   rustup, `qemu-system-arm` via apt-get), then runs every check:
+//!   rustup, `qemu-system-arm` via apt-get, the firmware's linker
+//!   flip-link via `cargo install`), then runs every check:
 //!   rustfmt, clippy `-D warnings` on the host and on the microcontroller
 //!   targets (the core with each math backend, with and without defmt; the
 //!   link; the firmware with each board), the cross builds, all tests
 //!   (the hardware-in-the-loop tests run the QEMU-board firmware), rustdoc
-//!   with `-D warnings`, and the default simulator scenario end to end.
+//!   with `-D warnings`, the default simulator scenario end to end, and
+//!   the on-target reports `size` and `bench-target` (printed, not
+//!   enforced).
 //! * `firmware` — release ELFs of both boards, copied to
 //!   `target/firmware/wmr-firmware-<board>.elf`.
 //! * `bench` — criterion benchmark of one control tick (host).
@@ -109,19 +112,26 @@ fn ci() -> Result {
             &[],
         )
     })?;
-    for (board, features) in BOARDS {
+    for (board, feature) in BOARDS {
         step(&format!("clippy firmware {board}"), || {
-            let mut args = vec![
-                "clippy",
-                "-p",
-                "wmr-firmware",
-                "--release",
-                "--target",
-                FIRMWARE_TARGET,
-            ];
-            args.extend_from_slice(features);
-            args.extend_from_slice(&["--", "-D", "warnings"]);
-            cargo(&args, &[])
+            cargo(
+                &[
+                    "clippy",
+                    "-p",
+                    "wmr-firmware",
+                    "--release",
+                    "--target",
+                    FIRMWARE_TARGET,
+                    "--all-targets",
+                    "--no-default-features",
+                    "--features",
+                    feature,
+                    "--",
+                    "-D",
+                    "warnings",
+                ],
+                &[],
+            )
         })?;
     }
     let elfs = build_firmware()?;
@@ -168,6 +178,9 @@ fn ci() -> Result {
             &[],
         )
     })?;
+    // Report only: CI prints the budgets, it does not enforce them.
+    step("size (report)", size::size)?;
+    step("bench-target (report)", bench_target::bench_target)?;
     eprintln!(
         "\nxtask ci: every check passed in {:.0} s",
         started.elapsed().as_secs_f64()
@@ -178,51 +191,47 @@ fn ci() -> Result {
 /// The firmware's target.
 const FIRMWARE_TARGET: &str = "thumbv7em-none-eabihf";
 
-/// Firmware boards and the cargo features that select them.
-const BOARDS: [(&str, &[&str]); 2] = [
-    ("qemu", &[]),
-    (
-        "blackpill",
-        &["--no-default-features", "--features", "board-blackpill"],
-    ),
-];
+/// Firmware boards and the cargo feature that selects each.
+const BOARDS: [(&str, &str); 2] = [("qemu", "board-qemu"), ("blackpill", "board-blackpill")];
 
-/// Builds the release firmware of each board and copies each ELF to
-/// `target/firmware/wmr-firmware-<board>.elf` (both boards build the same
-/// binary name into the same directory).
+/// Builds the release firmware of each board (into xtask's own target
+/// directory, shared with `size` and `bench-target`) and copies each ELF to
+/// `target/firmware/wmr-firmware-<board>.elf`.
 fn build_firmware() -> std::result::Result<Vec<(&'static str, std::path::PathBuf)>, String> {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .ok_or("no workspace root")?
-        .to_path_buf();
-    let out_dir = root.join("target").join("firmware");
+    let out_dir = target::workspace_root().join("target").join("firmware");
     std::fs::create_dir_all(&out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
     let mut elfs = Vec::new();
-    for (board, features) in BOARDS {
+    for (board, feature) in BOARDS {
+        let mut built = Vec::new();
         step(&format!("build firmware {board} (release)"), || {
-            let mut args = vec![
-                "build",
-                "-p",
-                "wmr-firmware",
-                "--release",
-                "--bin",
-                "wmr-firmware",
-                "--target",
-                FIRMWARE_TARGET,
-            ];
-            args.extend_from_slice(features);
-            cargo(&args, &[])
+            built = target::Build {
+                bins: &["wmr-firmware"],
+                no_default_features: true,
+                features: &[feature],
+                env: &[],
+            }
+            .run(&format!("firmware-{board}"))?;
+            Ok(())
         })?;
-        let built = root
-            .join("target")
-            .join(FIRMWARE_TARGET)
-            .join("release")
-            .join("wmr-firmware");
+        let built = built.first().ok_or("no ELF built")?;
         let elf = out_dir.join(format!("wmr-firmware-{board}.elf"));
-        std::fs::copy(&built, &elf).map_err(|e| format!("{}: {e}", built.display()))?;
+        std::fs::copy(built, &elf).map_err(|e| format!("{}: {e}", built.display()))?;
         elfs.push((board, elf));
     }
     Ok(elfs)
+}
+
+/// flip-link, the firmware's linker (`.cargo/config.toml`), installed with
+/// cargo when missing.
+fn install_flip_link() -> Result {
+    match Command::new("flip-link").output() {
+        Ok(_) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            eprintln!("flip-link missing: installing it with cargo");
+            cargo(&["install", "flip-link", "--locked"], &[])
+        }
+        Err(e) => Err(format!("cannot start flip-link: {e}")),
+    }
 }
 
 /// `qemu-system-arm` for the hardware-in-the-loop tests, installed with
@@ -256,6 +265,7 @@ fn install_qemu() -> Result {
 /// Rust targets and components the checks need, installed when missing.
 fn install_prerequisites() -> Result {
     install_qemu()?;
+    install_flip_link()?;
     let installed = output("rustup", &["target", "list", "--installed"])?;
     let missing: Vec<&str> = TARGETS
         .iter()
