@@ -14,6 +14,7 @@
     )
 )]
 
+pub mod chained_form;
 pub mod devices;
 pub mod drive;
 pub mod geometry;

@@ -2,6 +2,8 @@
 //! papers' simulations (`paper_001_*.rs`) and whole-stack properties
 //! (`robustness.rs`). This library only holds what they share.
 
+pub mod paper_002;
+
 use wmr_core::drive::{DriveConfig, SpeedLoopGains};
 use wmr_core::geometry::DiffDriveGeometry;
 use wmr_core::heading_observer::HeadingObserverConfig;
