@@ -222,7 +222,7 @@ impl HeadingObserver {
         // |ωh| ≤ π keeps sinc(ωh/2) ≥ 2/π > 0; a real robot turns far slower
         // (π rad per 10 ms tick is 314 rad/s), so this only bounds garbage.
         let turn = math::clamp_or(body.omega_rad_s * h, -math::PI, math::PI, 0.0);
-        let (s, c) = unit_rotation(turn);
+        let (s, c) = math::unit_rotation(turn);
         let z = Vec2::new(self.estimate.cos_theta, self.estimate.sin_theta);
         let rotated = z.rotated(c, s);
 
@@ -235,7 +235,7 @@ impl HeadingObserver {
             let sign = if body.v_m_s < 0.0 { -1.0 } else { 1.0 };
             let gain = sign * self.config.gain_per_m * math::one_minus_exp_neg_over_x(x)
                 / math::sinc(0.5 * turn);
-            let (sh, ch) = unit_rotation(0.5 * turn);
+            let (sh, ch) = math::unit_rotation(0.5 * turn);
             rotated.scaled(decay) + delta_position.rotated(ch, sh).scaled(gain)
         };
         if next.is_finite() {
@@ -247,16 +247,6 @@ impl HeadingObserver {
             self.rejected_updates = self.rejected_updates.saturating_add(1);
         }
     }
-}
-
-/// `(sin a, cos a)` normalised to unit length, so that rotating by it
-/// preserves norms even with an approximate math backend (`micromath`'s
-/// sin/cos are off by ~1e-3, which would otherwise let `|e|` grow by that
-/// factor every step).
-fn unit_rotation(angle: f32) -> (f32, f32) {
-    let (s, c) = (math::sin(angle), math::cos(angle));
-    let n = math::hypot(s, c);
-    if n > 0.0 { (s / n, c / n) } else { (0.0, 1.0) }
 }
 
 #[cfg(test)]

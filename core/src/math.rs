@@ -143,6 +143,18 @@ pub fn one_minus_exp_neg_over_x(x: f32) -> f32 {
     }
 }
 
+/// `(sin a, cos a)` normalised to unit length, so that rotating by it
+/// preserves norms even with an approximate math backend (`micromath`'s
+/// sin/cos are off by ~1e-3, which would otherwise let a rotated error grow
+/// by that factor every step). `(0, 1)` (no rotation) if both are zero.
+#[inline]
+#[must_use]
+pub fn unit_rotation(angle: f32) -> (f32, f32) {
+    let (s, c) = (sin(angle), cos(angle));
+    let n = hypot(s, c);
+    if n > 0.0 { (s / n, c / n) } else { (0.0, 1.0) }
+}
+
 /// Clamps `x` to `[lo, hi]`; NaN maps to `nan_to` so it never leaks out.
 #[inline]
 #[must_use]
