@@ -344,6 +344,13 @@ impl HeadingErrorSineTracker {
         self.rejected_updates
     }
 
+    /// Forgets the previous measurement (after a gap in the updates, e.g.
+    /// while the robot was stopped without position fixes): the next update
+    /// re-anchors `ẑ` so that `ψ̂` keeps its value.
+    pub fn restart(&mut self) {
+        self.previous = None;
+    }
+
     /// One step of the observer: the errors measured now (`θ_e` ignored),
     /// the `(v, ω)` driven over the step just ended, and the reference now
     /// (`v_r`, `v̇_r`).

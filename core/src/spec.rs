@@ -20,7 +20,10 @@ use crate::geometry::{DiffDriveGeometry, GeometryError, Vec2};
 use crate::heading_observer::{HeadingObserverConfig, ObserverConfigError};
 use crate::output_feedback::{TrackerConfig, TrackerConfigError};
 use crate::pilot::{PilotConfig, PilotConfigError};
+use crate::pose_observer::{PoseObserverConfig, PoseObserverConfigError};
 use crate::reference::{Circle, FigureEight, ReferenceError, StraightLine, Trajectory};
+use crate::robot_frame::{CascadedGains, CascadedGainsError};
+use crate::robot_frame_observers::{HeadingErrorSineConfig, RobotFrameObserverError};
 use crate::tracking::{GainError, TrackingGains};
 
 /// Why a spec was refused: the part, and that part's own error.
@@ -44,6 +47,53 @@ pub enum SpecError {
     Pilot(PilotConfigError),
     /// The floor-tag grid.
     TagGrid(TagGridError),
+    /// Paper 002's pose observer (Proposition 4).
+    PoseObserver(PoseObserverConfigError),
+    /// Paper 002's cascaded controller (31).
+    CascadedLaw(CascadedGainsError),
+    /// Paper 002's Proposition 7 observer and controller.
+    HeadingErrorSineLaw(RobotFrameObserverError),
+}
+
+/// The tracker's heading estimator.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum EstimatorSpec {
+    /// Paper 001's observer (5), gain `observer_gain_per_m`.
+    #[default]
+    Paper001,
+    /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`.
+    PoseObserver {
+        /// `[a1, a2]` (1/s) and `[a3, a4]` (1/m²) of (37).
+        gains: [f32; 4],
+    },
+}
+
+/// The tracker's law.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum LawSpec {
+    /// Paper 001's law (27)–(28), gains `gains`.
+    #[default]
+    Paper001,
+    /// Paper 002's cascaded controller (31).
+    Cascaded {
+        /// `c1`, 1/s (heading error).
+        c1_per_s: f32,
+        /// `c2`, 1/s (along-track error).
+        c2_per_s: f32,
+    },
+    /// Paper 002's Proposition 7: observer of `sin θ_e` and controller (64).
+    HeadingErrorSine {
+        /// Observer gain `a`, s/m².
+        a_s_per_m2: f32,
+        /// `c2`, 1/s.
+        c2_per_s: f32,
+        /// `γ ∈ (0, 1)`.
+        gamma: f32,
+    },
 }
 
 /// A reference trajectory by its parameters (SI units, radians).
@@ -131,6 +181,10 @@ pub struct TrackerSpec {
     pub failsafe_decel_m_s2: f32,
     /// Age beyond which a fix is stale, ticks.
     pub max_fix_age_ticks: u32,
+    /// The heading estimator (paper 001's observer by default).
+    pub estimator: EstimatorSpec,
+    /// The law (paper 001's by default).
+    pub law: LawSpec,
 }
 
 impl TrackerSpec {
@@ -145,10 +199,40 @@ impl TrackerSpec {
         let observer = HeadingObserverConfig::new(self.observer_gain_per_m, self.period_s)
             .and_then(|o| o.with_min_speed(self.observer_min_speed_m_s))
             .map_err(SpecError::Observer)?;
-        TrackerConfig::new(observer, gains, trajectory, self.fix_timeout_ticks)
+        let mut config = TrackerConfig::new(observer, gains, trajectory, self.fix_timeout_ticks)
             .and_then(|t| t.with_failsafe_decel(self.failsafe_decel_m_s2))
             .map(|t| t.with_max_fix_age(self.max_fix_age_ticks))
-            .map_err(SpecError::Tracker)
+            .map_err(SpecError::Tracker)?;
+        if let EstimatorSpec::PoseObserver {
+            gains: [a1, a2, a3, a4],
+        } = self.estimator
+        {
+            let pose = PoseObserverConfig::new(a1, a2, a3, a4, self.period_s)
+                .map_err(SpecError::PoseObserver)?;
+            config = config
+                .with_pose_observer(pose)
+                .map_err(SpecError::Tracker)?;
+        }
+        match self.law {
+            LawSpec::Paper001 => {}
+            LawSpec::Cascaded { c1_per_s, c2_per_s } => {
+                let gains =
+                    CascadedGains::new(c1_per_s, c2_per_s).map_err(SpecError::CascadedLaw)?;
+                config = config.with_cascaded_law(gains);
+            }
+            LawSpec::HeadingErrorSine {
+                a_s_per_m2,
+                c2_per_s,
+                gamma,
+            } => {
+                let sine = HeadingErrorSineConfig::new(a_s_per_m2, c2_per_s, gamma, self.period_s)
+                    .map_err(SpecError::HeadingErrorSineLaw)?;
+                config = config
+                    .with_heading_error_sine_law(sine)
+                    .map_err(SpecError::Tracker)?;
+            }
+        }
+        Ok(config)
     }
 }
 
@@ -290,6 +374,8 @@ mod tests {
                 fix_timeout_ticks: 50,
                 failsafe_decel_m_s2: 0.5,
                 max_fix_age_ticks: 2,
+                estimator: crate::spec::EstimatorSpec::Paper001,
+                law: crate::spec::LawSpec::Paper001,
             },
             drive: DriveSpec {
                 wheel_radius_m: 0.05,

@@ -23,7 +23,7 @@ use wmr_core::devices::{MotorDriver, MotorWiring, QuadratureCounter, RfidReader,
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
 use wmr_core::heading_observer::{HeadingEstimate, HeadingObserver};
 use wmr_core::odometry::OdometryStep;
-use wmr_core::output_feedback::TrackerCounters;
+use wmr_core::output_feedback::{EstimatorChoice, LawChoice, TrackerCounters};
 use wmr_core::output_feedback::{OutputFeedbackTracker, TagFix, TrackerMode};
 use wmr_core::pilot::{Measurement, Pilot, PilotConfig, PilotCounters};
 use wmr_core::reference::{TickClock, Trajectory};
@@ -187,6 +187,8 @@ pub struct TrackerReport {
     pub failsafe_entries: u32,
     /// Non-finite commands replaced by zero.
     pub non_finite_commands: u32,
+    /// Ticks a paper 002 law commanded zero for a standing reference.
+    pub reference_standstill_ticks: u32,
     /// Observer updates skipped for non-finite input.
     pub observer_rejected_updates: u32,
 }
@@ -204,6 +206,7 @@ impl TrackerReport {
             dead_reckoned_steps: c.dead_reckoned_steps,
             failsafe_entries: c.failsafe_entries,
             non_finite_commands: c.non_finite_commands,
+            reference_standstill_ticks: c.reference_standstill_ticks,
             observer_rejected_updates,
         }
     }
@@ -1239,9 +1242,28 @@ fn summarize(
             PlantSetup::Unicycle => "unicycle",
             PlantSetup::DiffDrive { .. } => "diff_drive",
         },
-        controller: match setup.controller {
-            ControllerKind::OutputFeedback => "output_feedback",
-            ControllerKind::StateFeedback => "state_feedback",
+        controller: match (
+            setup.controller,
+            setup.tracker.estimator(),
+            setup.tracker.law(),
+        ) {
+            (ControllerKind::StateFeedback, ..) => "state_feedback",
+            (_, EstimatorChoice::Paper001, LawChoice::Paper001) => "output_feedback",
+            (_, EstimatorChoice::PoseObserver(_), LawChoice::Paper001) => {
+                "output_feedback (pose observer, law 001)"
+            }
+            (_, EstimatorChoice::Paper001, LawChoice::Cascaded(_)) => {
+                "output_feedback (observer 001, cascaded law)"
+            }
+            (_, EstimatorChoice::PoseObserver(_), LawChoice::Cascaded(_)) => {
+                "output_feedback (pose observer, cascaded law)"
+            }
+            (_, EstimatorChoice::Paper001, LawChoice::HeadingErrorSine(_)) => {
+                "output_feedback (observer 001, sin θe law)"
+            }
+            (_, EstimatorChoice::PoseObserver(_), LawChoice::HeadingErrorSine(_)) => {
+                "output_feedback (pose observer, sin θe law)"
+            }
         },
         position_source: match setup.position {
             PositionSetup::Exact => "exact",

@@ -21,7 +21,9 @@ use wmr_core::heading_observer::HeadingEstimate;
 use wmr_core::output_feedback::TrackerConfig;
 use wmr_core::pilot::PilotConfig;
 use wmr_core::reference::Trajectory;
-use wmr_core::spec::{self as core_spec, PilotSpec, SpecError, TrackerSpec, TrajectorySpec};
+use wmr_core::spec::{
+    self as core_spec, EstimatorSpec, LawSpec, PilotSpec, SpecError, TrackerSpec, TrajectorySpec,
+};
 use wmr_core::tracking::TrackingGains;
 
 use crate::devices::{LinkFaults, ReaderConfig, ReaderMode};
@@ -187,6 +189,21 @@ pub enum ControllerKind {
     StateFeedback,
 }
 
+/// Which position-only law the output-feedback tracker runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum LawKind {
+    /// Paper 001's law (27)–(28), gains `k1, k2, k3`.
+    #[default]
+    Paper001,
+    /// Paper 002's cascaded controller (31), gains `c1, c2`, on the error
+    /// (30) from the estimated heading.
+    Cascaded,
+    /// Paper 002's Proposition 7: observer of `sin θ_e` (gain `a`) and
+    /// controller (64) (gains `c2`, `gamma`).
+    HeadingErrorSine,
+}
+
 /// Tracking law and gains.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -194,6 +211,21 @@ pub struct ControllerSpec {
     /// Which law.
     #[serde(default)]
     pub kind: ControllerKind,
+    /// With `kind = "output_feedback"`: which position-only law.
+    #[serde(default)]
+    pub law: LawKind,
+    /// `c1` of (31), 1/s.
+    #[serde(default = "defaults::c1")]
+    pub c1: f64,
+    /// `c2` of (31) and (64), 1/s.
+    #[serde(default = "defaults::c2")]
+    pub c2: f64,
+    /// Observer gain `a` of Proposition 7, s/m².
+    #[serde(default = "defaults::sine_a")]
+    pub a: f64,
+    /// `γ ∈ (0, 1)` of (64).
+    #[serde(default = "defaults::gamma")]
+    pub gamma: f64,
     /// `k1`, m/s.
     #[serde(default = "defaults::k12")]
     pub k1: f64,
@@ -209,6 +241,11 @@ impl Default for ControllerSpec {
     fn default() -> Self {
         Self {
             kind: ControllerKind::default(),
+            law: LawKind::default(),
+            c1: defaults::c1(),
+            c2: defaults::c2(),
+            a: defaults::sine_a(),
+            gamma: defaults::gamma(),
             k1: defaults::k12(),
             k2: defaults::k12(),
             k3: defaults::k3(),
@@ -216,10 +253,28 @@ impl Default for ControllerSpec {
     }
 }
 
+/// Which heading estimator the output-feedback tracker runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ObserverKind {
+    /// Paper 001's observer (5), gain `gain_per_m`.
+    #[default]
+    Paper001,
+    /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`, gains
+    /// `pose_gains = [a1, a2, a3, a4]`.
+    Pose,
+}
+
 /// Heading observer parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ObserverSpec {
+    /// Which estimator.
+    #[serde(default)]
+    pub kind: ObserverKind,
+    /// `[a1, a2]` (1/s), `[a3, a4]` (1/m²) of paper 002's (37).
+    #[serde(default = "defaults::pose_gains")]
+    pub pose_gains: [f64; 4],
     /// Observer gain `L`, 1/m.
     #[serde(default = "defaults::gain_per_m")]
     pub gain_per_m: f64,
@@ -231,6 +286,8 @@ pub struct ObserverSpec {
 impl Default for ObserverSpec {
     fn default() -> Self {
         Self {
+            kind: ObserverKind::default(),
+            pose_gains: defaults::pose_gains(),
             gain_per_m: defaults::gain_per_m(),
             min_speed_m_s: defaults::min_speed_m_s(),
         }
@@ -424,6 +481,21 @@ mod defaults {
     }
     pub fn k3() -> f64 {
         0.1
+    }
+    pub fn c1() -> f64 {
+        0.5
+    }
+    pub fn c2() -> f64 {
+        0.5
+    }
+    pub fn sine_a() -> f64 {
+        100.0
+    }
+    pub fn gamma() -> f64 {
+        0.9
+    }
+    pub fn pose_gains() -> [f64; 4] {
+        [1.5, 1.5, 100.0, 100.0]
     }
     pub fn gain_per_m() -> f64 {
         0.6
@@ -639,6 +711,8 @@ fn spec_refusal(e: SpecError) -> ScenarioError {
         SpecError::Geometry(_) | SpecError::Pilot(_) => "plant",
         SpecError::Drive(_) => "drive",
         SpecError::TagGrid(_) => "position",
+        SpecError::PoseObserver(_) => "observer.pose_gains",
+        SpecError::CascadedLaw(_) | SpecError::HeadingErrorSineLaw(_) => "controller",
     };
     ScenarioError::invalid(field, format!("refused by the core: {e:?}"))
 }
@@ -649,6 +723,57 @@ fn f(v: f64) -> f32 {
 }
 
 impl Scenario {
+    /// The core's estimator choice; paper 002's only with output feedback.
+    fn estimator_spec(&self) -> Result<EstimatorSpec, ScenarioError> {
+        match (self.observer.kind, self.controller.kind) {
+            (ObserverKind::Paper001, _) => Ok(EstimatorSpec::Paper001),
+            (ObserverKind::Pose, ControllerKind::OutputFeedback) => {
+                let g = self.observer.pose_gains;
+                Ok(EstimatorSpec::PoseObserver {
+                    gains: [
+                        f(positive("observer.pose_gains[0]", g[0])?),
+                        f(positive("observer.pose_gains[1]", g[1])?),
+                        f(positive("observer.pose_gains[2]", g[2])?),
+                        f(positive("observer.pose_gains[3]", g[3])?),
+                    ],
+                })
+            }
+            (ObserverKind::Pose, ControllerKind::StateFeedback) => Err(ScenarioError::invalid(
+                "observer.kind",
+                "state feedback measures the heading: no observer runs",
+            )),
+        }
+    }
+
+    /// The core's law choice; paper 002's only with output feedback.
+    fn law_spec(&self) -> Result<LawSpec, ScenarioError> {
+        let c = &self.controller;
+        match (c.law, c.kind) {
+            (LawKind::Paper001, _) => Ok(LawSpec::Paper001),
+            (_, ControllerKind::StateFeedback) => Err(ScenarioError::invalid(
+                "controller.law",
+                "selects the output-feedback law: use it with kind = \"output_feedback\"",
+            )),
+            (LawKind::Cascaded, ControllerKind::OutputFeedback) => Ok(LawSpec::Cascaded {
+                c1_per_s: f(positive("controller.c1", c.c1)?),
+                c2_per_s: f(positive("controller.c2", c.c2)?),
+            }),
+            (LawKind::HeadingErrorSine, ControllerKind::OutputFeedback) => {
+                if !(c.gamma > 0.0 && c.gamma < 1.0) {
+                    return Err(ScenarioError::invalid(
+                        "controller.gamma",
+                        format!("must be in (0, 1) (got {})", c.gamma),
+                    ));
+                }
+                Ok(LawSpec::HeadingErrorSine {
+                    a_s_per_m2: f(positive("controller.a", c.a)?),
+                    c2_per_s: f(positive("controller.c2", c.c2)?),
+                    gamma: f(c.gamma),
+                })
+            }
+        }
+    }
+
     /// Parses and validates a scenario from TOML text.
     ///
     /// # Errors
@@ -767,6 +892,8 @@ impl Scenario {
             fix_timeout_ticks: fix_timeout_ticks as u32,
             failsafe_decel_m_s2: f(decel),
             max_fix_age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
+            estimator: self.estimator_spec()?,
+            law: self.law_spec()?,
         };
         let tracker = tracker_spec.build().map_err(spec_refusal)?;
         let gains = TrackingGains::new(gains[0], gains[1], gains[2])

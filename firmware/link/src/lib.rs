@@ -56,7 +56,7 @@ use wmr_core::robot::RobotCounters;
 use wmr_core::spec::{PilotSpec, SpecError, TagGridSpec};
 
 /// Bump when a message changes shape; both sides refuse a mismatch.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// Largest encoded frame, bytes, including COBS overhead and the `0x00`.
 pub const MAX_FRAME_BYTES: usize = 512;
@@ -455,6 +455,8 @@ mod tests {
                     fix_timeout_ticks: 50,
                     failsafe_decel_m_s2: 0.5,
                     max_fix_age_ticks: 2,
+                    estimator: wmr_core::spec::EstimatorSpec::Paper001,
+                    law: wmr_core::spec::LawSpec::Paper001,
                 },
                 drive: DriveSpec {
                     wheel_radius_m: 0.05,

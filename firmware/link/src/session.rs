@@ -178,6 +178,8 @@ mod tests {
                     fix_timeout_ticks: 50,
                     failsafe_decel_m_s2: 0.5,
                     max_fix_age_ticks: 2,
+                    estimator: wmr_core::spec::EstimatorSpec::Paper001,
+                    law: wmr_core::spec::LawSpec::Paper001,
                 },
                 drive: DriveSpec {
                     wheel_radius_m: 0.05,

@@ -122,6 +122,8 @@ mod on_target {
                 fix_timeout_ticks: 100,
                 failsafe_decel_m_s2: 0.5,
                 max_fix_age_ticks: 2,
+                estimator: wmr_core::spec::EstimatorSpec::Paper001,
+                law: wmr_core::spec::LawSpec::Paper001,
             },
             drive: DriveSpec {
                 wheel_radius_m: 0.03,

@@ -157,6 +157,8 @@ pub const PILOT: PilotSpec = PilotSpec {
         fix_timeout_ticks: 50,
         failsafe_decel_m_s2: TrackerConfig::DEFAULT_FAILSAFE_DECEL_M_S2,
         max_fix_age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
+        estimator: wmr_core::spec::EstimatorSpec::Paper001,
+        law: wmr_core::spec::LawSpec::Paper001,
     },
     drive: DriveSpec {
         wheel_radius_m: 0.03,

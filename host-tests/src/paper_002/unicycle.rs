@@ -405,7 +405,7 @@ pub fn figure_eight_comparison(pairing: Pairing) -> (ErrorStats, Series) {
     let steps = 48_000u32;
     for k in 0..steps {
         let t = f64::from(k) * h;
-        let sample = trajectory.sample(t as f32);
+        let sample = trajectory.sample(k as f32 * hf);
         let error =
             (robot.x - f64::from(sample.position.x)).hypot(robot.y - f64::from(sample.position.y));
         if t >= 100.0 {
