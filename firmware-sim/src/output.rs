@@ -192,6 +192,13 @@ pub fn format_summary(s: &Summary) -> String {
     if let Some(n) = s.floor_tags {
         let _ = writeln!(o, "floor         {n} tags");
     }
+    if let Some(m) = &s.measurement {
+        let _ = writeln!(
+            o,
+            "fix faults    noise std {} m per axis  miss probability {}  missed fixes {}",
+            m.noise_std_m, m.miss_probability, m.missed_fixes
+        );
+    }
     if s.non_finite_ticks > 0 {
         let _ = writeln!(
             o,

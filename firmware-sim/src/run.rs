@@ -18,6 +18,8 @@
 
 use std::time::Instant;
 
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt as _, SeedableRng as _};
 use serde::Serialize;
 use wmr_core::devices::{MotorDriver, MotorWiring, QuadratureCounter, RfidReader, TagLocator};
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
@@ -39,7 +41,9 @@ use crate::devices::{
     VirtualPwm, VirtualRfidReader, VirtualUart, WheelShaft,
 };
 use crate::plant::{DiffDriveParams, DiffDrivePlant, PlantPose, Unicycle, wrap_angle};
-use crate::scenario::{ControllerKind, PlantSetup, PositionSetup, Scenario, ScenarioError, Setup};
+use crate::scenario::{
+    ControllerKind, MeasurementSpec, PlantSetup, PositionSetup, Scenario, ScenarioError, Setup,
+};
 use crate::tags::FloorTags;
 
 /// Ticks between two progress callbacks.
@@ -257,6 +261,17 @@ pub struct PilotReport {
     pub max_abs_duty: f64,
 }
 
+/// The faults put on the position fix ([`MeasurementSpec`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MeasurementReport {
+    /// Std of the Gaussian noise on each axis, m.
+    pub noise_std_m: f64,
+    /// Probability a tick's fix is missing.
+    pub miss_probability: f64,
+    /// Fixes removed.
+    pub missed_fixes: u32,
+}
+
 /// The figures of a run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Summary {
@@ -304,6 +319,9 @@ pub struct Summary {
     pub pilot: Option<PilotReport>,
     /// Tags on the simulated floor.
     pub floor_tags: Option<usize>,
+    /// Noise and misses put on the fix (when the scenario asks for them).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub measurement: Option<MeasurementReport>,
     /// Wall-clock time of the run, s.
     pub wall_time_s: f64,
     /// Hardware-in-the-loop figures (`hil` runs only).
@@ -526,6 +544,75 @@ impl Source {
     }
 }
 
+/// A [`Source`] with the scenario's noise and misses on its fix.
+#[derive(Debug)]
+struct FixSource {
+    source: Source,
+    faults: Option<FixFaults>,
+}
+
+/// Gaussian noise and random misses on the fix. Every tick draws, in this
+/// order, the miss and a pair of normals, fix or not, so the noise a tick
+/// gets does not depend on the miss probability.
+#[derive(Debug)]
+struct FixFaults {
+    spec: MeasurementSpec,
+    rng: ChaCha8Rng,
+    missed: u32,
+}
+
+impl FixSource {
+    fn new(setup: &Setup) -> Self {
+        let spec = setup.measurement;
+        Self {
+            source: Source::new(&setup.position),
+            faults: (!spec.is_clean()).then(|| FixFaults {
+                spec,
+                rng: ChaCha8Rng::seed_from_u64(spec.seed),
+                missed: 0,
+            }),
+        }
+    }
+
+    fn measure(&mut self, t_s: f64, pose: &PlantPose) -> Option<TagFix> {
+        let fix = self.source.measure(t_s, pose);
+        let Some(faults) = &mut self.faults else {
+            return fix;
+        };
+        let miss = faults.rng.random::<f64>() < faults.spec.miss_probability;
+        // Box–Muller: two independent standard normals.
+        let radius = (-2.0 * (1.0 - faults.rng.random::<f64>()).ln()).sqrt();
+        let angle = std::f64::consts::TAU * faults.rng.random::<f64>();
+        let mut fix = fix?;
+        if miss {
+            faults.missed = faults.missed.saturating_add(1);
+            return None;
+        }
+        let std = faults.spec.noise_std_m;
+        fix.position = Vec2::new(
+            fix.position.x + (std * radius * angle.cos()) as f32,
+            fix.position.y + (std * radius * angle.sin()) as f32,
+        );
+        Some(fix)
+    }
+
+    fn floor_tags(&self) -> Option<usize> {
+        self.source.floor_tags()
+    }
+
+    fn report(&self) -> Option<RfidReport> {
+        self.source.report()
+    }
+
+    fn measurement_report(&self) -> Option<MeasurementReport> {
+        self.faults.as_ref().map(|f| MeasurementReport {
+            noise_std_m: f.spec.noise_std_m,
+            miss_probability: f.spec.miss_probability,
+            missed_fixes: f.missed,
+        })
+    }
+}
+
 fn rfid_report(
     c: wmr_core::devices::RfidCounters,
     unknown_tags: u32,
@@ -679,7 +766,7 @@ enum Rig<'t> {
     Tracker {
         plant: Unicycle,
         tracker: OutputFeedbackTracker,
-        source: Source,
+        source: FixSource,
         last: BodyVelocity,
         period_s: f32,
     },
@@ -689,7 +776,7 @@ enum Rig<'t> {
         controller: TrackingController,
         trajectory: Trajectory,
         clock: TickClock,
-        source: Source,
+        source: FixSource,
         last: BodyVelocity,
     },
     /// Diff drive + the core's Robot (reader source).
@@ -704,7 +791,7 @@ enum Rig<'t> {
         hw: Hardware,
         devices: Devices,
         pilot: Pilot,
-        source: Source,
+        source: FixSource,
         motor_faults: u32,
     },
     /// Diff drive + reader, with the robot's tick on a [`TargetLink`].
@@ -777,7 +864,7 @@ impl<'t> Rig<'t> {
                 Self::Tracker {
                     plant: Unicycle::new(pose),
                     tracker: OutputFeedbackTracker::with_observer(setup.tracker, observer),
-                    source: Source::new(&setup.position),
+                    source: FixSource::new(setup),
                     last: BodyVelocity::ZERO,
                     period_s: setup.period_s as f32,
                 }
@@ -787,7 +874,7 @@ impl<'t> Rig<'t> {
                 controller: TrackingController::new(setup.gains),
                 trajectory: setup.trajectory,
                 clock: *setup.tracker.clock(),
-                source: Source::new(&setup.position),
+                source: FixSource::new(setup),
                 last: BodyVelocity::ZERO,
             },
             (
@@ -817,7 +904,7 @@ impl<'t> Rig<'t> {
                         hw,
                         devices,
                         pilot,
-                        source: Source::new(&setup.position),
+                        source: FixSource::new(setup),
                         motor_faults: 0,
                     },
                 }
@@ -1288,6 +1375,12 @@ fn summarize(
         rfid,
         pilot,
         floor_tags,
+        measurement: match rig {
+            Rig::Tracker { source, .. }
+            | Rig::Controller { source, .. }
+            | Rig::Pilot { source, .. } => source.measurement_report(),
+            Rig::Robot { .. } | Rig::Remote { .. } => None,
+        },
         wall_time_s: wall_s,
         hil: None,
     }

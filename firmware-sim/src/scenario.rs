@@ -113,6 +113,10 @@ pub struct Scenario {
     /// What the tracker does when fixes stop.
     #[serde(default)]
     pub failsafe: FailsafeSpec,
+    /// Noise and misses on the position fix (`exact` and `nearest_tag`
+    /// sources).
+    #[serde(default, skip_serializing_if = "MeasurementSpec::is_default")]
+    pub measurement: MeasurementSpec,
 }
 
 /// The reference trajectory.
@@ -462,6 +466,46 @@ impl Default for FailsafeSpec {
     }
 }
 
+/// Faults on the position fix of the `exact` and `nearest_tag` sources
+/// (the `reader` source has its own link faults,
+/// `position.drop_frame_probability` and `position.corrupt_byte_probability`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeasurementSpec {
+    /// Standard deviation of the zero-mean Gaussian noise added to each
+    /// axis of every fix, m.
+    #[serde(default)]
+    pub noise_std_m: f64,
+    /// Probability that a tick has no fix (the tracker dead-reckons).
+    #[serde(default)]
+    pub miss_probability: f64,
+    /// Seed of the noise and miss RNG.
+    #[serde(default = "defaults::seed")]
+    pub seed: u64,
+}
+
+impl Default for MeasurementSpec {
+    fn default() -> Self {
+        Self {
+            noise_std_m: 0.0,
+            miss_probability: 0.0,
+            seed: defaults::seed(),
+        }
+    }
+}
+
+impl MeasurementSpec {
+    /// Whether the fix is passed through untouched.
+    #[must_use]
+    pub fn is_clean(&self) -> bool {
+        self.noise_std_m == 0.0 && self.miss_probability == 0.0
+    }
+
+    fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
 /// Default values (serde needs functions).
 mod defaults {
     pub fn period_s() -> f64 {
@@ -654,6 +698,8 @@ pub struct Setup {
     pub plant: PlantSetup,
     /// The position source.
     pub position: PositionSetup,
+    /// Noise and misses on the fix (validated; clean for the reader).
+    pub measurement: MeasurementSpec,
 }
 
 fn positive(field: &str, v: f64) -> Result<f64, ScenarioError> {
@@ -936,6 +982,7 @@ impl Scenario {
             }
             _ => {}
         }
+        let measurement = self.measurement_setup(&position)?;
 
         Ok(Setup {
             ticks,
@@ -949,7 +996,35 @@ impl Scenario {
             initial_pose,
             plant,
             position,
+            measurement,
         })
+    }
+
+    fn measurement_setup(
+        &self,
+        position: &PositionSetup,
+    ) -> Result<MeasurementSpec, ScenarioError> {
+        let m = self.measurement;
+        non_negative("measurement.noise_std_m", m.noise_std_m)?;
+        probability("measurement.miss_probability", m.miss_probability)?;
+        if matches!(position, PositionSetup::Reader(..)) && !m.is_clean() {
+            return Err(ScenarioError::invalid(
+                if m.noise_std_m == 0.0 {
+                    "measurement.miss_probability"
+                } else {
+                    "measurement.noise_std_m"
+                },
+                "applies to the exact and nearest_tag sources only: the reader's fixes are tag ids \
+                 looked up in the grid (for lost frames use position.drop_frame_probability)",
+            ));
+        }
+        if self.controller.kind == ControllerKind::StateFeedback && m.miss_probability > 0.0 {
+            return Err(ScenarioError::invalid(
+                "measurement.miss_probability",
+                "state_feedback needs a position every tick (only output feedback dead-reckons)",
+            ));
+        }
+        Ok(m)
     }
 
     fn plant_setup(&self, tracker: TrackerSpec) -> Result<PlantSetup, ScenarioError> {
@@ -1342,6 +1417,22 @@ mod tests {
             (
                 "[initial]\nestimate_cos = 1.0\n[plant]\nkind = \"diff_drive\"",
                 "initial.estimate_cos",
+            ),
+            (
+                "[measurement]\nnoise_std_m = -0.1",
+                "measurement.noise_std_m",
+            ),
+            (
+                "[measurement]\nmiss_probability = 1.5",
+                "measurement.miss_probability",
+            ),
+            (
+                "[position]\nkind = \"reader\"\n[measurement]\nnoise_std_m = 0.01",
+                "measurement.noise_std_m",
+            ),
+            (
+                "[controller]\nkind = \"state_feedback\"\n[measurement]\nmiss_probability = 0.1",
+                "measurement.miss_probability",
             ),
             ("transient_s = 20.0", "transient_s"),
             ("period_s = -0.01", "period_s"),
