@@ -18,6 +18,8 @@
 //! * [`mod@run`]: the loop, calling the core's tracker or controller directly
 //!   (unicycle) or its `Robot`/`Pilot` with virtual devices (diff drive).
 //! * [`output`]: CSV, JSON summary and PNG plot.
+//! * [`sweep`]: Monte Carlo sweeps: seeded variations of a scenario run in
+//!   parallel, convergence and error statistics.
 //! * [`hil`]: the same runs with the control tick in the real firmware
 //!   under QEMU, in lock-step over a serial link.
 //!
@@ -35,6 +37,7 @@ pub mod output;
 pub mod plant;
 pub mod run;
 pub mod scenario;
+pub mod sweep;
 pub mod tags;
 
 pub use run::{Record, RunResult, Summary, run};

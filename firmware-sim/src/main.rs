@@ -1,13 +1,15 @@
 //! `firmware-sim`: run a scenario, list or print the embedded ones.
 
 use std::io::IsTerminal as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use firmware_sim::hil::{HilOptions, run_hil};
 use firmware_sim::output::{format_summary, write_all};
 use firmware_sim::scenario::{EMBEDDED, Scenario, embedded_source};
+use firmware_sim::sweep::output::{format_sweep_summary, markdown_table, write_sweep};
+use firmware_sim::sweep::{SweepOptions, plan_of, run_sweep, run_variation};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 /// Host simulator of the wmr-core robot controller.
@@ -62,6 +64,39 @@ enum Command {
         #[arg(long, default_value_t = 10.0)]
         timeout_s: f64,
         /// Do not render run.png.
+        #[arg(long)]
+        no_plot: bool,
+    },
+    /// Monte Carlo sweep: run seeded variations of a scenario (what its
+    /// `[sweep]` table names; without one, starts within 10 m of the
+    /// reference's start with any heading) in parallel and write runs.csv,
+    /// summary.json, table.md, error_hist.png and error_vs_distance.png;
+    /// print the markdown table. With several scenarios, each gets
+    /// DIR/<name>/ and DIR/table.md has a row per scenario.
+    Sweep {
+        /// Scenario files or embedded names (default: `figure_eight_rfid`).
+        scenarios: Vec<String>,
+        /// Number of runs.
+        #[arg(long, default_value_t = 100)]
+        runs: u64,
+        /// Seed `S`: run `i` draws from ChaCha8 seeded with `S`, stream `i`.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output directory (default: out/sweep-<scenario name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Worker threads (default: one per CPU); results do not depend on it.
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Override the scenario's duration, s.
+        #[arg(long)]
+        duration_s: Option<f64>,
+        /// Reproduce run INDEX of the sweep with `--seed`, with the full
+        /// output of `run` (run.csv, summary.json, run.png) and its
+        /// concrete scenario.toml.
+        #[arg(long, value_name = "INDEX")]
+        rerun: Option<u64>,
+        /// Do not render the PNGs.
         #[arg(long)]
         no_plot: bool,
     },
@@ -155,6 +190,49 @@ fn real_main() -> anyhow::Result<()> {
             );
             Ok(())
         }
+        Command::Sweep {
+            scenarios,
+            runs,
+            seed,
+            out,
+            threads,
+            duration_s,
+            rerun,
+            no_plot,
+        } => {
+            let mut loaded = Vec::new();
+            for arg in if scenarios.is_empty() {
+                vec![EMBEDDED[0].0.to_owned()]
+            } else {
+                scenarios
+            } {
+                let mut scenario = load(&arg)?;
+                if let Some(d) = duration_s {
+                    override_duration(&mut scenario, d);
+                }
+                loaded.push(scenario);
+            }
+            match rerun {
+                Some(index) => {
+                    let [scenario] = loaded.as_slice() else {
+                        anyhow::bail!("--rerun reproduces a run of one scenario; give exactly one");
+                    };
+                    let out = out.unwrap_or_else(|| {
+                        PathBuf::from("out")
+                            .join(format!("sweep-{}-seed{seed}-run{index}", scenario.name))
+                    });
+                    rerun_one(scenario, seed, index, &out, !no_plot)
+                }
+                None => {
+                    let options = SweepOptions {
+                        runs,
+                        seed,
+                        threads,
+                    };
+                    sweep_all(&loaded, &options, out, !no_plot)
+                }
+            }
+        }
         Command::Run {
             scenario,
             out,
@@ -201,6 +279,130 @@ fn real_main() -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+/// Sets the duration; a transient that no longer fits is set to 0.
+fn override_duration(scenario: &mut Scenario, duration_s: f64) {
+    scenario.duration_s = duration_s;
+    if scenario.transient_s >= duration_s {
+        eprintln!(
+            "note: transient_s {} s does not fit in {duration_s} s; statistics from t = 0",
+            scenario.transient_s
+        );
+        scenario.transient_s = 0.0;
+    }
+}
+
+/// Sweeps each scenario, writes its files, and prints the summaries and
+/// the markdown table (also written to table.md).
+fn sweep_all(
+    scenarios: &[Scenario],
+    options: &SweepOptions,
+    out: Option<PathBuf>,
+    plot: bool,
+) -> anyhow::Result<()> {
+    let single = scenarios.len() == 1;
+    let root = out.unwrap_or_else(|| {
+        PathBuf::from("out").join(if single {
+            format!("sweep-{}", scenarios[0].name)
+        } else {
+            "sweep".to_owned()
+        })
+    });
+    let mut summaries = Vec::new();
+    for scenario in scenarios {
+        let dir = if single {
+            root.clone()
+        } else {
+            root.join(&scenario.name)
+        };
+        let bar = if std::io::stderr().is_terminal() {
+            let bar =
+                ProgressBar::with_draw_target(Some(options.runs), ProgressDrawTarget::stderr());
+            bar.set_style(
+                ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} runs ({eta})")
+                    .map_err(|e| anyhow::anyhow!("{e}"))?
+                    .progress_chars("=> "),
+            );
+            bar.set_message(scenario.name.clone());
+            bar
+        } else {
+            ProgressBar::hidden()
+        };
+        let wall = std::time::Instant::now();
+        let result = run_sweep(scenario, options, &|| bar.inc(1));
+        bar.finish_and_clear();
+        let result = result?;
+        let wall_s = wall.elapsed().as_secs_f64();
+        let files = write_sweep(&dir, &result, plot)?;
+        print!("{}", format_sweep_summary(&result.summary));
+        println!(
+            "wall time     {wall_s:.2} s ({:.3} s per run)",
+            wall_s / options.runs.max(1) as f64
+        );
+        println!(
+            "wrote         {}, {}, {}{}\n",
+            files.runs_csv.display(),
+            files.summary.display(),
+            files.table.display(),
+            files
+                .error_hist
+                .iter()
+                .chain(&files.error_vs_distance)
+                .map(|p| format!(", {}", p.display()))
+                .collect::<String>()
+        );
+        summaries.push(result.summary);
+    }
+    let table = markdown_table(&summaries);
+    if !single {
+        std::fs::create_dir_all(&root)?;
+        std::fs::write(root.join("table.md"), &table)?;
+    }
+    print!("{table}");
+    Ok(())
+}
+
+/// Reproduces one run of a sweep with the full output of `run`.
+fn rerun_one(
+    scenario: &Scenario,
+    seed: u64,
+    index: u64,
+    out: &Path,
+    plot: bool,
+) -> anyhow::Result<()> {
+    let (_, plan) = plan_of(scenario)?;
+    let (concrete, result, row) = run_variation(scenario, &plan, seed, index)?;
+    let files = write_all(out, &result, plot)?;
+    let toml_path = out.join("scenario.toml");
+    std::fs::write(&toml_path, concrete.to_toml_string()?)?;
+    print!("{}", format_summary(&result.summary));
+    println!(
+        "sweep run     index {index}, seed {seed}: start ({:.3}, {:.3}) m, heading {:.4} rad, \
+         {:.3} m from the reference; {}",
+        row.start_x_m,
+        row.start_y_m,
+        row.heading_rad,
+        row.initial_distance_m,
+        match row.time_to_converge_s {
+            Some(t) => format!("converged at {t:.2} s"),
+            None => format!(
+                "NOT converged (error < {} m held ≥ {} s)",
+                plan.converge_threshold_m, plan.converge_hold_s
+            ),
+        }
+    );
+    println!(
+        "wrote         {}, {}, {}{}",
+        files.csv.display(),
+        files.summary.display(),
+        toml_path.display(),
+        files
+            .plot
+            .map(|p| format!(", {}", p.display()))
+            .unwrap_or_default()
+    );
+    Ok(())
 }
 
 /// A scenario file, or an embedded scenario by name.

@@ -1323,40 +1323,12 @@ fn summarize(
         ControllerKind::OutputFeedback => setup.tracker.gain_bound(),
         ControllerKind::StateFeedback => setup.gains.check_bound(setup.trajectory.speed_bounds()),
     };
+    let labels = SetupLabels::of(setup);
     Summary {
         scenario: scenario.name.clone(),
-        plant: match setup.plant {
-            PlantSetup::Unicycle => "unicycle",
-            PlantSetup::DiffDrive { .. } => "diff_drive",
-        },
-        controller: match (
-            setup.controller,
-            setup.tracker.estimator(),
-            setup.tracker.law(),
-        ) {
-            (ControllerKind::StateFeedback, ..) => "state_feedback",
-            (_, EstimatorChoice::Paper001, LawChoice::Paper001) => "output_feedback",
-            (_, EstimatorChoice::PoseObserver(_), LawChoice::Paper001) => {
-                "output_feedback (pose observer, law 001)"
-            }
-            (_, EstimatorChoice::Paper001, LawChoice::Cascaded(_)) => {
-                "output_feedback (observer 001, cascaded law)"
-            }
-            (_, EstimatorChoice::PoseObserver(_), LawChoice::Cascaded(_)) => {
-                "output_feedback (pose observer, cascaded law)"
-            }
-            (_, EstimatorChoice::Paper001, LawChoice::HeadingErrorSine(_)) => {
-                "output_feedback (observer 001, sin θe law)"
-            }
-            (_, EstimatorChoice::PoseObserver(_), LawChoice::HeadingErrorSine(_)) => {
-                "output_feedback (pose observer, sin θe law)"
-            }
-        },
-        position_source: match setup.position {
-            PositionSetup::Exact => "exact",
-            PositionSetup::NearestTag(_) => "nearest_tag",
-            PositionSetup::Reader(..) => "reader",
-        },
+        plant: labels.plant,
+        controller: labels.controller,
+        position_source: labels.position_source,
         code_path: rig.code_path(),
         ticks: setup.ticks,
         period_s: setup.period_s,
@@ -1383,5 +1355,57 @@ fn summarize(
         },
         wall_time_s: wall_s,
         hil: None,
+    }
+}
+
+/// How a run's summary names its setup.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SetupLabels {
+    /// `unicycle` or `diff_drive`.
+    pub plant: &'static str,
+    /// `state_feedback`, or `output_feedback` with its estimator and law.
+    pub controller: &'static str,
+    /// `exact`, `nearest_tag` or `reader`.
+    pub position_source: &'static str,
+}
+
+impl SetupLabels {
+    /// The labels of a validated setup.
+    #[must_use]
+    pub fn of(setup: &Setup) -> Self {
+        Self {
+            plant: match setup.plant {
+                PlantSetup::Unicycle => "unicycle",
+                PlantSetup::DiffDrive { .. } => "diff_drive",
+            },
+            controller: match (
+                setup.controller,
+                setup.tracker.estimator(),
+                setup.tracker.law(),
+            ) {
+                (ControllerKind::StateFeedback, ..) => "state_feedback",
+                (_, EstimatorChoice::Paper001, LawChoice::Paper001) => "output_feedback",
+                (_, EstimatorChoice::PoseObserver(_), LawChoice::Paper001) => {
+                    "output_feedback (pose observer, law 001)"
+                }
+                (_, EstimatorChoice::Paper001, LawChoice::Cascaded(_)) => {
+                    "output_feedback (observer 001, cascaded law)"
+                }
+                (_, EstimatorChoice::PoseObserver(_), LawChoice::Cascaded(_)) => {
+                    "output_feedback (pose observer, cascaded law)"
+                }
+                (_, EstimatorChoice::Paper001, LawChoice::HeadingErrorSine(_)) => {
+                    "output_feedback (observer 001, sin θe law)"
+                }
+                (_, EstimatorChoice::PoseObserver(_), LawChoice::HeadingErrorSine(_)) => {
+                    "output_feedback (pose observer, sin θe law)"
+                }
+            },
+            position_source: match setup.position {
+                PositionSetup::Exact => "exact",
+                PositionSetup::NearestTag(_) => "nearest_tag",
+                PositionSetup::Reader(..) => "reader",
+            },
+        }
     }
 }

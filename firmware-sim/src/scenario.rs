@@ -28,6 +28,7 @@ use wmr_core::tracking::TrackingGains;
 
 use crate::devices::{LinkFaults, ReaderConfig, ReaderMode};
 use crate::plant::{DiffDriveParams, PlantPose};
+use crate::sweep::{SweepPlan, SweepSpec};
 use crate::tags::FloorTags;
 
 /// Why a scenario was refused.
@@ -117,6 +118,9 @@ pub struct Scenario {
     /// sources).
     #[serde(default, skip_serializing_if = "MeasurementSpec::is_default")]
     pub measurement: MeasurementSpec,
+    /// What `firmware-sim sweep` varies (ignored by `run`, but validated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sweep: Option<SweepSpec>,
 }
 
 /// The reference trajectory.
@@ -700,9 +704,11 @@ pub struct Setup {
     pub position: PositionSetup,
     /// Noise and misses on the fix (validated; clean for the reader).
     pub measurement: MeasurementSpec,
+    /// The validated `[sweep]` section, if the scenario has one.
+    pub sweep: Option<SweepPlan>,
 }
 
-fn positive(field: &str, v: f64) -> Result<f64, ScenarioError> {
+pub(crate) fn positive(field: &str, v: f64) -> Result<f64, ScenarioError> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
@@ -713,7 +719,7 @@ fn positive(field: &str, v: f64) -> Result<f64, ScenarioError> {
     }
 }
 
-fn non_negative(field: &str, v: f64) -> Result<f64, ScenarioError> {
+pub(crate) fn non_negative(field: &str, v: f64) -> Result<f64, ScenarioError> {
     if v.is_finite() && v >= 0.0 {
         Ok(v)
     } else {
@@ -735,7 +741,7 @@ fn finite(field: &str, v: f64) -> Result<f64, ScenarioError> {
     }
 }
 
-fn probability(field: &str, v: f64) -> Result<f64, ScenarioError> {
+pub(crate) fn probability(field: &str, v: f64) -> Result<f64, ScenarioError> {
     if (0.0..=1.0).contains(&v) {
         Ok(v)
     } else {
@@ -984,7 +990,7 @@ impl Scenario {
         }
         let measurement = self.measurement_setup(&position)?;
 
-        Ok(Setup {
+        let mut setup = Setup {
             ticks,
             period_s,
             transient_s,
@@ -997,7 +1003,12 @@ impl Scenario {
             plant,
             position,
             measurement,
-        })
+            sweep: None,
+        };
+        if let Some(spec) = &self.sweep {
+            setup.sweep = Some(SweepPlan::new(spec, self, &setup)?);
+        }
+        Ok(setup)
     }
 
     fn measurement_setup(
