@@ -14,7 +14,7 @@
 //! # Controller (31)
 //! `v = v_r + c2 x_e`, `ω = ω_r + c1 θ_e`, giving the closed loop (32). It is
 //! globally K-exponentially stable when `ω_r` is persistently exciting
-//! (Panteley et al.; paper 002 cites it as [9]).
+//! (Panteley et al.; paper 002 cites it as \[9\]).
 //!
 //! # Angle convention
 //! `θ_e` is wrapped to (−π, π]: the reference's and the robot's headings
