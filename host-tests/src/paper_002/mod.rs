@@ -19,6 +19,17 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
 }
 
+impl Series {
+    /// An empty series with this legend label.
+    #[must_use]
+    pub fn new(label: &str) -> Self {
+        Self {
+            label: label.to_string(),
+            points: Vec::new(),
+        }
+    }
+}
+
 /// A figure of the paper, as data.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Figure {

@@ -156,15 +156,6 @@ pub fn pose_observer_run(v_of_t: SpeedProfile, omega: f64, duration_s: f64) -> [
     out
 }
 
-impl Series {
-    fn new(label: &str) -> Self {
-        Self {
-            label: label.to_string(),
-            points: Vec::new(),
-        }
-    }
-}
-
 /// Which closed loop of section 3.2 to simulate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RobotFrameLoop {
@@ -500,6 +491,12 @@ pub fn comparison_markdown() -> String {
             s.rms_m
         ));
     }
+    let (s, _) = super::chained::figure_eight_with_measured_heading(10.0, 100.0);
+    md.push_str(&format!(
+        "| 002 Prop. 3 (25)–(26) through (6), **heading measured exactly** (not position-only; \
+         c1 = c2 = 0.5, c3 = 10, a1 = 100) | {:.4} | {:.4} | {:.4} |\n",
+        s.max_m, s.mean_m, s.rms_m
+    ));
     for (label, why) in [
         (
             "002 Prop. 1–3 (chained form (10), (14)/(16), (25)–(26))",
