@@ -35,7 +35,7 @@ use crate::tags::FloorTags;
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
     /// The file could not be read.
-    #[error("cannot read scenario file {path}: {source}")]
+    #[error("cannot read scenario file {path}")]
     Io {
         /// The file.
         path: String,
@@ -623,6 +623,10 @@ pub const EMBEDDED: &[(&str, &str)] = &[
     (
         "figure_eight_rfid_full_stack",
         include_str!("../scenarios/figure_eight_rfid_full_stack.toml"),
+    ),
+    (
+        "figure_eight_rfid_pose_observer",
+        include_str!("../scenarios/figure_eight_rfid_pose_observer.toml"),
     ),
     (
         "figure_eight_exact",
@@ -1333,7 +1337,7 @@ mod tests {
 
     #[test]
     fn embedded_scenarios_parse_and_validate() {
-        assert_eq!(EMBEDDED.len(), 4);
+        assert_eq!(EMBEDDED.len(), 5);
         for (name, text) in EMBEDDED {
             let s = Scenario::from_toml_str(text).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert_eq!(&s.name, name);
