@@ -20,6 +20,7 @@ pub mod drive;
 pub mod geometry;
 pub mod heading_observer;
 pub mod math;
+pub mod momenta_observer;
 pub mod odometry;
 pub mod output_feedback;
 pub mod pilot;
