@@ -39,21 +39,40 @@
 //! the negatives of (15)'s, hence the minus sign above with (15)'s
 //! `L_k = t_k t_kᵀ`.
 //!
-//! # Discretization
-//! The integral states `(p_I, r_I, d_I)` take forward-Euler steps of length
-//! `h` with `q` and `u` of the step's start; `q` itself enters the
-//! estimates exactly (`λQ(q)`, `q`), so over a step `p̂` moves by
-//! `λ T⁻¹Δq ≈ λ h p` from the measured motion, as in continuous time. The
-//! error then decays like `(1 − λh)` per step; keep `λh ≪ 1` (and
-//! `h·max(R) ≪ 1`). Encoder quantization `δq` enters `p̂` as `λ T⁻¹ δq`:
-//! the observer is a model-based differentiator of bandwidth ~`λ`, where
-//! differencing counts has noise `δq/h`.
+//! # Adaptation gains
+//! The paper's Lyapunov function (25) weighs the three errors equally,
+//! which fixes the adaptation speeds in the transformed coordinates. With
+//! `V = ½(|p̃|² + r̃ᵀr̃/γ_r + d̃ᵀd̃/γ_d)` the same proof holds for
+//! `r̃̇ = γ_r Φᵀp̃`, `d̃̇ = −γ_d T p̃` and any `γ_r, γ_d > 0`
+//! ([`MomentaObserverConfig::with_adaptation_gains`]; the paper's are 1).
+//! They matter on small machines: a robot's wheels have `T ~ M^{−½}` of
+//! order 20, so `Φ = t_k t_kᵀp̂` couples `p̃` and `r̃` at hundreds of rad/s
+//! with unit gains, far beyond what a 10 ms step can follow.
 //!
-//! # Angle convention
-//! `q` is used as given (wheel angles accumulate without wrapping: feed
-//! them from an unwrapped counter, e.g. [`crate::odometry`]'s sums); `d̂`
-//! contains `q` (the proportional term `d_P = q`), so keep `q` small enough
-//! for `f32` resolution, e.g. by re-basing with [`MomentaObserver::rebase`].
+//! # Discretization: innovation form
+//! The I&I states `(p_I, r_I, d_I)` exist so that `q̇` is never
+//! differentiated; in continuous time the observer above is exactly
+//! `p̂̇ = f + λ(p − p̂)`, `r̂̇ = γ_r Φ(p̂)ᵀ(p̂ − p)`, `d̂̇ = −γ_d(T p̂ − q̇)` with
+//! `f = −Tᵀ(∇V − Gu − d̂) − Φ(p̂) r̂ − Tᵀℜ_k T p̂`, where `p` and `q̇` appear
+//! only integrated. A sampled observer has their integrals over a step:
+//! `ΔQ = Q(q⁺) − Q(q) = ∫p` and `Δq = ∫T p`. Per step of length `h`, with
+//! `u` held and `T, ∇V, Φ` at the step's start:
+//!
+//! ```text
+//! p̂⁺ = p̂ + h f + λ(ΔQ − h p̂)
+//! ν  = h p̂⁺ − ΔQ                            (≈ h p̃)
+//! r̂⁺ = r̂ + γ_r Φ(p̂⁺)ᵀ ν                    d̂⁺ = d̂ − γ_d (h T p̂⁺ − Δq)
+//! ```
+//!
+//! The parameters are updated with the new `p̂⁺` (symplectic Euler): the
+//! skew coupling of `p̃` with `r̃, d̃` then keeps its energy instead of
+//! gaining `1 + (hω)²` per step as with forward Euler, and `λ` damps it;
+//! stability needs `h(λ + |R|) < 1` and `hω < 2` for the coupling
+//! frequencies `ω ~ √γ_d |T|`, `√γ_r |Φ|`. The increments are exact, the
+//! rest is first order: the estimates carry an `O(h)` bias (about
+//! `h|ṗ̇|/λ` in `p̃` on the crane of section 6.3). Because `d̂` is kept
+//! directly (not as `d_I + q`), only position differences enter and a
+//! wheel angle may grow for ever without losing `d̂`'s resolution.
 //!
 //! # Bad input
 //! A non-finite `q` or input force, or a non-finite result, is counted
@@ -97,6 +116,8 @@ pub enum MomentaObserverError {
     Lambda,
     /// Step `h` not finite and positive.
     Period,
+    /// An adaptation gain `γ_r`, `γ_d` not finite and positive.
+    AdaptationGain,
     /// An unknown-friction coordinate index is `≥ N`.
     FrictionIndex,
     /// The same coordinate is listed twice as having unknown friction.
@@ -117,6 +138,8 @@ pub struct MomentaObserverConfig<const S: usize> {
     lambda_per_s: f32,
     period_s: f32,
     unknown_friction: [usize; S],
+    friction_gain: f32,
+    disturbance_gain: f32,
 }
 
 impl<const S: usize> MomentaObserverConfig<S> {
@@ -150,6 +173,30 @@ impl<const S: usize> MomentaObserverConfig<S> {
             lambda_per_s,
             period_s,
             unknown_friction,
+            friction_gain: 1.0,
+            disturbance_gain: 1.0,
+        })
+    }
+
+    /// The adaptation gains `γ_r` (friction) and `γ_d` (disturbance), both
+    /// 1 by default as in the paper (module docs).
+    ///
+    /// # Errors
+    /// [`MomentaObserverError::AdaptationGain`] unless both are finite and
+    /// positive.
+    pub fn with_adaptation_gains(
+        self,
+        friction_gain: f32,
+        disturbance_gain: f32,
+    ) -> Result<Self, MomentaObserverError> {
+        let ok = |x: f32| x.is_finite() && x > 0.0;
+        if !(ok(friction_gain) && ok(disturbance_gain)) {
+            return Err(MomentaObserverError::AdaptationGain);
+        }
+        Ok(Self {
+            friction_gain,
+            disturbance_gain,
+            ..self
         })
     }
 
@@ -186,8 +233,18 @@ pub struct MomentaEstimate<const N: usize, const S: usize> {
     pub friction: SVector<f32, S>,
 }
 
+impl<const N: usize, const S: usize> MomentaEstimate<N, S> {
+    fn is_finite(&self) -> bool {
+        self.transformed_momenta.iter().all(|x| x.is_finite())
+            && self.velocity.iter().all(|x| x.is_finite())
+            && self.disturbance.iter().all(|x| x.is_finite())
+            && self.friction.iter().all(|x| x.is_finite())
+    }
+}
+
 /// Proposition 1's observer for a model `M` with `N` degrees of freedom and
-/// `S` unknown friction coefficients.
+/// `S` unknown friction coefficients, in the innovation form of the module
+/// docs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MomentaObserver<Model, const N: usize, const S: usize>
 where
@@ -195,9 +252,6 @@ where
 {
     model: Model,
     config: MomentaObserverConfig<S>,
-    p_integral: Vector<N>,
-    r_integral: SVector<f32, S>,
-    d_integral: Vector<N>,
     start: Option<StepStart<N>>,
     estimate: MomentaEstimate<N, S>,
     rejected_updates: u32,
@@ -207,8 +261,8 @@ impl<Model, const N: usize, const S: usize> MomentaObserver<Model, N, S>
 where
     Model: MechanicalModel<N>,
 {
-    /// An observer whose first sample sets `p̂ = p̂₀`, `d̂ = d̂₀`,
-    /// `r̂ = r̂₀` (non-finite entries are taken as 0).
+    /// An observer starting from `p̂ = p̂₀`, `d̂ = d̂₀`, `r̂ = r̂₀`
+    /// (non-finite entries are taken as 0).
     #[must_use]
     pub fn new(
         model: Model,
@@ -227,9 +281,6 @@ where
         Self {
             model,
             config,
-            p_integral: Vector::zeros(),
-            r_integral: SVector::zeros(),
-            d_integral: Vector::zeros(),
             start: None,
             estimate,
             rejected_updates: 0,
@@ -242,8 +293,14 @@ where
         &self.model
     }
 
+    /// The configuration.
+    #[must_use]
+    pub fn config(&self) -> &MomentaObserverConfig<S> {
+        &self.config
+    }
+
     /// The estimates at the last accepted sample (the initial guesses until
-    /// the first sample).
+    /// the first sample; the velocity is 0 until then).
     #[must_use]
     pub fn estimate(&self) -> &MomentaEstimate<N, S> {
         &self.estimate
@@ -256,18 +313,15 @@ where
     }
 
     /// Shifts the position origin by `offset` (e.g. after many wheel turns,
-    /// to keep `q` within `f32` resolution) without changing any estimate.
-    /// Only exact for models whose `Q` is linear in `q` (constant inertia).
+    /// to keep `q⁺ − q` within `f32` resolution): give the next samples as
+    /// `q − offset`. Exact for models whose `Q` is linear in `q` (constant
+    /// inertia).
     pub fn rebase(&mut self, offset: &Vector<N>) {
         if !offset.iter().all(|x| x.is_finite()) {
             self.rejected_updates = self.rejected_updates.saturating_add(1);
             return;
         }
         if let Some(start) = self.start.as_mut() {
-            let t_inv_offset =
-                self.model.flat_coordinates(offset) - self.model.flat_coordinates(&Vector::zeros());
-            self.p_integral += t_inv_offset * self.config.lambda_per_s;
-            self.d_integral += offset;
             start.q -= offset;
         }
     }
@@ -280,33 +334,16 @@ where
             self.reject();
             return;
         }
-        let lambda = self.config.lambda_per_s;
         let now = StepStart { q: *q, forces };
         let Some(start) = self.start.replace(now) else {
-            // First sample: anchor the integral states on the initial guesses.
-            self.p_integral =
-                self.estimate.transformed_momenta - self.model.flat_coordinates(q) * lambda;
-            self.d_integral = self.estimate.disturbance - q;
-            self.r_integral = self.estimate.friction - self.friction_offset(q);
-            self.publish(q);
+            let t = self.model.inverse_inertia_factor(q);
+            self.estimate.velocity = t * self.estimate.transformed_momenta;
             return;
         };
-        let (p_rate, r_rate, d_rate) = self.rates(&start);
-        let h = self.config.period_s;
-        let next = (
-            self.p_integral + p_rate * h,
-            self.r_integral + r_rate * h,
-            self.d_integral + d_rate * h,
-        );
-        let finite = next.0.iter().all(|x| x.is_finite())
-            && next.1.iter().all(|x| x.is_finite())
-            && next.2.iter().all(|x| x.is_finite());
-        if !finite {
-            self.reject();
-            return;
-        }
-        (self.p_integral, self.r_integral, self.d_integral) = next;
-        if !self.publish(q) {
+        let next = self.step(&start, q);
+        if next.is_finite() {
+            self.estimate = next;
+        } else {
             self.reject();
         }
     }
@@ -316,76 +353,50 @@ where
         self.start = None;
     }
 
-    /// `p̂` at `q` from the integral state.
-    fn momenta_at(&self, q: &Vector<N>) -> Vector<N> {
-        self.p_integral + self.model.flat_coordinates(q) * self.config.lambda_per_s
-    }
-
-    /// `r_P(p̂(q))`: `−(t_κj·p̂)²/(2λ)` for each unknown coordinate.
-    fn friction_offset(&self, q: &Vector<N>) -> SVector<f32, S> {
-        let t = self.model.inverse_inertia_factor(q);
-        let p_hat = self.momenta_at(q);
-        let lambda = self.config.lambda_per_s;
-        SVector::from_iterator(self.config.unknown_friction.iter().map(|&k| {
-            let along = row_dot(&t, k, &p_hat);
-            -along * along / (2.0 * lambda)
-        }))
-    }
-
-    /// The rates of `(p_I, r_I, d_I)` at the step's start.
-    fn rates(&self, start: &StepStart<N>) -> (Vector<N>, SVector<f32, S>, Vector<N>) {
-        let q = &start.q;
-        let lambda = self.config.lambda_per_s;
-        let t = self.model.inverse_inertia_factor(q);
-        let p_hat = self.momenta_at(q);
-        let d_hat = self.d_integral + q;
-        let r_hat = self.r_integral + self.friction_offset(q);
-        let qdot_hat = t * p_hat;
+    /// One step of the innovation form from `start` to the sample `q`.
+    fn step(&self, start: &StepStart<N>, q: &Vector<N>) -> MomentaEstimate<N, S> {
+        let MomentaObserverConfig {
+            lambda_per_s: lambda,
+            period_s: h,
+            unknown_friction,
+            friction_gain,
+            disturbance_gain,
+        } = self.config;
+        let e = &self.estimate;
+        let t = self.model.inverse_inertia_factor(&start.q);
+        let p_hat = e.transformed_momenta;
         // Φ(p̂) r̂ = Σ_j t_κj (t_κj·p̂) r̂_j.
         let mut friction_force = Vector::<N>::zeros();
-        for (&k, &r) in self.config.unknown_friction.iter().zip(r_hat.iter()) {
+        for (&k, &r) in unknown_friction.iter().zip(e.friction.iter()) {
             friction_force += row(&t, k) * (row_dot(&t, k, &p_hat) * r);
         }
-        let known = self.model.known_friction();
-        let mut known_masked = known;
-        for &k in &self.config.unknown_friction {
-            if let Some(x) = known_masked.get_mut(k) {
+        let mut known = self.model.known_friction();
+        for &k in &unknown_friction {
+            if let Some(x) = known.get_mut(k) {
                 *x = 0.0;
             }
         }
-        let known_friction_force = t.transpose() * known_masked.component_mul(&qdot_hat);
-        let p_rate = -(t.transpose() * (self.model.potential_gradient(q) - start.forces - d_hat))
+        let known_friction_force = t.transpose() * known.component_mul(&(t * p_hat));
+        let model_rate = -(t.transpose()
+            * (self.model.potential_gradient(&start.q) - start.forces - e.disturbance))
             - friction_force
-            - p_hat * lambda
             - known_friction_force;
-        let drive = p_rate + p_hat * lambda;
-        let r_rate = SVector::from_iterator(
-            self.config
-                .unknown_friction
-                .iter()
-                .map(|&k| row_dot(&t, k, &p_hat) * row_dot(&t, k, &drive) / lambda),
-        );
-        let d_rate = -qdot_hat;
-        (p_rate, r_rate, d_rate)
-    }
-
-    /// Recomputes the published estimates at `q`; false if not finite.
-    fn publish(&mut self, q: &Vector<N>) -> bool {
-        let t = self.model.inverse_inertia_factor(q);
-        let p_hat = self.momenta_at(q);
-        let estimate = MomentaEstimate {
-            transformed_momenta: p_hat,
-            velocity: t * p_hat,
-            disturbance: self.d_integral + q,
-            friction: self.r_integral + self.friction_offset(q),
-        };
-        let finite = estimate.velocity.iter().all(|x| x.is_finite())
-            && estimate.disturbance.iter().all(|x| x.is_finite())
-            && estimate.friction.iter().all(|x| x.is_finite());
-        if finite {
-            self.estimate = estimate;
+        let flat_increment = self.model.flat_coordinates(q) - self.model.flat_coordinates(&start.q);
+        let p_next = p_hat + model_rate * h + (flat_increment - p_hat * h) * lambda;
+        let innovation = p_next * h - flat_increment;
+        let friction =
+            SVector::<f32, S>::from_iterator(unknown_friction.iter().zip(e.friction.iter()).map(
+                |(&k, &r)| {
+                    r + friction_gain * row_dot(&t, k, &p_next) * row_dot(&t, k, &innovation)
+                },
+            ));
+        let disturbance = e.disturbance - ((t * p_next) * h - (q - start.q)) * disturbance_gain;
+        MomentaEstimate {
+            transformed_momenta: p_next,
+            velocity: self.model.inverse_inertia_factor(q) * p_next,
+            disturbance,
+            friction,
         }
-        finite
     }
 }
 

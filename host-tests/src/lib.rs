@@ -3,6 +3,7 @@
 //! (`robustness.rs`). This library only holds what they share.
 
 pub mod paper_002;
+pub mod paper_003;
 
 use wmr_core::drive::{DriveConfig, SpeedLoopGains};
 use wmr_core::geometry::DiffDriveGeometry;

@@ -1,0 +1,170 @@
+//! Regenerates the plots of paper 003's simulations (PNG): the spider
+//! crane's errors (figures 3–7 of the paper) and the robot's wheel speeds
+//! and load torques from encoder angles:
+//!
+//! ```sh
+//! cargo run --release -p host-tests --example paper_003_figures -- [OUT_DIR]
+//! ```
+//!
+//! `OUT_DIR` defaults to `out/paper_003`. The data come from
+//! `host_tests::paper_003`, the same simulations the tests assert on.
+
+use std::path::{Path, PathBuf};
+
+use host_tests::paper_002::Series;
+use host_tests::paper_003::{CraneRun, WHEEL_GAINS, crane_run, wheel_run};
+use plotters::prelude::*;
+
+const SIZE: (u32, u32) = (900, 560);
+const FONT: &str = "sans-serif";
+const FLOOR: f64 = 1e-9;
+const COLOURS: [RGBColor; 4] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+];
+
+/// One plot: `log` draws `|value|` on a log axis, otherwise values as they are.
+fn plot(
+    title: &str,
+    series: &[&Series],
+    log: bool,
+    path: &Path,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let value = |v: f64| if log { v.abs().max(FLOOR) } else { v };
+    let (lo, hi) = series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|&(_, v)| value(v)))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    let t_end = series
+        .iter()
+        .filter_map(|s| s.points.last().map(|p| p.0))
+        .fold(1.0_f64, f64::max);
+    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut builder = ChartBuilder::on(&root);
+    builder
+        .caption(title, (FONT, 20))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(80);
+    macro_rules! draw {
+        ($chart:expr) => {{
+            let mut chart = $chart;
+            chart
+                .configure_mesh()
+                .x_desc("t (s)")
+                .y_label_formatter(&|v: &f64| {
+                    if log {
+                        format!("{v:.0e}")
+                    } else {
+                        format!("{v:.3}")
+                    }
+                })
+                .label_style((FONT, 16))
+                .draw()?;
+            for (i, s) in series.iter().enumerate() {
+                let colour = COLOURS[i % COLOURS.len()];
+                chart
+                    .draw_series(LineSeries::new(
+                        s.points.iter().map(|&(t, v)| (t, value(v))),
+                        colour.stroke_width(2),
+                    ))?
+                    .label(s.label.clone())
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+                    });
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font((FONT, 15))
+                .draw()?;
+        }};
+    }
+    if log {
+        draw!(builder.build_cartesian_2d(0.0..t_end, (lo * 0.5..hi * 2.0).log_scale())?);
+    } else {
+        let pad = 0.05 * (hi - lo).max(1e-9);
+        draw!(builder.build_cartesian_2d(0.0..t_end, lo - pad..hi + pad)?);
+    }
+    root.present()?;
+    Ok(())
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let out: PathBuf = std::env::args_os()
+        .nth(1)
+        .map_or_else(|| PathBuf::from("out/paper_003"), PathBuf::from);
+    std::fs::create_dir_all(&out)?;
+    let mut written = Vec::new();
+    let mut save = |name: &str, title: &str, series: &[&Series], log: bool| {
+        let path = out.join(format!("{name}.png"));
+        let result = plot(title, series, log, &path);
+        written.push((path, result.map_err(|e| e.to_string())));
+    };
+    let paper = crane_run(&CraneRun::paper([2.0, -1.0, 1.0], [1.0, -1.0, 0.5], 2.0));
+    save(
+        "fig3_4_crane_errors",
+        "Figs. 3–4: spider crane, λ = 0.8: |p̃|, |d̃|, |r̃3|",
+        &[&paper.momenta, &paper.disturbance, &paper.friction],
+        true,
+    );
+    let runs: Vec<(f32, _)> = [0.2_f32, 0.8, 3.0]
+        .into_iter()
+        .map(|lambda| {
+            let mut run = CraneRun::paper([2.0, -1.0, 1.0], [1.0, -1.0, 0.5], 2.0);
+            run.lambda = lambda;
+            let mut errors = crane_run(&run);
+            errors.momenta.label = format!("|p̃|, λ = {lambda}");
+            errors.disturbance.label = format!("|d̃|, λ = {lambda}");
+            (lambda, errors)
+        })
+        .collect();
+    save(
+        "fig5_crane_momenta_vs_lambda",
+        "Fig. 5: |p̃| for λ = 0.2, 0.8, 3",
+        &runs.iter().map(|(_, e)| &e.momenta).collect::<Vec<_>>(),
+        true,
+    );
+    save(
+        "fig6_crane_disturbance_vs_lambda",
+        "Fig. 6: |d̃| for λ = 0.2, 0.8, 3",
+        &runs.iter().map(|(_, e)| &e.disturbance).collect::<Vec<_>>(),
+        true,
+    );
+    let mut step = CraneRun::paper([0.0; 3], [0.0; 3], 0.0);
+    step.d1_step = 0.5;
+    step.d1_step_every_s = 30.0;
+    step.duration_s = 120.0;
+    let step = crane_run(&step);
+    save(
+        "fig7_crane_d1_steps",
+        "Fig. 7: d1 stepping every 30 s and its estimate (N)",
+        &[&step.d1, &step.d1_hat],
+        false,
+    );
+    let wheels = wheel_run(WHEEL_GAINS, 120.0, 60.0);
+    let [truth, observer, differencing] = &wheels.speeds;
+    save(
+        "wheel_speed_right",
+        "Right wheel speed (rad/s): 1024-count encoder at 100 Hz",
+        &[differencing, observer, truth],
+        false,
+    );
+    save(
+        "wheel_load_torque",
+        "Load torque (N·m): 5 % slope from 60 s",
+        &wheels.loads.iter().collect::<Vec<_>>(),
+        false,
+    );
+    for (path, result) in written {
+        result.map_err(|e| format!("{}: {e}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
