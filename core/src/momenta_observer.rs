@@ -10,7 +10,8 @@
 //! encoder angles.
 //!
 //! # System (1)–(7)
-//! `q̇ = M⁻¹(q) 𝐩`, `𝐩̇ = −∇V − ℜ q̇ + G(q)u + d` with `ℜ = diag(r_i)`. With a
+//! `q̇ = M⁻¹(q) 𝐩`, `𝐩̇ = −∇V − ℜ q̇ + G(q)u + d` with `ℜ = diag(r_i)` (the
+//! paper calls it Coulomb friction; as `ℜ q̇` it is viscous). With a
 //! factor `M⁻¹ = T Tᵀ` (4) whose columns commute (Assumption 4.1, (8)) and
 //! `p = Tᵀ𝐩`, the gyroscopic term `J` of (5)–(6) vanishes:
 //! `q̇ = T p`, `ṗ = −Tᵀ(∇V − Gu − d) − R p`, `R = TᵀℜT` (7). A map `Q`
