@@ -13,16 +13,6 @@ fn rate(s: &Series, from: f64, to: f64) -> f64 {
     log_decay_rate(&s.points, from, to, 1e-40).expect("enough samples")
 }
 
-/// `|value|` at the first sample at or after `t`.
-fn at(s: &Series, t: f64) -> f64 {
-    s.points
-        .iter()
-        .find(|p| p.0 >= t - 1e-9)
-        .expect("sample")
-        .1
-        .abs()
-}
-
 /// First time `|value|` is below `level`.
 fn time_to(s: &Series, level: f64) -> f64 {
     s.points
@@ -84,14 +74,14 @@ fn figure_3_without_excitation() {
     // (a) u1 = 0: nothing corrects x̃2; x̃3 decays on its own.
     println!(
         "fig 3(a) u1 = 0: |x̃2(20 s)| = {:.6}, |x̃3(20 s)| = {:.1e}",
-        at(&a2, 20.0),
-        at(&a3, 20.0)
+        a2.abs_at(20.0),
+        a3.abs_at(20.0)
     );
-    assert!((at(&a2, 20.0) - 1.0).abs() < 1e-6);
-    assert!(at(&a3, 20.0) < 1e-20);
+    assert!((a2.abs_at(20.0) - 1.0).abs() < 1e-6);
+    assert!(a3.abs_at(20.0) < 1e-20);
 
     // (b) u1 = e^{-t}, ∫u1² = 1/2: x̃2 stalls (measured 0.0548 from 4 s on).
-    let (b10, b20) = (at(&b2, 10.0), at(&b2, 20.0));
+    let (b10, b20) = (b2.abs_at(10.0), b2.abs_at(20.0));
     println!("fig 3(b) u1 = e^-t: |x̃2| = {b10:.5} at 10 s, {b20:.5} at 20 s");
     assert!(b20 > 0.04 && (b10 - b20).abs() < 1e-3 * b20, "{b10} {b20}");
 
@@ -99,18 +89,19 @@ fn figure_3_without_excitation() {
     // exponentially: for a3² ≫ a2 u1² the slow mode is
     // x̃2' ≈ −(a2/a3) u1² x̃2 = −10 x̃2/(1+t), so x̃2 ∝ (1+t)^−10 and the
     // fitted exponential rate halves each time t doubles.
-    let loglog =
-        |from: f64, to: f64| (at(&c2, to) / at(&c2, from)).ln() / ((1.0 + to) / (1.0 + from)).ln();
+    let loglog = |from: f64, to: f64| {
+        (c2.abs_at(to) / c2.abs_at(from)).ln() / ((1.0 + to) / (1.0 + from)).ln()
+    };
     let (p1, p2) = (loglog(4.0, 8.0), loglog(8.0, 16.0));
     let (r1, r2) = (rate(&c2, 4.0, 8.0), rate(&c2, 8.0, 16.0));
     println!(
         "fig 3(c) u1 = 1/√(1+t): |x̃2(20 s)| = {:.1e}; power of (1+t): {p1:.2} over 4–8 s, \
          {p2:.2} over 8–16 s; exponential rate {r1:.2} then {r2:.2} /s; |x̃3(20 s)| = {:.1e}",
-        at(&c2, 20.0),
-        at(&c3, 20.0)
+        c2.abs_at(20.0),
+        c3.abs_at(20.0)
     );
     // Measured: 2.3e-13; powers −10.1 and −10.1; rates −1.49 and −0.80.
-    assert!(at(&c2, 20.0) < 1e-10);
+    assert!(c2.abs_at(20.0) < 1e-10);
     assert!((-11.0..-9.0).contains(&p1) && (-11.0..-9.0).contains(&p2));
     assert!(r2 / r1 > 0.4 && r2 / r1 < 0.65, "{r1} {r2}");
 }
@@ -121,7 +112,7 @@ fn figure_3_without_excitation() {
 fn proposition_1_state_feedback() {
     let run = closed_loop_run(ChainedLoop::StateFeedback, f64::sin, 30.0);
     let r = rate(&run.tracking_error, 0.0, 30.0);
-    let end = at(&run.tracking_error, 30.0);
+    let end = run.tracking_error.abs_at(30.0);
     println!("Prop. 1, u1r = sin t: |x_e(30 s)| = {end:.1e}, rate {r:.3} /s");
     // Measured 2.2e-4, −0.284 /s.
     assert!(r < -0.25 && end < 5e-4, "{r} {end}");
@@ -140,7 +131,7 @@ fn proposition_1_state_feedback() {
 fn proposition_3_reduced_order_observer_and_controller() {
     let run = closed_loop_run(ChainedLoop::ReducedOrder, f64::sin, 30.0);
     let r = rate(&run.tracking_error, 0.0, 30.0);
-    let end = at(&run.tracking_error, 30.0);
+    let end = run.tracking_error.abs_at(30.0);
     println!("Prop. 3, u1r = sin t: |x_e(30 s)| = {end:.1e}, rate {r:.3} /s");
     // Measured 2.5e-4, −0.283 /s: as fast as state feedback.
     assert!(r < -0.25 && end < 5e-4, "{r} {end}");
@@ -157,7 +148,7 @@ fn proposition_3_reduced_order_observer_and_controller() {
     println!(
         "Prop. 3: |x̃2e| vs e^(−a1 ∫u1²): largest relative difference {worst:.1e} \
          (while above 1e-5, 100× the f32 floor); |x̃2e(10 s)| = {:.1e}",
-        at(&run.observer_error, 10.0)
+        run.observer_error.abs_at(10.0)
     );
     // Measured 8.4e-3 (f32 rounding; the floor is ~1e-7); with the printed
     // rate a1 u1² + c2 the error would be e^{−t} times smaller, a factor
@@ -166,8 +157,8 @@ fn proposition_3_reduced_order_observer_and_controller() {
 
     let stalled = closed_loop_run(ChainedLoop::ReducedOrder, |_| 0.0, 30.0);
     let (o10, o30) = (
-        at(&stalled.observer_error, 10.0),
-        at(&stalled.observer_error, 30.0),
+        stalled.observer_error.abs_at(10.0),
+        stalled.observer_error.abs_at(30.0),
     );
     println!(
         "Prop. 3, u1r = 0: x3e(30 s) = {:.4}, |x̃2e| {o10:.2e} at 10 s, {o30:.2e} at 30 s",

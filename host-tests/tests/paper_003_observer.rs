@@ -10,16 +10,6 @@
 use host_tests::paper_002::{Series, log_decay_rate};
 use host_tests::paper_003::*;
 
-/// `|value|` at the first sample at or after `t`.
-fn at(s: &Series, t: f64) -> f64 {
-    s.points
-        .iter()
-        .find(|p| p.0 >= t - 1e-9)
-        .expect("sample")
-        .1
-        .abs()
-}
-
 /// Largest `|value|` over `[from, to]`.
 fn max_over(s: &Series, from: f64, to: f64) -> f64 {
     s.points
@@ -63,7 +53,7 @@ fn figures_3_4_crane_errors_converge() {
         // |r̃3| ≤ 4.1e-3 (the O(h) floor of the step); V rises by ≤ 8.7e-7.
         assert!(p < 5e-3 && d < 1e-2 && r < 1e-2, "{p} {d} {r}");
         assert!(growth < 1e-5, "{growth}");
-        assert!(at(&e.lyapunov, 60.0) < 1e-3 * v0.max(0.1));
+        assert!(e.lyapunov.abs_at(60.0) < 1e-3 * v0.max(0.1));
     }
 }
 
@@ -80,12 +70,12 @@ fn figures_5_6_effect_of_lambda() {
         println!(
             "λ = {lambda}: |p̃| rate over 0–5 s {rate:.2} /s; |p̃(5 s)| {:.2e}, |d̃(20 s)| {:.2e}, \
              |r̃3(20 s)| {:.2e}, |p̃(60 s)| {:.1e}",
-            at(&e.momenta, 5.0),
-            at(&e.disturbance, 20.0),
-            at(&e.friction, 20.0),
-            at(&e.momenta, 60.0)
+            e.momenta.abs_at(5.0),
+            e.disturbance.abs_at(20.0),
+            e.friction.abs_at(20.0),
+            e.momenta.abs_at(60.0)
         );
-        early.push(at(&e.momenta, 5.0));
+        early.push(e.momenta.abs_at(5.0));
     }
     // Measured |p̃(5 s)|: 1.35, 0.352, 0.207.
     assert!(

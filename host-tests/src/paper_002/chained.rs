@@ -9,7 +9,7 @@
 //! The paper's figure 3(c) input `u1 = 1/√t` is singular at `t = 0`; the
 //! runs use `1/√(1+t)`, which has the same tail (`∫u1² = ∞`, not PE).
 
-use super::unicycle::{ErrorStats, Pose64};
+use super::unicycle::{ErrorAccumulator, ErrorStats, Pose64};
 use super::{Figure, Series};
 use wmr_core::chained_form::{
     ChainedGains, ChainedInput, ChainedObserver, ChainedObserverConfig, ChainedOutput,
@@ -268,7 +268,7 @@ pub fn figure_eight_with_measured_heading(c3: f32, a1: f32) -> (ErrorStats, Seri
         theta: 1.5 * std::f64::consts::PI,
     };
     let mut applied = ChainedInput::STOP;
-    let (mut n, mut sum, mut sum2, mut max) = (0u32, 0.0, 0.0, 0.0_f64);
+    let mut stats = ErrorAccumulator::default();
     let mut series = Series::new("002 Prop. 3 (25)–(26), θ measured");
     for k in 0..48_000u32 {
         let t = f64::from(k) * h;
@@ -276,10 +276,7 @@ pub fn figure_eight_with_measured_heading(c3: f32, a1: f32) -> (ErrorStats, Seri
         let distance =
             (robot.x - f64::from(sample.position.x)).hypot(robot.y - f64::from(sample.position.y));
         if t >= 100.0 {
-            n += 1;
-            sum += distance;
-            sum2 += distance * distance;
-            max = max.max(distance);
+            stats.add(distance);
         }
         if k % 50 == 0 {
             series.points.push((t, distance));
@@ -299,15 +296,7 @@ pub fn figure_eight_with_measured_heading(c3: f32, a1: f32) -> (ErrorStats, Seri
         applied = command;
         robot = robot.advance(f64::from(body.v_m_s), f64::from(body.omega_rad_s), h);
     }
-    let n = f64::from(n.max(1));
-    (
-        ErrorStats {
-            max_m: max,
-            mean_m: sum / n,
-            rms_m: (sum2 / n).sqrt(),
-        },
-        series,
-    )
+    (stats.stats(), series)
 }
 
 /// Figure 2's cases: `(name, title, u1, a2, a3)`. The paper gives `u1` for

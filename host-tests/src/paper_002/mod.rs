@@ -20,6 +20,15 @@ pub struct Series {
 }
 
 impl Series {
+    /// `|value|` at the first sample at or after `t` (NaN past the end).
+    #[must_use]
+    pub fn abs_at(&self, t: f64) -> f64 {
+        self.points
+            .iter()
+            .find(|p| p.0 >= t - 1e-9)
+            .map_or(f64::NAN, |p| p.1.abs())
+    }
+
     /// An empty series with this legend label.
     #[must_use]
     pub fn new(label: &str) -> Self {

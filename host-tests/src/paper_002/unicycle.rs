@@ -331,6 +331,36 @@ impl Pairing {
     }
 }
 
+/// Accumulates a run's position errors into [`ErrorStats`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ErrorAccumulator {
+    n: u32,
+    sum: f64,
+    sum2: f64,
+    max: f64,
+}
+
+impl ErrorAccumulator {
+    /// Adds one error sample, m.
+    pub fn add(&mut self, error_m: f64) {
+        self.n += 1;
+        self.sum += error_m;
+        self.sum2 += error_m * error_m;
+        self.max = self.max.max(error_m);
+    }
+
+    /// Max, mean and RMS of the samples added (zeros if none).
+    #[must_use]
+    pub fn stats(&self) -> ErrorStats {
+        let n = f64::from(self.n.max(1));
+        ErrorStats {
+            max_m: self.max,
+            mean_m: self.sum / n,
+            rms_m: (self.sum2 / n).sqrt(),
+        }
+    }
+}
+
 /// Position error statistics of a comparison run, m.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ErrorStats {
@@ -391,7 +421,7 @@ pub fn figure_eight_comparison(pairing: Pairing) -> (ErrorStats, Series) {
         0.0,
     );
     let mut applied = BodyVelocity::ZERO;
-    let (mut n, mut sum, mut sum2, mut max) = (0u32, 0.0, 0.0, 0.0_f64);
+    let mut stats = ErrorAccumulator::default();
     let mut series = Series::new(pairing.label());
     let steps = 48_000u32;
     for k in 0..steps {
@@ -400,10 +430,7 @@ pub fn figure_eight_comparison(pairing: Pairing) -> (ErrorStats, Series) {
         let error =
             (robot.x - f64::from(sample.position.x)).hypot(robot.y - f64::from(sample.position.y));
         if t >= 100.0 {
-            n += 1;
-            sum += error;
-            sum2 += error * error;
-            max = max.max(error);
+            stats.add(error);
         }
         if k % 50 == 0 {
             series.points.push((t, error));
@@ -463,15 +490,7 @@ pub fn figure_eight_comparison(pairing: Pairing) -> (ErrorStats, Series) {
         };
         robot = robot.advance(f64::from(applied.v_m_s), f64::from(applied.omega_rad_s), h);
     }
-    let n = f64::from(n.max(1));
-    (
-        ErrorStats {
-            max_m: max,
-            mean_m: sum / n,
-            rms_m: (sum2 / n).sqrt(),
-        },
-        series,
-    )
+    (stats.stats(), series)
 }
 
 /// The comparison as a markdown table, with the pairings that cannot run
