@@ -24,6 +24,7 @@ pub mod momenta_observer;
 pub mod odometry;
 pub mod output_feedback;
 pub mod pilot;
+pub mod pose_ekf;
 pub mod pose_observer;
 pub mod reference;
 pub mod robot;

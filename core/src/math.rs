@@ -64,6 +64,10 @@ backend!(
     exp(x) => libm::expf
 );
 backend!(
+    /// Natural logarithm (NaN for negative input, −∞ at 0).
+    ln(x) => libm::logf
+);
+backend!(
     /// Largest integer value not greater than `x`.
     floor(x) => libm::floorf
 );

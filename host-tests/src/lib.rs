@@ -2,6 +2,7 @@
 //! papers' simulations (`paper_001_*.rs`) and whole-stack properties
 //! (`robustness.rs`). This library only holds what they share.
 
+pub mod fusion;
 pub mod paper_002;
 pub mod paper_003;
 
