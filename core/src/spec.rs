@@ -20,6 +20,7 @@ use crate::geometry::{DiffDriveGeometry, GeometryError, Vec2};
 use crate::heading_observer::{HeadingObserverConfig, ObserverConfigError};
 use crate::output_feedback::{TrackerConfig, TrackerConfigError};
 use crate::pilot::{PilotConfig, PilotConfigError};
+use crate::pose_ekf::{FusionSettings, PoseEkfConfig, PoseEkfError};
 use crate::pose_observer::{PoseObserverConfig, PoseObserverConfigError};
 use crate::reference::{Circle, FigureEight, ReferenceError, StraightLine, Trajectory};
 use crate::robot_frame::{CascadedGains, CascadedGainsError};
@@ -49,6 +50,8 @@ pub enum SpecError {
     TagGrid(TagGridError),
     /// Paper 002's pose observer (Proposition 4).
     PoseObserver(PoseObserverConfigError),
+    /// The fusion EKF.
+    FusionEkf(PoseEkfError),
     /// Paper 002's cascaded controller (31).
     CascadedLaw(CascadedGainsError),
     /// Paper 002's Proposition 7 observer and controller.
@@ -67,6 +70,21 @@ pub enum EstimatorSpec {
     PoseObserver {
         /// `[a1, a2]` (1/s) and `[a3, a4]` (1/m²) of (37).
         gains: [f32; 4],
+    },
+    /// The encoder + tag fusion EKF ([`crate::pose_ekf`]).
+    FusionEkf {
+        /// Track width, m.
+        track_width_m: f32,
+        /// Each wheel's travel variance per metre driven, m²/m.
+        wheel_variance_per_m: f32,
+        /// Its floor (count quantization), m².
+        wheel_variance_floor_m2: f32,
+        /// Mahalanobis gate, standard deviations (≥ 1).
+        gate_sigma: f32,
+        /// Tag grid spacing, m.
+        tag_spacing_m: f32,
+        /// Prior variance of each wheel's scale error (0: not estimated).
+        scale_prior: f32,
     },
 }
 
@@ -203,15 +221,35 @@ impl TrackerSpec {
             .and_then(|t| t.with_failsafe_decel(self.failsafe_decel_m_s2))
             .map(|t| t.with_max_fix_age(self.max_fix_age_ticks))
             .map_err(SpecError::Tracker)?;
-        if let EstimatorSpec::PoseObserver {
-            gains: [a1, a2, a3, a4],
-        } = self.estimator
-        {
-            let pose = PoseObserverConfig::new(a1, a2, a3, a4, self.period_s)
-                .map_err(SpecError::PoseObserver)?;
-            config = config
-                .with_pose_observer(pose)
-                .map_err(SpecError::Tracker)?;
+        match self.estimator {
+            EstimatorSpec::Paper001 => {}
+            EstimatorSpec::PoseObserver {
+                gains: [a1, a2, a3, a4],
+            } => {
+                let pose = PoseObserverConfig::new(a1, a2, a3, a4, self.period_s)
+                    .map_err(SpecError::PoseObserver)?;
+                config = config
+                    .with_pose_observer(pose)
+                    .map_err(SpecError::Tracker)?;
+            }
+            EstimatorSpec::FusionEkf {
+                track_width_m,
+                wheel_variance_per_m,
+                wheel_variance_floor_m2,
+                gate_sigma,
+                tag_spacing_m,
+                scale_prior,
+            } => {
+                let settings = PoseEkfConfig::new(
+                    track_width_m,
+                    wheel_variance_per_m,
+                    wheel_variance_floor_m2,
+                    gate_sigma,
+                )
+                .and_then(|filter| FusionSettings::new(filter, tag_spacing_m, scale_prior))
+                .map_err(SpecError::FusionEkf)?;
+                config = config.with_fusion_ekf(settings);
+            }
         }
         match self.law {
             LawSpec::Paper001 => {}
@@ -441,6 +479,21 @@ mod tests {
         assert_eq!(
             s.build(),
             Err(SpecError::Drive(DriveConfigError::SpeedLoopGain))
+        );
+        let mut s = paper_spec();
+        s.tracker.estimator = EstimatorSpec::FusionEkf {
+            track_width_m: 0.2,
+            wheel_variance_per_m: 1e-3,
+            wheel_variance_floor_m2: 1e-9,
+            gate_sigma: 3.0,
+            tag_spacing_m: 0.0,
+            scale_prior: 0.0,
+        };
+        assert_eq!(
+            s.build(),
+            Err(SpecError::FusionEkf(
+                crate::pose_ekf::PoseEkfError::TagSpacing
+            ))
         );
         let mut s = paper_spec();
         s.encoder_bits = 33;
