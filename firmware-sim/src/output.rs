@@ -122,10 +122,13 @@ pub fn format_summary(s: &Summary) -> String {
     if let Some(t) = &s.tracker {
         let _ = writeln!(
             o,
-            "tracker       fixes used {}  invalid {}  stale {}  dead-reckoned {}  failsafe entries {}  non-finite cmds {}  reference standstill {}  observer rejects {}",
+            "tracker       fixes used {}  invalid {}  stale {}  gated {}  relocalised {}  heading resets {}  dead-reckoned {}  failsafe entries {}  non-finite cmds {}  reference standstill {}  observer rejects {}",
             t.fixes_used,
             t.invalid_fixes,
             t.stale_fixes,
+            t.fixes_gated,
+            t.relocalisations,
+            t.heading_resets,
             t.dead_reckoned_steps,
             t.failsafe_entries,
             t.non_finite_commands,

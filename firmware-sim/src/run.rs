@@ -195,6 +195,12 @@ pub struct TrackerReport {
     pub reference_standstill_ticks: u32,
     /// Observer updates skipped for non-finite input.
     pub observer_rejected_updates: u32,
+    /// Fix measurements the fusion EKF's gate rejected.
+    pub fixes_gated: u32,
+    /// Fusion EKF re-localisations.
+    pub relocalisations: u32,
+    /// Fusion EKF heading resets to its guide observer.
+    pub heading_resets: u32,
 }
 
 impl TrackerReport {
@@ -212,6 +218,9 @@ impl TrackerReport {
             non_finite_commands: c.non_finite_commands,
             reference_standstill_ticks: c.reference_standstill_ticks,
             observer_rejected_updates,
+            fixes_gated: c.fixes_gated,
+            relocalisations: c.relocalisations,
+            heading_resets: c.heading_resets,
         }
     }
 }
@@ -1399,6 +1408,15 @@ impl SetupLabels {
                 }
                 (_, EstimatorChoice::PoseObserver(_), LawChoice::HeadingErrorSine(_)) => {
                     "output_feedback (pose observer, sin θe law)"
+                }
+                (_, EstimatorChoice::FusionEkf(_), LawChoice::Paper001) => {
+                    "output_feedback (fusion EKF, law 001)"
+                }
+                (_, EstimatorChoice::FusionEkf(_), LawChoice::Cascaded(_)) => {
+                    "output_feedback (fusion EKF, cascaded law)"
+                }
+                (_, EstimatorChoice::FusionEkf(_), LawChoice::HeadingErrorSine(_)) => {
+                    "output_feedback (fusion EKF, sin θe law)"
                 }
             },
             position_source: match setup.position {

@@ -271,6 +271,10 @@ pub enum ObserverKind {
     /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`, gains
     /// `pose_gains = [a1, a2, a3, a4]`.
     Pose,
+    /// The encoder + tag fusion EKF (`wmr_core::pose_ekf`), tuned by the
+    /// `fusion_*` keys; needs grid tags read nearest-first (`nearest_tag`,
+    /// or `reader` in `paper` mode) without added noise.
+    FusionEkf,
 }
 
 /// Heading observer parameters.
@@ -283,6 +287,16 @@ pub struct ObserverSpec {
     /// `[a1, a2]` (1/s), `[a3, a4]` (1/m²) of paper 002's (37).
     #[serde(default = "defaults::pose_gains")]
     pub pose_gains: [f64; 4],
+    /// Fusion EKF: each wheel's travel variance per metre driven, m²/m.
+    #[serde(default = "defaults::fusion_wheel_variance_per_m")]
+    pub fusion_wheel_variance_per_m: f64,
+    /// Fusion EKF: Mahalanobis gate, standard deviations.
+    #[serde(default = "defaults::fusion_gate_sigma")]
+    pub fusion_gate_sigma: f64,
+    /// Fusion EKF: prior variance of each wheel's scale error (0: the
+    /// wheels are taken as calibrated; 4e-4 learns them from a 2 % prior).
+    #[serde(default)]
+    pub fusion_scale_prior: f64,
     /// Observer gain `L`, 1/m.
     #[serde(default = "defaults::gain_per_m")]
     pub gain_per_m: f64,
@@ -296,6 +310,9 @@ impl Default for ObserverSpec {
         Self {
             kind: ObserverKind::default(),
             pose_gains: defaults::pose_gains(),
+            fusion_wheel_variance_per_m: defaults::fusion_wheel_variance_per_m(),
+            fusion_gate_sigma: defaults::fusion_gate_sigma(),
+            fusion_scale_prior: 0.0,
             gain_per_m: defaults::gain_per_m(),
             min_speed_m_s: defaults::min_speed_m_s(),
         }
@@ -548,6 +565,12 @@ mod defaults {
     pub fn gain_per_m() -> f64 {
         0.6
     }
+    pub fn fusion_wheel_variance_per_m() -> f64 {
+        1e-3
+    }
+    pub fn fusion_gate_sigma() -> f64 {
+        3.0
+    }
     pub fn min_speed_m_s() -> f64 {
         f64::from(wmr_core::heading_observer::HeadingObserverConfig::DEFAULT_MIN_SPEED_M_S)
     }
@@ -627,6 +650,10 @@ pub const EMBEDDED: &[(&str, &str)] = &[
     (
         "figure_eight_rfid_pose_observer",
         include_str!("../scenarios/figure_eight_rfid_pose_observer.toml"),
+    ),
+    (
+        "figure_eight_rfid_fusion_ekf",
+        include_str!("../scenarios/figure_eight_rfid_fusion_ekf.toml"),
     ),
     (
         "figure_eight_exact",
@@ -768,6 +795,7 @@ fn spec_refusal(e: SpecError) -> ScenarioError {
         SpecError::Drive(_) => "drive",
         SpecError::TagGrid(_) => "position",
         SpecError::PoseObserver(_) => "observer.pose_gains",
+        SpecError::FusionEkf(_) => "observer",
         SpecError::CascadedLaw(_) | SpecError::HeadingErrorSineLaw(_) => "controller",
     };
     ScenarioError::invalid(field, format!("refused by the core: {e:?}"))
@@ -794,11 +822,89 @@ impl Scenario {
                     ],
                 })
             }
+            (ObserverKind::FusionEkf, ControllerKind::OutputFeedback) => self.fusion_spec(),
+            (ObserverKind::FusionEkf, ControllerKind::StateFeedback) => {
+                Err(ScenarioError::invalid(
+                    "observer.kind",
+                    "state feedback measures the heading: no estimator runs",
+                ))
+            }
             (ObserverKind::Pose, ControllerKind::StateFeedback) => Err(ScenarioError::invalid(
                 "observer.kind",
                 "state feedback measures the heading: no observer runs",
             )),
         }
+    }
+
+    /// The fusion EKF's spec: its tag model needs a grid read nearest-first
+    /// without added noise; the wheel geometry comes from the plant.
+    fn fusion_spec(&self) -> Result<EstimatorSpec, ScenarioError> {
+        let spacing_m = match self.position {
+            PositionSpec::NearestTag { spacing_m, .. } => spacing_m,
+            PositionSpec::Reader {
+                spacing_m,
+                mode: ReaderModeSpec::Paper,
+                ..
+            } => spacing_m,
+            PositionSpec::Reader { .. } => {
+                return Err(ScenarioError::invalid(
+                    "observer.kind",
+                    "the fusion EKF models nearest-tag reads; range mode is not supported yet",
+                ));
+            }
+            PositionSpec::Exact => {
+                return Err(ScenarioError::invalid(
+                    "observer.kind",
+                    "the fusion EKF models tag reads: use position nearest_tag or reader",
+                ));
+            }
+        };
+        if self.measurement.noise_std_m > 0.0 {
+            return Err(ScenarioError::invalid(
+                "measurement.noise_std_m",
+                "the fusion EKF's tag model needs fixes on the tag grid (no added noise)",
+            ));
+        }
+        let (track_width_m, floor_m2) = match self.plant {
+            PlantSpec::DiffDrive {
+                wheel_radius_m,
+                track_width_m,
+                encoder_counts_per_rev,
+                ..
+            } => {
+                let quantum = wheel_radius_m * std::f64::consts::TAU
+                    / f64::from(encoder_counts_per_rev.max(1));
+                (track_width_m, quantum * quantum / 12.0)
+            }
+            // The unicycle's odometry is exact: only the noise model's
+            // geometry matters, taken as the default robot's.
+            PlantSpec::Unicycle => (defaults::track_width_m(), 1e-9),
+        };
+        let o = &self.observer;
+        let non_negative = |field: &'static str, v: f64| {
+            if v.is_finite() && v >= 0.0 {
+                Ok(v)
+            } else {
+                Err(ScenarioError::invalid(
+                    field,
+                    format!("must be ≥ 0 (got {v})"),
+                ))
+            }
+        };
+        Ok(EstimatorSpec::FusionEkf {
+            track_width_m: f(track_width_m),
+            wheel_variance_per_m: f(non_negative(
+                "observer.fusion_wheel_variance_per_m",
+                o.fusion_wheel_variance_per_m,
+            )?),
+            wheel_variance_floor_m2: f(floor_m2),
+            gate_sigma: f(positive("observer.fusion_gate_sigma", o.fusion_gate_sigma)?),
+            tag_spacing_m: f(spacing_m),
+            scale_prior: f(non_negative(
+                "observer.fusion_scale_prior",
+                o.fusion_scale_prior,
+            )?),
+        })
     }
 
     /// The core's law choice; paper 002's only with output feedback.
@@ -1337,7 +1443,7 @@ mod tests {
 
     #[test]
     fn embedded_scenarios_parse_and_validate() {
-        assert_eq!(EMBEDDED.len(), 5);
+        assert_eq!(EMBEDDED.len(), 6);
         for (name, text) in EMBEDDED {
             let s = Scenario::from_toml_str(text).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert_eq!(&s.name, name);
