@@ -9,10 +9,10 @@
 //! * estimator: [`TrackerConfig::with_pose_observer`], the observer of
 //!   `x, y, cos θ, sin θ` (paper 002, Proposition 4, [`PoseObserver`]),
 //!   fed the position (fix or dead-reckoned) instead of its change;
-//! * estimator: [`TrackerConfig::with_fusion_ekf`], the encoder + tag
-//!   fusion EKF ([`crate::pose_ekf`]), which predicts with the odometry and
-//!   corrects with the fixes itself: its pose is the law's position and
-//!   heading, between fixes too;
+//! * estimator: `TrackerConfig::with_fusion_ekf` (cargo feature
+//!   `fusion-ekf`), the encoder + tag fusion EKF ([`crate::pose_ekf`]),
+//!   which predicts with the odometry and corrects with the fixes itself:
+//!   its pose is the law's position and heading, between fixes too;
 //! * law: [`TrackerConfig::with_cascaded_law`], the cascaded controller
 //!   (31), or [`TrackerConfig::with_heading_error_sine_law`], the observer
 //!   of `sin θ_e` and controller (64) of Proposition 7. Both use the robot-
@@ -62,6 +62,7 @@ use crate::heading_observer::{
 };
 use crate::math;
 use crate::odometry::OdometryStep;
+#[cfg(feature = "fusion-ekf")]
 use crate::pose_ekf::{FusionEstimator, FusionSettings};
 use crate::pose_observer::{PoseEstimate, PoseObserver, PoseObserverConfig};
 use crate::reference::{ReferenceError, ReferenceSample, TickClock, Trajectory};
@@ -123,7 +124,9 @@ pub enum EstimatorChoice {
     /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`.
     PoseObserver(PoseObserverConfig),
     /// The encoder + tag fusion EKF ([`crate::pose_ekf`]): its pose
-    /// replaces both the position and the heading estimate.
+    /// replaces both the position and the heading estimate (cargo feature
+    /// `fusion-ekf`).
+    #[cfg(feature = "fusion-ekf")]
     FusionEkf(FusionSettings),
 }
 
@@ -195,6 +198,7 @@ impl TrackerConfig {
     /// Runs the encoder + tag fusion EKF instead of observer (5): the law
     /// gets the filter's position and heading, between fixes as well (no
     /// separate dead reckoning).
+    #[cfg(feature = "fusion-ekf")]
     #[must_use]
     pub fn with_fusion_ekf(mut self, settings: FusionSettings) -> Self {
         self.estimator = EstimatorChoice::FusionEkf(settings);
@@ -401,6 +405,7 @@ impl OutputFeedbackTracker {
                     },
                 ))
             }
+            #[cfg(feature = "fusion-ekf")]
             EstimatorChoice::FusionEkf(settings) => {
                 Estimator::Fusion(FusionEstimator::new(settings, observer))
             }
@@ -435,6 +440,7 @@ impl OutputFeedbackTracker {
     #[must_use]
     pub fn counters(&self) -> TrackerCounters {
         match &self.estimator {
+            #[cfg(feature = "fusion-ekf")]
             Estimator::Fusion(f) => {
                 let ekf = f.counters();
                 TrackerCounters {
@@ -466,6 +472,7 @@ impl OutputFeedbackTracker {
 
         let fix = fix.and_then(|f| self.accept(f));
         let previous = self.position;
+        #[cfg(feature = "fusion-ekf")]
         if let Estimator::Fusion(fusion) = &mut self.estimator {
             let after_gap = self.ticks_since_fix > 0;
             let pose = fusion.step(odometry, fix, after_gap);
@@ -623,12 +630,13 @@ impl OutputFeedbackTracker {
 /// The running heading estimator.
 // No heap to box the filter into: the tracker holds its estimator inline,
 // and the largest (the fusion EKF, ~250 B) sets the size.
-#[allow(clippy::large_enum_variant)]
+#[cfg_attr(feature = "fusion-ekf", allow(clippy::large_enum_variant))]
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 enum Estimator {
     Paper001(HeadingObserver),
     Pose(PoseObserver),
+    #[cfg(feature = "fusion-ekf")]
     Fusion(FusionEstimator),
 }
 
@@ -637,6 +645,7 @@ impl Estimator {
         match self {
             Self::Paper001(o) => o.estimate(),
             Self::Pose(o) => o.estimate().heading(),
+            #[cfg(feature = "fusion-ekf")]
             Self::Fusion(f) => f.filter().map_or(HeadingEstimate::default(), |ekf| {
                 let theta = ekf.pose().heading_rad;
                 HeadingEstimate {
@@ -660,6 +669,7 @@ impl Estimator {
             Self::Paper001(o) => o.update(body, now - previous),
             Self::Pose(o) => o.update(body, now),
             // Stepped on its own in `step`.
+            #[cfg(feature = "fusion-ekf")]
             Self::Fusion(_) => {}
         }
     }
@@ -668,6 +678,7 @@ impl Estimator {
         match self {
             Self::Paper001(o) => o.rejected_updates(),
             Self::Pose(o) => o.rejected_updates(),
+            #[cfg(feature = "fusion-ekf")]
             Self::Fusion(f) => {
                 let c = f.counters();
                 c.rejected_predictions.saturating_add(c.fixes_invalid)
@@ -890,6 +901,7 @@ mod tests {
     /// at 0.5 rad to the grid and follows it within a few millimetres.
     /// (Along a row of tags the lateral error goes unseen within the cell:
     /// 2.4 cm on the line `y = 0`.)
+    #[cfg(feature = "fusion-ekf")]
     #[test]
     fn fusion_ekf_estimator_tracks_a_line_from_tag_fixes() {
         use crate::pose_ekf::{FusionSettings, PoseEkfConfig};

@@ -751,7 +751,7 @@ impl TagCellTracker {
 }
 
 /// Validated settings of the tracker's fusion estimator
-/// ([`crate::output_feedback::TrackerConfig::with_fusion_ekf`]).
+/// (`TrackerConfig::with_fusion_ekf`, cargo feature `fusion-ekf`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FusionSettings {

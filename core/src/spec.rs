@@ -20,7 +20,9 @@ use crate::geometry::{DiffDriveGeometry, GeometryError, Vec2};
 use crate::heading_observer::{HeadingObserverConfig, ObserverConfigError};
 use crate::output_feedback::{TrackerConfig, TrackerConfigError};
 use crate::pilot::{PilotConfig, PilotConfigError};
-use crate::pose_ekf::{FusionSettings, PoseEkfConfig, PoseEkfError};
+use crate::pose_ekf::PoseEkfError;
+#[cfg(feature = "fusion-ekf")]
+use crate::pose_ekf::{FusionSettings, PoseEkfConfig};
 use crate::pose_observer::{PoseObserverConfig, PoseObserverConfigError};
 use crate::reference::{Circle, FigureEight, ReferenceError, StraightLine, Trajectory};
 use crate::robot_frame::{CascadedGains, CascadedGainsError};
@@ -52,6 +54,9 @@ pub enum SpecError {
     PoseObserver(PoseObserverConfigError),
     /// The fusion EKF.
     FusionEkf(PoseEkfError),
+    /// A part this build of the core was compiled without (the fusion EKF
+    /// needs the cargo feature `fusion-ekf`).
+    NotInThisBuild,
     /// Paper 002's cascaded controller (31).
     CascadedLaw(CascadedGainsError),
     /// Paper 002's Proposition 7 observer and controller.
@@ -232,6 +237,7 @@ impl TrackerSpec {
                     .with_pose_observer(pose)
                     .map_err(SpecError::Tracker)?;
             }
+            #[cfg(feature = "fusion-ekf")]
             EstimatorSpec::FusionEkf {
                 track_width_m,
                 wheel_variance_per_m,
@@ -250,6 +256,8 @@ impl TrackerSpec {
                 .map_err(SpecError::FusionEkf)?;
                 config = config.with_fusion_ekf(settings);
             }
+            #[cfg(not(feature = "fusion-ekf"))]
+            EstimatorSpec::FusionEkf { .. } => return Err(SpecError::NotInThisBuild),
         }
         match self.law {
             LawSpec::Paper001 => {}
@@ -489,12 +497,12 @@ mod tests {
             tag_spacing_m: 0.0,
             scale_prior: 0.0,
         };
-        assert_eq!(
-            s.build(),
-            Err(SpecError::FusionEkf(
-                crate::pose_ekf::PoseEkfError::TagSpacing
-            ))
-        );
+        let expected = if cfg!(feature = "fusion-ekf") {
+            SpecError::FusionEkf(crate::pose_ekf::PoseEkfError::TagSpacing)
+        } else {
+            SpecError::NotInThisBuild
+        };
+        assert_eq!(s.build(), Err(expected));
         let mut s = paper_spec();
         s.encoder_bits = 33;
         assert_eq!(

@@ -795,7 +795,7 @@ fn spec_refusal(e: SpecError) -> ScenarioError {
         SpecError::Drive(_) => "drive",
         SpecError::TagGrid(_) => "position",
         SpecError::PoseObserver(_) => "observer.pose_gains",
-        SpecError::FusionEkf(_) => "observer",
+        SpecError::FusionEkf(_) | SpecError::NotInThisBuild => "observer",
         SpecError::CascadedLaw(_) | SpecError::HeadingErrorSineLaw(_) => "controller",
     };
     ScenarioError::invalid(field, format!("refused by the core: {e:?}"))
