@@ -45,6 +45,32 @@ pub fn paper_pilot() -> Pilot {
     Pilot::new(PilotConfig::new(tracker, drive, 16).expect("valid pilot")).expect("valid pilot")
 }
 
+/// Runs an embedded scenario of the simulator after `edit` changes it,
+/// going through the scenario file form (serialise, parse, validate) as a
+/// user's edited file would; prints and returns the run's summary.
+///
+/// # Panics
+/// If the scenario is unknown, the edited scenario does not validate, or
+/// the run fails.
+#[must_use]
+pub fn run_scenario_variant(
+    name: &str,
+    edit: impl FnOnce(&mut firmware_sim::Scenario),
+) -> firmware_sim::run::Summary {
+    let mut scenario = firmware_sim::Scenario::embedded(name).expect("embedded scenario");
+    edit(&mut scenario);
+    let toml = scenario.to_toml_string().expect("serializable");
+    let scenario = firmware_sim::Scenario::from_toml_str(&toml).expect("the file form validates");
+    let s = firmware_sim::run(&scenario, |_, _| {})
+        .expect("runs")
+        .summary;
+    println!(
+        "{name}, {}: after {} s max {:.4} m, mean {:.4} m, RMS {:.4} m",
+        s.controller, s.transient_s, s.max_error_m, s.mean_error_m, s.rms_error_m
+    );
+    s
+}
+
 /// Heading of the reference's velocity, `θ_r = atan2(ẏ_r, ẋ_r)` (paper 001, (52)).
 #[must_use]
 pub fn reference_heading(r: &ReferenceSample) -> f32 {

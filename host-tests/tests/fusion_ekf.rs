@@ -70,21 +70,14 @@ fn learning_the_wheel_scales_removes_the_radius_error() {
 #[test]
 fn fusion_ekf_from_a_scenario_file_through_the_simulator_and_the_pilot() {
     use firmware_sim::scenario::ObserverKind;
-    use firmware_sim::{Scenario, run};
     // Measured: 0.0047 / 0.0005 m (unicycle), 0.0051 / 0.0016 m (stack).
     for (name, max_bound, mean_bound) in [
         ("figure_eight_rfid_fusion_ekf", 0.01, 0.001),
         ("figure_eight_rfid_full_stack", 0.01, 0.003),
     ] {
-        let mut scenario = Scenario::embedded(name).expect("embedded scenario");
-        scenario.observer.kind = ObserverKind::FusionEkf;
-        let toml = scenario.to_toml_string().expect("serializable");
-        let scenario = Scenario::from_toml_str(&toml).expect("the file form validates");
-        let s = run(&scenario, |_, _| {}).expect("runs").summary;
-        println!(
-            "{name}, {}: after {} s max {:.4} m, mean {:.4} m, RMS {:.4} m",
-            s.controller, s.transient_s, s.max_error_m, s.mean_error_m, s.rms_error_m
-        );
+        let s = host_tests::run_scenario_variant(name, |scenario| {
+            scenario.observer.kind = ObserverKind::FusionEkf;
+        });
         assert_eq!(s.non_finite_ticks, 0);
         assert!(
             s.max_error_m < max_bound && s.mean_error_m < mean_bound,

@@ -201,7 +201,6 @@ fn figure_eight_position_only_pairings() {
 #[test]
 fn pairings_selected_in_a_scenario_file_run_in_the_simulator_and_the_pilot() {
     use firmware_sim::scenario::{LawKind, ObserverKind};
-    use firmware_sim::{Scenario, run};
     let cases = [
         (ObserverKind::Paper001, LawKind::Paper001, 0.03, 0.005),
         // Measured (unicycle / full stack): 0.0432 / 0.0067 m, 0.0431 / 0.0073 m.
@@ -215,16 +214,10 @@ fn pairings_selected_in_a_scenario_file_run_in_the_simulator_and_the_pilot() {
     ];
     for name in ["figure_eight_rfid", "figure_eight_rfid_full_stack"] {
         for (observer, law, max_bound, mean_bound) in cases {
-            let mut scenario = Scenario::embedded(name).expect("embedded scenario");
-            scenario.observer.kind = observer;
-            scenario.controller.law = law;
-            let toml = scenario.to_toml_string().expect("serializable");
-            let scenario = Scenario::from_toml_str(&toml).expect("the file form validates");
-            let s = run(&scenario, |_, _| {}).expect("runs").summary;
-            println!(
-                "{name}, {}: after {} s max {:.4} m, mean {:.4} m, RMS {:.4} m",
-                s.controller, s.transient_s, s.max_error_m, s.mean_error_m, s.rms_error_m
-            );
+            let s = host_tests::run_scenario_variant(name, |scenario| {
+                scenario.observer.kind = observer;
+                scenario.controller.law = law;
+            });
             assert_eq!(s.non_finite_ticks, 0);
             assert!(
                 s.max_error_m < max_bound && s.mean_error_m < mean_bound,
