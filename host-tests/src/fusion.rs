@@ -16,7 +16,9 @@ use wmr_core::reference::{FigureEight, Trajectory};
 use wmr_core::tracking::{TrackingController, TrackingGains};
 
 use crate::paper_002::Series;
-use crate::paper_002::unicycle::{ErrorAccumulator, ErrorStats, Pose64};
+use crate::paper_002::unicycle::{
+    ErrorAccumulator, ErrorStats, PAPER_001_START, TAG_SPACING_M, TrackingRecorder, nearest_tag,
+};
 
 /// Wheel radius of the simulated robot, m.
 pub const WHEEL_RADIUS_M: f64 = 0.03;
@@ -124,7 +126,7 @@ pub fn figure_eight_run(
 ) -> FusionRun {
     let h = 0.01_f64;
     let hf = h as f32;
-    let spacing = 0.1_f64;
+    let spacing = TAG_SPACING_M;
     let trajectory: Trajectory = FigureEight::paper_001().into();
     let geometry =
         DiffDriveGeometry::new(WHEEL_RADIUS_M as f32, TRACK_WIDTH_M as f32, COUNTS_PER_REV)
@@ -137,17 +139,8 @@ pub fn figure_eight_run(
         3.0,
     )
     .expect("valid filter");
-    let tag = |p: &Pose64| {
-        Vec2::new(
-            ((p.x / spacing).round() * spacing) as f32,
-            ((p.y / spacing).round() * spacing) as f32,
-        )
-    };
-    let mut robot = Pose64 {
-        x: 0.0,
-        y: -6.0,
-        theta: 1.5 * std::f64::consts::PI,
-    };
+    let tag = nearest_tag;
+    let mut robot = PAPER_001_START;
     let first = tag(&robot);
     let cell = (spacing * spacing / 12.0) as f32;
     let mut ekf = PoseEkf::new(
@@ -182,13 +175,12 @@ pub fn figure_eight_run(
     let (mut wheel_right, mut wheel_left) = (0.0_f64, 0.0_f64);
     let mut counts = (0_i64, 0_i64);
     let mut last_step = Vec2::ZERO;
-    let mut tracking = ErrorAccumulator::default();
-    let mut estimation = ErrorAccumulator::default();
-    let mut heading_error_max: f64 = 0.0;
-    let mut series = Series::new(match estimator {
+    let mut recorder = TrackingRecorder::new(match estimator {
         Estimator::FusionEkf => "fusion EKF + 001 law (14)",
         Estimator::Paper001 => "001 observer (5) + law (27)–(28)",
     });
+    let mut estimation = ErrorAccumulator::default();
+    let mut heading_error_max: f64 = 0.0;
     for k in 0..48_000u32 {
         let t = f64::from(k) * h;
         let sample = trajectory.sample(k as f32 * hf);
@@ -228,19 +220,14 @@ pub fn figure_eight_run(
                 (out.command, pose)
             }
         };
-        let error =
-            (robot.x - f64::from(sample.position.x)).hypot(robot.y - f64::from(sample.position.y));
+        recorder.record(k, t, &robot, sample.position);
         if t >= 100.0 {
-            tracking.add(error);
             estimation.add(
                 (robot.x - f64::from(estimate.position.x))
                     .hypot(robot.y - f64::from(estimate.position.y)),
             );
             let dth = (robot.theta - f64::from(estimate.heading_rad)).sin().asin();
             heading_error_max = heading_error_max.max(dth.abs());
-        }
-        if k % 50 == 0 {
-            series.points.push((t, error));
         }
         // The wheels turn as commanded (an ideal speed loop on the nominal
         // model); the ground moves by the true radii, plus slip.
@@ -284,8 +271,9 @@ pub fn figure_eight_run(
         last_step = Vec2::new(step.ds_m * heading.cos(), step.ds_m * heading.sin());
         ekf.predict(&step);
     }
+    let (tracking, series) = recorder.finish();
     FusionRun {
-        tracking: tracking.stats(),
+        tracking,
         estimation: estimation.stats(),
         heading_error_max_rad: heading_error_max,
         counters: ekf.counters(),

@@ -9,7 +9,7 @@
 //! The paper's figure 3(c) input `u1 = 1/√t` is singular at `t = 0`; the
 //! runs use `1/√(1+t)`, which has the same tail (`∫u1² = ∞`, not PE).
 
-use super::unicycle::{ErrorAccumulator, ErrorStats, Pose64};
+use super::unicycle::{ErrorStats, PAPER_001_START, TrackingRecorder, nearest_tag};
 use super::{Figure, Series};
 use wmr_core::chained_form::{
     ChainedGains, ChainedInput, ChainedObserver, ChainedObserverConfig, ChainedOutput,
@@ -255,39 +255,23 @@ pub fn closed_loop_run(which: ChainedLoop, u1r: InputProfile, duration_s: f64) -
 pub fn figure_eight_with_measured_heading(c3: f32, a1: f32) -> (ErrorStats, Series) {
     let h = 0.01_f64;
     let hf = h as f32;
-    let spacing = 0.1_f64;
     let trajectory: Trajectory = FigureEight::paper_001().into();
     let gains = ChainedGains::new(0.5, 0.5, c3).expect("positive gains");
     let mut tracker = ReducedOrderTracker::new(
         ReducedOrderConfig::new(gains, a1, hf).expect("positive gains"),
         0.0,
     );
-    let mut robot = Pose64 {
-        x: 0.0,
-        y: -6.0,
-        theta: 1.5 * std::f64::consts::PI,
-    };
+    let mut robot = PAPER_001_START;
     let mut applied = ChainedInput::STOP;
-    let mut stats = ErrorAccumulator::default();
-    let mut series = Series::new("002 Prop. 3 (25)–(26), θ measured");
+    let mut recorder = TrackingRecorder::new("002 Prop. 3 (25)–(26), θ measured");
     for k in 0..48_000u32 {
         let t = f64::from(k) * h;
         let sample = trajectory.sample(k as f32 * hf);
-        let distance =
-            (robot.x - f64::from(sample.position.x)).hypot(robot.y - f64::from(sample.position.y));
-        if t >= 100.0 {
-            stats.add(distance);
-        }
-        if k % 50 == 0 {
-            series.points.push((t, distance));
-        }
+        recorder.record(k, t, &robot, sample.position);
         let reference = UnicycleReference::from_sample(&sample).expect("moving reference");
         let reference = ChainedReference::from_unicycle(&reference);
-        let measured_pose = Pose::new(
-            ((robot.x / spacing).round() * spacing) as f32,
-            ((robot.y / spacing).round() * spacing) as f32,
-            robot.theta as f32,
-        );
+        let tag = nearest_tag(&robot);
+        let measured_pose = Pose::new(tag.x, tag.y, robot.theta as f32);
         let state = ChainedState::from_pose(measured_pose);
         let measured = ChainedOutput::of(state.error_from(reference.state));
         tracker.update(measured, applied, &reference);
@@ -296,7 +280,7 @@ pub fn figure_eight_with_measured_heading(c3: f32, a1: f32) -> (ErrorStats, Seri
         applied = command;
         robot = robot.advance(f64::from(body.v_m_s), f64::from(body.omega_rad_s), h);
     }
-    (stats.stats(), series)
+    recorder.finish()
 }
 
 /// Figure 2's cases: `(name, title, u1, a2, a3)`. The paper gives `u1` for

@@ -331,6 +331,64 @@ impl Pairing {
     }
 }
 
+/// Paper 001 §6.3.2's start: `(0, −6)`, heading 3π/2.
+pub const PAPER_001_START: Pose64 = Pose64 {
+    x: 0.0,
+    y: -6.0,
+    theta: 1.5 * std::f64::consts::PI,
+};
+
+/// Spacing of the tag grid in the figure-eight runs, m.
+pub const TAG_SPACING_M: f64 = 0.1;
+
+/// The nearest tag of the [`TAG_SPACING_M`] grid through the origin.
+#[must_use]
+pub fn nearest_tag(p: &Pose64) -> Vec2 {
+    let s = TAG_SPACING_M;
+    Vec2::new(
+        ((p.x / s).round() * s) as f32,
+        ((p.y / s).round() * s) as f32,
+    )
+}
+
+/// Records the tracking error `|p − p_r|` of a figure-eight run: its
+/// statistics over `t ≥ 100 s` and a series every 0.5 s (50 ticks).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackingRecorder {
+    stats: ErrorAccumulator,
+    series: Series,
+}
+
+impl TrackingRecorder {
+    /// An empty record whose series has this label.
+    #[must_use]
+    pub fn new(label: &str) -> Self {
+        Self {
+            stats: ErrorAccumulator::default(),
+            series: Series::new(label),
+        }
+    }
+
+    /// Records tick `k` at time `t` (s): the robot against the reference
+    /// position; returns the error, m.
+    pub fn record(&mut self, k: u32, t: f64, robot: &Pose64, reference: Vec2) -> f64 {
+        let error = (robot.x - f64::from(reference.x)).hypot(robot.y - f64::from(reference.y));
+        if t >= 100.0 {
+            self.stats.add(error);
+        }
+        if k.is_multiple_of(50) {
+            self.series.points.push((t, error));
+        }
+        error
+    }
+
+    /// The statistics and the series.
+    #[must_use]
+    pub fn finish(self) -> (ErrorStats, Series) {
+        (self.stats.stats(), self.series)
+    }
+}
+
 /// Accumulates a run's position errors into [`ErrorStats`].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ErrorAccumulator {
@@ -386,19 +444,9 @@ pub struct ErrorStats {
 pub fn figure_eight_comparison(pairing: Pairing) -> (ErrorStats, Series) {
     let h = 0.01_f64;
     let hf = h as f32;
-    let spacing = 0.1_f64;
     let trajectory: Trajectory = FigureEight::paper_001().into();
-    let tag = |p: Pose64| {
-        Vec2::new(
-            ((p.x / spacing).round() * spacing) as f32,
-            ((p.y / spacing).round() * spacing) as f32,
-        )
-    };
-    let mut robot = Pose64 {
-        x: 0.0,
-        y: -6.0,
-        theta: 1.5 * std::f64::consts::PI,
-    };
+    let tag = |p: Pose64| nearest_tag(&p);
+    let mut robot = PAPER_001_START;
     let gains = TrackingGains::new(0.11, 0.11, 0.1).expect("paper gains");
     let observer_cfg = HeadingObserverConfig::new(0.6, hf).expect("paper gain");
     let tracker_cfg = TrackerConfig::new(observer_cfg, gains, trajectory, 100).expect("tracker");
@@ -421,20 +469,12 @@ pub fn figure_eight_comparison(pairing: Pairing) -> (ErrorStats, Series) {
         0.0,
     );
     let mut applied = BodyVelocity::ZERO;
-    let mut stats = ErrorAccumulator::default();
-    let mut series = Series::new(pairing.label());
+    let mut recorder = TrackingRecorder::new(pairing.label());
     let steps = 48_000u32;
     for k in 0..steps {
         let t = f64::from(k) * h;
         let sample = trajectory.sample(k as f32 * hf);
-        let error =
-            (robot.x - f64::from(sample.position.x)).hypot(robot.y - f64::from(sample.position.y));
-        if t >= 100.0 {
-            stats.add(error);
-        }
-        if k % 50 == 0 {
-            series.points.push((t, error));
-        }
+        recorder.record(k, t, &robot, sample.position);
         let position = tag(robot);
         let command = match pairing {
             Pairing::Paper001 => {
@@ -490,7 +530,7 @@ pub fn figure_eight_comparison(pairing: Pairing) -> (ErrorStats, Series) {
         };
         robot = robot.advance(f64::from(applied.v_m_s), f64::from(applied.omega_rad_s), h);
     }
-    (stats.stats(), series)
+    recorder.finish()
 }
 
 /// The comparison as a markdown table, with the pairings that cannot run
