@@ -30,5 +30,6 @@ pub mod reference;
 pub mod robot;
 pub mod robot_frame;
 pub mod robot_frame_observers;
+pub mod scaled_momenta_observer;
 pub mod spec;
 pub mod tracking;

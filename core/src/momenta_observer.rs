@@ -117,6 +117,14 @@ pub enum MomentaObserverError {
     Lambda,
     /// Step `h` not finite and positive.
     Period,
+    /// `κ` (1/s, Proposition 2) not finite and positive.
+    Kappa,
+    /// The initial scaling factor `r(0)` of Proposition 2 is not finite
+    /// and at least 1.
+    Scaling,
+    /// The step is too long for the gains: Proposition 2 needs `h·ψ < 1`
+    /// with `ψ = 4(1 + κ)`.
+    StepTooLong,
     /// An adaptation gain `γ_r`, `γ_d` not finite and positive.
     AdaptationGain,
     /// An unknown-friction coordinate index is `≥ N`.

@@ -1,6 +1,7 @@
 //! Regenerates the plots of paper 003's simulations (PNG): the spider
-//! crane's errors (figures 3–7 of the paper) and the robot's wheel speeds
-//! and load torques from encoder angles:
+//! crane's errors (figures 3–7 of the paper), Proposition 2's observer with
+//! dynamic scaling on the same crane, and the robot's wheel speeds and load
+//! torques from encoder angles:
 //!
 //! ```sh
 //! cargo run --release -p host-tests --example paper_003_figures -- [OUT_DIR]
@@ -12,6 +13,7 @@
 use std::path::PathBuf;
 
 use host_tests::paper_002::Series;
+use host_tests::paper_003::scaled::{ScaledCraneRun, scaled_crane_run};
 use host_tests::paper_003::{CraneRun, WHEEL_GAINS, crane_run, wheel_run};
 
 #[path = "common/plot.rs"]
@@ -69,6 +71,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "Fig. 7: d1 stepping every 30 s and its estimate (N)",
         &[&step.d1, &step.d1_hat],
         false,
+    );
+    let scaled = scaled_crane_run(&ScaledCraneRun {
+        kappa: 1.0,
+        disturbance_gain: 1.0,
+        momenta_0: [2.0, -1.0, 1.0],
+        disturbance_0: [1.0, -1.0, 0.5],
+        scaling_0: 5.0,
+        period_s: 1e-3,
+        duration_s: 60.0,
+    });
+    let mut scaling_excess = scaled.scaling.clone();
+    scaling_excess.label = "r − 1".to_string();
+    for point in &mut scaling_excess.points {
+        point.1 -= 1.0;
+    }
+    save(
+        "prop2_crane_errors",
+        "Prop. 2 (dynamic scaling), Cholesky factor, κ = 1, r(0) = 5: |p̃|, |d̃|, r − 1",
+        &[&scaled.momenta, &scaled.disturbance, &scaling_excess],
+        true,
     );
     let wheels = wheel_run(WHEEL_GAINS, 120.0, 60.0);
     let [truth, observer, differencing] = &wheels.speeds;

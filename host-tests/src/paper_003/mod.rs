@@ -8,6 +8,8 @@
 //! * [`wheel_run`]: the differential drive in its wheel angles with
 //!   1024-count encoders at the control rate: the observer's wheel speeds
 //!   against differencing the counts, load torque and friction estimates.
+//! * [`scaled`]: Proposition 2 (dynamic scaling) on the same crane with
+//!   the Cholesky factor of its inverse inertia.
 
 use nalgebra::{Matrix3, Vector3};
 use wmr_core::momenta_observer::{
@@ -15,6 +17,8 @@ use wmr_core::momenta_observer::{
 };
 
 use crate::paper_002::Series;
+
+pub mod scaled;
 
 /// The 2-D spider crane gantry cart of section 6.3: a ring of mass `m_r`
 /// at `(q1, q2)` and a payload of mass `m` on a cable of length `L3` at
@@ -42,7 +46,7 @@ impl SpiderCrane {
     };
 
     /// `(a, b, c)` of (53).
-    fn constants(&self) -> (f64, f64, f64) {
+    pub(crate) fn constants(&self) -> (f64, f64, f64) {
         let (mr, m, l) = (self.ring_mass, self.payload_mass, self.cable_length);
         let a = 1.0 / (mr + m).sqrt();
         let c = ((mr + m) / (m * l * l * mr)).sqrt();
@@ -90,7 +94,7 @@ impl SpiderCrane {
 
     /// The plant's acceleration from the Lagrangian, independent of (53):
     /// `M q̈ = F + d − ℜ q̇ − (−m L3 sin q3 q̇3², m L3 cos q3 q̇3², 0)`.
-    fn acceleration(
+    pub(crate) fn acceleration(
         &self,
         q: &Vector3<f64>,
         qd: &Vector3<f64>,
@@ -291,7 +295,7 @@ pub fn crane_run(run: &CraneRun) -> CraneErrors {
     out
 }
 
-fn rk4(
+pub(crate) fn rk4(
     crane: &SpiderCrane,
     q: &Vector3<f64>,
     qd: &Vector3<f64>,
