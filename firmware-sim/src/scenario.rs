@@ -27,7 +27,7 @@ use wmr_core::spec::{
 use wmr_core::tracking::TrackingGains;
 
 use crate::devices::{LinkFaults, ReaderConfig, ReaderMode};
-use crate::plant::{DiffDriveParams, PlantPose};
+use crate::plant::{DiffDriveParams, LoadTorque, PlantPose, WheelDynamics};
 use crate::sweep::{SweepPlan, SweepSpec};
 use crate::tags::FloorTags;
 
@@ -320,8 +320,18 @@ impl Default for ObserverSpec {
 }
 
 /// The simulated robot body.
+///
+/// (De)serialized by hand around the derived code (`remote = "Self"`
+/// makes the derives inherent `PlantSpec::serialize`/`deserialize`): serde
+/// ignores keys beside a unit variant's tag, so a `[plant.dynamics]` table
+/// under `kind = "unicycle"` would otherwise vanish silently.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+#[serde(
+    remote = "Self",
+    tag = "kind",
+    rename_all = "snake_case",
+    deny_unknown_fields
+)]
 pub enum PlantSpec {
     /// Paper 001's kinematic unicycle (1): commands are velocities. The
     /// core's tracker (or controller) is called directly.
@@ -354,7 +364,115 @@ pub enum PlantSpec {
         /// RK4 substeps per control period.
         #[serde(default = "defaults::substeps")]
         substeps: u32,
+        /// Rigid-body wheel dynamics (`[plant.dynamics]`); absent: each
+        /// wheel is the first-order system of `motor_time_constant_s`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        dynamics: Option<DynamicsSpec>,
     },
+}
+
+impl Serialize for PlantSpec {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        // The derived serializer (inherent, from `remote = "Self"`).
+        PlantSpec::serialize(self, serializer)
+    }
+}
+
+impl<'de> Deserialize<'de> for PlantSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error as _;
+        let table = toml::Table::deserialize(deserializer)?;
+        if table.get("kind").and_then(toml::Value::as_str) == Some("unicycle")
+            && table.contains_key("dynamics")
+        {
+            return Err(D::Error::custom(
+                "`plant.dynamics` is only used with kind = \"diff_drive\" (the unicycle's \
+                 commands are its velocities); remove the [plant.dynamics] table",
+            ));
+        }
+        // The derived deserializer (inherent, from `remote = "Self"`); its
+        // error's text ends in a newline the outer error adds again.
+        PlantSpec::deserialize(toml::Value::Table(table))
+            .map_err(|e| D::Error::custom(e.to_string().trim_end()))
+    }
+}
+
+/// Rigid-body wheel dynamics of the `diff_drive` plant, the
+/// `[plant.dynamics]` table (see [`WheelDynamics`]): the wheels carry the
+/// robot's mass and yaw inertia, each motor gives `stall_torque_nm` at
+/// full duty and zero speed less its back-EMF (no-load speed
+/// `plant.wheel_speed_at_full_duty_rad_s`), and a slope load may start at
+/// `load_start_s`. `plant.motor_time_constant_s` is then unused.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DynamicsSpec {
+    /// Robot mass, kg.
+    pub mass_kg: f64,
+    /// Yaw inertia about the axle midpoint, kg m².
+    pub yaw_inertia_kg_m2: f64,
+    /// Each wheel's inertia with its motor and gearbox reflected to the
+    /// wheel, kg m².
+    #[serde(default)]
+    pub wheel_inertia_kg_m2: f64,
+    /// Viscous friction of each wheel's drive train, N·m·s/rad.
+    #[serde(default)]
+    pub viscous_friction_nm_s_per_rad: f64,
+    /// Motor torque at the wheel at full duty and zero speed, N·m.
+    pub stall_torque_nm: f64,
+    /// When the robot starts onto the slope, s of scenario time.
+    #[serde(default)]
+    pub load_start_s: f64,
+    /// Time the slope angle takes to reach its final value (linear in the
+    /// angle), s; 0 = step.
+    #[serde(default)]
+    pub load_ramp_s: f64,
+    /// Final grade driven uphill, percent (rise per 100 of run; negative:
+    /// downhill; 0: no load).
+    #[serde(default)]
+    pub load_grade_percent: f64,
+}
+
+impl DynamicsSpec {
+    /// The plant's wheel dynamics, checked key by key.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] naming the first bad
+    /// `plant.dynamics.*` key.
+    pub fn build(&self) -> Result<WheelDynamics, ScenarioError> {
+        let mass_kg = positive("plant.dynamics.mass_kg", self.mass_kg)?;
+        let yaw_inertia_kg_m2 =
+            positive("plant.dynamics.yaw_inertia_kg_m2", self.yaw_inertia_kg_m2)?;
+        let wheel_inertia_kg_m2 = non_negative(
+            "plant.dynamics.wheel_inertia_kg_m2",
+            self.wheel_inertia_kg_m2,
+        )?;
+        let viscous_friction_nm_s_per_rad = non_negative(
+            "plant.dynamics.viscous_friction_nm_s_per_rad",
+            self.viscous_friction_nm_s_per_rad,
+        )?;
+        let stall_torque_nm = positive("plant.dynamics.stall_torque_nm", self.stall_torque_nm)?;
+        let start_s = non_negative("plant.dynamics.load_start_s", self.load_start_s)?;
+        let ramp_s = non_negative("plant.dynamics.load_ramp_s", self.load_ramp_s)?;
+        let grade_percent = self.load_grade_percent;
+        if !(grade_percent > -100.0 && grade_percent < 100.0) {
+            return Err(ScenarioError::invalid(
+                "plant.dynamics.load_grade_percent",
+                format!("must be in (−100, 100) (got {grade_percent})"),
+            ));
+        }
+        Ok(WheelDynamics {
+            mass_kg,
+            yaw_inertia_kg_m2,
+            wheel_inertia_kg_m2,
+            viscous_friction_nm_s_per_rad,
+            stall_torque_nm,
+            load: LoadTorque {
+                start_s,
+                ramp_s,
+                grade_percent,
+            },
+        })
+    }
 }
 
 /// Drive limits and per-wheel speed loops (`diff_drive` plant only).
@@ -1168,6 +1286,7 @@ impl Scenario {
                 encoder_bits,
                 pwm_max_duty,
                 substeps,
+                dynamics,
             } => {
                 let params = DiffDriveParams {
                     wheel_radius_m: positive("plant.wheel_radius_m", wheel_radius_m)?,
@@ -1181,6 +1300,7 @@ impl Scenario {
                         wheel_speed_at_full_duty_rad_s,
                     )?,
                     substeps,
+                    dynamics: dynamics.as_ref().map(DynamicsSpec::build).transpose()?,
                 };
                 if substeps == 0 {
                     return Err(ScenarioError::invalid("plant.substeps", "must be ≥ 1"));
@@ -1574,6 +1694,146 @@ mod tests {
             "kind = \"figure_eight\"\nh2_rad_s = -0.1",
         ));
         assert_eq!(e.field(), Some("reference.h2_rad_s"));
+    }
+
+    const DIFF_DRIVE: &str = "[plant]\nkind = \"diff_drive\"\n";
+    const DYNAMICS: &str = "[plant.dynamics]\nmass_kg = 4.0\nyaw_inertia_kg_m2 = 0.08\n\
+                            stall_torque_nm = 0.6\n";
+
+    fn dynamics_of(setup: &Setup) -> Option<WheelDynamics> {
+        match setup.plant {
+            PlantSetup::DiffDrive { params, .. } => params.dynamics,
+            PlantSetup::Unicycle => panic!("diff_drive expected"),
+        }
+    }
+
+    #[test]
+    fn plant_dynamics_table_gives_the_wheel_dynamics() {
+        // Absent: the first-order wheels, as before.
+        let s = Scenario::from_toml_str(&format!("{MINIMAL}\n{DIFF_DRIVE}")).unwrap();
+        assert_eq!(dynamics_of(&s.validate().unwrap()), None);
+        let full = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+        assert_eq!(dynamics_of(&full.validate().unwrap()), None);
+        assert!(!full.to_toml_string().unwrap().contains("dynamics"));
+
+        // The required keys only: the others default to 0 (no load).
+        let s = Scenario::from_toml_str(&format!("{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}")).unwrap();
+        let expected = WheelDynamics {
+            mass_kg: 4.0,
+            yaw_inertia_kg_m2: 0.08,
+            wheel_inertia_kg_m2: 0.0,
+            viscous_friction_nm_s_per_rad: 0.0,
+            stall_torque_nm: 0.6,
+            load: LoadTorque::NONE,
+        };
+        assert_eq!(dynamics_of(&s.validate().unwrap()), Some(expected));
+
+        // Every key.
+        let text = format!(
+            "{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}wheel_inertia_kg_m2 = 2e-4\n\
+             viscous_friction_nm_s_per_rad = 0.01\nload_start_s = 30.0\nload_ramp_s = 2.5\n\
+             load_grade_percent = -5.0\n"
+        );
+        let s = Scenario::from_toml_str(&text).unwrap();
+        let setup = s.validate().unwrap();
+        assert_eq!(
+            dynamics_of(&setup),
+            Some(WheelDynamics {
+                wheel_inertia_kg_m2: 2e-4,
+                viscous_friction_nm_s_per_rad: 0.01,
+                load: LoadTorque {
+                    start_s: 30.0,
+                    ramp_s: 2.5,
+                    grade_percent: -5.0,
+                },
+                ..expected
+            })
+        );
+        // The rest of the plant is untouched.
+        let PlantSetup::DiffDrive { params, .. } = setup.plant else {
+            panic!("diff_drive expected");
+        };
+        assert_eq!(
+            DiffDriveParams {
+                dynamics: None,
+                ..params
+            },
+            DiffDriveParams::default()
+        );
+        // Round trip through TOML.
+        let again = Scenario::from_toml_str(&s.to_toml_string().unwrap()).unwrap();
+        assert_eq!(again, s);
+    }
+
+    #[test]
+    fn bad_plant_dynamics_keys_name_their_field() {
+        let cases = [
+            ("mass_kg = 0.0", "mass_kg"),
+            ("mass_kg = -4.0", "mass_kg"),
+            ("yaw_inertia_kg_m2 = 0.0", "yaw_inertia_kg_m2"),
+            ("yaw_inertia_kg_m2 = inf", "yaw_inertia_kg_m2"),
+            ("wheel_inertia_kg_m2 = -1e-4", "wheel_inertia_kg_m2"),
+            ("wheel_inertia_kg_m2 = nan", "wheel_inertia_kg_m2"),
+            (
+                "viscous_friction_nm_s_per_rad = -0.01",
+                "viscous_friction_nm_s_per_rad",
+            ),
+            ("stall_torque_nm = 0.0", "stall_torque_nm"),
+            ("stall_torque_nm = nan", "stall_torque_nm"),
+            ("load_start_s = -1.0", "load_start_s"),
+            ("load_ramp_s = -0.5", "load_ramp_s"),
+            ("load_ramp_s = inf", "load_ramp_s"),
+            ("load_grade_percent = 100.0", "load_grade_percent"),
+            ("load_grade_percent = -100.0", "load_grade_percent"),
+            ("load_grade_percent = nan", "load_grade_percent"),
+        ];
+        for (line, key) in cases {
+            // TOML refuses a key given twice: drop the table's own line.
+            let name = line.split(' ').next().unwrap();
+            let table: String = DYNAMICS
+                .lines()
+                .filter(|l| !l.starts_with(name))
+                .map(|l| format!("{l}\n"))
+                .collect();
+            let text = format!("{MINIMAL}\n{DIFF_DRIVE}{table}{line}\n");
+            let e = err_of(&text);
+            let field = format!("plant.dynamics.{key}");
+            assert_eq!(e.field(), Some(field.as_str()), "{line}: {e}");
+            assert!(e.to_string().contains(&field), "{e}");
+        }
+        // The extremes inside the range are accepted.
+        for grade in ["99.9", "-99.9"] {
+            let text = format!("{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}load_grade_percent = {grade}\n");
+            assert!(Scenario::from_toml_str(&text).is_ok(), "{grade}");
+        }
+    }
+
+    #[test]
+    fn plant_dynamics_table_is_refused_where_it_does_not_belong() {
+        // With the unicycle (explicit kind).
+        let text = format!("{MINIMAL}\n[plant]\nkind = \"unicycle\"\n{DYNAMICS}");
+        let e = err_of(&text);
+        assert!(matches!(e, ScenarioError::Parse(_)), "{e:?}");
+        assert!(e.to_string().contains("plant.dynamics"), "{e}");
+        assert!(e.to_string().contains("diff_drive"), "{e}");
+        // Without a plant kind.
+        let e = err_of(&format!("{MINIMAL}\n{DYNAMICS}")).to_string();
+        assert!(e.contains("kind"), "{e}");
+        // Unknown or missing keys in the table.
+        let e = err_of(&format!(
+            "{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}mass_g = 4000.0\n"
+        ))
+        .to_string();
+        assert!(e.contains("mass_g"), "{e}");
+        let e = err_of(&format!(
+            "{MINIMAL}\n{DIFF_DRIVE}[plant.dynamics]\nmass_kg = 4.0\nyaw_inertia_kg_m2 = 0.08\n"
+        ))
+        .to_string();
+        assert!(e.contains("stall_torque_nm"), "{e}");
+        // The unicycle still parses as before, with or without its table.
+        let s =
+            Scenario::from_toml_str(&format!("{MINIMAL}\n[plant]\nkind = \"unicycle\"\n")).unwrap();
+        assert_eq!(s.plant, PlantSpec::Unicycle);
     }
 
     #[test]
