@@ -17,6 +17,11 @@
 //!   with a feed-forward term, output clamped to [-1, 1], and conditional
 //!   integration as anti-windup (the integral does not grow while the output
 //!   is saturated in the direction of the error).
+//! * With the cargo feature `wheel-speed-observer` and
+//!   [`DriveConfig::with_speed_observer`], the speed loops run on the wheel
+//!   speeds of paper 003's momenta observer
+//!   ([`crate::wheel_speed_observer`]) instead of the counts differenced
+//!   over one tick; it also estimates each wheel's load torque and damping.
 
 use crate::geometry::{BodyVelocity, DiffDriveGeometry, WheelSpeeds};
 use crate::math;
@@ -66,6 +71,8 @@ pub struct DriveConfig {
     max_wheel_speed_rad_s: f32,
     max_wheel_accel_rad_s2: f32,
     speed_loop: SpeedLoopGains,
+    #[cfg(feature = "wheel-speed-observer")]
+    speed_observer: Option<crate::wheel_speed_observer::WheelSpeedObserverConfig>,
 }
 
 impl DriveConfig {
@@ -98,7 +105,36 @@ impl DriveConfig {
             max_wheel_speed_rad_s,
             max_wheel_accel_rad_s2,
             speed_loop,
+            #[cfg(feature = "wheel-speed-observer")]
+            speed_observer: None,
         })
+    }
+
+    /// Runs the speed loops on the observer's wheel speeds (module docs).
+    ///
+    /// # Errors
+    /// [`DriveConfigError::Period`] if the observer's period is not the
+    /// drive's.
+    #[cfg(feature = "wheel-speed-observer")]
+    pub fn with_speed_observer(
+        self,
+        observer: crate::wheel_speed_observer::WheelSpeedObserverConfig,
+    ) -> Result<Self, DriveConfigError> {
+        let h = observer.period_s();
+        if (h - self.period_s).abs() > 1e-6 * self.period_s {
+            return Err(DriveConfigError::Period);
+        }
+        Ok(Self {
+            speed_observer: Some(observer),
+            ..self
+        })
+    }
+
+    /// The speed observer's configuration, if the speed loops use it.
+    #[cfg(feature = "wheel-speed-observer")]
+    #[must_use]
+    pub fn speed_observer(&self) -> Option<&crate::wheel_speed_observer::WheelSpeedObserverConfig> {
+        self.speed_observer.as_ref()
     }
 
     /// Robot geometry.
@@ -250,6 +286,8 @@ pub struct Drive {
     previous_targets: WheelSpeeds,
     left: WheelSpeedLoop,
     right: WheelSpeedLoop,
+    #[cfg(feature = "wheel-speed-observer")]
+    speed_observer: Option<crate::wheel_speed_observer::WheelSpeedObserver>,
 }
 
 impl Drive {
@@ -261,7 +299,18 @@ impl Drive {
             previous_targets: WheelSpeeds::ZERO,
             left: WheelSpeedLoop::default(),
             right: WheelSpeedLoop::default(),
+            #[cfg(feature = "wheel-speed-observer")]
+            speed_observer: config
+                .speed_observer
+                .map(crate::wheel_speed_observer::WheelSpeedObserver::new),
         }
+    }
+
+    /// The speed observer, if the speed loops use it.
+    #[cfg(feature = "wheel-speed-observer")]
+    #[must_use]
+    pub fn speed_observer(&self) -> Option<&crate::wheel_speed_observer::WheelSpeedObserver> {
+        self.speed_observer.as_ref()
     }
 
     /// The configuration.
@@ -271,8 +320,18 @@ impl Drive {
     }
 
     /// One step. `measured` are the wheel speeds over the last step (None
-    /// if an encoder failed this tick).
+    /// if an encoder failed this tick). With the speed observer, `measured
+    /// × h` are the tick's wheel-angle increments and the loops use the
+    /// observer's speeds.
     pub fn step(&mut self, command: BodyVelocity, measured: Option<WheelSpeeds>) -> DriveOutput {
+        #[cfg(feature = "wheel-speed-observer")]
+        let measured = match self.speed_observer.as_mut() {
+            Some(observer) => {
+                let h = self.config.period_s;
+                observer.measure(measured.map(|m| (m.left_rad_s * h, m.right_rad_s * h)))
+            }
+            None => measured,
+        };
         let c = &self.config;
         let wanted = c.geometry.wheels_from_body(command);
         let (limited, speed_limited) = limit_wheel_speeds(wanted, c.max_wheel_speed_rad_s);
@@ -294,6 +353,10 @@ impl Drive {
             targets.right_rad_s,
             measured.map(|m| m.right_rad_s),
         );
+        #[cfg(feature = "wheel-speed-observer")]
+        if let Some(observer) = self.speed_observer.as_mut() {
+            observer.apply(left_duty, right_duty);
+        }
         DriveOutput {
             wheel_targets: targets,
             left_duty,
@@ -309,6 +372,10 @@ impl Drive {
         self.previous_targets = WheelSpeeds::ZERO;
         self.left.reset();
         self.right.reset();
+        #[cfg(feature = "wheel-speed-observer")]
+        if let Some(observer) = self.speed_observer.as_mut() {
+            observer.restart();
+        }
     }
 }
 

@@ -33,3 +33,4 @@ pub mod robot_frame_observers;
 pub mod scaled_momenta_observer;
 pub mod spec;
 pub mod tracking;
+pub mod wheel_speed_observer;

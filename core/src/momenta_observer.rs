@@ -222,11 +222,13 @@ impl<const S: usize> MomentaObserverConfig<S> {
     }
 }
 
-/// What the observer keeps of the start of the current step.
+/// What the observer keeps of the start of the current step: the sample
+/// and, once [`MomentaObserver::apply`] gave it, the input force held over
+/// the step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct StepStart<const N: usize> {
     q: Vector<N>,
-    forces: Vector<N>,
+    forces: Option<Vector<N>>,
 }
 
 /// The estimates at the last accepted sample.
@@ -336,25 +338,64 @@ where
     }
 
     /// One sample: the positions `q` measured now and the input `u` that
-    /// will be applied until the next sample.
+    /// will be applied until the next sample ([`Self::measure`] then
+    /// [`Self::apply`]).
     pub fn update(&mut self, q: &Vector<N>, u: &Model::Input) {
-        let forces = self.model.input_forces(q, u);
-        if !(q.iter().all(|x| x.is_finite()) && forces.iter().all(|x| x.is_finite())) {
+        self.measure(q);
+        self.apply(u);
+    }
+
+    /// The positions `q` measured now: completes the step since the last
+    /// sample (if its input was given) and starts the next one. A loop that
+    /// needs the new estimate to choose its input calls this, then
+    /// [`Self::apply`].
+    pub fn measure(&mut self, q: &Vector<N>) {
+        if !q.iter().all(|x| x.is_finite()) {
             self.reject();
             return;
         }
-        let now = StepStart { q: *q, forces };
-        let Some(start) = self.start.replace(now) else {
-            let t = self.model.inverse_inertia_factor(q);
-            self.estimate.velocity = t * self.estimate.transformed_momenta;
+        let now = StepStart {
+            q: *q,
+            forces: None,
+        };
+        match self.start.replace(now) {
+            Some(StepStart {
+                q: start_q,
+                forces: Some(forces),
+            }) => {
+                let next = self.step(&start_q, &forces, q);
+                if next.is_finite() {
+                    self.estimate = next;
+                } else {
+                    self.reject();
+                }
+            }
+            _ => {
+                let t = self.model.inverse_inertia_factor(q);
+                self.estimate.velocity = t * self.estimate.transformed_momenta;
+            }
+        }
+    }
+
+    /// The input `u` applied from the last [`Self::measure`] until the
+    /// next. Without a sample to start from it is ignored.
+    pub fn apply(&mut self, u: &Model::Input) {
+        let Some(start) = self.start.as_mut() else {
             return;
         };
-        let next = self.step(&start, q);
-        if next.is_finite() {
-            self.estimate = next;
+        let forces = self.model.input_forces(&start.q, u);
+        if forces.iter().all(|x| x.is_finite()) {
+            start.forces = Some(forces);
         } else {
             self.reject();
         }
+    }
+
+    /// Forgets the current step (a missed sample, or an input not known):
+    /// the next [`Self::measure`] only starts a new step. The estimates are
+    /// kept.
+    pub fn restart(&mut self) {
+        self.start = None;
     }
 
     fn reject(&mut self) {
@@ -362,8 +403,14 @@ where
         self.start = None;
     }
 
-    /// One step of the innovation form from `start` to the sample `q`.
-    fn step(&self, start: &StepStart<N>, q: &Vector<N>) -> MomentaEstimate<N, S> {
+    /// One step of the innovation form from `start_q` (input forces
+    /// `forces` held) to the sample `q`.
+    fn step(
+        &self,
+        start_q: &Vector<N>,
+        forces: &Vector<N>,
+        q: &Vector<N>,
+    ) -> MomentaEstimate<N, S> {
         let MomentaObserverConfig {
             lambda_per_s: lambda,
             period_s: h,
@@ -372,7 +419,7 @@ where
             disturbance_gain,
         } = self.config;
         let e = &self.estimate;
-        let t = self.model.inverse_inertia_factor(&start.q);
+        let t = self.model.inverse_inertia_factor(start_q);
         let p_hat = e.transformed_momenta;
         // Φ(p̂) r̂ = Σ_j t_κj (t_κj·p̂) r̂_j.
         let mut friction_force = Vector::<N>::zeros();
@@ -387,10 +434,10 @@ where
         }
         let known_friction_force = t.transpose() * known.component_mul(&(t * p_hat));
         let model_rate = -(t.transpose()
-            * (self.model.potential_gradient(&start.q) - start.forces - e.disturbance))
+            * (self.model.potential_gradient(start_q) - *forces - e.disturbance))
             - friction_force
             - known_friction_force;
-        let flat_increment = self.model.flat_coordinates(q) - self.model.flat_coordinates(&start.q);
+        let flat_increment = self.model.flat_coordinates(q) - self.model.flat_coordinates(start_q);
         let p_next = p_hat + model_rate * h + (flat_increment - p_hat * h) * lambda;
         let innovation = p_next * h - flat_increment;
         let friction =
@@ -399,7 +446,7 @@ where
                     r + friction_gain * row_dot(&t, k, &p_next) * row_dot(&t, k, &innovation)
                 },
             ));
-        let disturbance = e.disturbance - ((t * p_next) * h - (q - start.q)) * disturbance_gain;
+        let disturbance = e.disturbance - ((t * p_next) * h - (q - start_q)) * disturbance_gain;
         MomentaEstimate {
             transformed_momenta: p_next,
             velocity: self.model.inverse_inertia_factor(q) * p_next,

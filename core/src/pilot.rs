@@ -195,6 +195,13 @@ impl Pilot {
         &self.tracker
     }
 
+    /// The drive (its configuration and, with the feature
+    /// `wheel-speed-observer`, the speed observer's estimates).
+    #[must_use]
+    pub fn drive(&self) -> &Drive {
+        &self.drive
+    }
+
     /// The pilot's own counters.
     #[must_use]
     pub fn counters(&self) -> PilotCounters {

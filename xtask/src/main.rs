@@ -84,7 +84,7 @@ fn ci() -> Result {
     })?;
     for target in TARGETS {
         for features in [
-            &["--features", "defmt"][..],
+            &["--features", "defmt,fusion-ekf,wheel-speed-observer"][..],
             &["--no-default-features", "--features", "micromath"][..],
         ] {
             step(&format!("clippy core {target} {features:?}"), || {

@@ -18,6 +18,7 @@ use wmr_core::momenta_observer::{
 
 use crate::paper_002::Series;
 
+pub mod drive_loop;
 pub mod scaled;
 
 /// The 2-D spider crane gantry cart of section 6.3: a ring of mass `m_r`
