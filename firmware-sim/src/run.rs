@@ -412,6 +412,7 @@ pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
         PlantSetup::DiffDrive {
             pwm_max_duty,
             pilot_spec,
+            pilot,
             ..
         },
         PositionSetup::Reader(floor, _),
@@ -422,6 +423,12 @@ pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
              (the firmware senses through encoders and the RFID reader's UART only)"
         );
     };
+    if pilot.drive().speed_observer().is_some() {
+        anyhow::bail!(
+            "[drive.speed_observer] is not sent over the link (protocol {}): run it on the host",
+            wmr_link::PROTOCOL_VERSION
+        );
+    }
     Ok(Configure {
         protocol: wmr_link::PROTOCOL_VERSION,
         pilot: pilot_spec,

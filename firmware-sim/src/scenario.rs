@@ -18,6 +18,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 use wmr_core::heading_observer::HeadingEstimate;
+use wmr_core::momenta_observer::WheelInertia;
 use wmr_core::output_feedback::TrackerConfig;
 use wmr_core::pilot::PilotConfig;
 use wmr_core::reference::Trajectory;
@@ -25,6 +26,7 @@ use wmr_core::spec::{
     self as core_spec, EstimatorSpec, LawSpec, PilotSpec, SpecError, TrackerSpec, TrajectorySpec,
 };
 use wmr_core::tracking::TrackingGains;
+use wmr_core::wheel_speed_observer::WheelSpeedObserverConfig;
 
 use crate::devices::{LinkFaults, ReaderConfig, ReaderMode};
 use crate::plant::{DiffDriveParams, LoadTorque, PlantPose, WheelDynamics};
@@ -494,6 +496,38 @@ pub struct DriveSpec {
     /// Integral gain, duty per rad.
     #[serde(default = "defaults::ki_duty_per_rad")]
     pub ki_duty_per_rad: f64,
+    /// Run the speed loops on paper 003's wheel-speed observer instead of
+    /// the counts differenced over a tick (`[drive.speed_observer]`).
+    #[serde(default)]
+    pub speed_observer: Option<SpeedObserverSpec>,
+}
+
+/// The robot as the wheel-speed observer models it (paper 003, section
+/// 6.1; see `wmr_core::wheel_speed_observer`). The wheel radius, track and
+/// the motors' no-load speed (`plant.wheel_speed_at_full_duty_rad_s`) come
+/// from the plant table; these may differ from `[plant.dynamics]` to study
+/// a mismatched model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeedObserverSpec {
+    /// Robot mass, kg.
+    pub mass_kg: f64,
+    /// Yaw inertia about the axle midpoint, kg m².
+    pub yaw_inertia_kg_m2: f64,
+    /// Each wheel's drive-train inertia at the wheel, kg m² (default 0).
+    #[serde(default)]
+    pub wheel_inertia_kg_m2: f64,
+    /// Motor torque at the wheel at full duty and standstill, N·m.
+    pub stall_torque_nm: f64,
+    /// `λ`, 1/s (default 5).
+    #[serde(default = "defaults::observer_lambda_per_s")]
+    pub lambda_per_s: f64,
+    /// Damping adaptation gain `γ_r` (default 0.01).
+    #[serde(default = "defaults::observer_friction_gain")]
+    pub friction_gain: f64,
+    /// Load adaptation gain `γ_d` (default 0.1).
+    #[serde(default = "defaults::observer_disturbance_gain")]
+    pub disturbance_gain: f64,
 }
 
 impl Default for DriveSpec {
@@ -504,6 +538,7 @@ impl Default for DriveSpec {
             feedforward_duty_per_rad_s: None,
             kp_duty_per_rad_s: defaults::kp_duty_per_rad_s(),
             ki_duty_per_rad: defaults::ki_duty_per_rad(),
+            speed_observer: None,
         }
     }
 }
@@ -728,6 +763,17 @@ mod defaults {
     pub fn ki_duty_per_rad() -> f64 {
         0.5
     }
+    pub fn observer_lambda_per_s() -> f64 {
+        f64::from(wmr_core::wheel_speed_observer::WheelSpeedObserverConfig::DEFAULT_LAMBDA_PER_S)
+    }
+    pub fn observer_friction_gain() -> f64 {
+        f64::from(wmr_core::wheel_speed_observer::WheelSpeedObserverConfig::DEFAULT_FRICTION_GAIN)
+    }
+    pub fn observer_disturbance_gain() -> f64 {
+        f64::from(
+            wmr_core::wheel_speed_observer::WheelSpeedObserverConfig::DEFAULT_DISTURBANCE_GAIN,
+        )
+    }
     pub fn spacing_m() -> f64 {
         0.1
     }
@@ -903,6 +949,48 @@ pub(crate) fn probability(field: &str, v: f64) -> Result<f64, ScenarioError> {
 
 /// A refusal of the core's spec builder, named by the scenario table it
 /// came from.
+/// `config` with its speed loops on the wheel-speed observer `o`.
+fn with_speed_observer(
+    config: &PilotConfig,
+    o: &SpeedObserverSpec,
+    params: &DiffDriveParams,
+    encoder_bits: u32,
+) -> Result<PilotConfig, ScenarioError> {
+    let field = |key: &str| format!("drive.speed_observer.{key}");
+    let inertia = WheelInertia::new(
+        f(positive(&field("mass_kg"), o.mass_kg)?),
+        f(positive(&field("yaw_inertia_kg_m2"), o.yaw_inertia_kg_m2)?),
+        f(params.wheel_radius_m),
+        f(params.track_width_m),
+        f(non_negative(
+            &field("wheel_inertia_kg_m2"),
+            o.wheel_inertia_kg_m2,
+        )?),
+    )
+    .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e:?}")))?;
+    let stall = f(positive(&field("stall_torque_nm"), o.stall_torque_nm)?);
+    let gains = (
+        f(positive(&field("lambda_per_s"), o.lambda_per_s)?),
+        f(positive(&field("friction_gain"), o.friction_gain)?),
+        f(positive(&field("disturbance_gain"), o.disturbance_gain)?),
+    );
+    let observer = WheelSpeedObserverConfig::new(
+        inertia,
+        stall,
+        f(params.wheel_speed_at_full_duty_rad_s),
+        config.drive().period_s(),
+    )
+    .and_then(|c| c.with_gains(gains.0, gains.1, gains.2))
+    .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e:?}")))?;
+    let drive = config
+        .drive()
+        .with_speed_observer(observer)
+        .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e:?}")))?;
+    PilotConfig::new(*config.tracker(), drive, encoder_bits)
+        .map(|c| c.with_max_encoder_fault_ticks(PilotConfig::DEFAULT_MAX_ENCODER_FAULT_TICKS))
+        .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e:?}")))
+}
+
 fn spec_refusal(e: SpecError) -> ScenarioError {
     let field = match e {
         SpecError::Trajectory(_) => "reference",
@@ -1352,7 +1440,10 @@ impl Scenario {
                     encoder_bits,
                     max_encoder_fault_ticks: PilotConfig::DEFAULT_MAX_ENCODER_FAULT_TICKS,
                 };
-                let pilot = pilot_spec.build().map_err(spec_refusal)?;
+                let mut pilot = pilot_spec.build().map_err(spec_refusal)?;
+                if let Some(o) = d.speed_observer {
+                    pilot = with_speed_observer(&pilot, &o, &params, encoder_bits)?;
+                }
                 Ok(PlantSetup::DiffDrive {
                     params,
                     encoder_counts_per_rev,
@@ -1805,6 +1896,44 @@ mod tests {
         for grade in ["99.9", "-99.9"] {
             let text = format!("{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}load_grade_percent = {grade}\n");
             assert!(Scenario::from_toml_str(&text).is_ok(), "{grade}");
+        }
+    }
+
+    #[test]
+    fn speed_observer_table_is_validated_and_refused_for_hil() {
+        let table = "[drive.speed_observer]\nmass_kg = 4.0\nyaw_inertia_kg_m2 = 0.08\n";
+        let ok = format!("{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}{table}stall_torque_nm = 0.6\n");
+        let setup = Scenario::from_toml_str(&ok).unwrap().validate().unwrap();
+        let PlantSetup::DiffDrive { pilot, .. } = setup.plant else {
+            panic!("diff drive");
+        };
+        assert!(pilot.drive().speed_observer().is_some());
+        // The link does not carry it: a HIL run is refused, not run without it.
+        let mut full = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+        assert!(crate::run::hil_configuration(&full.validate().unwrap()).is_ok());
+        let mut drive = full.drive.unwrap_or_default();
+        drive.speed_observer = Some(SpeedObserverSpec {
+            mass_kg: 4.0,
+            yaw_inertia_kg_m2: 0.08,
+            wheel_inertia_kg_m2: 0.0,
+            stall_torque_nm: 0.6,
+            lambda_per_s: 5.0,
+            friction_gain: 0.01,
+            disturbance_gain: 0.1,
+        });
+        full.drive = Some(drive);
+        let e = crate::run::hil_configuration(&full.validate().unwrap()).unwrap_err();
+        assert!(e.to_string().contains("speed_observer"), "{e}");
+        for (line, key) in [
+            ("stall_torque_nm = 0.0", "stall_torque_nm"),
+            ("stall_torque_nm = 0.6\nlambda_per_s = -1.0", "lambda_per_s"),
+            ("stall_torque_nm = 0.6\nfriction_gain = nan", "friction_gain"),
+            ("stall_torque_nm = 0.6\ndisturbance_gain = 0.0", "disturbance_gain"),
+        ] {
+            let text = format!("{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}{table}{line}\n");
+            let e = err_of(&text);
+            let field = format!("drive.speed_observer.{key}");
+            assert_eq!(e.field(), Some(field.as_str()), "{line}: {e}");
         }
     }
 
