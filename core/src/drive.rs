@@ -18,7 +18,7 @@
 //!   integration as anti-windup (the integral does not grow while the output
 //!   is saturated in the direction of the error).
 //! * With the cargo feature `wheel-speed-observer` and
-//!   [`DriveConfig::with_speed_observer`], the speed loops run on the wheel
+//!   `DriveConfig::with_speed_observer`, the speed loops run on the wheel
 //!   speeds of paper 003's momenta observer
 //!   ([`crate::wheel_speed_observer`]) instead of the counts differenced
 //!   over one tick; it also estimates each wheel's load torque and damping.

@@ -1927,8 +1927,14 @@ mod tests {
         for (line, key) in [
             ("stall_torque_nm = 0.0", "stall_torque_nm"),
             ("stall_torque_nm = 0.6\nlambda_per_s = -1.0", "lambda_per_s"),
-            ("stall_torque_nm = 0.6\nfriction_gain = nan", "friction_gain"),
-            ("stall_torque_nm = 0.6\ndisturbance_gain = 0.0", "disturbance_gain"),
+            (
+                "stall_torque_nm = 0.6\nfriction_gain = nan",
+                "friction_gain",
+            ),
+            (
+                "stall_torque_nm = 0.6\ndisturbance_gain = 0.0",
+                "disturbance_gain",
+            ),
         ] {
             let text = format!("{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}{table}{line}\n");
             let e = err_of(&text);
