@@ -7,17 +7,8 @@
 //! Each assertion is a bound a little weaker than the figure measured
 //! (given next to it).
 
-use host_tests::paper_002::{Series, log_decay_rate};
+use host_tests::paper_002::log_decay_rate;
 use host_tests::paper_003::*;
-
-/// Largest `|value|` over `[from, to]`.
-fn max_over(s: &Series, from: f64, to: f64) -> f64 {
-    s.points
-        .iter()
-        .filter(|p| p.0 >= from && p.0 <= to)
-        .map(|p| p.1.abs())
-        .fold(0.0, f64::max)
-}
 
 const INITIAL: [([f32; 3], [f32; 3], f32); 3] = [
     ([0.0; 3], [0.0; 3], 0.0),
@@ -41,9 +32,9 @@ fn figures_3_4_crane_errors_converge() {
             .map(|w| w[1].1 - w[0].1)
             .fold(f64::MIN, f64::max);
         let (p, d, r) = (
-            max_over(&e.momenta, 40.0, 60.0),
-            max_over(&e.disturbance, 40.0, 60.0),
-            max_over(&e.friction, 40.0, 60.0),
+            e.momenta.max_abs_over(40.0, 60.0),
+            e.disturbance.max_abs_over(40.0, 60.0),
+            e.friction.max_abs_over(40.0, 60.0),
         );
         println!(
             "p̂0 {p0:?}, d̂0 {d0:?}, r̂0 {r0}: V(0) = {v0:.3}; largest over 40–60 s: \

@@ -7,17 +7,7 @@
 //! Each assertion is a bound a little weaker than the figure measured
 //! (given next to it).
 
-use host_tests::paper_002::Series;
 use host_tests::paper_003::scaled::*;
-
-/// Largest `|value|` over `[from, to]`.
-fn max_over(s: &Series, from: f64, to: f64) -> f64 {
-    s.points
-        .iter()
-        .filter(|p| p.0 >= from && p.0 <= to)
-        .map(|p| p.1.abs())
-        .fold(0.0, f64::max)
-}
 
 /// The transformed model (5)–(7) with `J_jk = −𝐩ᵀ[T_j, T_k]` matches the
 /// independent Lagrangian plant, and the gyroscopic force is large: the
@@ -59,8 +49,8 @@ fn converges_from_several_initial_conditions() {
             let e = run(p0, d0, r0);
             let (p_start, d_start) = (e.momenta.abs_at(0.0), e.disturbance.abs_at(0.0));
             let (p_late, d_late) = (
-                max_over(&e.momenta, 40.0, 60.0),
-                max_over(&e.disturbance, 40.0, 60.0),
+                e.momenta.max_abs_over(40.0, 60.0),
+                e.disturbance.max_abs_over(40.0, 60.0),
             );
             let lowest = e
                 .scaling
@@ -72,9 +62,9 @@ fn converges_from_several_initial_conditions() {
                 "p̂0 {p0:?}, d̂0 {d0:?}, r0 {r0}: |p̃| {p_start:.2} → {p_late:.1e}, \
                  |d̃| {d_start:.2} → {d_late:.1e} (largest over 40–60 s); r max {:.4}, \
                  min {lowest:.6}, r(60 s) {:.6}; |J p| up to {:.1}",
-                max_over(&e.scaling, 0.0, 60.0),
+                e.scaling.max_abs_over(0.0, 60.0),
                 e.scaling.abs_at(60.0),
-                max_over(&e.gyroscopic, 0.0, 60.0),
+                e.gyroscopic.max_abs_over(0.0, 60.0),
             );
             // Measured over all six runs: |p̃| ≤ 8.5e-3, |d̃| ≤ 6.1e-2 over
             // 40–60 s (|d̃| still falling, about 3× per 20 s); r(60 s) − 1 =
@@ -104,7 +94,7 @@ fn scaling_factor_dynamics() {
     // Measured 0.0743 against 0.0733: the Δ terms add 1.4 %.
     assert!(measured >= predicted && measured < 1.05 * predicted);
     let pushed = run(INITIAL[1].0, INITIAL[1].1, 1.0);
-    let peak = max_over(&pushed.scaling, 0.0, 60.0);
+    let peak = pushed.scaling.max_abs_over(0.0, 60.0);
     println!("r0 = 1: r peaks at {peak:.4}");
     // Measured 1.053.
     assert!(peak > 1.02, "{peak}");

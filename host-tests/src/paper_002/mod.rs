@@ -29,6 +29,16 @@ impl Series {
             .map_or(f64::NAN, |p| p.1.abs())
     }
 
+    /// Largest `|value|` over the samples with `from ≤ t ≤ to` (0 if none).
+    #[must_use]
+    pub fn max_abs_over(&self, from: f64, to: f64) -> f64 {
+        self.points
+            .iter()
+            .filter(|p| p.0 >= from && p.0 <= to)
+            .map(|p| p.1.abs())
+            .fold(0.0, f64::max)
+    }
+
     /// An empty series with this legend label.
     #[must_use]
     pub fn new(label: &str) -> Self {
