@@ -1,0 +1,294 @@
+//! A generic extended Kalman filter (paper 004, Iossaqui, Camino &
+//! Zampieri, "The EKF algorithm"): `N` states, `M` measurements, additive
+//! noise (`B = D = I` in the paper's notation).
+//!
+//! ```text
+//! predict:  x⁻ = f(x, u, h)            P⁻ = A P Aᵀ + Q,   A = ∂f/∂x at x
+//! update:   S = C P⁻ Cᵀ + R            K = P⁻ Cᵀ S⁻¹,     C = ∂h/∂x at x⁻
+//!           x = x⁻ + K ỹ,  ỹ = residual(y, h(x⁻))
+//!           P = (I − K C) P⁻ (I − K C)ᵀ + K R Kᵀ          (Joseph form)
+//! ```
+//!
+//! The paper prints `P = (I − KC)P⁻`; the Joseph form is algebraically the
+//! same for the optimal gain and keeps `P` symmetric positive semi-definite
+//! under `f32` rounding. `P` is symmetrised after every step.
+//!
+//! Angles: the model's [`EkfModel::measurement_residual`] wraps angle
+//! components of the innovation and [`EkfModel::normalize`] wraps the state's
+//! (both identity by default).
+//!
+//! # Bad input
+//! A non-finite input or measurement, an innovation covariance `S` that
+//! does not factor (not positive definite), or a non-finite result skips
+//! the step, keeps the previous estimate and is counted
+//! ([`EkfCounters`]).
+
+use nalgebra::{SMatrix, SVector};
+
+/// A system for the [`ExtendedKalmanFilter`].
+pub trait EkfModel<const N: usize, const M: usize> {
+    /// The input `u`.
+    type Input: Copy;
+    /// `f(x, u, h)`: the state after a step of `dt_s`.
+    fn transition(&self, x: &SVector<f32, N>, u: &Self::Input, dt_s: f32) -> SVector<f32, N>;
+    /// `A = ∂f/∂x` at `x`.
+    fn transition_jacobian(
+        &self,
+        x: &SVector<f32, N>,
+        u: &Self::Input,
+        dt_s: f32,
+    ) -> SMatrix<f32, N, N>;
+    /// `h(x)`: the expected measurement.
+    fn measure(&self, x: &SVector<f32, N>) -> SVector<f32, M>;
+    /// `C = ∂h/∂x` at `x`.
+    fn measurement_jacobian(&self, x: &SVector<f32, N>) -> SMatrix<f32, M, N>;
+    /// `z − ẑ`, with angle components wrapped (default: plain difference).
+    fn measurement_residual(
+        &self,
+        z: &SVector<f32, M>,
+        expected: &SVector<f32, M>,
+    ) -> SVector<f32, M> {
+        z - expected
+    }
+    /// Wraps the angle components of a state (default: unchanged).
+    fn normalize(&self, x: SVector<f32, N>) -> SVector<f32, N> {
+        x
+    }
+}
+
+/// Why an [`ExtendedKalmanFilter`] was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum FilterConfigError {
+    /// A covariance (`P0`, `Q` or `R`) is not finite, symmetric and positive
+    /// semi-definite (`P0`, `R`: definite).
+    Covariance,
+    /// The initial state is not finite.
+    InitialState,
+}
+
+/// What the filter skipped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct EkfCounters {
+    /// Predictions skipped for a non-finite input or result.
+    pub rejected_predictions: u32,
+    /// Updates skipped for a non-finite measurement or result.
+    pub rejected_updates: u32,
+    /// Updates skipped because `S` was not positive definite.
+    pub singular_innovations: u32,
+}
+
+/// The filter's state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExtendedKalmanFilter<Model, const N: usize, const M: usize>
+where
+    Model: EkfModel<N, M>,
+{
+    model: Model,
+    x: SVector<f32, N>,
+    p: SMatrix<f32, N, N>,
+    q: SMatrix<f32, N, N>,
+    r: SMatrix<f32, M, M>,
+    counters: EkfCounters,
+}
+
+/// `true` if `a` is finite and symmetric to `f32` rounding.
+fn symmetric<const K: usize>(a: &SMatrix<f32, K, K>) -> bool {
+    a.iter().all(|x| x.is_finite()) && (a - a.transpose()).amax() <= 1e-6 * a.amax().max(1e-30)
+}
+
+impl<Model, const N: usize, const M: usize> ExtendedKalmanFilter<Model, N, M>
+where
+    Model: EkfModel<N, M>,
+{
+    /// A filter at `x0` with covariance `p0`, process noise `q` (per step)
+    /// and measurement noise `r`.
+    ///
+    /// # Errors
+    /// [`FilterConfigError`] for a non-finite `x0` or a covariance that is
+    /// not symmetric positive (semi-)definite.
+    pub fn new(
+        model: Model,
+        x0: SVector<f32, N>,
+        p0: SMatrix<f32, N, N>,
+        q: SMatrix<f32, N, N>,
+        r: SMatrix<f32, M, M>,
+    ) -> Result<Self, FilterConfigError> {
+        if !x0.iter().all(|x| x.is_finite()) {
+            return Err(FilterConfigError::InitialState);
+        }
+        let definite = |a: SMatrix<f32, N, N>| symmetric(&a) && a.cholesky().is_some();
+        let q_ok = symmetric(&q)
+            && (q + SMatrix::<f32, N, N>::identity() * (1e-6 * q.amax().max(1e-30)))
+                .cholesky()
+                .is_some();
+        let r_ok = symmetric(&r) && r.cholesky().is_some();
+        if !(definite(p0) && q_ok && r_ok) {
+            return Err(FilterConfigError::Covariance);
+        }
+        Ok(Self {
+            x: model.normalize(x0),
+            model,
+            p: p0,
+            q,
+            r,
+            counters: EkfCounters::default(),
+        })
+    }
+
+    /// The estimate.
+    #[must_use]
+    pub fn state(&self) -> &SVector<f32, N> {
+        &self.x
+    }
+
+    /// Its covariance.
+    #[must_use]
+    pub fn covariance(&self) -> &SMatrix<f32, N, N> {
+        &self.p
+    }
+
+    /// What was skipped.
+    #[must_use]
+    pub fn counters(&self) -> EkfCounters {
+        self.counters
+    }
+
+    /// The model.
+    #[must_use]
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// Time update over `dt_s` with input `u`.
+    pub fn predict(&mut self, u: &Model::Input, dt_s: f32) {
+        let a = self.model.transition_jacobian(&self.x, u, dt_s);
+        let x = self
+            .model
+            .normalize(self.model.transition(&self.x, u, dt_s));
+        let p = a * self.p * a.transpose() + self.q;
+        if x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite()) {
+            self.x = x;
+            self.p = (p + p.transpose()) * 0.5;
+        } else {
+            self.counters.rejected_predictions =
+                self.counters.rejected_predictions.saturating_add(1);
+        }
+    }
+
+    /// Measurement update with `z`.
+    pub fn update(&mut self, z: &SVector<f32, M>) {
+        if !z.iter().all(|v| v.is_finite()) {
+            self.counters.rejected_updates = self.counters.rejected_updates.saturating_add(1);
+            return;
+        }
+        let c = self.model.measurement_jacobian(&self.x);
+        let innovation = self
+            .model
+            .measurement_residual(z, &self.model.measure(&self.x));
+        let s = c * self.p * c.transpose() + self.r;
+        let Some(s_chol) = s.cholesky() else {
+            self.counters.singular_innovations =
+                self.counters.singular_innovations.saturating_add(1);
+            return;
+        };
+        // K = P Cᵀ S⁻¹, i.e. Kᵀ = S⁻¹ C P (S symmetric).
+        let gain = s_chol.solve(&(c * self.p)).transpose();
+        let x = self.model.normalize(self.x + gain * innovation);
+        let i_kc = SMatrix::<f32, N, N>::identity() - gain * c;
+        let p = i_kc * self.p * i_kc.transpose() + gain * self.r * gain.transpose();
+        if x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite()) {
+            self.x = x;
+            self.p = (p + p.transpose()) * 0.5;
+        } else {
+            self.counters.rejected_updates = self.counters.rejected_updates.saturating_add(1);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A constant-velocity cart, position measured.
+    #[derive(Debug, Clone, Copy)]
+    struct Cart;
+
+    impl EkfModel<2, 1> for Cart {
+        type Input = ();
+        fn transition(&self, x: &SVector<f32, 2>, _u: &(), dt: f32) -> SVector<f32, 2> {
+            SVector::<f32, 2>::new(x.x + dt * x.y, x.y)
+        }
+        fn transition_jacobian(
+            &self,
+            _x: &SVector<f32, 2>,
+            _u: &(),
+            dt: f32,
+        ) -> SMatrix<f32, 2, 2> {
+            SMatrix::<f32, 2, 2>::new(1.0, dt, 0.0, 1.0)
+        }
+        fn measure(&self, x: &SVector<f32, 2>) -> SVector<f32, 1> {
+            SVector::<f32, 1>::new(x.x)
+        }
+        fn measurement_jacobian(&self, _x: &SVector<f32, 2>) -> SMatrix<f32, 1, 2> {
+            SMatrix::<f32, 1, 2>::new(1.0, 0.0)
+        }
+    }
+
+    fn filter() -> ExtendedKalmanFilter<Cart, 2, 1> {
+        ExtendedKalmanFilter::new(
+            Cart,
+            SVector::zeros(),
+            SMatrix::<f32, 2, 2>::identity() * 10.0,
+            SMatrix::<f32, 2, 2>::zeros(),
+            SMatrix::<f32, 1, 1>::new(0.01),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn configuration_is_validated() {
+        let bad = SMatrix::<f32, 2, 2>::new(1.0, 2.0, 2.0, 1.0);
+        let r = SMatrix::<f32, 1, 1>::new(0.01);
+        assert_eq!(
+            ExtendedKalmanFilter::new(Cart, SVector::zeros(), bad, SMatrix::zeros(), r).err(),
+            Some(FilterConfigError::Covariance)
+        );
+        let nan = SVector::<f32, 2>::new(f32::NAN, 0.0);
+        assert_eq!(
+            ExtendedKalmanFilter::new(Cart, nan, SMatrix::identity(), SMatrix::zeros(), r).err(),
+            Some(FilterConfigError::InitialState)
+        );
+    }
+
+    /// On a linear system the EKF is the Kalman filter: the velocity of a
+    /// cart is found from noiseless positions, and one update from
+    /// `P = 10 I` matches the closed form.
+    #[test]
+    fn linear_system_is_the_kalman_filter() {
+        let mut f = filter();
+        f.update(&SVector::<f32, 1>::new(1.0));
+        // K = 10 / (10 + 0.01); x = K·1.
+        let k = 10.0 / 10.01;
+        assert!((f.state().x - k).abs() < 1e-6);
+        assert!((f.covariance().m11 - 10.0 * 0.01 / 10.01).abs() < 1e-6);
+        let mut f = filter();
+        for step in 1..=200u16 {
+            f.predict(&(), 0.1);
+            f.update(&SVector::<f32, 1>::new(0.3 * f32::from(step) * 0.1));
+        }
+        assert!((f.state().y - 0.3).abs() < 1e-3, "{}", f.state());
+    }
+
+    #[test]
+    fn bad_measurements_are_skipped_and_counted() {
+        let mut f = filter();
+        let before = *f.state();
+        f.update(&SVector::<f32, 1>::new(f32::NAN));
+        assert_eq!(*f.state(), before);
+        assert_eq!(f.counters().rejected_updates, 1);
+    }
+}
