@@ -33,6 +33,7 @@ pub mod robot;
 pub mod robot_frame;
 pub mod robot_frame_observers;
 pub mod scaled_momenta_observer;
+pub mod slip_tracking;
 pub mod spec;
 pub mod tracking;
 pub mod ukf;

@@ -5,6 +5,7 @@
 pub mod fusion;
 pub mod paper_002;
 pub mod paper_003;
+pub mod paper_004;
 
 use wmr_core::drive::{DriveConfig, SpeedLoopGains};
 use wmr_core::geometry::DiffDriveGeometry;

@@ -1,0 +1,140 @@
+//! Paper 004 (Iossaqui, Camino & Zampieri): the tracked robot under slip
+//! (i = 0.25 during 22.5–45 s) with the adaptive velocity-based controller
+//! (scenario 1) and the torque-based one (scenario 2), fed by the EKF, the
+//! UKF and the particle filter on measurements with the paper's noise
+//! (`host_tests::paper_004`). Every filter run is repeated for noise seeds
+//! 1 to 5 and the bounds hold for the worst; each is a little weaker than
+//! the worst figure measured (given next to it).
+
+use host_tests::paper_004::*;
+
+const SEEDS: std::ops::RangeInclusive<u64> = 1..=5;
+const SLIP_P: f64 = 4.0 / 3.0;
+
+/// Worst over the seeds of each figure.
+#[derive(Debug, Default)]
+struct Worst {
+    before: f64,
+    during: f64,
+    after: f64,
+    slip_gap: f64,
+    slip_estimate_error: f64,
+    slip_estimate_after: f64,
+    estimate_error: f64,
+}
+
+fn worst(scenario: Scenario, estimator: Estimator) -> Worst {
+    let mut w = Worst {
+        slip_gap: f64::INFINITY,
+        ..Worst::default()
+    };
+    for seed in SEEDS {
+        let r = slip_run(scenario, estimator, seed);
+        let (during_p, after_p) = (
+            r.mean_slip_estimate(35.0, 45.0),
+            r.mean_slip_estimate(55.0, 60.0),
+        );
+        let estimate = r.estimate_error.points.iter().map(|p| p.1).sum::<f64>()
+            / r.estimate_error.points.len() as f64;
+        w.before = w.before.max(r.position_error_rms(15.0, 22.5));
+        w.during = w.during.max(r.position_error_rms(25.0, 45.0));
+        w.after = w.after.max(r.position_error_rms(50.0, 60.0));
+        w.slip_gap = w.slip_gap.min(during_p - after_p);
+        w.slip_estimate_error = w.slip_estimate_error.max((during_p - SLIP_P).abs());
+        w.slip_estimate_after = w.slip_estimate_after.max(after_p);
+        w.estimate_error = w.estimate_error.max(estimate);
+    }
+    println!("{scenario:?}, {estimator:?}, worst of seeds {SEEDS:?}: {w:.3?}");
+    w
+}
+
+/// The controllers on the true state: the errors converge before the slip,
+/// stay small during it and after; `p̂` goes to `1/(1 − 0.25)` during the
+/// slip and back towards 1 after.
+#[test]
+fn controllers_on_the_true_state() {
+    for scenario in [Scenario::Velocity, Scenario::Torque] {
+        let r = slip_run(scenario, Estimator::Exact, 0);
+        let (during, after) = (
+            r.mean_slip_estimate(35.0, 45.0),
+            r.mean_slip_estimate(55.0, 60.0),
+        );
+        println!(
+            "{scenario:?}, exact: position error RMS {:.3} / {:.3} / {:.3} m (before / during / \
+             after the slip), p̂ {during:.3} during, {after:.3} after",
+            r.position_error_rms(15.0, 22.5),
+            r.position_error_rms(25.0, 45.0),
+            r.position_error_rms(50.0, 60.0)
+        );
+        // Measured: velocity 0.033 / 0.005 / 0.013 m, p̂ 1.379, 1.065;
+        // torque 0.024 / 0.001 / 0.011 m, p̂ 1.328, 1.057.
+        assert!(r.position_error_rms(15.0, 22.5) < 0.04);
+        assert!(r.position_error_rms(25.0, 45.0) < 0.01);
+        assert!(r.position_error_rms(50.0, 60.0) < 0.02);
+        assert!((during - SLIP_P).abs() < 0.05 * SLIP_P, "{during}");
+        assert!(after < 1.08, "{after}");
+    }
+}
+
+/// Scenario 1 with the EKF and the UKF (they agree to a few %): the
+/// tracking error falls from 1.5 m to about 0.15 m RMS before the slip,
+/// stays below 0.1 m during it and after; `p̂` is higher during the slip
+/// than after it. Before the slip `p̂` is already high (1.7–2.1): the
+/// initial error drives (7) up whatever the estimator (1.66 on the true
+/// state).
+#[test]
+fn scenario_1_gaussian_filters() {
+    for estimator in [Estimator::Ekf, Estimator::Ukf] {
+        let w = worst(Scenario::Velocity, estimator);
+        // Measured (EKF / UKF): 0.184 / 0.178, 0.081 / 0.079, 0.101 /
+        // 0.097 m; p̂ gap ≥ 0.32 / 0.32, after ≤ 1.134 / 1.144; estimate
+        // error ≤ 0.090 / 0.085 m.
+        assert!(w.before < 0.22 && w.during < 0.1 && w.after < 0.12, "{w:?}");
+        assert!(w.slip_gap > 0.25 && w.slip_estimate_after < 1.2, "{w:?}");
+        assert!(w.estimate_error < 0.1, "{w:?}");
+    }
+}
+
+/// Scenario 2 with the EKF and the UKF: errors converge before the slip,
+/// stay bounded during it, converge again after; `p̂` reaches 1/(1 − 0.25)
+/// during the slip and falls back after.
+#[test]
+fn scenario_2_gaussian_filters() {
+    for estimator in [Estimator::Ekf, Estimator::Ukf] {
+        let w = worst(Scenario::Torque, estimator);
+        // Measured (EKF / UKF): 0.147 / 0.146, 0.055 / 0.058, 0.082 /
+        // 0.081 m; |p̂ − 4/3| during ≤ 0.110 / 0.123, after ≤ 1.100 / 1.107;
+        // estimate error ≤ 0.075 / 0.074 m.
+        assert!(w.before < 0.18 && w.during < 0.07 && w.after < 0.1, "{w:?}");
+        assert!(
+            w.slip_estimate_error < 0.15 && w.slip_estimate_after < 1.15,
+            "{w:?}"
+        );
+        assert!(w.estimate_error < 0.09, "{w:?}");
+    }
+}
+
+/// The particle filter (100 particles) in scenario 1: it tracks the robot
+/// (estimate error ≤ 0.2 m, tracking error ≤ 0.27 m RMS), but its
+/// estimates are noisier than the Gaussian filters' and law (7) turns that
+/// noise into a drift of `p̂` (its `k1 e1²` and `(k3/k2) sin² e3` terms have
+/// a positive mean under noise): `p̂` reaches 1.7–8.2 and does not track
+/// the slip. Scenario 2 with the particle filter is not asserted: it
+/// diverges for 3 of the 5 seeds (module docs of `paper_004`).
+#[test]
+fn scenario_1_particle_filter() {
+    let w = worst(Scenario::Velocity, Estimator::ParticleFilter);
+    // Measured: 0.182, 0.174, 0.264 m; estimate error ≤ 0.196 m.
+    assert!(w.before < 0.2 && w.during < 0.2 && w.after < 0.3, "{w:?}");
+    assert!(w.estimate_error < 0.22, "{w:?}");
+}
+
+/// The particle filter's runs are reproducible from the seed.
+#[test]
+fn particle_filter_runs_repeat_from_the_seed() {
+    let a = slip_run(Scenario::Velocity, Estimator::ParticleFilter, 3);
+    let b = slip_run(Scenario::Velocity, Estimator::ParticleFilter, 3);
+    let c = slip_run(Scenario::Velocity, Estimator::ParticleFilter, 4);
+    assert_eq!(a, b);
+    assert_ne!(a.error[0].points, c.error[0].points);
+}
