@@ -94,6 +94,8 @@ pub enum PoseEkfError {
     ScaleWalk,
     /// Tag spacing not finite and positive.
     TagSpacing,
+    /// Reader range negative or not finite.
+    ReadRadius,
 }
 
 /// Validated parameters of a [`PoseEkf`].
@@ -614,6 +616,7 @@ fn symmetric(m: Covariance) -> Covariance {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TagCellTracker {
     spacing_m: f32,
+    travel_since_read_m: f32,
     last_tag: Option<Vec2>,
     same_tag_reads: u32,
     edge_corrections: u32,
@@ -629,6 +632,7 @@ impl TagCellTracker {
     pub fn new(spacing_m: f32) -> Option<Self> {
         (spacing_m.is_finite() && spacing_m > 0.0).then_some(Self {
             spacing_m,
+            travel_since_read_m: 0.0,
             last_tag: None,
             same_tag_reads: 0,
             edge_corrections: 0,
@@ -664,6 +668,44 @@ impl TagCellTracker {
     /// no longer means one boundary crossed during the last tick).
     pub fn restart(&mut self) {
         self.last_tag = None;
+    }
+
+    /// The measurement of a read of `tag` by a reader of range `radius_m`
+    /// ([`FusionSettings::with_read_radius`]) on a robot heading `heading`
+    /// (rad), `travel_m` driven since the last read: the first read of each
+    /// pass (a different tag, or the same one after more than `2r` driven:
+    /// a range reader repeats its read while the tag stays in range, so a
+    /// gap in the reads alone does not end a pass) is where the antenna
+    /// entered the disc around the tag.
+    /// At a lateral offset `d` (uniform in `[−r, r]`) that is `√(r² − d²)`
+    /// short of the tag along the heading: mean `πr/4` short, lateral
+    /// variance `r²/3`, along-track variance `(2/3 − π²/16) r² ≈ 0.05 r²`.
+    /// The measurement is the tag moved back by `πr/4` along the heading,
+    /// with the larger variance `r²/3` on both axes (the filter takes
+    /// axis-aligned noise). Repeats within a pass give nothing (counted).
+    pub fn range_measurement(
+        &mut self,
+        tag: Vec2,
+        heading: f32,
+        travel_m: f32,
+        radius_m: f32,
+    ) -> Option<PositionMeasurement> {
+        if !(tag.is_finite() && heading.is_finite()) {
+            return None;
+        }
+        if self.last_tag.replace(tag) == Some(tag) && travel_m <= 2.0 * radius_m {
+            self.same_tag_reads = self.same_tag_reads.saturating_add(1);
+            return None;
+        }
+        let back = core::f32::consts::FRAC_PI_4 * radius_m;
+        let variance = radius_m * radius_m / 3.0;
+        Some(PositionMeasurement::Point {
+            position: Vec2::new(
+                tag.x - back * math::cos(heading),
+                tag.y - back * math::sin(heading),
+            ),
+            variance_m2: [variance, variance],
+        })
     }
 
     /// The measurements of a fix at `tag`, given the displacement `(Δx, Δy)`
@@ -758,6 +800,7 @@ pub struct FusionSettings {
     filter: PoseEkfConfig,
     tag_spacing_m: f32,
     scale_prior: f32,
+    read_radius_m: f32,
 }
 
 impl FusionSettings {
@@ -782,6 +825,26 @@ impl FusionSettings {
             filter,
             tag_spacing_m,
             scale_prior,
+            read_radius_m: 0.0,
+        })
+    }
+
+    /// A reader that reports a tag only while the antenna is within
+    /// `read_radius_m` of it (m; 0, the default, is the paper's nearest-tag
+    /// reader). Each pass over a tag is then one measurement: the antenna
+    /// somewhere in the disc around the tag, variance `r²/4` per axis (a
+    /// uniform disc); repeated reads of the same tag without a gap are
+    /// skipped (they are not independent) and counted as same-tag reads.
+    ///
+    /// # Errors
+    /// [`PoseEkfError::ReadRadius`] unless finite and ≥ 0.
+    pub fn with_read_radius(self, read_radius_m: f32) -> Result<Self, PoseEkfError> {
+        if !(read_radius_m.is_finite() && read_radius_m >= 0.0) {
+            return Err(PoseEkfError::ReadRadius);
+        }
+        Ok(Self {
+            read_radius_m,
+            ..self
         })
     }
 
@@ -834,6 +897,7 @@ impl FusionEstimator {
             // The spacing is validated by `FusionSettings::new`.
             cells: TagCellTracker {
                 spacing_m: settings.tag_spacing_m,
+                travel_since_read_m: 0.0,
                 last_tag: None,
                 same_tag_reads: 0,
                 edge_corrections: 0,
@@ -861,8 +925,11 @@ impl FusionEstimator {
         if let Some(filter) = self.filter.as_mut() {
             filter.predict(odometry);
         }
+        if odometry.ds_m.is_finite() {
+            self.cells.travel_since_read_m += odometry.ds_m.abs();
+        }
         if let Some(tag) = fix {
-            if after_gap {
+            if after_gap && self.settings.read_radius_m <= 0.0 {
                 self.cells.restart();
             }
             let filter = match self.filter.as_mut() {
@@ -882,11 +949,23 @@ impl FusionEstimator {
                 odometry.ds_m * math::sin(heading),
             );
             let relocalisations = filter.counters().relocalisations;
-            for measurement in self
-                .cells
-                .measurements(tag, last_step, filter.pose().position)
-            {
-                filter.correct(&measurement);
+            let radius = self.settings.read_radius_m;
+            if radius > 0.0 {
+                let heading = filter.pose().heading_rad;
+                let travel = self.cells.travel_since_read_m;
+                self.cells.travel_since_read_m = 0.0;
+                if let Some(measurement) =
+                    self.cells.range_measurement(tag, heading, travel, radius)
+                {
+                    filter.correct(&measurement);
+                }
+            } else {
+                for measurement in self
+                    .cells
+                    .measurements(tag, last_step, filter.pose().position)
+                {
+                    filter.correct(&measurement);
+                }
             }
             let relocalised = filter.counters().relocalisations != relocalisations;
             self.follow_guide(odometry, Some(tag), relocalised);
@@ -1120,5 +1199,32 @@ mod tests {
                 prop_assert!((0..5).all(|i| c[(i, i)] >= 0.0));
             }
         }
+    }
+
+    #[test]
+    fn range_reads_are_one_measurement_per_pass() {
+        let mut cells = TagCellTracker::new(0.3).unwrap();
+        let tag = Vec2::new(1.0, 2.0);
+        // Heading +x: the entry point is π r/4 short of the tag along x.
+        let Some(PositionMeasurement::Point {
+            position,
+            variance_m2,
+        }) = cells.range_measurement(tag, 0.0, 0.0, 0.05)
+        else {
+            panic!("first read");
+        };
+        assert!((position.x - (1.0 - core::f32::consts::FRAC_PI_4 * 0.05)).abs() < 1e-6);
+        assert!((position.y - 2.0).abs() < 1e-6);
+        assert!((variance_m2[0] - 0.05 * 0.05 / 3.0).abs() < 1e-9);
+        // Repeats while in range: nothing, counted.
+        assert!(cells.range_measurement(tag, 0.0, 0.02, 0.05).is_none());
+        assert_eq!(cells.same_tag_reads(), 1);
+        // The same tag after driving more than 2r: a new pass.
+        assert!(cells.range_measurement(tag, 0.0, 0.2, 0.05).is_some());
+        assert!(
+            cells
+                .range_measurement(Vec2::new(f32::NAN, 0.0), 0.0, 1.0, 0.05)
+                .is_none()
+        );
     }
 }

@@ -90,6 +90,8 @@ pub enum EstimatorSpec {
         tag_spacing_m: f32,
         /// Prior variance of each wheel's scale error (0: not estimated).
         scale_prior: f32,
+        /// Reader range, m (0: the nearest tag is read every tick).
+        read_radius_m: f32,
     },
 }
 
@@ -245,6 +247,7 @@ impl TrackerSpec {
                 gate_sigma,
                 tag_spacing_m,
                 scale_prior,
+                read_radius_m,
             } => {
                 let settings = PoseEkfConfig::new(
                     track_width_m,
@@ -253,6 +256,7 @@ impl TrackerSpec {
                     gate_sigma,
                 )
                 .and_then(|filter| FusionSettings::new(filter, tag_spacing_m, scale_prior))
+                .and_then(|settings| settings.with_read_radius(read_radius_m))
                 .map_err(SpecError::FusionEkf)?;
                 config = config.with_fusion_ekf(settings);
             }
@@ -496,6 +500,7 @@ mod tests {
             gate_sigma: 3.0,
             tag_spacing_m: 0.0,
             scale_prior: 0.0,
+            read_radius_m: 0.0,
         };
         let expected = if cfg!(feature = "fusion-ekf") {
             SpecError::FusionEkf(crate::pose_ekf::PoseEkfError::TagSpacing)

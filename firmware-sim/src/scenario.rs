@@ -274,8 +274,8 @@ pub enum ObserverKind {
     /// `pose_gains = [a1, a2, a3, a4]`.
     Pose,
     /// The encoder + tag fusion EKF (`wmr_core::pose_ekf`), tuned by the
-    /// `fusion_*` keys; needs grid tags read nearest-first (`nearest_tag`,
-    /// or `reader` in `paper` mode) without added noise.
+    /// `fusion_*` keys; needs grid tags (`nearest_tag`, or `reader` in
+    /// `paper` or `range` mode) without added noise.
     FusionEkf,
 }
 
@@ -1045,19 +1045,19 @@ impl Scenario {
     /// The fusion EKF's spec: its tag model needs a grid read nearest-first
     /// without added noise; the wheel geometry comes from the plant.
     fn fusion_spec(&self) -> Result<EstimatorSpec, ScenarioError> {
-        let spacing_m = match self.position {
-            PositionSpec::NearestTag { spacing_m, .. } => spacing_m,
+        let (spacing_m, read_radius_m) = match self.position {
+            PositionSpec::NearestTag { spacing_m, .. } => (spacing_m, 0.0),
             PositionSpec::Reader {
                 spacing_m,
                 mode: ReaderModeSpec::Paper,
                 ..
-            } => spacing_m,
-            PositionSpec::Reader { .. } => {
-                return Err(ScenarioError::invalid(
-                    "observer.kind",
-                    "the fusion EKF models nearest-tag reads; range mode is not supported yet",
-                ));
-            }
+            } => (spacing_m, 0.0),
+            PositionSpec::Reader {
+                spacing_m,
+                mode: ReaderModeSpec::Range,
+                read_radius_m,
+                ..
+            } => (spacing_m, read_radius_m),
             PositionSpec::Exact => {
                 return Err(ScenarioError::invalid(
                     "observer.kind",
@@ -1106,6 +1106,7 @@ impl Scenario {
             wheel_variance_floor_m2: f(floor_m2),
             gate_sigma: f(positive("observer.fusion_gate_sigma", o.fusion_gate_sigma)?),
             tag_spacing_m: f(spacing_m),
+            read_radius_m: f(read_radius_m),
             scale_prior: f(non_negative(
                 "observer.fusion_scale_prior",
                 o.fusion_scale_prior,
