@@ -690,61 +690,45 @@ impl EkfModel<5, 5> for PoseWheelModel {
     }
 }
 
-impl ParticleModel<3, 3> for PoseModel {
-    type Input = BodyVelocity;
+macro_rules! particle_pose_model {
+    ($model:ty, $n:literal) => {
+        impl ParticleModel<$n, $n> for $model {
+            type Input = BodyVelocity;
 
-    fn transition(&self, x: &SVector<f32, 3>, u: &BodyVelocity, dt_s: f32) -> SVector<f32, 3> {
-        pose_step(x, u, dt_s)
-    }
+            fn transition(
+                &self,
+                x: &SVector<f32, $n>,
+                u: &BodyVelocity,
+                dt_s: f32,
+            ) -> SVector<f32, $n> {
+                pose_step(x, u, dt_s)
+            }
 
-    fn measure(&self, x: &SVector<f32, 3>) -> SVector<f32, 3> {
-        *x
-    }
+            fn measure(&self, x: &SVector<f32, $n>) -> SVector<f32, $n> {
+                *x
+            }
 
-    fn measurement_residual(
-        &self,
-        z: &SVector<f32, 3>,
-        expected: &SVector<f32, 3>,
-    ) -> SVector<f32, 3> {
-        wrapped_residual(z, expected, 2)
-    }
+            fn measurement_residual(
+                &self,
+                z: &SVector<f32, $n>,
+                expected: &SVector<f32, $n>,
+            ) -> SVector<f32, $n> {
+                wrapped_residual(z, expected, 2)
+            }
 
-    fn is_angle(&self, index: usize) -> bool {
-        index == 2
-    }
+            fn is_angle(&self, index: usize) -> bool {
+                index == 2
+            }
 
-    fn input_is_valid(&self, u: &BodyVelocity) -> bool {
-        u.is_finite()
-    }
+            fn input_is_valid(&self, u: &BodyVelocity) -> bool {
+                u.is_finite()
+            }
+        }
+    };
 }
 
-impl ParticleModel<5, 5> for PoseWheelModel {
-    type Input = BodyVelocity;
-
-    fn transition(&self, x: &SVector<f32, 5>, u: &BodyVelocity, dt_s: f32) -> SVector<f32, 5> {
-        pose_step(x, u, dt_s)
-    }
-
-    fn measure(&self, x: &SVector<f32, 5>) -> SVector<f32, 5> {
-        *x
-    }
-
-    fn measurement_residual(
-        &self,
-        z: &SVector<f32, 5>,
-        expected: &SVector<f32, 5>,
-    ) -> SVector<f32, 5> {
-        wrapped_residual(z, expected, 2)
-    }
-
-    fn is_angle(&self, index: usize) -> bool {
-        index == 2
-    }
-
-    fn input_is_valid(&self, u: &BodyVelocity) -> bool {
-        u.is_finite()
-    }
-}
+particle_pose_model!(PoseModel, 3);
+particle_pose_model!(PoseWheelModel, 5);
 
 macro_rules! ukf_pose_model {
     ($model:ty, $n:literal) => {
