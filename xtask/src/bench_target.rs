@@ -56,6 +56,17 @@ const MATH: [(&str, &str); 6] = [
     ("math_sqrt", "`sqrt`"),
 ];
 
+/// Paper 004's filters: the bench's name and the row label. Each has the
+/// stages `<name>_predict` and `<name>_update`.
+const FILTERS: [(&str, &str); 6] = [
+    ("ekf3", "EKF, N = M = 3 (`PoseModel`)"),
+    ("ekf5", "EKF, N = M = 5 (`PoseWheelModel`)"),
+    ("ukf3", "UKF, N = M = 3 (7 sigma points)"),
+    ("ukf5", "UKF, N = M = 5 (11 sigma points)"),
+    ("pf3", "particle filter, N = M = 3, 100 particles"),
+    ("pf5", "particle filter, N = M = 5, 100 particles"),
+];
+
 /// One stage's instruction counts.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stat {
@@ -69,6 +80,21 @@ pub struct Stat {
     pub min: i64,
     /// Largest sample, instructions.
     pub max: i64,
+}
+
+/// One of paper 004's filters, as the bench left it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterRun {
+    /// Bench name (`ekf3`, …).
+    pub name: String,
+    /// `size_of` the filter on the target, bytes.
+    pub state_bytes: u64,
+    /// RMS position error over the sampled steps, m.
+    pub position_rms_error_m: f64,
+    /// Particle-filter resamplings over the whole run.
+    pub resamplings: u64,
+    /// Steps (predict + update) of the whole run.
+    pub steps: u64,
 }
 
 /// What one run of `wmr-bench` reported.
@@ -86,12 +112,30 @@ pub struct Report {
     pub stats: Vec<Stat>,
     /// Peak stack of one tick below its caller's stack pointer, bytes.
     pub tick_stack_bytes: u64,
+    /// Peak stack of one call of each other measured stage (paper 004's
+    /// filter steps), bytes.
+    pub stacks: Vec<(String, u64)>,
+    /// Every `filter` line.
+    pub filters: Vec<FilterRun>,
+    /// Flash and static RAM of the `wmr-bench` ELF, bytes (set by
+    /// [`run_backend`], not by the output).
+    pub elf_flash_ram: Option<(u64, u64)>,
 }
 
 impl Report {
     /// The stage called `name`.
     pub fn stat(&self, name: &str) -> Option<&Stat> {
         self.stats.iter().find(|s| s.name == name)
+    }
+
+    /// The stack of the stage called `name` (not the tick's).
+    pub fn stack(&self, name: &str) -> Option<u64> {
+        self.stacks.iter().find(|s| s.0 == name).map(|s| s.1)
+    }
+
+    /// The filter called `name`.
+    pub fn filter(&self, name: &str) -> Option<&FilterRun> {
+        self.filters.iter().find(|f| f.name == name)
     }
 }
 
@@ -113,6 +157,9 @@ pub fn parse(output: &str) -> Result<Report, String> {
         overhead_instructions: 0.0,
         stats: Vec::new(),
         tick_stack_bytes: 0,
+        stacks: Vec::new(),
+        filters: Vec::new(),
+        elf_flash_ram: None,
     };
     let (mut header, mut calibrated, mut stack, mut done) = (false, false, false, false);
     for line in output.lines().map(str::trim) {
@@ -138,9 +185,25 @@ pub fn parse(output: &str) -> Result<Report, String> {
                     max: field(line, "max")?,
                 });
             }
-            Some("stack") if words.next() == Some("robot_tick") => {
-                report.tick_stack_bytes = field(line, "bytes")?;
-                stack = true;
+            Some("stack") => {
+                let name = words.next().ok_or_else(|| format!("no name in `{line}`"))?;
+                let bytes = field(line, "bytes")?;
+                if name == "robot_tick" {
+                    report.tick_stack_bytes = bytes;
+                    stack = true;
+                } else {
+                    report.stacks.push((name.to_string(), bytes));
+                }
+            }
+            Some("filter") => {
+                let name = words.next().ok_or_else(|| format!("no name in `{line}`"))?;
+                report.filters.push(FilterRun {
+                    name: name.to_string(),
+                    state_bytes: field(line, "state_bytes")?,
+                    position_rms_error_m: field(line, "position_rms_error_m")?,
+                    resamplings: field(line, "resamplings")?,
+                    steps: field(line, "steps")?,
+                });
             }
             Some("error") => return Err(format!("the bench failed: {line}")),
             Some("done") => done = true,
@@ -170,8 +233,10 @@ pub fn run_backend(
     .run(label)?;
     let elf = elf.first().ok_or("no ELF built")?;
     eprintln!("    running {} under QEMU (-icount shift=0)", elf.display());
+    let sizes = crate::size::analyse(elf)?;
     let output = qemu(elf, QEMU_TIMEOUT)?;
-    let report = parse(&output).map_err(|e| format!("{}: {e}", elf.display()))?;
+    let mut report = parse(&output).map_err(|e| format!("{}: {e}", elf.display()))?;
+    report.elf_flash_ram = Some((sizes.flash, sizes.ram));
     if report.backend != backend {
         return Err(format!(
             "{} says backend {}, expected {backend}",
@@ -271,6 +336,23 @@ pub fn markdown(reports: &[Report]) -> String {
         }
         md.push('\n');
     }
+    filters_markdown(&mut md, reports, samples);
+    md.push_str(
+        "\n`wmr-bench` itself (a binary of its own: the firmware's size is `cargo xtask size`'s):",
+    );
+    for r in reports {
+        if let Some((flash, ram)) = r.elf_flash_ram {
+            let _ = write!(
+                md,
+                " {} {} B flash, {} B static RAM;",
+                r.backend,
+                grouped(flash),
+                grouped(ram)
+            );
+        }
+    }
+    md.pop();
+    md.push_str(".\n");
     md.push_str("\nCalibration:");
     for r in reports {
         let _ = write!(
@@ -285,6 +367,92 @@ pub fn markdown(reports: &[Report]) -> String {
     md
 }
 
+/// Paper 004's filters: instructions per step, then memory and tracking.
+fn filters_markdown(md: &mut String, reports: &[Report], samples: u32) {
+    let _ = writeln!(
+        md,
+        "\nPaper 004's nonlinear filters, per call: the EKF (`ExtendedKalmanFilter`), \
+         the UKF (`UnscentedKalmanFilter`, `MerweScaledSigmaPoints::paper()`) and the \
+         particle filter (`ParticleFilter`, 100 particles, systematic resampling below \
+         an effective sample size of 50) on `slip_tracking::PoseModel` (scenario 1) \
+         and `PoseWheelModel` (scenario 2), set up as in `host-tests/src/paper_004.rs`. \
+         Paper 004's tracked robot drives an arc at 0.5 m/s and 0.25 rad/s, its whole \
+         state measured with deterministic uniform noise of `R`'s variances; a predict \
+         (h = 5 ms) then an update each step (the UKF's update reuses the predict's \
+         sigma points). Mean over {samples} steps after 2 s (the particle filters \
+         converge from `P0` in about 1 s), min–max in parentheses.\n"
+    );
+    let _ = write!(md, "| filter step |");
+    for r in reports {
+        let _ = write!(md, " {} |", r.backend);
+    }
+    md.push_str("\n| --- |");
+    for _ in reports {
+        md.push_str(" ---: |");
+    }
+    md.push('\n');
+    for (name, label) in FILTERS {
+        for step in ["predict", "update"] {
+            let _ = write!(md, "| {label}: {step} |");
+            for r in reports {
+                let _ = write!(md, " {} |", cell(r.stat(&format!("{name}_{step}"))));
+            }
+            md.push('\n');
+        }
+    }
+    let _ = write!(
+        md,
+        "\nTheir memory and tracking: state = `size_of` the filter on the target \
+         (wherever it is kept: static RAM, or the stack of the function that owns it); \
+         stack = one call's peak below its caller's stack pointer; RMS position error \
+         over the sampled steps (of the measurements: 0.45 m), and the particle \
+         filters' resamplings over the whole run.\n\n| filter | state |"
+    );
+    for r in reports {
+        let _ = write!(md, " stack, predict / update: {} |", r.backend);
+    }
+    for r in reports {
+        let _ = write!(md, " RMS position error: {} |", r.backend);
+    }
+    md.push_str("\n| --- | ---: |");
+    for _ in 0..2 * reports.len() {
+        md.push_str(" ---: |");
+    }
+    md.push('\n');
+    let bytes = |b: Option<u64>| b.map_or_else(|| "–".into(), |b| format!("{} B", grouped(b)));
+    for (name, label) in FILTERS {
+        let state = reports
+            .iter()
+            .find_map(|r| r.filter(name))
+            .map(|f| f.state_bytes);
+        let _ = write!(md, "| {label} | {} |", bytes(state));
+        for r in reports {
+            let _ = write!(
+                md,
+                " {} / {} |",
+                bytes(r.stack(&format!("{name}_predict"))),
+                bytes(r.stack(&format!("{name}_update")))
+            );
+        }
+        for r in reports {
+            match r.filter(name) {
+                Some(f) if f.resamplings > 0 => {
+                    let _ = write!(
+                        md,
+                        " {:.3} m ({} resamplings in {} updates) |",
+                        f.position_rms_error_m, f.resamplings, f.steps
+                    );
+                }
+                Some(f) => {
+                    let _ = write!(md, " {:.3} m |", f.position_rms_error_m);
+                }
+                None => md.push_str(" – |"),
+            }
+        }
+        md.push('\n');
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -294,6 +462,11 @@ wmr-bench backend=libm samples=200
 calibration counts_per_instruction=0.16800 loop_counts_per_iteration=0.33601 nop_counts_per_instruction=0.1683 overhead_instructions=2.0
 bench odometry mean=73.7 median=75 min=69 max=75 n=200
 bench robot_tick mean=10227.0 median=9266 min=9052 max=11432 n=200
+bench pf3_predict mean=936441.6 median=936579 min=933347 max=938829 n=200
+bench pf3_update mean=277137.9 median=276744 min=274988 max=283708 n=200
+stack pf3_predict bytes=328
+stack pf3_update bytes=352
+filter pf3 state_bytes=2928 position_rms_error_m=0.0428 faults=0 repairs=0 resamplings=61 steps=601
 stack robot_tick bytes=776
 check frames_ok=230 unknown_tags=0 encoder_errors=0 mode=tracking
 done
@@ -311,6 +484,28 @@ done
         let md = markdown(&[r]);
         assert!(md.contains("| 10 227 (9 052–11 432) |"), "{md}");
         assert!(md.contains("| 776 B |"), "{md}");
+    }
+
+    #[test]
+    fn reports_the_filters() {
+        let r = parse(OUTPUT).unwrap();
+        assert_eq!(r.stack("pf3_update"), Some(352));
+        assert_eq!(r.filter("pf3").map(|f| f.state_bytes), Some(2928));
+        let md = markdown(&[r]);
+        assert!(
+            md.contains(
+                "| particle filter, N = M = 3, 100 particles: predict | 936 442 (933 347–938 829) |"
+            ),
+            "{md}"
+        );
+        assert!(
+            md.contains("| particle filter, N = M = 3, 100 particles | 2 928 B | 328 B / 352 B | 0.043 m (61 resamplings in 601 updates) |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| EKF, N = M = 3 (`PoseModel`): update | – |"),
+            "{md}"
+        );
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! On-target benchmark: instructions per call of the control tick and of its
-//! stages, and the peak stack of one tick, under QEMU.
+//! stages, and of paper 004's filter steps, and the peak stack of one tick
+//! and of each filter step, under QEMU.
 //!
 //! Run by `cargo xtask bench-target`, which builds it for each math backend
 //! and runs
@@ -28,8 +29,20 @@
 //!    one wheel speed loop, `Pilot::step`, and the whole `Robot::tick` over
 //!    the HIL link's proxy devices (encoders, RFID frame parsing, tag
 //!    lookup, pilot, both motor drivers);
-//! 4. paints a window below the stack pointer, runs one tick and reports the
-//!    bytes the tick used below its caller's stack pointer.
+//! 4. times paper 004's nonlinear filters, a predict then an update each
+//!    5 ms step, each call in its own `#[inline(never)]` function: the EKF,
+//!    the UKF (`MerweScaledSigmaPoints::paper()`) and the particle filter
+//!    (100 particles) on `PoseModel` (N = M = 3, scenario 1) and on
+//!    `PoseWheelModel` (N = M = 5, scenario 2), set up as
+//!    `host_tests::paper_004` sets them up, while paper 004's tracked robot
+//!    drives an arc (0.5 m/s, 0.25 rad/s) and its whole state is measured
+//!    with deterministic uniform pseudo-noise of `R`'s variances; sampling
+//!    starts after 2 s (the particle filters converge from their prior in
+//!    about 1 s). Each filter must skip no step and track the robot (RMS
+//!    position error below the measurements');
+//! 5. paints a window below the stack pointer, runs one call (a tick, a
+//!    filter step) and reports the bytes it used below its caller's stack
+//!    pointer.
 //!
 //! A sample is one call, quantized to one SysTick count (≈ 6 instructions):
 //! the mean over the samples (whose start phases differ) is good to about
@@ -42,6 +55,8 @@
 //! wmr-bench backend=<libm|micromath> samples=<n>
 //! calibration counts_per_instruction=<f> loop_counts_per_iteration=<f> nop_counts_per_instruction=<f> overhead_instructions=<f>
 //! bench <name> mean=<f> median=<i> min=<i> max=<i> n=<i>
+//! stack <filter step> bytes=<i>
+//! filter <name> state_bytes=<i> position_rms_error_m=<f> faults=<i> repairs=<i> resamplings=<i> steps=<i>
 //! stack robot_tick bytes=<i>
 //! done
 //! ```
@@ -59,18 +74,23 @@ mod on_target {
     // Links the device crate: it provides the interrupt vectors.
     use stm32f4xx_hal as _;
 
+    use nalgebra::{SMatrix, SVector};
     use wmr_core::devices::{MotorDriver, MotorWiring, RfidReader, TagGrid, TagId, encode_frame};
     use wmr_core::drive::{SpeedLoopGains, WheelSpeedLoop};
-    use wmr_core::geometry::{BodyVelocity, DiffDriveGeometry, Vec2};
+    use wmr_core::ekf::{EkfModel, ExtendedKalmanFilter};
+    use wmr_core::geometry::{BodyVelocity, DiffDriveGeometry, Pose, Vec2, WheelSpeeds};
     use wmr_core::heading_observer::{HeadingEstimate, HeadingObserver};
     use wmr_core::math;
     use wmr_core::odometry::{OdometryStep, WrappingCounter};
     use wmr_core::output_feedback::TagFix;
+    use wmr_core::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
     use wmr_core::pilot::{Measurement, Pilot, PilotOutput};
     use wmr_core::reference::{ReferenceSample, Trajectory};
     use wmr_core::robot::{Robot, RobotTick};
+    use wmr_core::slip_tracking::{PoseModel, PoseWheelModel, TrackedRobot};
     use wmr_core::spec::{DriveSpec, PilotSpec, TagGridSpec, TrackerSpec, TrajectorySpec};
     use wmr_core::tracking::{TrackingCommand, TrackingController, TrackingGains};
+    use wmr_core::ukf::{MerweScaledSigmaPoints, UkfModel, UnscentedKalmanFilter};
     use wmr_link::TickInput;
     use wmr_link::proxy::{ProxyBus, Side};
     use wmr_link::session::ProxyRobot;
@@ -384,10 +404,11 @@ mod on_target {
         robot.tick()
     }
 
-    /// Bytes of stack one [`robot_tick`] uses below this function's stack
-    /// pointer; `None` if it used the whole painted window.
+    /// Bytes of stack `f` uses below this function's stack pointer; `None`
+    /// if it used the whole painted window. `f` should be one call of an
+    /// `#[inline(never)]` function (its arguments prepared by the caller).
     #[inline(never)]
-    fn tick_stack_bytes(robot: &mut ProxyRobot<'_>) -> Option<u32> {
+    fn stack_bytes(f: impl FnOnce()) -> Option<u32> {
         let paint = cortex_m_rt::STACK_PAINT_VALUE;
         // The stack region's low end: cortex-m-rt's linker symbol (set by
         // flip-link too, when the stack is placed below the statics); only
@@ -420,7 +441,7 @@ mod on_target {
                 options(nostack),
             );
         }
-        black_box(robot_tick(black_box(robot)));
+        f();
         let mut addr = bottom;
         while addr < sp {
             // SAFETY: `addr` is word-aligned (sp is, and the window is a
@@ -492,6 +513,424 @@ mod on_target {
     #[inline(never)]
     fn call_math(f: fn(&[f32; 2]) -> f32, x: &[f32; 2]) -> f32 {
         f(x)
+    }
+
+    // ------------------------------------------------- paper 004's filters
+
+    /// Paper 004's step `h`, s.
+    const FILTER_STEP_S: f32 = 0.005;
+    /// The arc the filters' robot drives (turning radius 2 m).
+    const ARC: BodyVelocity = BodyVelocity {
+        v_m_s: 0.5,
+        omega_rad_s: 0.25,
+    };
+    /// Filter steps before sampling starts, 2 s: the particle filters take
+    /// about 1 s to converge from their prior (`P0 = 10 I`), and their
+    /// resampling rate changes until then.
+    const FILTER_WARMUP_STEPS: usize = 400;
+    /// `R`: variances of the measured `(X, Y, ψ, ω_L, ω_R)` (paper 004).
+    const MEASUREMENT_VARIANCE: [f32; 5] = [0.1, 0.1, 0.2, 0.01, 0.01];
+    /// `Q` per step (`host_tests::paper_004::PROCESS_NOISE`).
+    const PROCESS_VARIANCE: [f32; 5] = [1e-5, 1e-5, 1e-5, 1e-2, 1e-2];
+    /// `P0 = 10 I` (EKF; the particle filter's prior).
+    const INITIAL_VARIANCE: [f32; 5] = [10.0; 5];
+    /// The UKF's `P0`: heading variance 1 rad² (its circular mean turns
+    /// around above ~2 rad², `wmr_core::ukf` docs).
+    const UKF_INITIAL_VARIANCE: [f32; 5] = [10.0, 10.0, 1.0, 10.0, 10.0];
+    /// Particles (paper 004).
+    const PARTICLES: usize = 100;
+    /// The particle filter's process noise per step, standard deviations
+    /// (`host_tests::paper_004::PARTICLE_PROCESS_STD`).
+    const PARTICLE_PROCESS_STD: [f32; 5] = [0.01, 0.01, 0.02, 0.5, 0.5];
+    /// The particle filter's generator seed.
+    const PARTICLE_SEED: u64 = 4;
+    /// Every filter's RMS position error over the sampled steps must stay
+    /// below the measurements' own (`√(0.1 + 0.1)` m): no worse than not
+    /// filtering. Measured: EKF and UKF 0.015 m, particle filters 0.04 to
+    /// 0.22 m (micromath, N = 5).
+    const MAX_FILTER_RMS_ERROR_M: f32 = 0.45;
+
+    /// Paper 004's tracked robot (no slip) driving [`ARC`], its whole state
+    /// measured every step with deterministic pseudo-noise: uniform, of
+    /// `R`'s variances.
+    struct Arc {
+        pose: Pose,
+        wheels: WheelSpeeds,
+        /// xorshift32 state.
+        noise: u32,
+        /// `√(3R)`: a uniform draw on `±√(3R)` has variance `R`.
+        noise_half_width: [f32; 5],
+    }
+
+    impl Arc {
+        fn new(start: Pose) -> Self {
+            Self {
+                pose: start,
+                wheels: TrackedRobot::PAPER.wheels_for(ARC, 1.0),
+                noise: 0x2545_F491,
+                noise_half_width: MEASUREMENT_VARIANCE.map(|r| math::sqrt(3.0 * r)),
+            }
+        }
+
+        /// The true `(X, Y, ψ, ω_L, ω_R)`.
+        fn state(&self) -> SVector<f32, 5> {
+            SVector::<f32, 5>::new(
+                self.pose.position.x,
+                self.pose.position.y,
+                self.pose.heading_rad,
+                self.wheels.left_rad_s,
+                self.wheels.right_rad_s,
+            )
+        }
+
+        /// Drives one step (exact arc) and returns the measured state.
+        fn step(&mut self) -> SVector<f32, 5> {
+            let pose = self
+                .pose
+                .advance_arc(ARC.v_m_s * FILTER_STEP_S, ARC.omega_rad_s * FILTER_STEP_S);
+            self.pose = Pose::new(
+                pose.position.x,
+                pose.position.y,
+                math::wrap_angle(pose.heading_rad),
+            );
+            let mut z = self.state();
+            for (z, half_width) in z.iter_mut().zip(self.noise_half_width) {
+                *z += half_width * self.uniform();
+            }
+            z[2] = math::wrap_angle(z[2]);
+            z
+        }
+
+        /// Uniform on [−1, 1) (xorshift32, 24 bits).
+        fn uniform(&mut self) -> f32 {
+            let mut x = self.noise;
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            self.noise = x;
+            (x >> 8) as f32 * (2.0 / 16_777_216.0) - 1.0
+        }
+    }
+
+    /// What a filter skipped or repaired over its run.
+    #[derive(Default)]
+    struct Health {
+        /// Steps skipped or recovered from (rejected inputs or results,
+        /// singular innovations, covariance resets, particle-filter
+        /// collapses and dropped particles): must stay 0.
+        faults: u32,
+        /// UKF factorisations that needed the jitter.
+        repairs: u32,
+        /// Particle-filter resamplings.
+        resamplings: u32,
+    }
+
+    /// One of paper 004's filters on its model, with `N` states all
+    /// measured, driven by a [`BodyVelocity`].
+    trait BenchFilter<const N: usize> {
+        fn bench_predict(&mut self, input: &(BodyVelocity, f32));
+        fn bench_update(&mut self, z: &SVector<f32, N>);
+        fn bench_estimate(&self) -> SVector<f32, N>;
+        fn bench_health(&self) -> Health;
+    }
+
+    impl<Model, const N: usize> BenchFilter<N> for ExtendedKalmanFilter<Model, N, N>
+    where
+        Model: EkfModel<N, N, Input = BodyVelocity>,
+    {
+        fn bench_predict(&mut self, (u, dt_s): &(BodyVelocity, f32)) {
+            self.predict(u, *dt_s);
+        }
+        fn bench_update(&mut self, z: &SVector<f32, N>) {
+            self.update(z);
+        }
+        fn bench_estimate(&self) -> SVector<f32, N> {
+            *self.state()
+        }
+        fn bench_health(&self) -> Health {
+            let c = self.counters();
+            Health {
+                faults: c.rejected_predictions + c.rejected_updates + c.singular_innovations,
+                ..Health::default()
+            }
+        }
+    }
+
+    impl<Model, const N: usize, const S: usize> BenchFilter<N> for UnscentedKalmanFilter<Model, N, N, S>
+    where
+        Model: UkfModel<N, N, Input = BodyVelocity>,
+    {
+        fn bench_predict(&mut self, (u, dt_s): &(BodyVelocity, f32)) {
+            // Counted in the filter's counters (`bench_health`).
+            let _outcome = self.predict(u, *dt_s);
+        }
+        fn bench_update(&mut self, z: &SVector<f32, N>) {
+            let _outcome = self.update(z);
+        }
+        fn bench_estimate(&self) -> SVector<f32, N> {
+            *self.state()
+        }
+        fn bench_health(&self) -> Health {
+            let c = self.counters();
+            Health {
+                faults: c.rejected_inputs
+                    + c.non_finite_results
+                    + c.singular_innovations
+                    + c.covariance_resets,
+                repairs: c.covariance_repairs,
+                resamplings: 0,
+            }
+        }
+    }
+
+    impl<Model, const N: usize, const P: usize> BenchFilter<N> for ParticleFilter<Model, N, N, P>
+    where
+        Model: ParticleModel<N, N, Input = BodyVelocity>,
+    {
+        fn bench_predict(&mut self, (u, dt_s): &(BodyVelocity, f32)) {
+            self.predict(u, *dt_s);
+        }
+        fn bench_update(&mut self, z: &SVector<f32, N>) {
+            self.update(z);
+        }
+        fn bench_estimate(&self) -> SVector<f32, N> {
+            self.estimate()
+        }
+        fn bench_health(&self) -> Health {
+            let c = self.counters();
+            Health {
+                faults: c.rejected_inputs + c.collapses + c.dropped_particles,
+                repairs: 0,
+                resamplings: c.resamplings,
+            }
+        }
+    }
+
+    #[inline(never)]
+    fn filter_predict<F: BenchFilter<N>, const N: usize>(
+        filter: &mut F,
+        input: &(BodyVelocity, f32),
+    ) {
+        filter.bench_predict(input);
+    }
+
+    #[inline(never)]
+    fn filter_update<F: BenchFilter<N>, const N: usize>(filter: &mut F, z: &SVector<f32, N>) {
+        filter.bench_update(z);
+    }
+
+    /// Runs `filter` along an [`Arc`] from `start`, a predict then an
+    /// update each step, and reports both stages, the stack of one call of
+    /// each, the filter's size and its health; fails if it skipped a step
+    /// or lost the robot.
+    fn bench_filter<F: BenchFilter<N>, const N: usize>(
+        cal: Calibration,
+        name: &str,
+        [predict_name, update_name]: [&'static str; 2],
+        filter: &mut F,
+        start: Pose,
+    ) {
+        let mut arc = Arc::new(start);
+        let mut stages = [Stage::new(predict_name), Stage::new(update_name)];
+        let input = (ARC, FILTER_STEP_S);
+        let measure = |arc: &mut Arc| arc.step().fixed_rows::<N>(0).into_owned();
+        let mut sum_sq_error = 0.0;
+        for k in 0..FILTER_WARMUP_STEPS + SAMPLES {
+            let z = measure(&mut arc);
+            let (predict, ()) = timed(&input, |i| filter_predict(filter, i));
+            let (update, ()) = timed(&z, |z| filter_update(filter, z));
+            if k >= FILTER_WARMUP_STEPS {
+                stages[0].record(predict);
+                stages[1].record(update);
+                let estimate = filter.bench_estimate();
+                let (dx, dy) = (
+                    estimate[0] - arc.pose.position.x,
+                    estimate[1] - arc.pose.position.y,
+                );
+                sum_sq_error += dx * dx + dy * dy;
+            }
+        }
+        let rms_error = math::sqrt(sum_sq_error / SAMPLES as f32);
+        for stage in &stages {
+            stage.report(cal);
+        }
+        let z = measure(&mut arc);
+        let stacks = [
+            stack_bytes(|| filter_predict(filter, black_box(&input))),
+            stack_bytes(|| filter_update(filter, black_box(&z))),
+        ];
+        for (stage, bytes) in stages.iter().zip(stacks) {
+            match bytes {
+                Some(bytes) => hprintln!("stack {} bytes={}", stage.name, bytes),
+                None => fail("a filter step used the whole painted stack window"),
+            }
+        }
+        let health = filter.bench_health();
+        hprintln!(
+            "filter {} state_bytes={} position_rms_error_m={:.4} faults={} repairs={} resamplings={} steps={}",
+            name,
+            core::mem::size_of::<F>(),
+            rms_error,
+            health.faults,
+            health.repairs,
+            health.resamplings,
+            FILTER_WARMUP_STEPS + SAMPLES + 1
+        );
+        // False for a NaN error too.
+        let tracked = rms_error <= MAX_FILTER_RMS_ERROR_M;
+        if health.faults > 0 || !tracked {
+            fail("a paper 004 filter skipped a step or lost the robot");
+        }
+    }
+
+    /// The first `N` components of a 5-vector.
+    fn head<const N: usize>(x: &SVector<f32, 5>) -> SVector<f32, N> {
+        x.fixed_rows::<N>(0).into_owned()
+    }
+
+    /// `diag(values[..N])`.
+    fn diagonal<const N: usize>(values: [f32; 5]) -> SMatrix<f32, N, N> {
+        SMatrix::from_diagonal(&head(&SVector::from(values)))
+    }
+
+    /// A filter, or the bench fails saying `what`.
+    fn built<T, E>(filter: Result<T, E>, what: &str) -> T {
+        filter.unwrap_or_else(|_| fail(what))
+    }
+
+    /// Paper 004's EKF, UKF and particle filter on scenario 1's
+    /// `PoseModel` (N = 3) and scenario 2's `PoseWheelModel` (N = 5), set
+    /// up as `host_tests::paper_004` sets them up (each starts at the true
+    /// state; the particle filter's state, 2.9 KB and 4.6 KB, lives in this
+    /// function's frame).
+    #[inline(never)]
+    fn bench_paper_004(cal: Calibration) {
+        let scenario_1 = Pose::new(0.0, -1.5, core::f32::consts::FRAC_PI_4);
+        let scenario_2 = Pose::new(0.0, -1.0, core::f32::consts::FRAC_PI_6);
+        let (x1, x2) = (Arc::new(scenario_1).state(), Arc::new(scenario_2).state());
+        let (q, r) = (PROCESS_VARIANCE, MEASUREMENT_VARIANCE);
+
+        let mut ekf3 = built(
+            ExtendedKalmanFilter::new(
+                PoseModel,
+                head::<3>(&x1),
+                diagonal(INITIAL_VARIANCE),
+                diagonal(q),
+                diagonal(r),
+            ),
+            "EKF (N = 3) refused",
+        );
+        bench_filter(
+            cal,
+            "ekf3",
+            ["ekf3_predict", "ekf3_update"],
+            &mut ekf3,
+            scenario_1,
+        );
+        let mut ekf5 = built(
+            ExtendedKalmanFilter::new(
+                PoseWheelModel,
+                x2,
+                diagonal(INITIAL_VARIANCE),
+                diagonal(q),
+                diagonal(r),
+            ),
+            "EKF (N = 5) refused",
+        );
+        bench_filter(
+            cal,
+            "ekf5",
+            ["ekf5_predict", "ekf5_update"],
+            &mut ekf5,
+            scenario_2,
+        );
+
+        let mut ukf3 = built(
+            MerweScaledSigmaPoints::paper().and_then(|points| {
+                UnscentedKalmanFilter::<_, 3, 3, 7>::new(
+                    PoseModel,
+                    points,
+                    head(&x1),
+                    diagonal(UKF_INITIAL_VARIANCE),
+                    diagonal(q),
+                    diagonal(r),
+                )
+            }),
+            "UKF (N = 3) refused",
+        );
+        bench_filter(
+            cal,
+            "ukf3",
+            ["ukf3_predict", "ukf3_update"],
+            &mut ukf3,
+            scenario_1,
+        );
+        let mut ukf5 = built(
+            MerweScaledSigmaPoints::paper().and_then(|points| {
+                UnscentedKalmanFilter::<_, 5, 5, 11>::new(
+                    PoseWheelModel,
+                    points,
+                    x2,
+                    diagonal(UKF_INITIAL_VARIANCE),
+                    diagonal(q),
+                    diagonal(r),
+                )
+            }),
+            "UKF (N = 5) refused",
+        );
+        bench_filter(
+            cal,
+            "ukf5",
+            ["ukf5_predict", "ukf5_update"],
+            &mut ukf5,
+            scenario_2,
+        );
+
+        let process_std = SVector::from(PARTICLE_PROCESS_STD);
+        let measurement_std = SVector::from(MEASUREMENT_VARIANCE.map(math::sqrt));
+        let prior_std = SVector::from(INITIAL_VARIANCE.map(math::sqrt));
+        let mut pf3 = built(
+            ParticleFilterConfig::new(head(&process_std), head(&measurement_std))
+                .and_then(|c| c.with_collapse_gate(f32::INFINITY))
+                .and_then(|config| {
+                    ParticleFilter::<_, 3, 3, PARTICLES>::new(
+                        PoseModel,
+                        config,
+                        head(&x1),
+                        head(&prior_std),
+                        PARTICLE_SEED,
+                    )
+                }),
+            "particle filter (N = 3) refused",
+        );
+        bench_filter(
+            cal,
+            "pf3",
+            ["pf3_predict", "pf3_update"],
+            &mut pf3,
+            scenario_1,
+        );
+        let mut pf5 = built(
+            ParticleFilterConfig::new(process_std, measurement_std)
+                .and_then(|c| c.with_collapse_gate(f32::INFINITY))
+                .and_then(|config| {
+                    ParticleFilter::<_, 5, 5, PARTICLES>::new(
+                        PoseWheelModel,
+                        config,
+                        x2,
+                        prior_std,
+                        PARTICLE_SEED,
+                    )
+                }),
+            "particle filter (N = 5) refused",
+        );
+        bench_filter(
+            cal,
+            "pf5",
+            ["pf5_predict", "pf5_update"],
+            &mut pf5,
+            scenario_2,
+        );
     }
 
     // ------------------------------------------------------------------ main
@@ -666,13 +1105,15 @@ mod on_target {
             stage.report(cal);
         }
         bench_math(cal);
+        bench_paper_004(cal);
 
         let mut peak = Some(0_u32);
         for k in 0..STACK_TICKS {
             load(&world.reading(WARMUP_TICKS + SAMPLES as u32 + k));
-            peak = peak
-                .zip(tick_stack_bytes(&mut robot))
-                .map(|(a, b)| a.max(b));
+            let tick = stack_bytes(|| {
+                black_box(robot_tick(black_box(&mut robot)));
+            });
+            peak = peak.zip(tick).map(|(a, b)| a.max(b));
         }
         match peak {
             Some(bytes) => hprintln!("stack robot_tick bytes={}", bytes),
