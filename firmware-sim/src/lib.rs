@@ -8,7 +8,8 @@
 //! ```
 //!
 //! * [`plant`]: the kinematic unicycle of paper 001 (exact arcs) and a
-//!   differential-drive body with first-order DC motors (RK4).
+//!   differential-drive body with first-order DC motors or, with
+//!   `[plant.dynamics]`, rigid-body wheel dynamics (RK4).
 //! * [`devices`]: virtual PWM, direction pins, quadrature encoders and an
 //!   RFID reader on a baud-timed UART, implementing the same traits as the
 //!   firmware's peripherals.
@@ -22,6 +23,8 @@
 //!   parallel, convergence and error statistics.
 //! * [`hil`]: the same runs with the control tick in the real firmware
 //!   under QEMU, in lock-step over a serial link.
+//! * [`slip`]: paper 004's tracked robot under slip with the adaptive
+//!   controllers and the EKF, UKF or particle filter (`firmware-sim slip`).
 //!
 //! ```no_run
 //! use firmware_sim::{run, Scenario};
@@ -37,6 +40,7 @@ pub mod output;
 pub mod plant;
 pub mod run;
 pub mod scenario;
+pub mod slip;
 pub mod sweep;
 pub mod tags;
 

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 use firmware_sim::hil::{HilOptions, run_hil};
 use firmware_sim::output::{format_summary, write_all};
 use firmware_sim::scenario::{EMBEDDED, Scenario, embedded_source};
+use firmware_sim::slip::{self, Estimator, SlipScenario};
 use firmware_sim::sweep::output::{format_sweep_summary, markdown_table, write_sweep};
 use firmware_sim::sweep::{SweepOptions, plan_of, run_sweep, run_variation};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -99,6 +100,32 @@ enum Command {
         /// Do not render the PNGs.
         #[arg(long)]
         no_plot: bool,
+    },
+    /// Paper 004's tracked robot under slip: run a slip scenario (embedded
+    /// `paper_004_velocity` or `paper_004_torque`, or a file) and write
+    /// run.csv, summary.json, scenario.toml, errors.png, slip.png and
+    /// trajectory.png.
+    Slip {
+        /// Slip scenario file (TOML) or embedded name.
+        scenario: String,
+        /// Override the estimator: exact, ekf, ukf or particle_filter.
+        #[arg(long)]
+        estimator: Option<Estimator>,
+        /// Override the noise seed.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Override the duration, s.
+        #[arg(long)]
+        duration_s: Option<f64>,
+        /// Output directory (default: out/<name>-<estimator>-seed<seed>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Do not render the PNGs.
+        #[arg(long)]
+        no_plot: bool,
+        /// Print the summary as JSON instead of text.
+        #[arg(long)]
+        json: bool,
     },
     /// List the embedded scenarios.
     Scenarios,
@@ -232,6 +259,54 @@ fn real_main() -> anyhow::Result<()> {
                     sweep_all(&loaded, &options, out, !no_plot)
                 }
             }
+        }
+        Command::Slip {
+            scenario,
+            estimator,
+            seed,
+            duration_s,
+            out,
+            no_plot,
+            json,
+        } => {
+            let mut scenario = SlipScenario::load(&scenario)?;
+            if let Some(e) = estimator {
+                scenario.estimator = e;
+            }
+            if let Some(s) = seed {
+                scenario.seed = s;
+            }
+            if let Some(d) = duration_s {
+                scenario.duration_s = d;
+            }
+            scenario.validate()?;
+            let out = out.unwrap_or_else(|| {
+                PathBuf::from("out").join(format!(
+                    "{}-{}-seed{}",
+                    scenario.name,
+                    scenario.estimator.name(),
+                    scenario.seed
+                ))
+            });
+            let result = slip::run(&scenario)?;
+            let files = slip::write_outputs(&out, &scenario, &result, !no_plot)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&result.summary)?);
+            } else {
+                print!("{}", slip::format_slip_summary(&result.summary));
+                println!(
+                    "wrote         {}, {}, {}{}",
+                    files.csv.display(),
+                    files.summary.display(),
+                    files.scenario.display(),
+                    files
+                        .plots
+                        .iter()
+                        .map(|p| format!(", {}", p.display()))
+                        .collect::<String>()
+                );
+            }
+            Ok(())
         }
         Command::Run {
             scenario,

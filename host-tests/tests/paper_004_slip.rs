@@ -2,9 +2,11 @@
 //! (i = 0.25 during 22.5–45 s) with the adaptive velocity-based controller
 //! (scenario 1) and the torque-based one (scenario 2), fed by the EKF, the
 //! UKF and the particle filter on measurements with the paper's noise
-//! (`host_tests::paper_004`). Every filter run is repeated for noise seeds
-//! 1 to 5 and the bounds hold for the worst; each is a little weaker than
-//! the worst figure measured (given next to it).
+//! (`host_tests::paper_004`, over the simulator's `firmware_sim::slip` and
+//! its embedded scenarios `paper_004_velocity`, `paper_004_torque`). Every
+//! filter run is repeated for noise seeds 1 to 5 and the bounds hold for
+//! the worst; each is a little weaker than the worst figure measured (given
+//! next to it).
 
 use host_tests::paper_004::*;
 
@@ -120,7 +122,7 @@ fn scenario_2_gaussian_filters() {
 /// noise into a drift of `p̂` (its `k1 e1²` and `(k3/k2) sin² e3` terms have
 /// a positive mean under noise): `p̂` reaches 1.7–8.2 and does not track
 /// the slip. Scenario 2 with the particle filter is not asserted: it
-/// diverges for 3 of the 5 seeds (module docs of `paper_004`).
+/// diverges for 3 of the 5 seeds (module docs of `firmware_sim::slip`).
 #[test]
 fn scenario_1_particle_filter() {
     let w = worst(Scenario::Velocity, Estimator::ParticleFilter);
