@@ -949,6 +949,22 @@ pub(crate) fn probability(field: &str, v: f64) -> Result<f64, ScenarioError> {
 
 /// A refusal of the core's spec builder, named by the scenario table it
 /// came from.
+/// Reads `path` and parses it with `parse`, naming the file in parse
+/// errors (shared by the scenario kinds of this crate).
+pub(crate) fn read_file<T>(
+    path: &Path,
+    parse: impl FnOnce(&str) -> Result<T, ScenarioError>,
+) -> Result<T, ScenarioError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    parse(&text).map_err(|e| match e {
+        ScenarioError::Parse(m) => ScenarioError::Parse(format!("{}: {m}", path.display())),
+        other => other,
+    })
+}
+
 /// `config` with its speed loops on the wheel-speed observer `o`.
 fn with_speed_observer(
     config: &PilotConfig,
@@ -1160,14 +1176,7 @@ impl Scenario {
     /// # Errors
     /// As [`Self::from_toml_str`], plus [`ScenarioError::Io`].
     pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
-        Self::from_toml_str(&text).map_err(|e| match e {
-            ScenarioError::Parse(m) => ScenarioError::Parse(format!("{}: {m}", path.display())),
-            other => other,
-        })
+        read_file(path, Self::from_toml_str)
     }
 
     /// An embedded scenario by name (see [`EMBEDDED`]).

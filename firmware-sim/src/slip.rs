@@ -932,14 +932,7 @@ impl SlipScenario {
     /// # Errors
     /// As [`Self::from_toml_str`], plus [`ScenarioError::Io`].
     pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
-        Self::from_toml_str(&text).map_err(|e| match e {
-            ScenarioError::Parse(m) => ScenarioError::Parse(format!("{}: {m}", path.display())),
-            other => other,
-        })
+        crate::scenario::read_file(path, Self::from_toml_str)
     }
 
     /// An embedded slip scenario by name (see [`EMBEDDED_SLIP`]).
