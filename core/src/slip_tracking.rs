@@ -555,18 +555,18 @@ impl AdaptiveTorqueController {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PoseModel;
 
-/// `z − ẑ` with component `heading` wrapped.
-fn wrapped_residual<const M: usize>(
-    z: &SVector<f32, M>,
-    expected: &SVector<f32, M>,
-    heading: usize,
-) -> SVector<f32, M> {
-    let mut y = z - expected;
-    if let Some(angle) = y.get_mut(heading) {
-        *angle = math::wrap_angle(*angle);
-    }
-    y
-}
+/// Scenario 2's filter model: `x = (X, Y, ψ, ω_L, ω_R)`, the pose driven
+/// by the auxiliary `(v, ω)` of (6) as in scenario 1 and the wheel speeds
+/// held over a step (a random walk through the process noise), the whole
+/// state measured. The paper's "linear and angular velocities" are read as
+/// (6)'s: computing them from the state's wheel speeds with `p̂` couples
+/// the filter to the adaptation, and on the EKF that diverged once `p̂`
+/// was off (measured in `host-tests`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PoseWheelModel;
+
+/// The heading's index in both models' states and measurements.
+const HEADING: [usize; 1] = [2];
 
 /// `x` with component `heading` wrapped.
 fn wrapped_state<const N: usize>(mut x: SVector<f32, N>, heading: usize) -> SVector<f32, N> {
@@ -591,108 +591,58 @@ fn pose_step<const N: usize>(x: &SVector<f32, N>, u: &BodyVelocity, dt_s: f32) -
     x + rate * dt_s
 }
 
-impl EkfModel<3, 3> for PoseModel {
-    type Input = BodyVelocity;
-
-    fn transition(&self, x: &SVector<f32, 3>, u: &BodyVelocity, dt_s: f32) -> SVector<f32, 3> {
-        pose_step(x, u, dt_s)
-    }
-
-    fn transition_jacobian(
-        &self,
-        x: &SVector<f32, 3>,
-        u: &BodyVelocity,
-        dt_s: f32,
-    ) -> SMatrix<f32, 3, 3> {
-        let (s, c) = (math::sin(x.z), math::cos(x.z));
-        SMatrix::<f32, 3, 3>::new(
-            1.0,
-            0.0,
-            -dt_s * u.v_m_s * s,
-            0.0,
-            1.0,
-            dt_s * u.v_m_s * c,
-            0.0,
-            0.0,
-            1.0,
-        )
-    }
-
-    fn measure(&self, x: &SVector<f32, 3>) -> SVector<f32, 3> {
-        *x
-    }
-
-    fn measurement_jacobian(&self, _x: &SVector<f32, 3>) -> SMatrix<f32, 3, 3> {
-        SMatrix::<f32, 3, 3>::identity()
-    }
-
-    fn measurement_residual(
-        &self,
-        z: &SVector<f32, 3>,
-        expected: &SVector<f32, 3>,
-    ) -> SVector<f32, 3> {
-        wrapped_residual(z, expected, 2)
-    }
-
-    fn normalize(&self, x: SVector<f32, 3>) -> SVector<f32, 3> {
-        wrapped_state(x, 2)
-    }
-}
-
-/// Scenario 2's filter model: `x = (X, Y, ψ, ω_L, ω_R)`, the pose driven
-/// by the auxiliary `(v, ω)` of (6) as in scenario 1 and the wheel speeds
-/// held over a step (a random walk through the process noise), the whole
-/// state measured. The paper's "linear and angular velocities" are read as
-/// (6)'s: computing them from the state's wheel speeds with `p̂` couples
-/// the filter to the adaptation, and on the EKF that diverged once `p̂`
-/// was off (measured in `host-tests`).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct PoseWheelModel;
-
-impl EkfModel<5, 5> for PoseWheelModel {
-    /// The auxiliary `(v, ω)` of (6) the controller commanded.
-    type Input = BodyVelocity;
-
-    fn transition(&self, x: &SVector<f32, 5>, u: &BodyVelocity, dt_s: f32) -> SVector<f32, 5> {
-        pose_step(x, u, dt_s)
-    }
-
-    fn transition_jacobian(
-        &self,
-        x: &SVector<f32, 5>,
-        u: &BodyVelocity,
-        dt_s: f32,
-    ) -> SMatrix<f32, 5, 5> {
-        let (s, c) = (math::sin(x.z), math::cos(x.z));
-        let mut a = SMatrix::<f32, 5, 5>::identity();
-        a.m13 = -dt_s * u.v_m_s * s;
-        a.m23 = dt_s * u.v_m_s * c;
-        a
-    }
-
-    fn measure(&self, x: &SVector<f32, 5>) -> SVector<f32, 5> {
-        *x
-    }
-
-    fn measurement_jacobian(&self, _x: &SVector<f32, 5>) -> SMatrix<f32, 5, 5> {
-        SMatrix::<f32, 5, 5>::identity()
-    }
-
-    fn measurement_residual(
-        &self,
-        z: &SVector<f32, 5>,
-        expected: &SVector<f32, 5>,
-    ) -> SVector<f32, 5> {
-        wrapped_residual(z, expected, 2)
-    }
-
-    fn normalize(&self, x: SVector<f32, 5>) -> SVector<f32, 5> {
-        wrapped_state(x, 2)
-    }
-}
-
-macro_rules! particle_pose_model {
+/// The EKF, particle-filter and UKF impls of a pose model with `$n`
+/// states, all measured: the pose moved by [`pose_step`], any further
+/// states held, the heading wrapped in states and residuals and averaged
+/// as an angle.
+macro_rules! pose_model_filters {
     ($model:ty, $n:literal) => {
+        impl EkfModel<$n, $n> for $model {
+            type Input = BodyVelocity;
+
+            fn transition(
+                &self,
+                x: &SVector<f32, $n>,
+                u: &BodyVelocity,
+                dt_s: f32,
+            ) -> SVector<f32, $n> {
+                pose_step(x, u, dt_s)
+            }
+
+            fn transition_jacobian(
+                &self,
+                x: &SVector<f32, $n>,
+                u: &BodyVelocity,
+                dt_s: f32,
+            ) -> SMatrix<f32, $n, $n> {
+                let (s, c) = (math::sin(x.z), math::cos(x.z));
+                let mut a = SMatrix::<f32, $n, $n>::identity();
+                a.m13 = -dt_s * u.v_m_s * s;
+                a.m23 = dt_s * u.v_m_s * c;
+                a
+            }
+
+            fn measure(&self, x: &SVector<f32, $n>) -> SVector<f32, $n> {
+                *x
+            }
+
+            fn measurement_jacobian(&self, _x: &SVector<f32, $n>) -> SMatrix<f32, $n, $n> {
+                SMatrix::<f32, $n, $n>::identity()
+            }
+
+            fn measurement_residual(
+                &self,
+                z: &SVector<f32, $n>,
+                expected: &SVector<f32, $n>,
+            ) -> SVector<f32, $n> {
+                residual_with_angles(z, expected, &HEADING)
+            }
+
+            fn normalize(&self, x: SVector<f32, $n>) -> SVector<f32, $n> {
+                wrapped_state(x, 2)
+            }
+        }
+
         impl ParticleModel<$n, $n> for $model {
             type Input = BodyVelocity;
 
@@ -714,25 +664,18 @@ macro_rules! particle_pose_model {
                 z: &SVector<f32, $n>,
                 expected: &SVector<f32, $n>,
             ) -> SVector<f32, $n> {
-                wrapped_residual(z, expected, 2)
+                residual_with_angles(z, expected, &HEADING)
             }
 
             fn is_angle(&self, index: usize) -> bool {
-                index == 2
+                HEADING.contains(&index)
             }
 
             fn input_is_valid(&self, u: &BodyVelocity) -> bool {
                 u.is_finite()
             }
         }
-    };
-}
 
-particle_pose_model!(PoseModel, 3);
-particle_pose_model!(PoseWheelModel, 5);
-
-macro_rules! ukf_pose_model {
-    ($model:ty, $n:literal) => {
         impl UkfModel<$n, $n> for $model {
             type Input = BodyVelocity;
 
@@ -758,7 +701,7 @@ macro_rules! ukf_pose_model {
                 a: &SVector<f32, $n>,
                 b: &SVector<f32, $n>,
             ) -> SVector<f32, $n> {
-                residual_with_angles(a, b, &[2])
+                residual_with_angles(a, b, &HEADING)
             }
 
             fn measurement_residual(
@@ -766,7 +709,7 @@ macro_rules! ukf_pose_model {
                 a: &SVector<f32, $n>,
                 b: &SVector<f32, $n>,
             ) -> SVector<f32, $n> {
-                residual_with_angles(a, b, &[2])
+                residual_with_angles(a, b, &HEADING)
             }
 
             fn state_mean<const S: usize>(
@@ -774,7 +717,7 @@ macro_rules! ukf_pose_model {
                 sigmas: &SMatrix<f32, $n, S>,
                 weights: &SVector<f32, S>,
             ) -> SVector<f32, $n> {
-                unscented_mean_with_angles(sigmas, weights, &[2])
+                unscented_mean_with_angles(sigmas, weights, &HEADING)
             }
 
             fn measurement_mean<const S: usize>(
@@ -782,14 +725,14 @@ macro_rules! ukf_pose_model {
                 sigmas: &SMatrix<f32, $n, S>,
                 weights: &SVector<f32, S>,
             ) -> SVector<f32, $n> {
-                unscented_mean_with_angles(sigmas, weights, &[2])
+                unscented_mean_with_angles(sigmas, weights, &HEADING)
             }
         }
     };
 }
 
-ukf_pose_model!(PoseModel, 3);
-ukf_pose_model!(PoseWheelModel, 5);
+pose_model_filters!(PoseModel, 3);
+pose_model_filters!(PoseWheelModel, 5);
 
 #[cfg(test)]
 mod tests {
