@@ -215,7 +215,8 @@ pub fn format_summary(s: &Summary) -> String {
 /// Image size, px.
 const SIZE: (u32, u32) = (1800, 820);
 /// Font of all text.
-const FONT: &str = "sans-serif";
+/// The plots' font family (shared by every plot of the crate).
+pub(crate) const FONT: &str = "sans-serif";
 
 /// Renders the trajectory vs the reference (left, equal axes) and the
 /// tracking error vs time on a log axis with the transient window shaded
@@ -235,8 +236,24 @@ pub fn plot_png(path: &Path, result: &RunResult) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
+/// A plotters error as an `anyhow` error (shared by every plot of the crate).
+pub(crate) fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow::anyhow!("plot: {e:?}")
+}
+
+/// Axis ranges with equal metres per pixel both ways, centred on the data
+/// ranges `xs`, `ys` (already padded) in a plotting area of `pw × ph`
+/// pixels.
+pub(crate) fn equal_axes(
+    xs: (f64, f64),
+    ys: (f64, f64),
+    pw: f64,
+    ph: f64,
+) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
+    let scale = ((xs.1 - xs.0) / pw).max((ys.1 - ys.0) / ph);
+    let (cx, cy) = (0.5 * (xs.0 + xs.1), 0.5 * (ys.0 + ys.1));
+    let (hx, hy) = (0.5 * scale * pw, 0.5 * scale * ph);
+    (cx - hx..cx + hx, cy - hy..cy + hy)
 }
 
 fn trajectory_panel(
@@ -269,15 +286,18 @@ fn trajectory_panel(
     let pw = f64::from(w.saturating_sub(2 * margin + y_label).max(1));
     let ph = f64::from(h.saturating_sub(2 * margin + x_label).max(1));
     let pad = 0.05 * (hi[0] - lo[0]).max(hi[1] - lo[1]).max(0.1);
-    let (cx, cy) = (0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]));
-    let scale = ((hi[0] - lo[0] + 2.0 * pad) / pw).max((hi[1] - lo[1] + 2.0 * pad) / ph);
-    let (hx, hy) = (0.5 * scale * pw, 0.5 * scale * ph);
+    let (x_axis, y_axis) = equal_axes(
+        (lo[0] - pad, hi[0] + pad),
+        (lo[1] - pad, hi[1] + pad),
+        pw,
+        ph,
+    );
 
     let mut chart = ChartBuilder::on(&area)
         .margin(margin)
         .x_label_area_size(x_label)
         .y_label_area_size(y_label)
-        .build_cartesian_2d(cx - hx..cx + hx, cy - hy..cy + hy)
+        .build_cartesian_2d(x_axis, y_axis)
         .map_err(plot_err)?;
     chart
         .configure_mesh()

@@ -69,6 +69,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Context as _;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+
+use crate::output::{FONT, equal_axes, plot_err};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt as _, SeedableRng as _};
 use serde::{Deserialize, Serialize};
@@ -1800,14 +1802,8 @@ pub fn write_outputs(
 
 /// Image size of a time plot, px.
 const SIZE: (u32, u32) = (1400, 1000);
-/// Font of all text.
-const FONT: &str = "sans-serif";
 /// Shade of the slip intervals.
 const SLIP_SHADE: RGBColor = RGBColor(255, 200, 120);
-
-fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow::anyhow!("plot: {e:?}")
-}
 
 /// `[from, to)` intervals where the slip ratio is above 0, cut at the
 /// duration.
@@ -1991,9 +1987,7 @@ fn plot_trajectory(path: &Path, result: &SlipResult) -> anyhow::Result<()> {
     let (margin, x_label, y_label, caption) = (15_u32, 45_u32, 60_u32, 40_u32);
     let pw = f64::from(size.0 - 2 * margin - y_label);
     let ph = f64::from(size.1 - 2 * margin - x_label - caption);
-    let scale = ((xs.1 - xs.0) / pw).max((ys.1 - ys.0) / ph);
-    let (cx, cy) = (0.5 * (xs.0 + xs.1), 0.5 * (ys.0 + ys.1));
-    let (hx, hy) = (0.5 * scale * pw, 0.5 * scale * ph);
+    let (x_axis, y_axis) = equal_axes(xs, ys, pw, ph);
     let s = &result.summary;
     let mut chart = ChartBuilder::on(&root)
         .caption(
@@ -2009,7 +2003,7 @@ fn plot_trajectory(path: &Path, result: &SlipResult) -> anyhow::Result<()> {
         .margin(margin)
         .x_label_area_size(x_label)
         .y_label_area_size(y_label)
-        .build_cartesian_2d(cx - hx..cx + hx, cy - hy..cy + hy)
+        .build_cartesian_2d(x_axis.clone(), y_axis.clone())
         .map_err(plot_err)?;
     chart
         .configure_mesh()
@@ -2022,8 +2016,8 @@ fn plot_trajectory(path: &Path, result: &SlipResult) -> anyhow::Result<()> {
     let inside = |p: &(f64, f64)| {
         p.0.is_finite()
             && p.1.is_finite()
-            && (cx - hx..=cx + hx).contains(&p.0)
-            && (cy - hy..=cy + hy).contains(&p.1)
+            && (x_axis.start..=x_axis.end).contains(&p.0)
+            && (y_axis.start..=y_axis.end).contains(&p.1)
     };
     let estimate_color = RGBColor(120, 160, 255);
     let xy = |f: fn(&SlipRecord) -> (f64, f64)| records.iter().map(f).collect::<Vec<_>>();

@@ -9,6 +9,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::{Percentiles, SweepResult, SweepRun, SweepSummary};
+use crate::output::{FONT, plot_err};
 
 /// Paths of the files [`write_sweep`] wrote.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -191,14 +192,8 @@ pub fn format_sweep_summary(s: &SweepSummary) -> String {
 
 /// Image size, px.
 const SIZE: (u32, u32) = (1600, 700);
-/// Font of all text.
-const FONT: &str = "sans-serif";
 /// Histogram bins (log-spaced).
 const BINS: usize = 40;
-
-fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow::anyhow!("plot: {e:?}")
-}
 
 /// Histograms of the per-run max error (left) and mean error (right) after
 /// the transient, on log-spaced bins, with p50/p90/p99 marked.
