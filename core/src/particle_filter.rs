@@ -221,6 +221,36 @@ pub trait ParticleModel<const N: usize, const M: usize> {
         let _ = u;
         true
     }
+
+    /// One particle's step with its process noise, drawing standard
+    /// normals from `gaussian`. The default is the module's
+    /// `f(x, u, dt_s) + σ_q ∘ ξ` with the configured `σ_q` (`process_std`;
+    /// a component whose noise would make it non-finite keeps its noiseless
+    /// value; a non-finite `f` is returned as is, without drawing). Override
+    /// it when the noise enters elsewhere, e.g. an odometry model that
+    /// perturbs each wheel's travel. The filter wraps the angle components
+    /// afterwards and drops a non-finite result (module docs).
+    fn sample_transition(
+        &self,
+        x: &SVector<f32, N>,
+        u: &Self::Input,
+        dt_s: f32,
+        process_std: &SVector<f32, N>,
+        gaussian: &mut dyn FnMut() -> f32,
+    ) -> SVector<f32, N> {
+        let mut moved = self.transition(x, u, dt_s);
+        if finite(&moved) {
+            for (value, &sigma) in moved.iter_mut().zip(process_std.iter()) {
+                if sigma > 0.0 {
+                    let noisy = *value + sigma * gaussian();
+                    if noisy.is_finite() {
+                        *value = noisy;
+                    }
+                }
+            }
+        }
+        moved
+    }
 }
 
 /// Why a [`ParticleFilterConfig`] or a [`ParticleFilter`] was refused.
@@ -382,6 +412,22 @@ impl<const N: usize, const M: usize> ParticleFilterConfig<N, M> {
 /// `true` if every entry is finite and `≥ 0`.
 fn non_negative<const K: usize>(v: &SVector<f32, K>) -> bool {
     v.iter().all(|&s| s.is_finite() && s >= 0.0)
+}
+
+/// The lower Cholesky factor of a finite, symmetric (to 1e-6 of its
+/// largest entry) covariance, jittered by 1e-5 of its largest diagonal
+/// entry if it is only semi-definite; `None` otherwise.
+fn covariance_factor<const K: usize>(c: &SMatrix<f32, K, K>) -> Option<SMatrix<f32, K, K>> {
+    let scale = c.amax();
+    if !(c.iter().all(|v| v.is_finite()) && (c - c.transpose()).amax() <= 1e-6 * scale) {
+        return None;
+    }
+    let symmetric = (c + c.transpose()) * 0.5;
+    if let Some(l) = nalgebra::Cholesky::new(symmetric) {
+        return Some(l.l());
+    }
+    let jitter = (1e-5 * symmetric.diagonal().amax()).max(f32::MIN_POSITIVE);
+    nalgebra::Cholesky::new(symmetric + SMatrix::<f32, K, K>::identity() * jitter).map(|l| l.l())
 }
 
 /// `true` if every entry is finite.
@@ -701,11 +747,18 @@ where
             return;
         }
         let mut dropped = 0_usize;
+        let noise = &mut self.noise;
+        let mut gaussian = || noise.gaussian();
         for (x, next) in self.particles.iter().zip(self.buffer.iter_mut()) {
-            let mut moved = self.model.transition(x, u, dt_s);
+            let mut moved =
+                self.model
+                    .sample_transition(x, u, dt_s, &self.config.process_std, &mut gaussian);
             if finite(&moved) {
-                self.noise
-                    .perturb(&mut moved, &self.config.process_std, &self.angles);
+                for (value, &angle) in moved.iter_mut().zip(self.angles.iter()) {
+                    if angle {
+                        *value = math::wrap_angle(*value);
+                    }
+                }
                 *next = moved;
             } else {
                 // Marks the particle as dropped for the pass below.
@@ -748,6 +801,70 @@ where
     /// the threshold. A non-finite `z` is skipped and counted; a collapse is
     /// recovered from as the module docs say.
     pub fn update(&mut self, z: &SVector<f32, M>) {
+        let inverse_std = self.config.inverse_measurement_std;
+        self.update_weights(z, &inverse_std);
+    }
+
+    /// [`Self::update`] with, for this call only, the measurement noise
+    /// `σ_r = std` (per component, measurement units). A component with
+    /// `σ_r = +∞` is not measured: it adds nothing to any weight, whatever
+    /// its `z` (which must still be finite). A NaN, zero or negative `σ_r`
+    /// (or one whose inverse overflows) skips the step, counted as a
+    /// rejected input.
+    pub fn update_with_std(&mut self, z: &SVector<f32, M>, std: &SVector<f32, M>) {
+        let inverse_std = std.map(|s| 1.0 / s);
+        let valid = std.iter().all(|&s| s > 0.0) && finite(&inverse_std);
+        if !valid {
+            self.reject();
+            return;
+        }
+        self.update_weights(z, &inverse_std);
+    }
+
+    /// Restarts from `N(mean, covariance)`: every particle is redrawn from
+    /// that Gaussian (through the lower Cholesky factor of `covariance`,
+    /// after the same symmetrise-and-jitter repair as the UKF's if it is
+    /// only semi-definite), with equal weights, and the estimate becomes
+    /// `mean` (angles wrapped). Counters and the generator's stream go on.
+    ///
+    /// # Errors
+    /// [`ParticleFilterError::PriorMean`] for a non-finite mean,
+    /// [`ParticleFilterError::PriorStd`] for a covariance that is not
+    /// finite, symmetric and positive semi-definite; the filter is then
+    /// unchanged.
+    pub fn reset(
+        &mut self,
+        mean: &SVector<f32, N>,
+        covariance: &SMatrix<f32, N, N>,
+    ) -> Result<(), ParticleFilterError> {
+        if !finite(mean) {
+            return Err(ParticleFilterError::PriorMean);
+        }
+        let Some(factor) = covariance_factor(covariance) else {
+            return Err(ParticleFilterError::PriorStd);
+        };
+        let mut centre = *mean;
+        for (value, &angle) in centre.iter_mut().zip(self.angles.iter()) {
+            if angle {
+                *value = math::wrap_angle(*value);
+            }
+        }
+        for x in self.particles.iter_mut() {
+            let draw = SVector::<f32, N>::from_fn(|_, _| self.noise.gaussian());
+            let mut moved = centre + factor * draw;
+            for (value, &angle) in moved.iter_mut().zip(self.angles.iter()) {
+                if angle {
+                    *value = math::wrap_angle(*value);
+                }
+            }
+            *x = if finite(&moved) { moved } else { centre };
+        }
+        self.weights = [1.0 / P as f32; P];
+        self.estimate = centre;
+        Ok(())
+    }
+
+    fn update_weights(&mut self, z: &SVector<f32, M>, inverse_std: &SVector<f32, M>) {
         if !finite(z) {
             self.reject();
             return;
@@ -758,7 +875,7 @@ where
             let residual = self.model.measurement_residual(z, &self.model.measure(x));
             let distance_sq: f32 = residual
                 .iter()
-                .zip(self.config.inverse_measurement_std.iter())
+                .zip(inverse_std.iter())
                 .map(|(r, inv)| {
                     let n = r * inv;
                     n * n
@@ -1132,6 +1249,75 @@ mod tests {
         // (88 with micromath), by 21.1 s for all of them (measured over 60 s).
         assert!(worst_late < 0.3 && worst_heading < 0.2);
         assert_eq!(a.collapses(), 0);
+    }
+
+    /// A per-call `σ_r` replaces the configured one; an infinite one
+    /// leaves its component unmeasured; a zero or NaN one is refused.
+    #[test]
+    fn update_with_std_weights_only_the_measured_components() {
+        let mut configured = unicycle(7);
+        let mut per_call = unicycle(7);
+        let z = Vector3::new(0.5, -0.3, 0.2);
+        configured.update(&z);
+        per_call.update_with_std(&z, configured.config().measurement_std());
+        assert_eq!(configured.weights(), per_call.weights());
+        // Only x measured: the weights depend on x alone, whatever z's y, ψ.
+        let (mut a, mut b) = (unicycle(8), unicycle(8));
+        // σ wide enough that nothing is resampled: the weights are the
+        // normalised likelihoods of x alone.
+        let std = Vector3::new(3.0 * PRIOR_STD, f32::INFINITY, f32::INFINITY);
+        a.update_with_std(&Vector3::new(0.4, 0.0, 0.0), &std);
+        b.update_with_std(&Vector3::new(0.4, 9.0, -2.0), &std);
+        assert_eq!(a.resamplings(), 0);
+        assert_eq!(a.weights(), b.weights());
+        let likelihood = |x: &Vector3<f32>| (-0.5 * ((0.4 - x[0]) / std[0]).powi(2)).exp();
+        let total: f32 = a.particles().iter().map(likelihood).sum();
+        for (x, w) in a.particles().iter().zip(a.weights()) {
+            assert!((w - likelihood(x) / total).abs() < 1e-5);
+        }
+        for bad in [0.0, f32::NAN, -1.0] {
+            a.update_with_std(&z, &Vector3::new(bad, 1.0, 1.0));
+        }
+        assert_eq!(a.rejected_inputs(), 3);
+    }
+
+    /// A reset redraws the particles from the Gaussian it is given (its
+    /// sample mean and covariance within sampling error of 400 particles)
+    /// and refuses a covariance that is not one.
+    #[test]
+    fn reset_draws_from_the_given_gaussian() {
+        let mut pf: ParticleFilter<Unicycle, 3, 3, 400> = ParticleFilter::new(
+            Unicycle,
+            ParticleFilterConfig::new(Vector3::zeros(), Vector3::repeat(1.0)).unwrap(),
+            Vector3::zeros(),
+            Vector3::repeat(1.0),
+            3,
+        )
+        .unwrap();
+        let mean = Vector3::new(2.0, -1.0, 3.0);
+        let covariance =
+            SMatrix::<f32, 3, 3>::new(0.04, 0.01, 0.0, 0.01, 0.09, 0.0, 0.0, 0.0, 0.01);
+        pf.reset(&mean, &covariance).unwrap();
+        assert_eq!(pf.estimate(), Vector3::new(2.0, -1.0, 3.0));
+        let sample_mean = pf.particles().iter().sum::<Vector3<f32>>() / 400.0;
+        // ψ near π wraps: compare the linear components' moments.
+        assert!((sample_mean[0] - 2.0).abs() < 0.03 && (sample_mean[1] + 1.0).abs() < 0.045);
+        let c = pf.covariance();
+        for (i, j, tolerance) in [(0, 0, 0.01), (1, 1, 0.02), (0, 1, 0.01), (2, 2, 0.003)] {
+            assert!(
+                (c[(i, j)] - covariance[(i, j)]).abs() < tolerance,
+                "{i}{j}: {c}"
+            );
+        }
+        let not_symmetric = SMatrix::<f32, 3, 3>::new(1.0, 0.5, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+        assert_eq!(
+            pf.reset(&mean, &not_symmetric),
+            Err(ParticleFilterError::PriorStd)
+        );
+        assert_eq!(
+            pf.reset(&Vector3::new(f32::NAN, 0.0, 0.0), &covariance),
+            Err(ParticleFilterError::PriorMean)
+        );
     }
 
     #[test]

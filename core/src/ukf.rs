@@ -50,7 +50,12 @@
 //! `S` and `Pxy` do not contain it: on a linear system this is the Kalman
 //! filter only when `Q = 0`, and otherwise the Kalman filter with
 //! `S = H(P⁻ − Q)Hᵀ + R`, `Pxy = (P⁻ − Q)Hᵀ` (the unit tests check both;
-//! later FilterPy versions redraw the points to include `Q`). `K` comes
+//! later FilterPy versions redraw the points to include `Q`). With
+//! [`UnscentedKalmanFilter::with_redrawn_update_points`] the update draws
+//! fresh points from `(x⁻, P⁻)` instead, as those later versions do: then
+//! a linear system is the Kalman filter whatever `Q`, which a filter whose
+//! `Q` per step is as large as `R` needs (the fusion estimator's UKF,
+//! [`crate::pose_ukf`]). `K` comes
 //! from a Cholesky solve with `S` (nalgebra's inverse if `S` is not
 //! positive definite), not from `S⁻¹` as in FilterPy: in `f32`, nalgebra's
 //! closed-form 4 × 4 inverse cost the landmark fixture 3e-4 in `P`. The
@@ -565,6 +570,8 @@ where
     /// `sigmas_f` belong to the current `(x, P)` (a predict, and no update
     /// or reset, since).
     sigmas_f_fresh: bool,
+    /// Draw the update's points from `(x⁻, P⁻)` rather than reuse `σf`.
+    redraw_for_update: bool,
     innovation: SVector<f32, M>,
     innovation_covariance: SMatrix<f32, M, M>,
     gain: SMatrix<f32, N, M>,
@@ -615,11 +622,23 @@ where
             r: symmetrize(&r),
             sigmas_f: SMatrix::zeros(),
             sigmas_f_fresh: false,
+            redraw_for_update: false,
             innovation: SVector::zeros(),
             innovation_covariance: SMatrix::zeros(),
             gain: SMatrix::zeros(),
             counters: UkfCounters::default(),
         })
+    }
+
+    /// Updates draw their sigma points from the prior `(x⁻, P⁻)`, which
+    /// includes `Q`, instead of reusing the last predict's `σf` (module
+    /// docs, "Measurement update": FilterPy after 1.4.5).
+    #[must_use]
+    pub fn with_redrawn_update_points(self) -> Self {
+        Self {
+            redraw_for_update: true,
+            ..self
+        }
     }
 
     /// The model.
@@ -823,18 +842,121 @@ where
         self.update_with(z, &symmetrize(r))
     }
 
+    /// The measurement update with component `index` (`< M`) of the
+    /// measurement only, `z` with variance `r`: for a sensor that reported
+    /// only part of the measurement vector this tick. It is the update of
+    /// the scalar measurement `h_i(x)` (row `index` of the model's
+    /// `measure`, its residual and mean), with the same sigma points,
+    /// checks and outcomes as [`Self::update`]. Afterwards
+    /// [`Self::innovation`], [`Self::innovation_covariance`] and
+    /// [`Self::gain`] hold it in full-measurement shape, zero outside
+    /// component `index` (as a full update with infinite variance on the
+    /// other components would leave them). An `index ≥ M`, or an `r` that
+    /// is not finite and ≥ 0, rejects the update.
+    pub fn update_component(&mut self, index: usize, z: f32, r: f32) -> UkfOutcome {
+        if !(index < M && z.is_finite() && r.is_finite() && r >= 0.0) {
+            bump(&mut self.counters.rejected_inputs);
+            return UkfOutcome::RejectedInput;
+        }
+        let (sigmas_f, repaired, sigmas_h, z_mean) = match self.measurement_sigmas() {
+            Ok(drawn) => drawn,
+            Err(outcome) => return outcome,
+        };
+        let mut dz = SMatrix::<f32, 1, S>::zeros();
+        for (sigma_h, d) in sigmas_h.column_iter().zip(dz.iter_mut()) {
+            let residual = self
+                .model
+                .measurement_residual(&sigma_h.into_owned(), &z_mean);
+            *d = residual.get(index).copied().unwrap_or(f32::NAN);
+        }
+        let mut full_z = z_mean;
+        if let Some(component) = full_z.get_mut(index) {
+            *component = z;
+        }
+        let innovation = self
+            .model
+            .measurement_residual(&full_z, &z_mean)
+            .get(index)
+            .copied()
+            .unwrap_or(f32::NAN);
+        let innovation = SVector::<f32, 1>::new(innovation);
+        let r = SMatrix::<f32, 1, 1>::new(r);
+        match self.correct(&sigmas_f, &dz, &innovation, &r) {
+            Ok((gain, s)) => {
+                self.innovation = SVector::zeros();
+                self.innovation_covariance = SMatrix::zeros();
+                self.gain = SMatrix::zeros();
+                if let Some(v) = self.innovation.get_mut(index) {
+                    *v = innovation.x;
+                }
+                if let Some(v) = self.innovation_covariance.get_mut((index, index)) {
+                    *v = s.x;
+                }
+                if let Some(mut column) = self.gain.columns_mut(index, 1).column_iter_mut().next() {
+                    column.copy_from(&gain);
+                }
+                Self::outcome(repaired)
+            }
+            Err(outcome) => outcome,
+        }
+    }
+
     fn update_with(&mut self, z: &SVector<f32, M>, r: &SMatrix<f32, M, M>) -> UkfOutcome {
         if !all_finite(z) {
             bump(&mut self.counters.rejected_inputs);
             return UkfOutcome::RejectedInput;
         }
-        let (sigmas_f, repaired) = if self.sigmas_f_fresh {
+        let (sigmas_f, repaired, sigmas_h, z_mean) = match self.measurement_sigmas() {
+            Ok(drawn) => drawn,
+            Err(outcome) => return outcome,
+        };
+        let mut dz = SMatrix::<f32, M, S>::zeros();
+        for (sigma_h, mut d) in sigmas_h.column_iter().zip(dz.column_iter_mut()) {
+            d.copy_from(
+                &self
+                    .model
+                    .measurement_residual(&sigma_h.into_owned(), &z_mean),
+            );
+        }
+        let innovation = self.model.measurement_residual(z, &z_mean);
+        match self.correct(&sigmas_f, &dz, &innovation, r) {
+            Ok((gain, s)) => {
+                self.innovation = innovation;
+                self.innovation_covariance = s;
+                self.gain = gain;
+                Self::outcome(repaired)
+            }
+            Err(outcome) => outcome,
+        }
+    }
+
+    fn outcome(repaired: bool) -> UkfOutcome {
+        if repaired {
+            UkfOutcome::Repaired
+        } else {
+            UkfOutcome::Applied
+        }
+    }
+
+    /// The update's points: the last predict's `σf` if still fresh (else
+    /// drawn from `(x, P)`), whether they were repaired, their images
+    /// under `h` and the mean of those.
+    #[allow(clippy::type_complexity)]
+    fn measurement_sigmas(
+        &mut self,
+    ) -> Result<
+        (
+            SMatrix<f32, N, S>,
+            bool,
+            SMatrix<f32, M, S>,
+            SVector<f32, M>,
+        ),
+        UkfOutcome,
+    > {
+        let (sigmas_f, repaired) = if self.sigmas_f_fresh && !self.redraw_for_update {
             (self.sigmas_f, false)
         } else {
-            match self.draw_sigma_points() {
-                Ok(drawn) => drawn,
-                Err(outcome) => return outcome,
-            }
+            self.draw_sigma_points()?
         };
         let mut sigmas_h = SMatrix::<f32, M, S>::zeros();
         for (sigma, mut measured) in sigmas_f.column_iter().zip(sigmas_h.column_iter_mut()) {
@@ -843,46 +965,49 @@ where
         let z_mean = self
             .model
             .measurement_mean(&sigmas_h, &self.points.mean_weights());
+        Ok((sigmas_f, repaired, sigmas_h, z_mean))
+    }
+
+    /// The correction from the measurement residuals `dz` of the points
+    /// `sigmas_f` (columns) and the innovation, with noise `r` (`K`
+    /// measured components): `S`, `P_xz`, the gain, and `x, P` updated.
+    /// Returns the gain and `S`, or the outcome of a failure (counted).
+    fn correct<const K: usize>(
+        &mut self,
+        sigmas_f: &SMatrix<f32, N, S>,
+        dz: &SMatrix<f32, K, S>,
+        innovation: &SVector<f32, K>,
+        r: &SMatrix<f32, K, K>,
+    ) -> Result<(SMatrix<f32, N, K>, SMatrix<f32, K, K>), UkfOutcome> {
         let mut s = *r;
-        let mut cross = SMatrix::<f32, N, M>::zeros();
-        for ((sigma_f, sigma_h), &w) in sigmas_f
+        let mut cross = SMatrix::<f32, N, K>::zeros();
+        for ((sigma_f, d), &w) in sigmas_f
             .column_iter()
-            .zip(sigmas_h.column_iter())
+            .zip(dz.column_iter())
             .zip(self.points.covariance_weights().iter())
         {
-            let dz = self
-                .model
-                .measurement_residual(&sigma_h.into_owned(), &z_mean);
             let dx = self.model.state_residual(&sigma_f.into_owned(), &self.x);
-            s += dz * dz.transpose() * w;
-            cross += dx * dz.transpose() * w;
+            s += d * d.transpose() * w;
+            cross += dx * d.transpose() * w;
         }
         if !(all_finite(&s) && all_finite(&cross)) {
             bump(&mut self.counters.non_finite_results);
-            return UkfOutcome::NonFiniteResult;
+            return Err(UkfOutcome::NonFiniteResult);
         }
         let Some(gain) = kalman_gain(&cross, &s) else {
             bump(&mut self.counters.singular_innovations);
-            return UkfOutcome::SingularInnovation;
+            return Err(UkfOutcome::SingularInnovation);
         };
-        let innovation = self.model.measurement_residual(z, &z_mean);
         let x = self.x + gain * innovation;
         let p = self.p - gain * s * gain.transpose();
-        if !(all_finite(&x) && all_finite(&p) && all_finite(&gain) && all_finite(&innovation)) {
+        if !(all_finite(&x) && all_finite(&p) && all_finite(&gain) && all_finite(innovation)) {
             bump(&mut self.counters.non_finite_results);
-            return UkfOutcome::NonFiniteResult;
+            return Err(UkfOutcome::NonFiniteResult);
         }
         self.x = x;
         self.p = symmetrize(&p);
-        self.innovation = innovation;
-        self.innovation_covariance = s;
-        self.gain = gain;
         self.sigmas_f_fresh = false;
-        if repaired {
-            UkfOutcome::Repaired
-        } else {
-            UkfOutcome::Applied
-        }
+        Ok((gain, s))
     }
 }
 
@@ -1158,6 +1283,72 @@ mod tests {
                 assert_eq!(ukf.counters(), UkfCounters::default());
             }
         }
+    }
+
+    /// A linear system measured in full (`h = I`).
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    struct FullyMeasured(SMatrix<f32, 2, 2>);
+
+    impl UkfModel<2, 2> for FullyMeasured {
+        type Input = f32;
+        fn input_is_finite(&self, u: &f32) -> bool {
+            u.is_finite()
+        }
+        fn transition(&self, x: &SVector<f32, 2>, u: &f32, _dt: f32) -> SVector<f32, 2> {
+            self.0 * x + SVector::<f32, 2>::new(0.0, *u)
+        }
+        fn measure(&self, x: &SVector<f32, 2>) -> SVector<f32, 2> {
+            *x
+        }
+    }
+
+    /// With the update's points redrawn from `(x⁻, P⁻)`, one-component
+    /// updates of a linear system are the scalar Kalman filter, `Q` and
+    /// all (where the reused points leave `Q` out); the innovation, its
+    /// covariance and the gain are reported in full shape, zero outside the
+    /// component; a bad index or variance is refused and counted.
+    #[test]
+    fn component_updates_are_the_scalar_kalman_filter() {
+        let a = SMatrix::<f32, 2, 2>::new(1.0, 0.1, 0.0, 0.95);
+        let q = SMatrix::<f32, 2, 2>::new(1e-3, 2e-4, 2e-4, 2e-3);
+        let (x0, p0) = (
+            SVector::<f32, 2>::new(0.5, -0.2),
+            SMatrix::<f32, 2, 2>::new(1.0, 0.3, 0.3, 0.5),
+        );
+        let points = MerweScaledSigmaPoints::<2, 5>::new(1.0, 2.0, 0.0).unwrap();
+        let mut ukf =
+            UnscentedKalmanFilter::new(FullyMeasured(a), points, x0, p0, q, SMatrix::identity())
+                .unwrap()
+                .with_redrawn_update_points();
+        let (mut x, mut p) = (x0, p0);
+        let mut worst = 0.0_f32;
+        for k in 0..40_u8 {
+            let u = 0.2 * f32::from(k % 5) - 0.4;
+            assert_eq!(ukf.predict(&u, 0.1), UkfOutcome::Applied);
+            x = a * x + SVector::<f32, 2>::new(0.0, u);
+            p = a * p * a.transpose() + q;
+            let index = usize::from(k % 2);
+            let (z, r) = (0.05 * f32::from(k) - 0.3, 0.01 + 0.01 * f32::from(k % 3));
+            assert_eq!(ukf.update_component(index, z, r), UkfOutcome::Applied);
+            let s = p[(index, index)] + r;
+            let gain = p.column(index) / s;
+            let innovation = z - x[index];
+            x += gain * innovation;
+            p -= gain * gain.transpose() * s;
+            worst = worst
+                .max((ukf.state() - x).amax())
+                .max((ukf.covariance() - p).amax());
+            let other = 1 - index;
+            assert!((ukf.innovation()[index] - innovation).abs() < 1e-4);
+            assert_eq!(ukf.innovation()[other], 0.0);
+            assert!((ukf.innovation_covariance()[(index, index)] - s).abs() < 1e-4);
+            assert_eq!(ukf.gain().column(other).amax(), 0.0);
+        }
+        assert!(worst < 1e-5, "{worst}");
+        for (index, z, r) in [(2, 0.0, 1.0), (0, f32::NAN, 1.0), (0, 0.0, -1.0)] {
+            assert_eq!(ukf.update_component(index, z, r), UkfOutcome::RejectedInput);
+        }
+        assert_eq!(ukf.counters().rejected_inputs, 3);
     }
 
     /// A `P` that is not positive definite: a rounding-sized defect is
