@@ -28,6 +28,8 @@ pub mod particle_filter;
 pub mod pilot;
 pub mod pose_ekf;
 pub mod pose_observer;
+pub mod pose_particle_filter;
+pub mod pose_ukf;
 pub mod reference;
 pub mod robot;
 pub mod robot_frame;

@@ -9,10 +9,14 @@
 //! * estimator: [`TrackerConfig::with_pose_observer`], the observer of
 //!   `x, y, cos θ, sin θ` (paper 002, Proposition 4, [`PoseObserver`]),
 //!   fed the position (fix or dead-reckoned) instead of its change;
-//! * estimator: `TrackerConfig::with_fusion_ekf` (cargo feature
-//!   `fusion-ekf`), the encoder + tag fusion EKF ([`crate::pose_ekf`]),
-//!   which predicts with the odometry and corrects with the fixes itself:
-//!   its pose is the law's position and heading, between fixes too;
+//! * estimator: `TrackerConfig::with_fusion` (cargo feature
+//!   `fusion-ekf`), the encoder + tag fusion estimator
+//!   ([`crate::pose_ekf`]), which predicts with the odometry and corrects
+//!   with the fixes itself: its pose is the law's position and heading,
+//!   between fixes too. Its filter is the EKF, or paper 004's UKF
+//!   ([`crate::pose_ukf`], feature `fusion-ukf`) or particle filter
+//!   ([`crate::pose_particle_filter`], feature `fusion-particle-filter`),
+//!   chosen by `FusionSettings::with_filter`;
 //! * law: [`TrackerConfig::with_cascaded_law`], the cascaded controller
 //!   (31), or [`TrackerConfig::with_heading_error_sine_law`], the observer
 //!   of `sin θ_e` and controller (64) of Proposition 7. Both use the robot-
@@ -123,11 +127,11 @@ pub enum EstimatorChoice {
     Paper001,
     /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`.
     PoseObserver(PoseObserverConfig),
-    /// The encoder + tag fusion EKF ([`crate::pose_ekf`]): its pose
-    /// replaces both the position and the heading estimate (cargo feature
-    /// `fusion-ekf`).
+    /// The encoder + tag fusion estimator ([`crate::pose_ekf`]) on the
+    /// filter its settings choose: its pose replaces both the position and
+    /// the heading estimate (cargo feature `fusion-ekf`).
     #[cfg(feature = "fusion-ekf")]
-    FusionEkf(FusionSettings),
+    Fusion(FusionSettings),
 }
 
 /// The tracker's law.
@@ -195,13 +199,13 @@ impl TrackerConfig {
         Ok(self)
     }
 
-    /// Runs the encoder + tag fusion EKF instead of observer (5): the law
+    /// Runs the encoder + tag fusion estimator instead of observer (5): the law
     /// gets the filter's position and heading, between fixes as well (no
     /// separate dead reckoning).
     #[cfg(feature = "fusion-ekf")]
     #[must_use]
-    pub fn with_fusion_ekf(mut self, settings: FusionSettings) -> Self {
-        self.estimator = EstimatorChoice::FusionEkf(settings);
+    pub fn with_fusion(mut self, settings: FusionSettings) -> Self {
+        self.estimator = EstimatorChoice::Fusion(settings);
         self
     }
 
@@ -366,7 +370,7 @@ pub struct TrackerOutput {
 }
 
 /// Paper 001's output-feedback tracker with fix handling and failsafe.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OutputFeedbackTracker {
     config: TrackerConfig,
@@ -406,7 +410,7 @@ impl OutputFeedbackTracker {
                 ))
             }
             #[cfg(feature = "fusion-ekf")]
-            EstimatorChoice::FusionEkf(settings) => {
+            EstimatorChoice::Fusion(settings) => {
                 Estimator::Fusion(FusionEstimator::new(settings, observer))
             }
         };
@@ -629,9 +633,10 @@ impl OutputFeedbackTracker {
 
 /// The running heading estimator.
 // No heap to box the filter into: the tracker holds its estimator inline,
-// and the largest (the fusion EKF, ~250 B) sets the size.
+// and the largest sets the size (the fusion EKF ~250 B, its particle
+// filter ~4.5 KB when the feature `fusion-particle-filter` is on).
 #[cfg_attr(feature = "fusion-ekf", allow(clippy::large_enum_variant))]
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 enum Estimator {
     Paper001(HeadingObserver),
@@ -904,10 +909,10 @@ mod tests {
     #[cfg(feature = "fusion-ekf")]
     #[test]
     fn fusion_ekf_estimator_tracks_a_line_from_tag_fixes() {
-        use crate::pose_ekf::{FusionSettings, PoseEkfConfig};
+        use crate::pose_ekf::{FusionSettings, PoseFilterConfig};
         let h = 0.01;
         let line = StraightLine::new(Vec2::ZERO, 0.5, 0.2).unwrap();
-        let filter = PoseEkfConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap();
+        let filter = PoseFilterConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap();
         let cfg = TrackerConfig::new(
             HeadingObserverConfig::new(1.0, h).unwrap(),
             TrackingGains::new(0.3, 0.3, 1.0).unwrap(),
@@ -915,7 +920,7 @@ mod tests {
             50,
         )
         .unwrap()
-        .with_fusion_ekf(FusionSettings::new(filter, 0.1, 0.0).unwrap());
+        .with_fusion(FusionSettings::new(filter, 0.1, 0.0).unwrap());
         let mut t = OutputFeedbackTracker::new(cfg);
         let mut robot = Pose::new(-0.3, 0.4, 2.0);
         let mut odometry = OdometryStep::default();

@@ -148,7 +148,7 @@ pub struct PilotOutput {
 }
 
 /// Encoders → odometry → tracker → drive, one tick at a time.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Pilot {
     config: PilotConfig,

@@ -4,6 +4,14 @@
 //! fusion estimator; the filter machinery follows paper 004's EKF, Joseph
 //! form and all).
 //!
+//! The gate, the counters, re-localisation and heading resets are
+//! [`PoseFilter`]'s, around a filter core ([`PoseFilterCore`]): this
+//! module's EKF ([`EkfCore`], [`PoseEkf`]), paper 004's UKF
+//! ([`crate::pose_ukf`]) or its particle filter
+//! ([`crate::pose_particle_filter`]), which share the state, the odometry
+//! noise model and the measurements described here. [`FusionEstimator`]
+//! runs the one [`FusionSettings::with_filter`] chooses.
+//!
 //! # State
 //! `(x, y, θ, ε_R, ε_L)`: the pose and each wheel's scale error, the
 //! wheel's true travel being `(1 + ε)` times what the encoder and the
@@ -71,17 +79,15 @@ use crate::heading_observer::HeadingObserver;
 
 /// The filter's state size: `(x, y, θ, ε_R, ε_L)`.
 const STATES: usize = 5;
-type State = SVector<f32, STATES>;
-type Covariance = SMatrix<f32, STATES, STATES>;
 type Row = SMatrix<f32, 1, STATES>;
 use crate::math;
 use crate::odometry::OdometryStep;
 
-/// Why a [`PoseEkfConfig`] was refused.
+/// Why a [`PoseFilterConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub enum PoseEkfError {
+pub enum PoseFilterError {
     /// Track width not finite and positive.
     TrackWidth,
     /// A wheel-noise parameter negative or not finite.
@@ -101,7 +107,7 @@ pub enum PoseEkfError {
 /// Validated parameters of a [`PoseEkf`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct PoseEkfConfig {
+pub struct PoseFilterConfig {
     track_width_m: f32,
     variance_per_m: f32,
     variance_floor_m2: f32,
@@ -110,9 +116,10 @@ pub struct PoseEkfConfig {
     gate_two_dof: f32,
     scale_walk_per_m: f32,
     recover_after: u32,
+    particle_seed: u64,
 }
 
-impl PoseEkfConfig {
+impl PoseFilterConfig {
     /// Track width `b` (m); each wheel's travel variance per metre driven
     /// `α` (m²/m) and its floor `σ₀²` (m², e.g. `(r·2π/counts)²/12`); the
     /// gate in standard deviations `n ≥ 1` (module docs; 3 is usual).
@@ -124,16 +131,16 @@ impl PoseEkfConfig {
         variance_per_m: f32,
         variance_floor_m2: f32,
         gate_sigma: f32,
-    ) -> Result<Self, PoseEkfError> {
+    ) -> Result<Self, PoseFilterError> {
         if !(track_width_m.is_finite() && track_width_m > 0.0) {
-            return Err(PoseEkfError::TrackWidth);
+            return Err(PoseFilterError::TrackWidth);
         }
         let non_negative = |x: f32| x.is_finite() && x >= 0.0;
         if !(non_negative(variance_per_m) && non_negative(variance_floor_m2)) {
-            return Err(PoseEkfError::WheelNoise);
+            return Err(PoseFilterError::WheelNoise);
         }
         if !(gate_sigma.is_finite() && gate_sigma >= 1.0) {
-            return Err(PoseEkfError::Gate);
+            return Err(PoseFilterError::Gate);
         }
         Ok(Self {
             track_width_m,
@@ -144,6 +151,7 @@ impl PoseEkfConfig {
             gate_two_dof: -2.0 * ln_erfc_over_sqrt2(gate_sigma),
             scale_walk_per_m: 1e-8,
             recover_after: 3,
+            particle_seed: 1,
         })
     }
 
@@ -163,10 +171,10 @@ impl PoseEkfConfig {
     /// (default 1e-8: `ε` may wander by 1e-4 per √m).
     ///
     /// # Errors
-    /// [`PoseEkfError::ScaleWalk`].
-    pub fn with_scale_walk(self, variance_per_m: f32) -> Result<Self, PoseEkfError> {
+    /// [`PoseFilterError::ScaleWalk`].
+    pub fn with_scale_walk(self, variance_per_m: f32) -> Result<Self, PoseFilterError> {
         if !(variance_per_m.is_finite() && variance_per_m >= 0.0) {
-            return Err(PoseEkfError::ScaleWalk);
+            return Err(PoseFilterError::ScaleWalk);
         }
         Ok(Self {
             scale_walk_per_m: variance_per_m,
@@ -184,6 +192,29 @@ impl PoseEkfConfig {
     #[must_use]
     pub fn gate_sigma(&self) -> f32 {
         self.gate_sigma
+    }
+
+    /// The seed of the particle filter's generator
+    /// ([`crate::pose_particle_filter`]; default 1; the EKF and UKF draw
+    /// nothing).
+    #[must_use]
+    pub fn with_particle_seed(self, seed: u64) -> Self {
+        Self {
+            particle_seed: seed,
+            ..self
+        }
+    }
+
+    /// The particle filter's seed.
+    #[must_use]
+    pub fn particle_seed(&self) -> u64 {
+        self.particle_seed
+    }
+
+    /// The track width `b`, m.
+    #[must_use]
+    pub fn track_width_m(&self) -> f32 {
+        self.track_width_m
     }
 }
 
@@ -257,11 +288,11 @@ pub enum FixOutcome {
     Invalid,
 }
 
-/// Counters of a [`PoseEkf`]: nothing is dropped silently.
+/// Counters of a [`PoseFilter`]: nothing is dropped silently.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct PoseEkfCounters {
+pub struct PoseFilterCounters {
     /// Predictions done.
     pub predictions: u32,
     /// Odometry steps refused (non-finite input or result).
@@ -277,159 +308,162 @@ pub struct PoseEkfCounters {
     pub relocalisations: u32,
 }
 
-/// The pose EKF.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PoseEkf {
-    config: PoseEkfConfig,
-    state: State,
-    covariance: Covariance,
-    counters: PoseEkfCounters,
+/// The mean `(x, y, θ, ε_R, ε_L)` of a pose filter.
+pub type PoseState = SVector<f32, STATES>;
+/// Its covariance.
+pub type PoseCovariance = SMatrix<f32, STATES, STATES>;
+
+/// The filter inside a [`PoseFilter`]: how it predicts with odometry and
+/// applies a position measurement. The gate, the counters, re-localisation
+/// and heading resets are the same for every filter and live in
+/// [`PoseFilter`], which works on [`Self::mean`] and [`Self::covariance`].
+pub trait PoseFilterCore: Sized {
+    /// A filter at `mean` (finite) with `covariance` (finite, symmetric,
+    /// positive semi-definite); `None` if it cannot start there.
+    fn start(
+        config: &PoseFilterConfig,
+        mean: &PoseState,
+        covariance: &PoseCovariance,
+    ) -> Option<Self>;
+
+    /// Propagates with a finite odometry step; `false` (and nothing
+    /// changed) if the result would not be finite.
+    fn predict(&mut self, config: &PoseFilterConfig, odometry: &OdometryStep) -> bool;
+
+    /// The mean (heading in any turn; [`PoseFilter::pose`] wraps it).
+    fn mean(&self) -> PoseState;
+
+    /// The covariance of the mean.
+    fn covariance(&self) -> PoseCovariance;
+
+    /// Applies a finite measurement, ungated; `false` (and nothing
+    /// changed) if it cannot be used numerically.
+    fn update(&mut self, measurement: &PositionMeasurement) -> bool;
+
+    /// Restarts at `mean` with `covariance` (as for [`Self::start`]);
+    /// `false` (and nothing changed) if it cannot.
+    fn reset(&mut self, mean: &PoseState, covariance: &PoseCovariance) -> bool;
+}
+
+/// A pose filter on odometry and position fixes (module docs): the filter
+/// `Core` ([`EkfCore`], or the UKF and particle filter of
+/// [`crate::pose_ukf`] and [`crate::pose_particle_filter`]) behind the
+/// Mahalanobis gate, with re-localisation and counters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseFilter<Core> {
+    config: PoseFilterConfig,
+    core: Core,
+    counters: PoseFilterCounters,
     /// Consecutive gated measurements of `x` and of `y` (a fix along one
     /// axis says nothing of the other's lock).
     consecutive_gated: [u32; 2],
 }
 
-impl PoseEkf {
+/// The pose EKF.
+pub type PoseEkf = PoseFilter<EkfCore>;
+
+impl<Core: PoseFilterCore> PoseFilter<Core> {
     /// A filter at `initial` with variances `[σx², σy², σθ², σε²]` (m², m²,
     /// rad², and the prior of each wheel's scale error; 0 turns the scale
     /// estimation off). An unknown heading is `σθ ~ π`.
     ///
     /// # Errors
-    /// [`PoseEkfError::InitialVariance`].
+    /// [`PoseFilterError::InitialVariance`].
     pub fn new(
-        config: PoseEkfConfig,
+        config: PoseFilterConfig,
         initial: Pose,
         variances: [f32; 4],
-    ) -> Result<Self, PoseEkfError> {
+    ) -> Result<Self, PoseFilterError> {
         if !(initial.position.is_finite()
             && initial.heading_rad.is_finite()
             && variances.iter().all(|v| v.is_finite() && *v >= 0.0))
         {
-            return Err(PoseEkfError::InitialVariance);
+            return Err(PoseFilterError::InitialVariance);
         }
         let [vx, vy, vt, ve] = variances;
+        let mean = PoseState::from([
+            initial.position.x,
+            initial.position.y,
+            math::wrap_angle(initial.heading_rad),
+            0.0,
+            0.0,
+        ]);
+        let covariance = PoseCovariance::from_diagonal(&PoseState::from([vx, vy, vt, ve, ve]));
+        let core =
+            Core::start(&config, &mean, &covariance).ok_or(PoseFilterError::InitialVariance)?;
         Ok(Self {
             config,
-            state: State::from([
-                initial.position.x,
-                initial.position.y,
-                math::wrap_angle(initial.heading_rad),
-                0.0,
-                0.0,
-            ]),
-            covariance: Covariance::from_diagonal(&State::from([vx, vy, vt, ve, ve])),
-            counters: PoseEkfCounters::default(),
+            core,
+            counters: PoseFilterCounters::default(),
             consecutive_gated: [0; 2],
         })
     }
 
     /// Replaces the heading estimate (wrapped) with variance `variance_rad2`
     /// and no correlation with the rest of the state; false (and nothing
-    /// changed) if either is not finite.
+    /// changed) if either is not finite or the filter cannot take it.
     pub fn reset_heading(&mut self, heading_rad: f32, variance_rad2: f32) -> bool {
         if !(heading_rad.is_finite() && variance_rad2.is_finite() && variance_rad2 >= 0.0) {
             return false;
         }
-        self.state.z = math::wrap_angle(heading_rad);
-        self.covariance.fixed_view_mut::<1, 5>(2, 0).fill(0.0);
-        self.covariance.fixed_view_mut::<5, 1>(0, 2).fill(0.0);
-        self.covariance
-            .fixed_view_mut::<1, 1>(2, 2)
-            .fill(variance_rad2);
-        true
+        let mut mean = self.core.mean();
+        mean.z = math::wrap_angle(heading_rad);
+        let mut covariance = self.core.covariance();
+        covariance.fixed_view_mut::<1, 5>(2, 0).fill(0.0);
+        covariance.fixed_view_mut::<5, 1>(0, 2).fill(0.0);
+        covariance.fixed_view_mut::<1, 1>(2, 2).fill(variance_rad2);
+        self.core.reset(&mean, &covariance)
     }
 
     /// The estimated wheel scale errors `(ε_R, ε_L)`.
     #[must_use]
     pub fn wheel_scale_errors(&self) -> [f32; 2] {
-        [self.state.w, self.state.a]
+        let mean = self.core.mean();
+        [mean.w, mean.a]
     }
 
     /// The estimated pose (heading wrapped to (−π, π]).
     #[must_use]
     pub fn pose(&self) -> Pose {
-        Pose::new(self.state.x, self.state.y, self.state.z)
+        let mean = self.core.mean();
+        Pose::new(mean.x, mean.y, math::wrap_angle(mean.z))
     }
 
     /// The covariance of `(x, y, θ, ε_R, ε_L)`.
     #[must_use]
-    pub fn covariance(&self) -> &SMatrix<f32, 5, 5> {
-        &self.covariance
+    pub fn covariance(&self) -> PoseCovariance {
+        self.core.covariance()
+    }
+
+    /// The filter inside.
+    #[must_use]
+    pub fn core(&self) -> &Core {
+        &self.core
     }
 
     /// The counters.
     #[must_use]
-    pub fn counters(&self) -> PoseEkfCounters {
+    pub fn counters(&self) -> PoseFilterCounters {
         self.counters
     }
 
     /// The configuration.
     #[must_use]
-    pub fn config(&self) -> &PoseEkfConfig {
+    pub fn config(&self) -> &PoseFilterConfig {
         &self.config
     }
 
-    /// Propagates with one odometry step (module docs).
+    /// Propagates with one odometry step (module docs); a non-finite step,
+    /// or one the filter cannot take, is counted and ignored.
     pub fn predict(&mut self, odometry: &OdometryStep) {
-        let (ds, dth) = (odometry.ds_m, odometry.dtheta_rad);
-        if !(ds.is_finite() && dth.is_finite()) {
-            self.counters.rejected_predictions =
-                self.counters.rejected_predictions.saturating_add(1);
-            return;
-        }
-        let b = self.config.track_width_m;
-        let (theta, eps_r, eps_l) = (self.state.z, self.state.w, self.state.a);
-        // Nominal wheel travels, then scaled by the estimated errors.
-        let (nominal_r, nominal_l) = (ds + 0.5 * dth * b, ds - 0.5 * dth * b);
-        let (right, left) = (nominal_r * (1.0 + eps_r), nominal_l * (1.0 + eps_l));
-        let (ds, dth) = (0.5 * (right + left), (right - left) / b);
-        let mid = theta + 0.5 * dth;
-        let (sin_m, cos_m) = (math::sin(mid), math::cos(mid));
-        let chord = ds * math::sinc(0.5 * dth);
-        let mut state = self.state;
-        state.x += chord * cos_m;
-        state.y += chord * sin_m;
-        state.z = math::wrap_angle(theta + dth);
-        // ∂(x, y, θ)/∂(Δs, Δθ), then ∂(Δs, Δθ)/∂(s_R, s_L).
-        let by_step = Matrix3x2::new(
-            cos_m,
-            -0.5 * chord * sin_m,
-            sin_m,
-            0.5 * chord * cos_m,
-            0.0,
-            1.0,
-        );
-        let by_wheels = by_step * Matrix2::new(0.5, 0.5, 1.0 / b, -1.0 / b);
-        let mut jacobian = Covariance::identity();
-        jacobian
-            .fixed_view_mut::<2, 1>(0, 2)
-            .copy_from(&Vector2::new(-chord * sin_m, chord * cos_m));
-        // ∂(x, y, θ)/∂ε = ∂/∂(s_R, s_L) · diag(nominal_r, nominal_l).
-        let by_scale = by_wheels * Matrix2::new(nominal_r, 0.0, 0.0, nominal_l);
-        jacobian.fixed_view_mut::<3, 2>(0, 3).copy_from(&by_scale);
-        let wheel_variance =
-            |s: f32| self.config.variance_per_m * s.abs() + self.config.variance_floor_m2;
-        let noise =
-            Matrix2::from_diagonal(&Vector2::new(wheel_variance(right), wheel_variance(left)));
-        let mut process = Covariance::zeros();
-        process
-            .fixed_view_mut::<3, 3>(0, 0)
-            .copy_from(&(by_wheels * noise * by_wheels.transpose()));
-        let walk = self.config.scale_walk_per_m;
-        process
-            .fixed_view_mut::<2, 2>(3, 3)
-            .copy_from(&Matrix2::from_diagonal(&Vector2::new(
-                walk * right.abs(),
-                walk * left.abs(),
-            )));
-        let covariance = symmetric(jacobian * self.covariance * jacobian.transpose() + process);
-        if state.iter().all(|x| x.is_finite()) && covariance.iter().all(|x| x.is_finite()) {
-            self.state = state;
-            self.covariance = covariance;
-            self.counters.predictions = self.counters.predictions.saturating_add(1);
+        let applied = odometry.ds_m.is_finite()
+            && odometry.dtheta_rad.is_finite()
+            && self.core.predict(&self.config, odometry);
+        let c = &mut self.counters;
+        if applied {
+            c.predictions = c.predictions.saturating_add(1);
         } else {
-            self.counters.rejected_predictions =
-                self.counters.rejected_predictions.saturating_add(1);
+            c.rejected_predictions = c.rejected_predictions.saturating_add(1);
         }
     }
 
@@ -485,63 +519,287 @@ impl PoseEkf {
     /// position may hold a mirrored heading: x-only fixes cannot tell `θ`
     /// from `−θ`), and the pose's cross-covariances are cleared.
     fn widen_to(&mut self, measurement: &PositionMeasurement) {
+        let mean = self.core.mean();
         let (dx2, dy2) = match *measurement {
             PositionMeasurement::Point { position, .. } => (
-                (position.x - self.state.x) * (position.x - self.state.x),
-                (position.y - self.state.y) * (position.y - self.state.y),
+                (position.x - mean.x) * (position.x - mean.x),
+                (position.y - mean.y) * (position.y - mean.y),
             ),
             PositionMeasurement::X { value_m, .. } => {
-                ((value_m - self.state.x) * (value_m - self.state.x), 0.0)
+                ((value_m - mean.x) * (value_m - mean.x), 0.0)
             }
             PositionMeasurement::Y { value_m, .. } => {
-                (0.0, (value_m - self.state.y) * (value_m - self.state.y))
+                (0.0, (value_m - mean.y) * (value_m - mean.y))
             }
         };
-        let p = &self.covariance;
-        let diagonal =
-            SVector::<f32, 3>::new(p.m11 + dx2, p.m22 + dy2, p.m33.max(0.25 * PI_SQUARED));
+        let mut covariance = self.core.covariance();
+        let diagonal = SVector::<f32, 3>::new(
+            covariance.m11 + dx2,
+            covariance.m22 + dy2,
+            covariance.m33.max(0.25 * PI_SQUARED),
+        );
         if diagonal.iter().all(|x| x.is_finite()) {
-            let mut covariance = self.covariance;
             covariance.fixed_view_mut::<3, 5>(0, 0).fill(0.0);
             covariance.fixed_view_mut::<5, 3>(0, 0).fill(0.0);
             covariance
                 .fixed_view_mut::<3, 3>(0, 0)
                 .copy_from(&SMatrix::<f32, 3, 3>::from_diagonal(&diagonal));
-            self.covariance = covariance;
+            // A core that cannot take it keeps its belief; the ungated
+            // correction that follows still re-localises it.
+            let _ = self.core.reset(&mean, &covariance);
         }
     }
 
+    /// The gate on the Mahalanobis distance of the innovation (module
+    /// docs), computed from the core's mean and covariance (exact for every
+    /// filter here: the measurement is linear), then the core's update.
     fn correct_once(&mut self, measurement: &PositionMeasurement, gate: bool) -> FixOutcome {
         if !measurement.is_finite() {
             return FixOutcome::Invalid;
         }
+        let Some((distance2, dof)) =
+            mahalanobis(&self.core.mean(), &self.core.covariance(), measurement)
+        else {
+            return FixOutcome::Invalid;
+        };
+        let threshold = if dof == 1 {
+            self.config.gate_one_dof
+        } else {
+            self.config.gate_two_dof
+        };
+        if gate && distance2 > threshold {
+            return FixOutcome::Gated;
+        }
+        if self.core.update(measurement) {
+            FixOutcome::Used
+        } else {
+            FixOutcome::Invalid
+        }
+    }
+}
+
+/// The squared Mahalanobis distance `yᵀ S⁻¹ y` of a finite measurement's
+/// innovation under a belief `(mean, covariance)`, `S = H P Hᵀ + R`, and
+/// its degrees of freedom; `None` if `S` cannot be inverted or `d²` is not
+/// finite.
+fn mahalanobis(
+    mean: &PoseState,
+    covariance: &PoseCovariance,
+    measurement: &PositionMeasurement,
+) -> Option<(f32, u8)> {
+    let (distance2, dof) = match *measurement {
+        PositionMeasurement::Point {
+            position,
+            variance_m2,
+        } => {
+            let innovation = Vector2::new(position.x - mean.x, position.y - mean.y);
+            let s = covariance.fixed_view::<2, 2>(0, 0).into_owned()
+                + Matrix2::from_diagonal(&Vector2::from(variance_m2));
+            let s_inv = s.try_inverse()?;
+            ((innovation.transpose() * s_inv * innovation).x, 2)
+        }
+        PositionMeasurement::X {
+            value_m,
+            variance_m2,
+        } => axis_distance2(value_m - mean.x, covariance.m11 + variance_m2)?,
+        PositionMeasurement::Y {
+            value_m,
+            variance_m2,
+        } => axis_distance2(value_m - mean.y, covariance.m22 + variance_m2)?,
+    };
+    distance2.is_finite().then_some((distance2, dof))
+}
+
+fn axis_distance2(innovation: f32, s: f32) -> Option<(f32, u8)> {
+    (s.is_finite() && s > 0.0).then(|| (innovation * innovation / s, 1))
+}
+
+/// The odometry step through the wheel-scale estimate, and its
+/// linearisation at a state (module docs, "Prediction").
+pub(crate) struct OdometryLinearisation {
+    /// The state after the step.
+    pub(crate) state: PoseState,
+    /// `F = ∂x⁺/∂x`.
+    pub(crate) jacobian: PoseCovariance,
+    /// `G Σ Gᵀ` plus the scale errors' random walk.
+    pub(crate) process_noise: PoseCovariance,
+}
+
+/// Each wheel's travel `(s_R, s_L)` for an odometry step `(Δs, Δθ)` on a
+/// track `b`: `Δs ± Δθ b/2`.
+pub(crate) fn wheel_travels(ds_m: f32, dtheta_rad: f32, track_width_m: f32) -> (f32, f32) {
+    (
+        ds_m + 0.5 * dtheta_rad * track_width_m,
+        ds_m - 0.5 * dtheta_rad * track_width_m,
+    )
+}
+
+/// The pose `(x, y, θ)` of `state` moved along the exact arc of wheel
+/// travels `(right, left)` (m) on a track `b`; the scale errors kept.
+pub(crate) fn drive_wheels(
+    state: &PoseState,
+    right: f32,
+    left: f32,
+    track_width_m: f32,
+) -> PoseState {
+    let (ds, dth) = (0.5 * (right + left), (right - left) / track_width_m);
+    let mid = state.z + 0.5 * dth;
+    let chord = ds * math::sinc(0.5 * dth);
+    let mut next = *state;
+    next.x += chord * math::cos(mid);
+    next.y += chord * math::sin(mid);
+    next.z = math::wrap_angle(state.z + dth);
+    next
+}
+
+/// The variance of a wheel's travel `s`: `α|s| + σ₀²`.
+pub(crate) fn wheel_variance(config: &PoseFilterConfig, travel_m: f32) -> f32 {
+    config.variance_per_m * travel_m.abs() + config.variance_floor_m2
+}
+
+/// The variance the scale error of a wheel that travelled `s` gains.
+pub(crate) fn scale_walk_variance(config: &PoseFilterConfig, travel_m: f32) -> f32 {
+    config.scale_walk_per_m * travel_m.abs()
+}
+
+/// The odometry step at `state`: the moved state, `F` and `G Σ Gᵀ` (module
+/// docs, "Prediction").
+pub(crate) fn linearise_odometry(
+    config: &PoseFilterConfig,
+    state: &PoseState,
+    odometry: &OdometryStep,
+) -> OdometryLinearisation {
+    let b = config.track_width_m;
+    let (theta, eps_r, eps_l) = (state.z, state.w, state.a);
+    // Nominal wheel travels, then scaled by the estimated errors.
+    let (nominal_r, nominal_l) = wheel_travels(odometry.ds_m, odometry.dtheta_rad, b);
+    let (right, left) = (nominal_r * (1.0 + eps_r), nominal_l * (1.0 + eps_l));
+    let (ds, dth) = (0.5 * (right + left), (right - left) / b);
+    let mid = theta + 0.5 * dth;
+    let (sin_m, cos_m) = (math::sin(mid), math::cos(mid));
+    let chord = ds * math::sinc(0.5 * dth);
+    let mut next = *state;
+    next.x += chord * cos_m;
+    next.y += chord * sin_m;
+    next.z = math::wrap_angle(theta + dth);
+    // ∂(x, y, θ)/∂(Δs, Δθ), then ∂(Δs, Δθ)/∂(s_R, s_L).
+    let by_step = Matrix3x2::new(
+        cos_m,
+        -0.5 * chord * sin_m,
+        sin_m,
+        0.5 * chord * cos_m,
+        0.0,
+        1.0,
+    );
+    let by_wheels = by_step * Matrix2::new(0.5, 0.5, 1.0 / b, -1.0 / b);
+    let mut jacobian = PoseCovariance::identity();
+    jacobian
+        .fixed_view_mut::<2, 1>(0, 2)
+        .copy_from(&Vector2::new(-chord * sin_m, chord * cos_m));
+    // ∂(x, y, θ)/∂ε = ∂/∂(s_R, s_L) · diag(nominal_r, nominal_l).
+    let by_scale = by_wheels * Matrix2::new(nominal_r, 0.0, 0.0, nominal_l);
+    jacobian.fixed_view_mut::<3, 2>(0, 3).copy_from(&by_scale);
+    let noise = Matrix2::from_diagonal(&Vector2::new(
+        wheel_variance(config, right),
+        wheel_variance(config, left),
+    ));
+    let mut process_noise = PoseCovariance::zeros();
+    process_noise
+        .fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(by_wheels * noise * by_wheels.transpose()));
+    process_noise
+        .fixed_view_mut::<2, 2>(3, 3)
+        .copy_from(&Matrix2::from_diagonal(&Vector2::new(
+            scale_walk_variance(config, right),
+            scale_walk_variance(config, left),
+        )));
+    OdometryLinearisation {
+        state: next,
+        jacobian,
+        process_noise,
+    }
+}
+
+/// The EKF of the module docs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EkfCore {
+    state: PoseState,
+    covariance: PoseCovariance,
+}
+
+impl PoseFilterCore for EkfCore {
+    fn start(
+        _config: &PoseFilterConfig,
+        mean: &PoseState,
+        covariance: &PoseCovariance,
+    ) -> Option<Self> {
+        let mut core = Self {
+            state: PoseState::zeros(),
+            covariance: PoseCovariance::zeros(),
+        };
+        core.reset(mean, covariance).then_some(core)
+    }
+
+    fn predict(&mut self, config: &PoseFilterConfig, odometry: &OdometryStep) -> bool {
+        let step = linearise_odometry(config, &self.state, odometry);
+        let covariance = symmetric(
+            step.jacobian * self.covariance * step.jacobian.transpose() + step.process_noise,
+        );
+        let finite =
+            step.state.iter().all(|x| x.is_finite()) && covariance.iter().all(|x| x.is_finite());
+        if finite {
+            self.state = step.state;
+            self.covariance = covariance;
+        }
+        finite
+    }
+
+    fn mean(&self) -> PoseState {
+        self.state
+    }
+
+    fn covariance(&self) -> PoseCovariance {
+        self.covariance
+    }
+
+    fn update(&mut self, measurement: &PositionMeasurement) -> bool {
         match *measurement {
             PositionMeasurement::Point {
                 position,
                 variance_m2,
-            } => self.correct_point(position, variance_m2, gate),
+            } => self.update_point(position, variance_m2),
             PositionMeasurement::X {
                 value_m,
                 variance_m2,
-            } => self.correct_axis(
+            } => self.update_axis(
                 Row::from_row_slice(&[1.0, 0.0, 0.0, 0.0, 0.0]),
                 value_m,
                 variance_m2,
-                gate,
             ),
             PositionMeasurement::Y {
                 value_m,
                 variance_m2,
-            } => self.correct_axis(
+            } => self.update_axis(
                 Row::from_row_slice(&[0.0, 1.0, 0.0, 0.0, 0.0]),
                 value_m,
                 variance_m2,
-                gate,
             ),
         }
     }
 
-    fn correct_point(&mut self, position: Vec2, variance_m2: [f32; 2], gate: bool) -> FixOutcome {
+    fn reset(&mut self, mean: &PoseState, covariance: &PoseCovariance) -> bool {
+        let finite = mean.iter().all(|x| x.is_finite()) && covariance.iter().all(|x| x.is_finite());
+        if finite {
+            self.state = *mean;
+            self.state.z = math::wrap_angle(mean.z);
+            self.covariance = symmetric(*covariance);
+        }
+        finite
+    }
+}
+
+impl EkfCore {
+    fn update_point(&mut self, position: Vec2, variance_m2: [f32; 2]) -> bool {
         let h = SMatrix::<f32, 2, STATES>::from_row_slice(&[
             1.0, 0.0, 0.0, 0.0, 0.0, //
             0.0, 1.0, 0.0, 0.0, 0.0,
@@ -550,31 +808,17 @@ impl PoseEkf {
         let innovation = Vector2::new(position.x - self.state.x, position.y - self.state.y);
         let s = h * self.covariance * h.transpose() + r;
         let Some(s_inv) = s.try_inverse() else {
-            return FixOutcome::Invalid;
+            return false;
         };
-        let distance2 = (innovation.transpose() * s_inv * innovation).x;
-        if !distance2.is_finite() {
-            return FixOutcome::Invalid;
-        }
-        if gate && distance2 > self.config.gate_two_dof {
-            return FixOutcome::Gated;
-        }
         let gain = self.covariance * h.transpose() * s_inv;
         self.apply(gain * innovation, gain * h, gain * r * gain.transpose())
     }
 
-    fn correct_axis(&mut self, h: Row, value: f32, variance: f32, gate: bool) -> FixOutcome {
+    fn update_axis(&mut self, h: Row, value: f32, variance: f32) -> bool {
         let innovation = value - (h * self.state).x;
         let s = (h * self.covariance * h.transpose()).x + variance;
         if !(s.is_finite() && s > 0.0) {
-            return FixOutcome::Invalid;
-        }
-        let distance2 = innovation * innovation / s;
-        if !distance2.is_finite() {
-            return FixOutcome::Invalid;
-        }
-        if gate && distance2 > self.config.gate_one_dof {
-            return FixOutcome::Gated;
+            return false;
         }
         let gain = self.covariance * h.transpose() / s;
         self.apply(
@@ -587,25 +831,25 @@ impl PoseEkf {
     /// `x̂ += Δx`, Joseph-form covariance with `KH` and `KRKᵀ`.
     fn apply(
         &mut self,
-        correction: State,
-        gain_h: Covariance,
-        gain_r_gain: Covariance,
-    ) -> FixOutcome {
+        correction: PoseState,
+        gain_h: PoseCovariance,
+        gain_r_gain: PoseCovariance,
+    ) -> bool {
         let mut state = self.state + correction;
         state.z = math::wrap_angle(state.z);
-        let keep = Covariance::identity() - gain_h;
+        let keep = PoseCovariance::identity() - gain_h;
         let covariance = symmetric(keep * self.covariance * keep.transpose() + gain_r_gain);
-        if state.iter().all(|x| x.is_finite()) && covariance.iter().all(|x| x.is_finite()) {
+        let finite =
+            state.iter().all(|x| x.is_finite()) && covariance.iter().all(|x| x.is_finite());
+        if finite {
             self.state = state;
             self.covariance = covariance;
-            FixOutcome::Used
-        } else {
-            FixOutcome::Invalid
         }
+        finite
     }
 }
 
-fn symmetric(m: Covariance) -> Covariance {
+pub(crate) fn symmetric(m: PoseCovariance) -> PoseCovariance {
     (m + m.transpose()) * 0.5
 }
 
@@ -792,12 +1036,34 @@ impl TagCellTracker {
     }
 }
 
+/// Which filter the fusion estimator runs. The EKF is always built; the
+/// others need their cargo features (`fusion-ukf`,
+/// `fusion-particle-filter`), for their flash and, for the particle
+/// filter, RAM and time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FusionFilter {
+    /// The EKF of this module.
+    #[default]
+    Ekf,
+    /// The UKF ([`crate::pose_ukf`]).
+    #[cfg(feature = "fusion-ukf")]
+    Ukf,
+    /// The particle filter ([`crate::pose_particle_filter`]) with
+    /// [`crate::pose_particle_filter::FUSION_PARTICLES`] particles; its
+    /// generator is seeded with the filter configuration's
+    /// [`PoseFilterConfig::particle_seed`].
+    #[cfg(feature = "fusion-particle-filter")]
+    ParticleFilter,
+}
+
 /// Validated settings of the tracker's fusion estimator
-/// (`TrackerConfig::with_fusion_ekf`, cargo feature `fusion-ekf`).
+/// (`TrackerConfig::with_fusion`, cargo feature `fusion-ekf`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FusionSettings {
-    filter: PoseEkfConfig,
+    filter: PoseFilterConfig,
+    kind: FusionFilter,
     tag_spacing_m: f32,
     scale_prior: f32,
     read_radius_m: f32,
@@ -809,38 +1075,52 @@ impl FusionSettings {
     /// calibrated; 4e-4 for a 2 % prior).
     ///
     /// # Errors
-    /// [`PoseEkfError::TagSpacing`] or [`PoseEkfError::InitialVariance`].
+    /// [`PoseFilterError::TagSpacing`] or [`PoseFilterError::InitialVariance`].
     pub fn new(
-        filter: PoseEkfConfig,
+        filter: PoseFilterConfig,
         tag_spacing_m: f32,
         scale_prior: f32,
-    ) -> Result<Self, PoseEkfError> {
+    ) -> Result<Self, PoseFilterError> {
         if !(tag_spacing_m.is_finite() && tag_spacing_m > 0.0) {
-            return Err(PoseEkfError::TagSpacing);
+            return Err(PoseFilterError::TagSpacing);
         }
         if !(scale_prior.is_finite() && scale_prior >= 0.0) {
-            return Err(PoseEkfError::InitialVariance);
+            return Err(PoseFilterError::InitialVariance);
         }
         Ok(Self {
             filter,
+            kind: FusionFilter::Ekf,
             tag_spacing_m,
             scale_prior,
             read_radius_m: 0.0,
         })
     }
 
+    /// Runs `kind` instead of the EKF.
+    #[must_use]
+    pub fn with_filter(self, kind: FusionFilter) -> Self {
+        Self { kind, ..self }
+    }
+
+    /// The filter it runs.
+    #[must_use]
+    pub fn kind(&self) -> FusionFilter {
+        self.kind
+    }
+
     /// A reader that reports a tag only while the antenna is within
     /// `read_radius_m` of it (m; 0, the default, is the paper's nearest-tag
-    /// reader). Each pass over a tag is then one measurement: the antenna
-    /// somewhere in the disc around the tag, variance `r²/4` per axis (a
-    /// uniform disc); repeated reads of the same tag without a gap are
-    /// skipped (they are not independent) and counted as same-tag reads.
+    /// reader). Each pass over a tag is then one measurement, where the
+    /// antenna entered the disc around the tag
+    /// ([`TagCellTracker::range_measurement`]); repeated reads within a
+    /// pass are skipped (they are not independent) and counted as same-tag
+    /// reads.
     ///
     /// # Errors
-    /// [`PoseEkfError::ReadRadius`] unless finite and ≥ 0.
-    pub fn with_read_radius(self, read_radius_m: f32) -> Result<Self, PoseEkfError> {
+    /// [`PoseFilterError::ReadRadius`] unless finite and ≥ 0.
+    pub fn with_read_radius(self, read_radius_m: f32) -> Result<Self, PoseFilterError> {
         if !(read_radius_m.is_finite() && read_radius_m >= 0.0) {
-            return Err(PoseEkfError::ReadRadius);
+            return Err(PoseFilterError::ReadRadius);
         }
         Ok(Self {
             read_radius_m,
@@ -850,14 +1130,15 @@ impl FusionSettings {
 
     /// The filter's configuration.
     #[must_use]
-    pub fn filter(&self) -> &PoseEkfConfig {
+    pub fn filter(&self) -> &PoseFilterConfig {
         &self.filter
     }
 }
 
-/// The fusion estimator as the tracker runs it: the EKF (from the first
-/// fix on), the tag-cell bookkeeping, and paper 001's observer (5) as a
-/// guide for the heading.
+/// The fusion estimator as the tracker runs it: the filter (from the first
+/// fix on; the EKF unless [`FusionSettings::with_filter`] chose another),
+/// the tag-cell bookkeeping, and paper 001's observer (5) as a guide for
+/// the heading.
 ///
 /// An EKF that starts with an unknown heading can lock onto a wrong one:
 /// fixes along one axis cannot tell `θ` from `−θ`, and a filter that
@@ -869,10 +1150,10 @@ impl FusionSettings {
 /// heading differs from it by more than `asin b + 0.3` rad for a second, or
 /// when the filter re-localises, the filter's heading is reset to the
 /// guide's with a variance of 0.1² (counted in [`Self::heading_resets`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct FusionEstimator {
     settings: FusionSettings,
-    filter: Option<PoseEkf>,
+    filter: Option<RunningFilter>,
     cells: TagCellTracker,
     guide: HeadingObserver,
     guide_position: Option<Vec2>,
@@ -908,8 +1189,14 @@ impl FusionEstimator {
 
     /// The filter, once started.
     #[must_use]
-    pub fn filter(&self) -> Option<&PoseEkf> {
+    pub fn filter(&self) -> Option<&RunningFilter> {
         self.filter.as_ref()
+    }
+
+    /// The estimated pose, once started.
+    #[must_use]
+    pub fn pose(&self) -> Option<Pose> {
+        self.filter.as_ref().map(RunningFilter::pose)
     }
 
     /// One tick: predict with the odometry of the last period, then correct
@@ -939,7 +1226,7 @@ impl FusionEstimator {
                     // measurement (the uniform cell) sets the position.
                     let variances = [1.0, 1.0, PI_SQUARED, self.settings.scale_prior];
                     let start = Pose::new(tag.x, tag.y, 0.0);
-                    let filter = PoseEkf::new(self.settings.filter, start, variances).ok()?;
+                    let filter = RunningFilter::new(&self.settings, start, variances)?;
                     self.filter.insert(filter)
                 }
             };
@@ -972,7 +1259,7 @@ impl FusionEstimator {
         } else {
             self.follow_guide(odometry, None, false);
         }
-        self.filter.as_ref().map(PoseEkf::pose)
+        self.pose()
     }
 
     /// Updates the guide observer from the fixes (dead-reckoned on its own
@@ -1032,10 +1319,10 @@ impl FusionEstimator {
 
     /// The filter's counters (zero before the first fix).
     #[must_use]
-    pub fn counters(&self) -> PoseEkfCounters {
+    pub fn counters(&self) -> PoseFilterCounters {
         self.filter
             .as_ref()
-            .map(PoseEkf::counters)
+            .map(RunningFilter::counters)
             .unwrap_or_default()
     }
 }
@@ -1047,10 +1334,95 @@ impl defmt::Format for FusionEstimator {
         defmt::write!(
             f,
             "FusionEstimator {{ pose: {}, counters: {}, heading_resets: {} }}",
-            self.filter.as_ref().map(PoseEkf::pose),
+            self.pose(),
             self.counters(),
             self.heading_resets
         );
+    }
+}
+
+/// The filter a [`FusionEstimator`] runs ([`FusionFilter`]).
+#[derive(Debug, Clone, PartialEq)]
+// The variants differ in size by the particles; there is no heap to box
+// them into, and only one is built per robot.
+#[allow(clippy::large_enum_variant)]
+pub enum RunningFilter {
+    /// The EKF.
+    Ekf(PoseEkf),
+    /// The UKF.
+    #[cfg(feature = "fusion-ukf")]
+    Ukf(crate::pose_ukf::PoseUkf),
+    /// The particle filter.
+    #[cfg(feature = "fusion-particle-filter")]
+    ParticleFilter(crate::pose_particle_filter::PoseParticleFilter),
+}
+
+/// `$body` with `$f` bound to the running [`PoseFilter`], whatever its core.
+macro_rules! with_filter {
+    ($running:expr, $f:ident => $body:expr) => {
+        match $running {
+            RunningFilter::Ekf($f) => $body,
+            #[cfg(feature = "fusion-ukf")]
+            RunningFilter::Ukf($f) => $body,
+            #[cfg(feature = "fusion-particle-filter")]
+            RunningFilter::ParticleFilter($f) => $body,
+        }
+    };
+}
+
+impl RunningFilter {
+    /// The filter `settings` choose, at `start` with `variances` (as
+    /// [`PoseFilter::new`]); `None` if it cannot start there.
+    pub fn new(settings: &FusionSettings, start: Pose, variances: [f32; 4]) -> Option<Self> {
+        let config = settings.filter;
+        Some(match settings.kind {
+            FusionFilter::Ekf => Self::Ekf(PoseFilter::new(config, start, variances).ok()?),
+            #[cfg(feature = "fusion-ukf")]
+            FusionFilter::Ukf => Self::Ukf(PoseFilter::new(config, start, variances).ok()?),
+            #[cfg(feature = "fusion-particle-filter")]
+            FusionFilter::ParticleFilter => {
+                Self::ParticleFilter(PoseFilter::new(config, start, variances).ok()?)
+            }
+        })
+    }
+
+    /// [`PoseFilter::predict`].
+    pub fn predict(&mut self, odometry: &OdometryStep) {
+        with_filter!(self, f => f.predict(odometry));
+    }
+
+    /// [`PoseFilter::correct`].
+    pub fn correct(&mut self, measurement: &PositionMeasurement) -> FixOutcome {
+        with_filter!(self, f => f.correct(measurement))
+    }
+
+    /// [`PoseFilter::pose`].
+    #[must_use]
+    pub fn pose(&self) -> Pose {
+        with_filter!(self, f => f.pose())
+    }
+
+    /// [`PoseFilter::covariance`].
+    #[must_use]
+    pub fn covariance(&self) -> PoseCovariance {
+        with_filter!(self, f => f.covariance())
+    }
+
+    /// [`PoseFilter::wheel_scale_errors`].
+    #[must_use]
+    pub fn wheel_scale_errors(&self) -> [f32; 2] {
+        with_filter!(self, f => f.wheel_scale_errors())
+    }
+
+    /// [`PoseFilter::counters`].
+    #[must_use]
+    pub fn counters(&self) -> PoseFilterCounters {
+        with_filter!(self, f => f.counters())
+    }
+
+    /// [`PoseFilter::reset_heading`].
+    pub fn reset_heading(&mut self, heading_rad: f32, variance_rad2: f32) -> bool {
+        with_filter!(self, f => f.reset_heading(heading_rad, variance_rad2))
     }
 }
 
@@ -1071,8 +1443,8 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn config() -> PoseEkfConfig {
-        PoseEkfConfig::new(0.2, 1e-4, 1e-8, 3.0).unwrap()
+    fn config() -> PoseFilterConfig {
+        PoseFilterConfig::new(0.2, 1e-4, 1e-8, 3.0).unwrap()
     }
 
     #[test]
@@ -1082,16 +1454,16 @@ mod tests {
         // χ²₂ quantile at 0.9973 = −2 ln(0.0026998) = 11.829.
         assert!((two - 11.829).abs() < 2e-3, "{two}");
         assert_eq!(
-            PoseEkfConfig::new(0.2, 1e-4, 0.0, 0.5),
-            Err(PoseEkfError::Gate)
+            PoseFilterConfig::new(0.2, 1e-4, 0.0, 0.5),
+            Err(PoseFilterError::Gate)
         );
         assert_eq!(
-            PoseEkfConfig::new(0.0, 1e-4, 0.0, 3.0),
-            Err(PoseEkfError::TrackWidth)
+            PoseFilterConfig::new(0.0, 1e-4, 0.0, 3.0),
+            Err(PoseFilterError::TrackWidth)
         );
         assert_eq!(
-            PoseEkfConfig::new(0.2, -1.0, 0.0, 3.0),
-            Err(PoseEkfError::WheelNoise)
+            PoseFilterConfig::new(0.2, -1.0, 0.0, 3.0),
+            Err(PoseFilterError::WheelNoise)
         );
     }
 

@@ -20,9 +20,9 @@ use crate::geometry::{DiffDriveGeometry, GeometryError, Vec2};
 use crate::heading_observer::{HeadingObserverConfig, ObserverConfigError};
 use crate::output_feedback::{TrackerConfig, TrackerConfigError};
 use crate::pilot::{PilotConfig, PilotConfigError};
-use crate::pose_ekf::PoseEkfError;
+use crate::pose_ekf::PoseFilterError;
 #[cfg(feature = "fusion-ekf")]
-use crate::pose_ekf::{FusionSettings, PoseEkfConfig};
+use crate::pose_ekf::{FusionFilter, FusionSettings, PoseFilterConfig};
 use crate::pose_observer::{PoseObserverConfig, PoseObserverConfigError};
 use crate::reference::{Circle, FigureEight, ReferenceError, StraightLine, Trajectory};
 use crate::robot_frame::{CascadedGains, CascadedGainsError};
@@ -52,10 +52,11 @@ pub enum SpecError {
     TagGrid(TagGridError),
     /// Paper 002's pose observer (Proposition 4).
     PoseObserver(PoseObserverConfigError),
-    /// The fusion EKF.
-    FusionEkf(PoseEkfError),
-    /// A part this build of the core was compiled without (the fusion EKF
-    /// needs the cargo feature `fusion-ekf`).
+    /// The fusion estimator.
+    Fusion(PoseFilterError),
+    /// A part this build of the core was compiled without (the fusion
+    /// estimator needs the cargo feature `fusion-ekf`, its UKF
+    /// `fusion-ukf`, its particle filter `fusion-particle-filter`).
     NotInThisBuild,
     /// Paper 002's cascaded controller (31).
     CascadedLaw(CascadedGainsError),
@@ -76,8 +77,11 @@ pub enum EstimatorSpec {
         /// `[a1, a2]` (1/s) and `[a3, a4]` (1/m²) of (37).
         gains: [f32; 4],
     },
-    /// The encoder + tag fusion EKF ([`crate::pose_ekf`]).
-    FusionEkf {
+    /// The encoder + tag fusion estimator ([`crate::pose_ekf`]) on the
+    /// filter `filter`.
+    Fusion {
+        /// Which filter.
+        filter: FusionFilterSpec,
         /// Track width, m.
         track_width_m: f32,
         /// Each wheel's travel variance per metre driven, m²/m.
@@ -92,6 +96,24 @@ pub enum EstimatorSpec {
         scale_prior: f32,
         /// Reader range, m (0: the nearest tag is read every tick).
         read_radius_m: f32,
+    },
+}
+
+/// The fusion estimator's filter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum FusionFilterSpec {
+    /// The EKF.
+    #[default]
+    Ekf,
+    /// Paper 004's UKF ([`crate::pose_ukf`]; cargo feature `fusion-ukf`).
+    Ukf,
+    /// Paper 004's particle filter ([`crate::pose_particle_filter`]; cargo
+    /// feature `fusion-particle-filter`).
+    ParticleFilter {
+        /// The generator's seed.
+        seed: u64,
     },
 }
 
@@ -240,7 +262,8 @@ impl TrackerSpec {
                     .map_err(SpecError::Tracker)?;
             }
             #[cfg(feature = "fusion-ekf")]
-            EstimatorSpec::FusionEkf {
+            EstimatorSpec::Fusion {
+                filter,
                 track_width_m,
                 wheel_variance_per_m,
                 wheel_variance_floor_m2,
@@ -249,19 +272,32 @@ impl TrackerSpec {
                 scale_prior,
                 read_radius_m,
             } => {
-                let settings = PoseEkfConfig::new(
+                let (kind, seed) = match filter {
+                    FusionFilterSpec::Ekf => (FusionFilter::Ekf, 1),
+                    #[cfg(feature = "fusion-ukf")]
+                    FusionFilterSpec::Ukf => (FusionFilter::Ukf, 1),
+                    #[cfg(feature = "fusion-particle-filter")]
+                    FusionFilterSpec::ParticleFilter { seed } => {
+                        (FusionFilter::ParticleFilter, seed)
+                    }
+                    #[allow(unreachable_patterns)]
+                    _ => return Err(SpecError::NotInThisBuild),
+                };
+                let settings = PoseFilterConfig::new(
                     track_width_m,
                     wheel_variance_per_m,
                     wheel_variance_floor_m2,
                     gate_sigma,
                 )
+                .map(|filter| filter.with_particle_seed(seed))
                 .and_then(|filter| FusionSettings::new(filter, tag_spacing_m, scale_prior))
                 .and_then(|settings| settings.with_read_radius(read_radius_m))
-                .map_err(SpecError::FusionEkf)?;
-                config = config.with_fusion_ekf(settings);
+                .map_err(SpecError::Fusion)?
+                .with_filter(kind);
+                config = config.with_fusion(settings);
             }
             #[cfg(not(feature = "fusion-ekf"))]
-            EstimatorSpec::FusionEkf { .. } => return Err(SpecError::NotInThisBuild),
+            EstimatorSpec::Fusion { .. } => return Err(SpecError::NotInThisBuild),
         }
         match self.law {
             LawSpec::Paper001 => {}
@@ -493,7 +529,8 @@ mod tests {
             Err(SpecError::Drive(DriveConfigError::SpeedLoopGain))
         );
         let mut s = paper_spec();
-        s.tracker.estimator = EstimatorSpec::FusionEkf {
+        s.tracker.estimator = EstimatorSpec::Fusion {
+            filter: FusionFilterSpec::Ekf,
             track_width_m: 0.2,
             wheel_variance_per_m: 1e-3,
             wheel_variance_floor_m2: 1e-9,
@@ -503,7 +540,7 @@ mod tests {
             read_radius_m: 0.0,
         };
         let expected = if cfg!(feature = "fusion-ekf") {
-            SpecError::FusionEkf(crate::pose_ekf::PoseEkfError::TagSpacing)
+            SpecError::Fusion(crate::pose_ekf::PoseFilterError::TagSpacing)
         } else {
             SpecError::NotInThisBuild
         };

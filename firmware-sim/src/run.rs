@@ -28,6 +28,7 @@ use wmr_core::odometry::OdometryStep;
 use wmr_core::output_feedback::{EstimatorChoice, LawChoice, TrackerCounters};
 use wmr_core::output_feedback::{OutputFeedbackTracker, TagFix, TrackerMode};
 use wmr_core::pilot::{Measurement, Pilot, PilotConfig, PilotCounters};
+use wmr_core::pose_ekf::FusionFilter;
 use wmr_core::reference::{TickClock, Trajectory};
 use wmr_core::robot::{Motor, Robot};
 use wmr_core::spec::TagGridSpec;
@@ -1416,15 +1417,27 @@ impl SetupLabels {
                 (_, EstimatorChoice::PoseObserver(_), LawChoice::HeadingErrorSine(_)) => {
                     "output_feedback (pose observer, sin θe law)"
                 }
-                (_, EstimatorChoice::FusionEkf(_), LawChoice::Paper001) => {
-                    "output_feedback (fusion EKF, law 001)"
-                }
-                (_, EstimatorChoice::FusionEkf(_), LawChoice::Cascaded(_)) => {
-                    "output_feedback (fusion EKF, cascaded law)"
-                }
-                (_, EstimatorChoice::FusionEkf(_), LawChoice::HeadingErrorSine(_)) => {
-                    "output_feedback (fusion EKF, sin θe law)"
-                }
+                (_, EstimatorChoice::Fusion(f), LawChoice::Paper001) => match f.kind() {
+                    FusionFilter::Ekf => "output_feedback (fusion EKF, law 001)",
+                    FusionFilter::Ukf => "output_feedback (fusion UKF, law 001)",
+                    FusionFilter::ParticleFilter => {
+                        "output_feedback (fusion particle filter, law 001)"
+                    }
+                },
+                (_, EstimatorChoice::Fusion(f), LawChoice::Cascaded(_)) => match f.kind() {
+                    FusionFilter::Ekf => "output_feedback (fusion EKF, cascaded law)",
+                    FusionFilter::Ukf => "output_feedback (fusion UKF, cascaded law)",
+                    FusionFilter::ParticleFilter => {
+                        "output_feedback (fusion particle filter, cascaded law)"
+                    }
+                },
+                (_, EstimatorChoice::Fusion(f), LawChoice::HeadingErrorSine(_)) => match f.kind() {
+                    FusionFilter::Ekf => "output_feedback (fusion EKF, sin θe law)",
+                    FusionFilter::Ukf => "output_feedback (fusion UKF, sin θe law)",
+                    FusionFilter::ParticleFilter => {
+                        "output_feedback (fusion particle filter, sin θe law)"
+                    }
+                },
             },
             position_source: match setup.position {
                 PositionSetup::Exact => "exact",

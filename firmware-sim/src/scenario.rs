@@ -23,7 +23,8 @@ use wmr_core::output_feedback::TrackerConfig;
 use wmr_core::pilot::PilotConfig;
 use wmr_core::reference::Trajectory;
 use wmr_core::spec::{
-    self as core_spec, EstimatorSpec, LawSpec, PilotSpec, SpecError, TrackerSpec, TrajectorySpec,
+    self as core_spec, EstimatorSpec, FusionFilterSpec, LawSpec, PilotSpec, SpecError, TrackerSpec,
+    TrajectorySpec,
 };
 use wmr_core::tracking::TrackingGains;
 use wmr_core::wheel_speed_observer::WheelSpeedObserverConfig;
@@ -277,6 +278,12 @@ pub enum ObserverKind {
     /// `fusion_*` keys; needs grid tags (`nearest_tag`, or `reader` in
     /// `paper` or `range` mode) without added noise.
     FusionEkf,
+    /// The same estimator on paper 004's UKF (`wmr_core::pose_ukf`).
+    FusionUkf,
+    /// The same estimator on paper 004's particle filter
+    /// (`wmr_core::pose_particle_filter`, 100 particles), its generator
+    /// seeded with `fusion_particle_seed`.
+    FusionParticleFilter,
 }
 
 /// Heading observer parameters.
@@ -299,6 +306,9 @@ pub struct ObserverSpec {
     /// wheels are taken as calibrated; 4e-4 learns them from a 2 % prior).
     #[serde(default)]
     pub fusion_scale_prior: f64,
+    /// Fusion particle filter: its generator's seed (default 1).
+    #[serde(default = "defaults::fusion_particle_seed")]
+    pub fusion_particle_seed: u64,
     /// Observer gain `L`, 1/m.
     #[serde(default = "defaults::gain_per_m")]
     pub gain_per_m: f64,
@@ -315,6 +325,7 @@ impl Default for ObserverSpec {
             fusion_wheel_variance_per_m: defaults::fusion_wheel_variance_per_m(),
             fusion_gate_sigma: defaults::fusion_gate_sigma(),
             fusion_scale_prior: 0.0,
+            fusion_particle_seed: defaults::fusion_particle_seed(),
             gain_per_m: defaults::gain_per_m(),
             min_speed_m_s: defaults::min_speed_m_s(),
         }
@@ -721,6 +732,9 @@ mod defaults {
     pub fn fusion_wheel_variance_per_m() -> f64 {
         1e-3
     }
+    pub fn fusion_particle_seed() -> u64 {
+        1
+    }
     pub fn fusion_gate_sigma() -> f64 {
         3.0
     }
@@ -1017,7 +1031,7 @@ fn spec_refusal(e: SpecError) -> ScenarioError {
         SpecError::Drive(_) => "drive",
         SpecError::TagGrid(_) => "position",
         SpecError::PoseObserver(_) => "observer.pose_gains",
-        SpecError::FusionEkf(_) | SpecError::NotInThisBuild => "observer",
+        SpecError::Fusion(_) | SpecError::NotInThisBuild => "observer",
         SpecError::CascadedLaw(_) | SpecError::HeadingErrorSineLaw(_) => "controller",
     };
     ScenarioError::invalid(field, format!("refused by the core: {e:?}"))
@@ -1044,13 +1058,21 @@ impl Scenario {
                     ],
                 })
             }
-            (ObserverKind::FusionEkf, ControllerKind::OutputFeedback) => self.fusion_spec(),
-            (ObserverKind::FusionEkf, ControllerKind::StateFeedback) => {
-                Err(ScenarioError::invalid(
-                    "observer.kind",
-                    "state feedback measures the heading: no estimator runs",
-                ))
-            }
+            (
+                ObserverKind::FusionEkf
+                | ObserverKind::FusionUkf
+                | ObserverKind::FusionParticleFilter,
+                ControllerKind::OutputFeedback,
+            ) => self.fusion_spec(),
+            (
+                ObserverKind::FusionEkf
+                | ObserverKind::FusionUkf
+                | ObserverKind::FusionParticleFilter,
+                ControllerKind::StateFeedback,
+            ) => Err(ScenarioError::invalid(
+                "observer.kind",
+                "state feedback measures the heading: no estimator runs",
+            )),
             (ObserverKind::Pose, ControllerKind::StateFeedback) => Err(ScenarioError::invalid(
                 "observer.kind",
                 "state feedback measures the heading: no observer runs",
@@ -1113,7 +1135,15 @@ impl Scenario {
                 ))
             }
         };
-        Ok(EstimatorSpec::FusionEkf {
+        let filter = match o.kind {
+            ObserverKind::FusionUkf => FusionFilterSpec::Ukf,
+            ObserverKind::FusionParticleFilter => FusionFilterSpec::ParticleFilter {
+                seed: o.fusion_particle_seed,
+            },
+            _ => FusionFilterSpec::Ekf,
+        };
+        Ok(EstimatorSpec::Fusion {
+            filter,
             track_width_m: f(track_width_m),
             wheel_variance_per_m: f(non_negative(
                 "observer.fusion_wheel_variance_per_m",

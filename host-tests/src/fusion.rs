@@ -11,7 +11,7 @@ use wmr_core::geometry::{DiffDriveGeometry, Pose, Vec2};
 use wmr_core::heading_observer::{HeadingObserver, HeadingObserverConfig};
 use wmr_core::odometry::OdometryStep;
 use wmr_core::output_feedback::{OutputFeedbackTracker, TagFix, TrackerConfig};
-use wmr_core::pose_ekf::{PoseEkf, PoseEkfConfig, PoseEkfCounters, TagCellTracker};
+use wmr_core::pose_ekf::{PoseEkf, PoseFilterConfig, PoseFilterCounters, TagCellTracker};
 use wmr_core::reference::{FigureEight, Trajectory};
 use wmr_core::tracking::{TrackingController, TrackingGains};
 
@@ -103,7 +103,7 @@ pub struct FusionRun {
     /// Largest `|θ̂ − θ|` over `t ≥ 100 s`, rad.
     pub heading_error_max_rad: f64,
     /// The EKF's counters at the end.
-    pub counters: PoseEkfCounters,
+    pub counters: PoseFilterCounters,
     /// Reads of an unchanged tag (skipped).
     pub same_tag_reads: u32,
     /// `|p − p_r|` every 0.5 s.
@@ -132,7 +132,7 @@ pub fn figure_eight_run(
         DiffDriveGeometry::new(WHEEL_RADIUS_M as f32, TRACK_WIDTH_M as f32, COUNTS_PER_REV)
             .expect("valid geometry");
     let count_quantum_m = WHEEL_RADIUS_M * std::f64::consts::TAU / f64::from(COUNTS_PER_REV);
-    let config = PoseEkfConfig::new(
+    let config = PoseFilterConfig::new(
         TRACK_WIDTH_M as f32,
         tuning.variance_per_m,
         (count_quantum_m * count_quantum_m / 12.0) as f32,

@@ -84,7 +84,10 @@ fn ci() -> Result {
     })?;
     for target in TARGETS {
         for features in [
-            &["--features", "defmt,fusion-ekf,wheel-speed-observer"][..],
+            &[
+                "--features",
+                "defmt,fusion-ekf,fusion-ukf,fusion-particle-filter,wheel-speed-observer",
+            ][..],
             &["--no-default-features", "--features", "micromath"][..],
         ] {
             step(&format!("clippy core {target} {features:?}"), || {

@@ -56,7 +56,7 @@ use wmr_core::robot::RobotCounters;
 use wmr_core::spec::{PilotSpec, SpecError, TagGridSpec};
 
 /// Bump when a message changes shape; both sides refuse a mismatch.
-pub const PROTOCOL_VERSION: u16 = 4;
+pub const PROTOCOL_VERSION: u16 = 5;
 
 /// Largest encoded frame, bytes, including COBS overhead and the `0x00`.
 pub const MAX_FRAME_BYTES: usize = 512;

@@ -1016,7 +1016,7 @@ mod on_target {
         let mut observer = HeadingObserver::new(*config.tracker().observer());
         let mut law = TrackingController::new(gains);
         let mut wheel_loop = WheelSpeedLoop::default();
-        let mut lone_pilot = pilot;
+        let mut lone_pilot = pilot.clone();
 
         // The whole tick: the firmware's robot on the HIL link's proxies.
         let bus = ProxyBus::new();

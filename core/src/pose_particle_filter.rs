@@ -1,0 +1,291 @@
+//! The fusion estimator's pose filter as a particle filter: the state,
+//! odometry noise model, tag measurements, gate and re-localisation of
+//! [`crate::pose_ekf`] (whose module docs this follows), on paper 004's
+//! particle filter ([`crate::particle_filter`]).
+//!
+//! # Prediction
+//! Each particle `(x, y, θ, ε_R, ε_L)` drives its own wheel travels
+//! `s' = (1 + ε) s + σ(s') ξ`, `σ² = α|s| + σ₀²` (the EKF's wheel noise,
+//! drawn per particle and wheel), along the exact arc, and its scale
+//! errors take a random-walk step of variance (scale walk)·`|s'|`
+//! ([`ParticleModel::sample_transition`]). Noise that enters through the
+//! wheels keeps the particles on arcs a robot can drive, where the
+//! paper's additive `σ_q` per state component would not.
+//!
+//! # Correction
+//! A fix weights every particle by its Gaussian likelihood with the fix's
+//! own variance ([`ParticleFilter::update_with_std`]; an axis fix leaves
+//! the other axis unmeasured, `σ = ∞`). The gate of [`crate::pose_ekf`]
+//! runs first on the particles' weighted mean and covariance: the
+//! predictive distribution of a linear measurement has exactly that mean
+//! and `H P Hᵀ + R`, so the chi-square thresholds mean what they say for
+//! any particle cloud that is close to Gaussian. Resampling is systematic
+//! when the effective sample size falls below `P/2`; the collapse gate is
+//! off (`∞`): a fix the gate let through pulls the weight onto the closest
+//! particles rather than throwing them away.
+//!
+//! # Resets
+//! A heading reset or a re-localisation redraws every particle from the
+//! Gaussian of the new mean and covariance ([`ParticleFilter::reset`]).
+//!
+//! # Randomness and cost
+//! The generator is seeded from the configuration
+//! (`PoseFilterConfig::with_particle_seed`): a run repeats bit
+//! for bit from its seed. A prediction draws `4P` Gaussians and drives `P`
+//! arcs; with [`FUSION_PARTICLES`] = 100 that needs the `micromath`
+//! backend to fit a 10 ms tick on a Cortex-M4 (README bench table).
+
+use nalgebra::{SVector, Vector2};
+
+use crate::math;
+use crate::odometry::OdometryStep;
+use crate::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
+use crate::pose_ekf::{
+    PoseCovariance, PoseFilter, PoseFilterConfig, PoseFilterCore, PoseState, PositionMeasurement,
+    drive_wheels, scale_walk_variance, wheel_travels, wheel_variance,
+};
+
+/// Particles of the tracker's particle-filter estimator.
+pub const FUSION_PARTICLES: usize = 100;
+
+/// The pose on odometry with per-wheel noise, for the particle filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoisyOdometryModel {
+    config: PoseFilterConfig,
+}
+
+impl ParticleModel<5, 2> for NoisyOdometryModel {
+    type Input = OdometryStep;
+
+    fn transition(&self, x: &PoseState, u: &OdometryStep, _dt_s: f32) -> PoseState {
+        let b = self.config.track_width_m();
+        let (right, left) = wheel_travels(u.ds_m, u.dtheta_rad, b);
+        drive_wheels(x, right * (1.0 + x.w), left * (1.0 + x.a), b)
+    }
+
+    fn sample_transition(
+        &self,
+        x: &PoseState,
+        u: &OdometryStep,
+        _dt_s: f32,
+        _process_std: &PoseState,
+        gaussian: &mut dyn FnMut() -> f32,
+    ) -> PoseState {
+        let config = &self.config;
+        let b = config.track_width_m();
+        let (nominal_r, nominal_l) = wheel_travels(u.ds_m, u.dtheta_rad, b);
+        let noisy = |travel: f32, gaussian: &mut dyn FnMut() -> f32| {
+            travel + math::sqrt(wheel_variance(config, travel)) * gaussian()
+        };
+        let right = noisy(nominal_r * (1.0 + x.w), gaussian);
+        let left = noisy(nominal_l * (1.0 + x.a), gaussian);
+        let mut next = drive_wheels(x, right, left, b);
+        next.w += math::sqrt(scale_walk_variance(config, right)) * gaussian();
+        next.a += math::sqrt(scale_walk_variance(config, left)) * gaussian();
+        next
+    }
+
+    fn measure(&self, x: &PoseState) -> SVector<f32, 2> {
+        Vector2::new(x.x, x.y)
+    }
+
+    fn is_angle(&self, index: usize) -> bool {
+        index == 2
+    }
+
+    fn input_is_valid(&self, u: &OdometryStep) -> bool {
+        u.ds_m.is_finite() && u.dtheta_rad.is_finite()
+    }
+}
+
+/// The particle filter as a [`PoseFilterCore`], `P` particles.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParticleCore<const P: usize> {
+    filter: ParticleFilter<NoisyOdometryModel, 5, 2, P>,
+}
+
+/// The pose particle filter.
+pub type PoseParticleFilter<const P: usize = FUSION_PARTICLES> = PoseFilter<ParticleCore<P>>;
+
+impl<const P: usize> ParticleCore<P> {
+    /// The particle filter inside (its counters say what it resampled,
+    /// recovered or skipped).
+    #[must_use]
+    pub fn filter(&self) -> &ParticleFilter<NoisyOdometryModel, 5, 2, P> {
+        &self.filter
+    }
+}
+
+impl<const P: usize> PoseFilterCore for ParticleCore<P> {
+    fn start(
+        config: &PoseFilterConfig,
+        mean: &PoseState,
+        covariance: &PoseCovariance,
+    ) -> Option<Self> {
+        // The noise comes from the model; σ_q and σ_r here are unused.
+        let settings = ParticleFilterConfig::new(PoseState::zeros(), Vector2::repeat(1.0))
+            .and_then(|c| c.with_collapse_gate(f32::INFINITY))
+            .ok()?;
+        let prior_std = covariance.diagonal().map(|v| math::sqrt(v.max(0.0)));
+        let model = NoisyOdometryModel { config: *config };
+        ParticleFilter::new(model, settings, *mean, prior_std, config.particle_seed())
+            .ok()
+            .map(|filter| Self { filter })
+    }
+
+    fn predict(&mut self, _config: &PoseFilterConfig, odometry: &OdometryStep) -> bool {
+        let rejected = self.filter.rejected_inputs();
+        self.filter.predict(odometry, 0.0);
+        self.filter.rejected_inputs() == rejected
+    }
+
+    fn mean(&self) -> PoseState {
+        self.filter.estimate()
+    }
+
+    fn covariance(&self) -> PoseCovariance {
+        self.filter.covariance()
+    }
+
+    fn update(&mut self, measurement: &PositionMeasurement) -> bool {
+        let estimate = self.filter.estimate();
+        let (z, std) = match *measurement {
+            PositionMeasurement::Point {
+                position,
+                variance_m2: [vx, vy],
+            } => (
+                Vector2::new(position.x, position.y),
+                Vector2::new(math::sqrt(vx), math::sqrt(vy)),
+            ),
+            PositionMeasurement::X {
+                value_m,
+                variance_m2,
+            } => (
+                Vector2::new(value_m, estimate.y),
+                Vector2::new(math::sqrt(variance_m2), f32::INFINITY),
+            ),
+            PositionMeasurement::Y {
+                value_m,
+                variance_m2,
+            } => (
+                Vector2::new(estimate.x, value_m),
+                Vector2::new(f32::INFINITY, math::sqrt(variance_m2)),
+            ),
+        };
+        let rejected = self.filter.rejected_inputs();
+        self.filter.update_with_std(&z, &std);
+        self.filter.rejected_inputs() == rejected
+    }
+
+    fn reset(&mut self, mean: &PoseState, covariance: &PoseCovariance) -> bool {
+        self.filter.reset(mean, covariance).is_ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Pose, Vec2};
+    use crate::pose_ekf::FixOutcome;
+    use proptest::prelude::*;
+
+    fn config(seed: u64) -> PoseFilterConfig {
+        PoseFilterConfig::new(0.2, 1e-4, 1e-9, 3.0)
+            .unwrap()
+            .with_particle_seed(seed)
+    }
+
+    /// Drives an arc with a fix every 25 ticks from a 1 cm, 0.05 rad
+    /// start; returns the worst position error of the last half and the
+    /// filter.
+    fn drive(seed: u64) -> (f32, PoseParticleFilter<100>) {
+        let start = Pose::new(0.0, 0.0, 0.3);
+        let mut pf =
+            PoseParticleFilter::<100>::new(config(seed), start, [1e-4, 1e-4, 2.5e-3, 0.0]).unwrap();
+        let mut truth = Pose::new(0.01, -0.005, 0.35);
+        let mut worst = 0.0_f32;
+        for k in 0..2000_u32 {
+            let step = OdometryStep {
+                ds_m: 0.002,
+                dtheta_rad: if k % 200 < 100 { 0.004 } else { -0.003 },
+                ..OdometryStep::default()
+            };
+            truth = truth.advance_arc(step.ds_m, step.dtheta_rad);
+            pf.predict(&step);
+            if k % 25 == 24 {
+                let fix = PositionMeasurement::Point {
+                    position: truth.position,
+                    variance_m2: [1e-4, 1e-4],
+                };
+                assert_eq!(pf.correct(&fix), FixOutcome::Used);
+            }
+            if k >= 1000 {
+                worst = worst.max((pf.pose().position - truth.position).norm());
+            }
+        }
+        (worst, pf)
+    }
+
+    /// It tracks (within 1.5 cm, fixes of σ = 1 cm), repeats bit for bit
+    /// from its seed and differs with another.
+    #[test]
+    fn tracks_and_repeats_from_the_seed() {
+        let (worst, first) = drive(5);
+        assert!(worst < 0.015, "{worst}");
+        let (_, again) = drive(5);
+        let (_, other) = drive(6);
+        assert_eq!(first, again);
+        assert_ne!(first.pose(), other.pose());
+        assert!(first.core().filter().resamplings() > 0);
+        assert_eq!(first.core().filter().collapses(), 0);
+    }
+
+    /// An axis fix pulls the estimate along its axis (that it weights by
+    /// `x` alone is `ParticleFilter::update_with_std`'s test; `y` moves
+    /// only by the sampling error of the reweighted particles).
+    #[test]
+    fn an_axis_fix_measures_its_axis() {
+        let mut pf = PoseParticleFilter::<100>::new(
+            config(1),
+            Pose::new(0.0, 0.0, 0.0),
+            [1e-2, 1e-2, 0.01, 0.0],
+        )
+        .unwrap();
+        let before = pf.pose();
+        let fix = PositionMeasurement::X {
+            value_m: 0.1,
+            variance_m2: 1e-4,
+        };
+        assert_eq!(pf.correct(&fix), FixOutcome::Used);
+        let after = pf.pose();
+        assert!(
+            after.position.x - before.position.x > 0.05,
+            "{before:?} {after:?}"
+        );
+    }
+
+    proptest! {
+        /// Finite or not, no input leaves the estimate non-finite.
+        #[test]
+        fn finite_out_on_any_input(
+            steps in proptest::collection::vec((-1.0f32..1.0, -1.0f32..1.0, any::<bool>()), 1..20),
+            fixes in proptest::collection::vec((-100.0f32..100.0, -100.0f32..100.0, 0u8..4), 1..20),
+        ) {
+            let mut pf = PoseParticleFilter::<16>::new(config(3), Pose::new(0.0, 0.0, 0.0), [1.0, 1.0, 9.0, 4e-4]).unwrap();
+            for (&(ds, dth, nan), &(x, y, kind)) in steps.iter().zip(fixes.iter().cycle()) {
+                let ds = if nan { f32::NAN } else { ds };
+                pf.predict(&OdometryStep { ds_m: ds, dtheta_rad: dth, ..OdometryStep::default() });
+                let m = match kind {
+                    0 => PositionMeasurement::Point { position: Vec2::new(x, y), variance_m2: [1e-4, 1e-4] },
+                    1 => PositionMeasurement::X { value_m: x, variance_m2: 1e-6 },
+                    2 => PositionMeasurement::Y { value_m: y, variance_m2: 1e-6 },
+                    _ => PositionMeasurement::X { value_m: f32::INFINITY, variance_m2: 1e-6 },
+                };
+                pf.correct(&m);
+                let p = pf.pose();
+                prop_assert!(p.position.is_finite() && p.heading_rad.is_finite());
+                prop_assert!(pf.covariance().iter().all(|v| v.is_finite()));
+            }
+        }
+    }
+}
