@@ -58,13 +58,19 @@ const MATH: [(&str, &str); 6] = [
 
 /// Paper 004's filters: the bench's name and the row label. Each has the
 /// stages `<name>_predict` and `<name>_update`.
-const FILTERS: [(&str, &str); 6] = [
+const FILTERS: [(&str, &str); 9] = [
     ("ekf3", "EKF, N = M = 3 (`PoseModel`)"),
     ("ekf5", "EKF, N = M = 5 (`PoseWheelModel`)"),
     ("ukf3", "UKF, N = M = 3 (7 sigma points)"),
     ("ukf5", "UKF, N = M = 5 (11 sigma points)"),
     ("pf3", "particle filter, N = M = 3, 100 particles"),
     ("pf5", "particle filter, N = M = 5, 100 particles"),
+    ("fusion_ekf", "fusion EKF (`PoseEkf`: odometry, 2-D fix)"),
+    ("fusion_ukf", "fusion UKF (`PoseUkf`: odometry, 2-D fix)"),
+    (
+        "fusion_pf",
+        "fusion particle filter (`PoseParticleFilter`, 100 particles)",
+    ),
 ];
 
 /// One stage's instruction counts.

@@ -85,6 +85,11 @@ mod on_target {
     use wmr_core::output_feedback::TagFix;
     use wmr_core::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
     use wmr_core::pilot::{Measurement, Pilot, PilotOutput};
+    use wmr_core::pose_ekf::{
+        PoseEkf, PoseFilter, PoseFilterConfig, PoseFilterCore, PositionMeasurement,
+    };
+    use wmr_core::pose_particle_filter::PoseParticleFilter;
+    use wmr_core::pose_ukf::PoseUkf;
     use wmr_core::reference::{ReferenceSample, Trajectory};
     use wmr_core::robot::{Robot, RobotTick};
     use wmr_core::slip_tracking::{PoseModel, PoseWheelModel, TrackedRobot};
@@ -933,6 +938,151 @@ mod on_target {
         );
     }
 
+    // ------------------------------------------------------- fusion filters
+
+    /// The fusion estimator's fix in the bench: the true position, with
+    /// this variance per axis, m² (a 1 cm fix).
+    const FUSION_FIX_VARIANCE_M2: f32 = 1e-4;
+    /// Wheel travel variance per metre of the fusion filters' noise model,
+    /// m²/m (the UKF and particle filter's tuning in `host-tests`).
+    const FUSION_WHEEL_VARIANCE_PER_M: f32 = 3e-5;
+    /// Paper 004's track width `b`, m: the fusion filters' wheel geometry
+    /// on the [`Arc`].
+    const FUSION_TRACK_WIDTH_M: f32 = 0.65;
+    /// A fusion filter's RMS position error must stay below its fixes'.
+    const MAX_FUSION_RMS_ERROR_M: f32 = 0.014;
+
+    #[inline(never)]
+    fn pose_predict<Core: PoseFilterCore>(filter: &mut PoseFilter<Core>, odometry: &OdometryStep) {
+        filter.predict(odometry);
+    }
+
+    #[inline(never)]
+    fn pose_correct<Core: PoseFilterCore>(
+        filter: &mut PoseFilter<Core>,
+        fix: &PositionMeasurement,
+    ) {
+        // Counted in the filter's counters.
+        let _outcome = filter.correct(fix);
+    }
+
+    /// A fusion filter ([`wmr_core::pose_ekf`]) along an [`Arc`] from its
+    /// start: exact odometry every step and a 2-D fix every step (the
+    /// worst case: the tracker corrects only when the tag changes), both
+    /// stages reported as [`bench_filter`] reports paper 004's filters;
+    /// `resamplings` reads the particle filter's count.
+    fn bench_pose_filter<Core: PoseFilterCore>(
+        cal: Calibration,
+        name: &str,
+        [predict_name, update_name]: [&'static str; 2],
+        filter: &mut PoseFilter<Core>,
+        resamplings: impl Fn(&PoseFilter<Core>) -> u32,
+    ) {
+        let mut arc = Arc::new(filter.pose());
+        let mut stages = [Stage::new(predict_name), Stage::new(update_name)];
+        let odometry = OdometryStep {
+            ds_m: ARC.v_m_s * FILTER_STEP_S,
+            dtheta_rad: ARC.omega_rad_s * FILTER_STEP_S,
+            ..OdometryStep::default()
+        };
+        let fix_at = |arc: &mut Arc| {
+            let _measured = arc.step();
+            PositionMeasurement::Point {
+                position: arc.pose.position,
+                variance_m2: [FUSION_FIX_VARIANCE_M2; 2],
+            }
+        };
+        let mut sum_sq_error = 0.0;
+        for k in 0..FILTER_WARMUP_STEPS + SAMPLES {
+            let fix = fix_at(&mut arc);
+            let (predict, ()) = timed(&odometry, |o| pose_predict(filter, o));
+            let (update, ()) = timed(&fix, |f| pose_correct(filter, f));
+            if k >= FILTER_WARMUP_STEPS {
+                stages[0].record(predict);
+                stages[1].record(update);
+                let error = filter.pose().position - arc.pose.position;
+                sum_sq_error += error.x * error.x + error.y * error.y;
+            }
+        }
+        let rms_error = math::sqrt(sum_sq_error / SAMPLES as f32);
+        for stage in &stages {
+            stage.report(cal);
+        }
+        let fix = fix_at(&mut arc);
+        let stacks = [
+            stack_bytes(|| pose_predict(filter, black_box(&odometry))),
+            stack_bytes(|| pose_correct(filter, black_box(&fix))),
+        ];
+        for (stage, bytes) in stages.iter().zip(stacks) {
+            match bytes {
+                Some(bytes) => hprintln!("stack {} bytes={}", stage.name, bytes),
+                None => fail("a fusion filter step used the whole painted stack window"),
+            }
+        }
+        let c = filter.counters();
+        let faults = c.rejected_predictions + c.fixes_invalid + c.fixes_gated;
+        hprintln!(
+            "filter {} state_bytes={} position_rms_error_m={:.4} faults={} repairs=0 resamplings={} steps={}",
+            name,
+            core::mem::size_of::<PoseFilter<Core>>(),
+            rms_error,
+            faults,
+            resamplings(filter),
+            FILTER_WARMUP_STEPS + SAMPLES + 1
+        );
+        // False for a NaN error too.
+        let tracked = rms_error <= MAX_FUSION_RMS_ERROR_M;
+        if faults > 0 || !tracked {
+            fail("a fusion filter skipped a step, gated a true fix or lost the robot");
+        }
+    }
+
+    /// The fusion estimator's three filters (the pose and both wheel
+    /// scales, N = 5), each starting at the true pose with a 1 cm, 0.1 rad
+    /// spread and a 2 % wheel-scale prior.
+    #[inline(never)]
+    fn bench_fusion(cal: Calibration) {
+        let config = built(
+            PoseFilterConfig::new(FUSION_TRACK_WIDTH_M, FUSION_WHEEL_VARIANCE_PER_M, 1e-9, 3.0),
+            "fusion filter configuration refused",
+        );
+        let start = Pose::new(0.0, -1.0, core::f32::consts::FRAC_PI_6);
+        let variances = [1e-4, 1e-4, 0.01, 4e-4];
+        let mut ekf: PoseEkf = built(
+            PoseFilter::new(config, start, variances),
+            "fusion EKF refused",
+        );
+        bench_pose_filter(
+            cal,
+            "fusion_ekf",
+            ["fusion_ekf_predict", "fusion_ekf_update"],
+            &mut ekf,
+            |_| 0,
+        );
+        let mut ukf: PoseUkf = built(
+            PoseFilter::new(config, start, variances),
+            "fusion UKF refused",
+        );
+        bench_pose_filter(
+            cal,
+            "fusion_ukf",
+            ["fusion_ukf_predict", "fusion_ukf_update"],
+            &mut ukf,
+            |_| 0,
+        );
+        let mut pf: PoseParticleFilter = built(
+            PoseFilter::new(config, start, variances),
+            "fusion particle filter refused",
+        );
+        bench_pose_filter(
+            cal,
+            "fusion_pf",
+            ["fusion_pf_predict", "fusion_pf_update"],
+            &mut pf,
+            |f| f.core().filter().resamplings(),
+        );
+    }
+
     // ------------------------------------------------------------------ main
 
     fn fail(why: &str) -> ! {
@@ -1106,6 +1256,7 @@ mod on_target {
         }
         bench_math(cal);
         bench_paper_004(cal);
+        bench_fusion(cal);
 
         let mut peak = Some(0_u32);
         for k in 0..STACK_TICKS {
