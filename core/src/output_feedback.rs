@@ -48,7 +48,10 @@
 //!   robot does not know where it is).
 //! * [`TrackerMode::Tracking`]: the law drives.
 //! * [`TrackerMode::FixLost`]: no fix for more than
-//!   `fix_timeout_ticks`: the robot must not drive on blind forever, so the
+//!   `fix_timeout_ticks` (or, for the fusion estimator with a distance
+//!   limit, `FusionSettings::with_max_blind_distance`, more than that
+//!   distance driven since the last fix, whatever the time): the robot
+//!   must not drive on blind forever, so the
 //!   command ramps down to zero at `failsafe_decel_m_s2` (ω scaled with v,
 //!   so it slows along the arc it was on) and stays at zero. The observer
 //!   and dead reckoning keep running. The first valid fix returns to
@@ -542,7 +545,7 @@ impl OutputFeedbackTracker {
         };
         out.position = position;
 
-        if self.ticks_since_fix > self.config.fix_timeout_ticks {
+        if self.fix_lost() {
             if self.mode != TrackerMode::FixLost {
                 self.counters.failsafe_entries = self.counters.failsafe_entries.saturating_add(1);
             }
@@ -588,6 +591,20 @@ impl OutputFeedbackTracker {
         out.mode = self.mode;
         out.command = self.last_command;
         out
+    }
+
+    /// Whether the fix counts as lost: for the fusion estimator with a
+    /// distance limit (`FusionSettings::with_max_blind_distance`), more
+    /// than that distance driven since the last fix; otherwise more than
+    /// `fix_timeout_ticks` without a fix.
+    fn fix_lost(&self) -> bool {
+        #[cfg(feature = "fusion-ekf")]
+        if let Estimator::Fusion(fusion) = &self.estimator
+            && let Some(lost) = fusion.blind_distance_lost()
+        {
+            return lost;
+        }
+        self.ticks_since_fix > self.config.fix_timeout_ticks
     }
 
     fn reference_standstill(&mut self) -> BodyVelocity {
@@ -955,5 +972,54 @@ mod tests {
             counters.fixes_used == 6000 && counters.non_finite_commands == 0,
             "{counters:?}"
         );
+    }
+
+    /// With a distance limit the fusion estimator's failsafe counts metres
+    /// driven since the last fix, not ticks: standing still without fixes
+    /// for 20× the fix timeout stays `Tracking`; driving 0.3 m blind
+    /// (limit 0.25 m) enters `FixLost`, and the next fix leaves it.
+    #[cfg(feature = "fusion-ekf")]
+    #[test]
+    fn fusion_failsafe_counts_distance_not_time() {
+        use crate::pose_ekf::{FusionSettings, PoseFilterConfig};
+        let h = 0.01;
+        let line = StraightLine::new(Vec2::ZERO, 0.5, 0.2).unwrap();
+        let filter = PoseFilterConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap();
+        let settings = FusionSettings::new(filter, 0.3, 0.0)
+            .and_then(|s| s.with_read_radius(0.05))
+            .and_then(|s| s.with_max_blind_distance(0.25))
+            .unwrap();
+        assert_eq!(
+            settings.with_max_blind_distance(f32::NAN),
+            Err(crate::pose_ekf::PoseFilterError::BlindDistance)
+        );
+        let cfg = TrackerConfig::new(
+            HeadingObserverConfig::new(1.0, h).unwrap(),
+            TrackingGains::new(0.3, 0.3, 1.0).unwrap(),
+            line.into(),
+            50,
+        )
+        .unwrap()
+        .with_fusion(settings);
+        let mut t = OutputFeedbackTracker::new(cfg);
+        let fix = TagFix {
+            position: Vec2::ZERO,
+            age_ticks: 0,
+        };
+        let still = OdometryStep::default();
+        assert_eq!(t.step(&still, Some(fix)).mode, TrackerMode::Tracking);
+        for _ in 0..1000 {
+            assert_eq!(t.step(&still, None).mode, TrackerMode::Tracking);
+        }
+        let moving = OdometryStep {
+            ds_m: 0.002,
+            ..OdometryStep::default()
+        };
+        let modes: Vec<TrackerMode> = (0..150).map(|_| t.step(&moving, None).mode).collect();
+        // 0.25 m after 125 steps of 2 mm (give or take f32 rounding).
+        assert!(modes.iter().take(124).all(|m| *m == TrackerMode::Tracking));
+        assert_eq!(modes.last(), Some(&TrackerMode::FixLost));
+        assert_eq!(t.counters().failsafe_entries, 1);
+        assert_eq!(t.step(&moving, Some(fix)).mode, TrackerMode::Tracking);
     }
 }

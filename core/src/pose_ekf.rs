@@ -102,6 +102,8 @@ pub enum PoseFilterError {
     TagSpacing,
     /// Reader range negative or not finite.
     ReadRadius,
+    /// Blind-distance limit negative or not finite.
+    BlindDistance,
 }
 
 /// Validated parameters of a [`PoseEkf`].
@@ -1067,6 +1069,7 @@ pub struct FusionSettings {
     tag_spacing_m: f32,
     scale_prior: f32,
     read_radius_m: f32,
+    max_blind_distance_m: f32,
 }
 
 impl FusionSettings {
@@ -1093,7 +1096,40 @@ impl FusionSettings {
             tag_spacing_m,
             scale_prior,
             read_radius_m: 0.0,
+            max_blind_distance_m: 0.0,
         })
+    }
+
+    /// The failsafe on distance instead of time: the tracker takes the fix
+    /// as lost when the robot has driven more than `max_blind_distance_m`
+    /// (m, by odometry) since the last fix, instead of after the
+    /// configuration's fix timeout. A reader that reports tags only in
+    /// range of the antenna needs it: gaps between tags are normal there
+    /// and last as long as the robot takes to reach the next tag, so a
+    /// timeout short enough to be safe stops the robot between tags, where
+    /// it never reads another; a stopped robot drives no distance, so
+    /// waiting for a fix never counts against it. 0 (the default) keeps
+    /// the timeout.
+    ///
+    /// # Errors
+    /// [`PoseFilterError::BlindDistance`] unless finite and ≥ 0.
+    pub fn with_max_blind_distance(
+        self,
+        max_blind_distance_m: f32,
+    ) -> Result<Self, PoseFilterError> {
+        if !(max_blind_distance_m.is_finite() && max_blind_distance_m >= 0.0) {
+            return Err(PoseFilterError::BlindDistance);
+        }
+        Ok(Self {
+            max_blind_distance_m,
+            ..self
+        })
+    }
+
+    /// The failsafe's distance limit, m (0: off).
+    #[must_use]
+    pub fn max_blind_distance_m(&self) -> f32 {
+        self.max_blind_distance_m
     }
 
     /// Runs `kind` instead of the EKF.
@@ -1158,6 +1194,7 @@ pub struct FusionEstimator {
     guide: HeadingObserver,
     guide_position: Option<Vec2>,
     distance_m: f32,
+    distance_since_fix_m: f32,
     disagreeing_ticks: u32,
     heading_resets: u32,
 }
@@ -1173,6 +1210,7 @@ impl FusionEstimator {
             guide,
             guide_position: None,
             distance_m: 0.0,
+            distance_since_fix_m: 0.0,
             disagreeing_ticks: 0,
             heading_resets: 0,
             // The spacing is validated by `FusionSettings::new`.
@@ -1214,8 +1252,10 @@ impl FusionEstimator {
         }
         if odometry.ds_m.is_finite() {
             self.cells.travel_since_read_m += odometry.ds_m.abs();
+            self.distance_since_fix_m += odometry.ds_m.abs();
         }
         if let Some(tag) = fix {
+            self.distance_since_fix_m = 0.0;
             if after_gap && self.settings.read_radius_m <= 0.0 {
                 self.cells.restart();
             }
@@ -1309,6 +1349,23 @@ impl FusionEstimator {
             }
             self.disagreeing_ticks = 0;
         }
+    }
+
+    /// The distance driven (by odometry) since the last fix, m.
+    #[must_use]
+    pub fn distance_since_fix_m(&self) -> f32 {
+        self.distance_since_fix_m
+    }
+
+    /// Whether the distance failsafe
+    /// ([`FusionSettings::with_max_blind_distance`]) takes the fix as
+    /// lost: `None` if it is off (the tracker's timeout decides),
+    /// otherwise whether the robot drove more than the limit since the
+    /// last fix.
+    #[must_use]
+    pub fn blind_distance_lost(&self) -> Option<bool> {
+        let limit = self.settings.max_blind_distance_m;
+        (limit > 0.0).then_some(self.distance_since_fix_m > limit)
     }
 
     /// Times the filter's heading was reset to the guide's.

@@ -96,6 +96,9 @@ pub enum EstimatorSpec {
         scale_prior: f32,
         /// Reader range, m (0: the nearest tag is read every tick).
         read_radius_m: f32,
+        /// The failsafe's limit on the distance driven since the last fix,
+        /// m (0: the tracker's fix timeout decides instead).
+        max_blind_distance_m: f32,
     },
 }
 
@@ -271,6 +274,7 @@ impl TrackerSpec {
                 tag_spacing_m,
                 scale_prior,
                 read_radius_m,
+                max_blind_distance_m,
             } => {
                 let (kind, seed) = match filter {
                     FusionFilterSpec::Ekf => (FusionFilter::Ekf, 1),
@@ -292,6 +296,7 @@ impl TrackerSpec {
                 .map(|filter| filter.with_particle_seed(seed))
                 .and_then(|filter| FusionSettings::new(filter, tag_spacing_m, scale_prior))
                 .and_then(|settings| settings.with_read_radius(read_radius_m))
+                .and_then(|settings| settings.with_max_blind_distance(max_blind_distance_m))
                 .map_err(SpecError::Fusion)?
                 .with_filter(kind);
                 config = config.with_fusion(settings);
@@ -538,6 +543,7 @@ mod tests {
             tag_spacing_m: 0.0,
             scale_prior: 0.0,
             read_radius_m: 0.0,
+            max_blind_distance_m: 0.0,
         };
         let expected = if cfg!(feature = "fusion-ekf") {
             SpecError::Fusion(crate::pose_ekf::PoseFilterError::TagSpacing)
