@@ -127,7 +127,8 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// List the embedded scenarios.
+    /// List the embedded scenarios (the tracking ones, then paper 004's
+    /// slip scenarios).
     Scenarios,
     /// Print an embedded scenario's TOML (a template for your own).
     #[command(alias = "scenario-template")]
@@ -155,13 +156,24 @@ fn real_main() -> anyhow::Result<()> {
                 println!("{name:<30} {:>6} s  {}", s.duration_s, s.description);
             }
             println!("\n(first = default; `firmware-sim show NAME` prints one)");
+            println!("\nslip scenarios (paper 004; `firmware-sim slip NAME`):");
+            for (name, text) in slip::EMBEDDED_SLIP {
+                let s = SlipScenario::from_toml_str(text)?;
+                println!("{name:<30} {:>6} s  {}", s.duration_s, s.description);
+            }
             Ok(())
         }
         Command::Show { name } => {
-            let text = embedded_source(&name).ok_or_else(|| {
-                let names: Vec<&str> = EMBEDDED.iter().map(|(n, _)| *n).collect();
-                anyhow::anyhow!("no embedded scenario `{name}` (have: {})", names.join(", "))
-            })?;
+            let text = embedded_source(&name)
+                .or_else(|| slip::embedded_slip_source(&name))
+                .ok_or_else(|| {
+                    let names: Vec<&str> = EMBEDDED
+                        .iter()
+                        .chain(slip::EMBEDDED_SLIP)
+                        .map(|(n, _)| *n)
+                        .collect();
+                    anyhow::anyhow!("no embedded scenario `{name}` (have: {})", names.join(", "))
+                })?;
             print!("{text}");
             Ok(())
         }

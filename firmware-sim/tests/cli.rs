@@ -72,12 +72,18 @@ fn scenarios_are_listed_and_shown() {
     let out = sim().arg("scenarios").output().unwrap();
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
-    for (name, _) in firmware_sim::EMBEDDED {
+    for (name, _) in firmware_sim::EMBEDDED
+        .iter()
+        .chain(firmware_sim::slip::EMBEDDED_SLIP)
+    {
         assert!(text.contains(name), "{text}");
     }
     let out = sim().args(["show", "figure_eight_exact"]).output().unwrap();
     assert!(out.status.success());
     assert!(String::from_utf8_lossy(&out.stdout).contains("gain_per_m = 4.0"));
+    let out = sim().args(["show", "paper_004_torque"]).output().unwrap();
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stdout).contains("controller = \"torque\""));
     let out = sim().args(["scenario-template", "nope"]).output().unwrap();
     assert!(!out.status.success());
 }
