@@ -580,15 +580,42 @@ fn wrapped_state<const N: usize>(mut x: SVector<f32, N>, heading: usize) -> SVec
 /// (the heading is component 2).
 fn pose_step<const N: usize>(x: &SVector<f32, N>, u: &BodyVelocity, dt_s: f32) -> SVector<f32, N> {
     let heading = x.get(2).copied().unwrap_or(0.0);
+    pose_step_at(x, u, dt_s, math::sin(heading), math::cos(heading))
+}
+
+/// [`pose_step`] with the heading's sine and cosine given.
+fn pose_step_at<const N: usize>(
+    x: &SVector<f32, N>,
+    u: &BodyVelocity,
+    dt_s: f32,
+    sin: f32,
+    cos: f32,
+) -> SVector<f32, N> {
     let mut rate = SVector::<f32, N>::zeros();
-    for (r, value) in rate.iter_mut().zip([
-        u.v_m_s * math::cos(heading),
-        u.v_m_s * math::sin(heading),
-        u.omega_rad_s,
-    ]) {
+    for (r, value) in rate
+        .iter_mut()
+        .zip([u.v_m_s * cos, u.v_m_s * sin, u.omega_rad_s])
+    {
         *r = value;
     }
     x + rate * dt_s
+}
+
+/// `∂/∂x` of [`pose_step`]: the identity but for `∂(X, Y)/∂ψ`.
+fn pose_step_jacobian<const N: usize>(
+    u: &BodyVelocity,
+    dt_s: f32,
+    sin: f32,
+    cos: f32,
+) -> SMatrix<f32, N, N> {
+    let mut a = SMatrix::<f32, N, N>::identity();
+    if let Some(v) = a.get_mut((0, 2)) {
+        *v = -dt_s * u.v_m_s * sin;
+    }
+    if let Some(v) = a.get_mut((1, 2)) {
+        *v = dt_s * u.v_m_s * cos;
+    }
+    a
 }
 
 /// The EKF, particle-filter and UKF impls of a pose model with `$n`
@@ -615,11 +642,21 @@ macro_rules! pose_model_filters {
                 u: &BodyVelocity,
                 dt_s: f32,
             ) -> SMatrix<f32, $n, $n> {
+                pose_step_jacobian(u, dt_s, math::sin(x.z), math::cos(x.z))
+            }
+
+            /// One sine and one cosine for both.
+            fn transition_with_jacobian(
+                &self,
+                x: &SVector<f32, $n>,
+                u: &BodyVelocity,
+                dt_s: f32,
+            ) -> (SVector<f32, $n>, SMatrix<f32, $n, $n>) {
                 let (s, c) = (math::sin(x.z), math::cos(x.z));
-                let mut a = SMatrix::<f32, $n, $n>::identity();
-                a.m13 = -dt_s * u.v_m_s * s;
-                a.m23 = dt_s * u.v_m_s * c;
-                a
+                (
+                    pose_step_at(x, u, dt_s, s, c),
+                    pose_step_jacobian(u, dt_s, s, c),
+                )
             }
 
             fn measure(&self, x: &SVector<f32, $n>) -> SVector<f32, $n> {
