@@ -1070,6 +1070,7 @@ pub struct FusionSettings {
     scale_prior: f32,
     read_radius_m: f32,
     max_blind_distance_m: f32,
+    edge_constraint: bool,
 }
 
 impl FusionSettings {
@@ -1097,7 +1098,21 @@ impl FusionSettings {
             scale_prior,
             read_radius_m: 0.0,
             max_blind_distance_m: 0.0,
+            edge_constraint: false,
         })
+    }
+
+    /// Reads of an unchanged tag pull an estimate that has left the tag's
+    /// cell back to its edge ([`TagCellTracker::with_edge_constraint`];
+    /// nearest-tag reader only; default off). Under random wheel slip,
+    /// with a wheel-noise model near the slip's, it is what lets the
+    /// filter see the lateral drift along a row of tags (README figures).
+    #[must_use]
+    pub fn with_edge_constraint(self, edge_constraint: bool) -> Self {
+        Self {
+            edge_constraint,
+            ..self
+        }
     }
 
     /// The failsafe on distance instead of time: the tracker takes the fix
@@ -1220,7 +1235,7 @@ impl FusionEstimator {
                 last_tag: None,
                 same_tag_reads: 0,
                 edge_corrections: 0,
-                edges: false,
+                edges: settings.edge_constraint,
             },
         }
     }

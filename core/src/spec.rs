@@ -99,6 +99,9 @@ pub enum EstimatorSpec {
         /// The failsafe's limit on the distance driven since the last fix,
         /// m (0: the tracker's fix timeout decides instead).
         max_blind_distance_m: f32,
+        /// Reads of an unchanged tag pull an estimate that left the cell
+        /// back to its edge.
+        edge_constraint: bool,
     },
 }
 
@@ -275,6 +278,7 @@ impl TrackerSpec {
                 scale_prior,
                 read_radius_m,
                 max_blind_distance_m,
+                edge_constraint,
             } => {
                 let (kind, seed) = match filter {
                     FusionFilterSpec::Ekf => (FusionFilter::Ekf, 1),
@@ -298,7 +302,8 @@ impl TrackerSpec {
                 .and_then(|settings| settings.with_read_radius(read_radius_m))
                 .and_then(|settings| settings.with_max_blind_distance(max_blind_distance_m))
                 .map_err(SpecError::Fusion)?
-                .with_filter(kind);
+                .with_filter(kind)
+                .with_edge_constraint(edge_constraint);
                 config = config.with_fusion(settings);
             }
             #[cfg(not(feature = "fusion-ekf"))]
@@ -544,6 +549,7 @@ mod tests {
             scale_prior: 0.0,
             read_radius_m: 0.0,
             max_blind_distance_m: 0.0,
+            edge_constraint: false,
         };
         let expected = if cfg!(feature = "fusion-ekf") {
             SpecError::Fusion(crate::pose_ekf::PoseFilterError::TagSpacing)

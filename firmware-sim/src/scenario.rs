@@ -314,6 +314,12 @@ pub struct ObserverSpec {
     /// 0 otherwise.
     #[serde(default)]
     pub fusion_max_blind_distance_m: Option<f64>,
+    /// Fusion estimator: reads of an unchanged tag pull an estimate that
+    /// left the tag's cell back to its edge (nearest-tag reader; default
+    /// off; with `fusion_wheel_variance_per_m` near the real wheel noise
+    /// it is the tuning for wheels that slip).
+    #[serde(default)]
+    pub fusion_edge_constraint: bool,
     /// Fusion particle filter: its generator's seed (default 1).
     #[serde(default = "defaults::fusion_particle_seed")]
     pub fusion_particle_seed: u64,
@@ -335,6 +341,7 @@ impl Default for ObserverSpec {
             fusion_scale_prior: 0.0,
             fusion_particle_seed: defaults::fusion_particle_seed(),
             fusion_max_blind_distance_m: None,
+            fusion_edge_constraint: false,
             gain_per_m: defaults::gain_per_m(),
             min_speed_m_s: defaults::min_speed_m_s(),
         }
@@ -1171,6 +1178,7 @@ impl Scenario {
         Ok(EstimatorSpec::Fusion {
             filter,
             max_blind_distance_m: f(max_blind_distance_m),
+            edge_constraint: o.fusion_edge_constraint,
             track_width_m: f(track_width_m),
             wheel_variance_per_m: f(non_negative(
                 "observer.fusion_wheel_variance_per_m",
