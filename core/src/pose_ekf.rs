@@ -257,11 +257,48 @@ pub enum PositionMeasurement {
         /// Its variance, m².
         variance_m2: f32,
     },
+    /// Both coordinates with correlated noise: e.g. a range reader's entry
+    /// point, sharp along the heading and wide across it.
+    Ellipse {
+        /// Measured position, m.
+        position: Vec2,
+        /// The noise covariance `[σx², σxy, σy²]`, m² (positive definite).
+        covariance_m2: [f32; 3],
+    },
 }
 
 impl PositionMeasurement {
+    /// The measured position and its noise covariance, for the 2-D kinds.
+    #[must_use]
+    pub fn position_and_covariance(&self) -> Option<(Vec2, Matrix2<f32>)> {
+        match *self {
+            Self::Point {
+                position,
+                variance_m2,
+            } => Some((
+                position,
+                Matrix2::from_diagonal(&Vector2::from(variance_m2)),
+            )),
+            Self::Ellipse {
+                position,
+                covariance_m2: [xx, xy, yy],
+            } => Some((position, Matrix2::new(xx, xy, xy, yy))),
+            Self::X { .. } | Self::Y { .. } => None,
+        }
+    }
+
     fn is_finite(&self) -> bool {
         match *self {
+            Self::Ellipse {
+                position,
+                covariance_m2: [xx, xy, yy],
+            } => {
+                position.is_finite()
+                    && [xx, xy, yy].iter().all(|v| v.is_finite())
+                    && xx > 0.0
+                    && yy > 0.0
+                    && xx * yy - xy * xy > 0.0
+            }
             Self::Point {
                 position,
                 variance_m2,
@@ -474,7 +511,7 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
     pub fn correct(&mut self, measurement: &PositionMeasurement) -> FixOutcome {
         let mut outcome = self.correct_once(measurement, true);
         let axes = match measurement {
-            PositionMeasurement::Point { .. } => [true, true],
+            PositionMeasurement::Point { .. } | PositionMeasurement::Ellipse { .. } => [true, true],
             PositionMeasurement::X { .. } => [true, false],
             PositionMeasurement::Y { .. } => [false, true],
         };
@@ -523,7 +560,8 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
     fn widen_to(&mut self, measurement: &PositionMeasurement) {
         let mean = self.core.mean();
         let (dx2, dy2) = match *measurement {
-            PositionMeasurement::Point { position, .. } => (
+            PositionMeasurement::Point { position, .. }
+            | PositionMeasurement::Ellipse { position, .. } => (
                 (position.x - mean.x) * (position.x - mean.x),
                 (position.y - mean.y) * (position.y - mean.y),
             ),
@@ -590,13 +628,10 @@ fn mahalanobis(
     measurement: &PositionMeasurement,
 ) -> Option<(f32, u8)> {
     let (distance2, dof) = match *measurement {
-        PositionMeasurement::Point {
-            position,
-            variance_m2,
-        } => {
+        PositionMeasurement::Point { .. } | PositionMeasurement::Ellipse { .. } => {
+            let (position, r) = measurement.position_and_covariance()?;
             let innovation = Vector2::new(position.x - mean.x, position.y - mean.y);
-            let s = covariance.fixed_view::<2, 2>(0, 0).into_owned()
-                + Matrix2::from_diagonal(&Vector2::from(variance_m2));
+            let s = covariance.fixed_view::<2, 2>(0, 0).into_owned() + r;
             let s_inv = s.try_inverse()?;
             ((innovation.transpose() * s_inv * innovation).x, 2)
         }
@@ -766,10 +801,9 @@ impl PoseFilterCore for EkfCore {
 
     fn update(&mut self, measurement: &PositionMeasurement) -> bool {
         match *measurement {
-            PositionMeasurement::Point {
-                position,
-                variance_m2,
-            } => self.update_point(position, variance_m2),
+            PositionMeasurement::Point { .. } | PositionMeasurement::Ellipse { .. } => measurement
+                .position_and_covariance()
+                .is_some_and(|(position, r)| self.update_point(position, r)),
             PositionMeasurement::X {
                 value_m,
                 variance_m2,
@@ -801,12 +835,11 @@ impl PoseFilterCore for EkfCore {
 }
 
 impl EkfCore {
-    fn update_point(&mut self, position: Vec2, variance_m2: [f32; 2]) -> bool {
+    fn update_point(&mut self, position: Vec2, r: Matrix2<f32>) -> bool {
         let h = SMatrix::<f32, 2, STATES>::from_row_slice(&[
             1.0, 0.0, 0.0, 0.0, 0.0, //
             0.0, 1.0, 0.0, 0.0, 0.0,
         ]);
-        let r = Matrix2::from_diagonal(&Vector2::from(variance_m2));
         let innovation = Vector2::new(position.x - self.state.x, position.y - self.state.y);
         let s = h * self.covariance * h.transpose() + r;
         let Some(s_inv) = s.try_inverse() else {
@@ -927,8 +960,9 @@ impl TagCellTracker {
     /// short of the tag along the heading: mean `πr/4` short, lateral
     /// variance `r²/3`, along-track variance `(2/3 − π²/16) r² ≈ 0.05 r²`.
     /// The measurement is the tag moved back by `πr/4` along the heading,
-    /// with the larger variance `r²/3` on both axes (the filter takes
-    /// axis-aligned noise). Repeats within a pass give nothing (counted).
+    /// with those variances along and across the heading
+    /// ([`PositionMeasurement::Ellipse`]). Repeats within a pass give
+    /// nothing (counted).
     pub fn range_measurement(
         &mut self,
         tag: Vec2,
@@ -944,13 +978,17 @@ impl TagCellTracker {
             return None;
         }
         let back = core::f32::consts::FRAC_PI_4 * radius_m;
-        let variance = radius_m * radius_m / 3.0;
-        Some(PositionMeasurement::Point {
-            position: Vec2::new(
-                tag.x - back * math::cos(heading),
-                tag.y - back * math::sin(heading),
-            ),
-            variance_m2: [variance, variance],
+        let r2 = radius_m * radius_m;
+        let (along, across) = (ENTRY_ALONG_VARIANCE * r2, r2 / 3.0);
+        let (c, s) = (math::cos(heading), math::sin(heading));
+        Some(PositionMeasurement::Ellipse {
+            position: Vec2::new(tag.x - back * c, tag.y - back * s),
+            // R(θ) diag(along, across) R(θ)ᵀ.
+            covariance_m2: [
+                along * c * c + across * s * s,
+                (along - across) * c * s,
+                along * s * s + across * c * c,
+            ],
         })
     }
 
@@ -1500,6 +1538,11 @@ impl RunningFilter {
 
 const PI_SQUARED: f32 = core::f32::consts::PI * core::f32::consts::PI;
 
+/// The variance of a range reader's entry point along the heading, in
+/// units of `r²`: `2/3 − π²/16` (module docs of
+/// [`TagCellTracker::range_measurement`]).
+const ENTRY_ALONG_VARIANCE: f32 = 2.0 / 3.0 - PI_SQUARED / 16.0;
+
 /// Ticks of disagreement with a trusted guide before the heading is reset
 /// (a second at 100 Hz).
 const GUIDE_PATIENCE_TICKS: u32 = 100;
@@ -1650,16 +1693,29 @@ mod tests {
         let mut cells = TagCellTracker::new(0.3).unwrap();
         let tag = Vec2::new(1.0, 2.0);
         // Heading +x: the entry point is π r/4 short of the tag along x.
-        let Some(PositionMeasurement::Point {
+        let Some(PositionMeasurement::Ellipse {
             position,
-            variance_m2,
+            covariance_m2: [xx, xy, yy],
         }) = cells.range_measurement(tag, 0.0, 0.0, 0.05)
         else {
             panic!("first read");
         };
         assert!((position.x - (1.0 - core::f32::consts::FRAC_PI_4 * 0.05)).abs() < 1e-6);
         assert!((position.y - 2.0).abs() < 1e-6);
-        assert!((variance_m2[0] - 0.05 * 0.05 / 3.0).abs() < 1e-9);
+        // Sharp along the heading (x), wide across it.
+        let r2 = 0.05 * 0.05;
+        assert!((xx - (2.0 / 3.0 - PI_SQUARED / 16.0) * r2).abs() < 1e-9);
+        assert!((yy - r2 / 3.0).abs() < 1e-9 && xy.abs() < 1e-9);
+        // Heading +y: the ellipse turns with it.
+        let mut turned = TagCellTracker::new(0.3).unwrap();
+        let Some(PositionMeasurement::Ellipse {
+            covariance_m2: [txx, _, tyy],
+            ..
+        }) = turned.range_measurement(tag, core::f32::consts::FRAC_PI_2, 0.0, 0.05)
+        else {
+            panic!("first read");
+        };
+        assert!((txx - yy).abs() < 1e-8 && (tyy - xx).abs() < 1e-8);
         // Repeats while in range: nothing, counted.
         assert!(cells.range_measurement(tag, 0.0, 0.02, 0.05).is_none());
         assert_eq!(cells.same_tag_reads(), 1);

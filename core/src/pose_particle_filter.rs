@@ -15,7 +15,9 @@
 //! # Correction
 //! A fix weights every particle by its Gaussian likelihood with the fix's
 //! own variance ([`ParticleFilter::update_with_std`]; an axis fix leaves
-//! the other axis unmeasured, `σ = ∞`). The gate of [`crate::pose_ekf`]
+//! the other axis unmeasured, `σ = ∞`; a fix with correlated noise,
+//! [`PositionMeasurement::Ellipse`], is taken with its marginal variances,
+//! the correlation dropped). The gate of [`crate::pose_ekf`]
 //! runs first on the particles' weighted mean and covariance: the
 //! predictive distribution of a linear measurement has exactly that mean
 //! and `H P Hᵀ + R`, so the chi-square thresholds mean what they say for
@@ -157,6 +159,15 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
                 Vector2::new(position.x, position.y),
                 Vector2::new(math::sqrt(vx), math::sqrt(vy)),
             ),
+            // The marginal variances: the filter's diagonal noise model
+            // drops the correlation (module docs).
+            PositionMeasurement::Ellipse {
+                position,
+                covariance_m2: [vx, _, vy],
+            } => (
+                Vector2::new(position.x, position.y),
+                Vector2::new(math::sqrt(vx), math::sqrt(vy)),
+            ),
             PositionMeasurement::X {
                 value_m,
                 variance_m2,
@@ -269,7 +280,7 @@ mod tests {
         #[test]
         fn finite_out_on_any_input(
             steps in proptest::collection::vec((-1.0f32..1.0, -1.0f32..1.0, any::<bool>()), 1..20),
-            fixes in proptest::collection::vec((-100.0f32..100.0, -100.0f32..100.0, 0u8..4), 1..20),
+            fixes in proptest::collection::vec((-100.0f32..100.0, -100.0f32..100.0, 0u8..5), 1..20),
         ) {
             let mut pf = PoseParticleFilter::<16>::new(config(3), Pose::new(0.0, 0.0, 0.0), [1.0, 1.0, 9.0, 4e-4]).unwrap();
             for (&(ds, dth, nan), &(x, y, kind)) in steps.iter().zip(fixes.iter().cycle()) {
@@ -279,6 +290,7 @@ mod tests {
                     0 => PositionMeasurement::Point { position: Vec2::new(x, y), variance_m2: [1e-4, 1e-4] },
                     1 => PositionMeasurement::X { value_m: x, variance_m2: 1e-6 },
                     2 => PositionMeasurement::Y { value_m: y, variance_m2: 1e-6 },
+                    3 => PositionMeasurement::Ellipse { position: Vec2::new(x, y), covariance_m2: [1e-4, 5e-5, 1e-4] },
                     _ => PositionMeasurement::X { value_m: f32::INFINITY, variance_m2: 1e-6 },
                 };
                 pf.correct(&m);

@@ -223,13 +223,13 @@ impl PoseFilterCore for UkfCore {
 
     fn update(&mut self, measurement: &PositionMeasurement) -> bool {
         let outcome = match *measurement {
-            PositionMeasurement::Point {
-                position,
-                variance_m2,
-            } => self.filter.update_with_noise(
-                &Vector2::new(position.x, position.y),
-                &Matrix2::from_diagonal(&Vector2::from(variance_m2)),
-            ),
+            PositionMeasurement::Point { .. } | PositionMeasurement::Ellipse { .. } => {
+                let Some((position, r)) = measurement.position_and_covariance() else {
+                    return false;
+                };
+                self.filter
+                    .update_with_noise(&Vector2::new(position.x, position.y), &r)
+            }
             PositionMeasurement::X {
                 value_m,
                 variance_m2,
@@ -325,7 +325,7 @@ mod tests {
         #[test]
         fn finite_out_on_any_input(
             steps in proptest::collection::vec((-1.0f32..1.0, -1.0f32..1.0, any::<bool>()), 1..40),
-            fixes in proptest::collection::vec((-100.0f32..100.0, -100.0f32..100.0, 0u8..4), 1..40),
+            fixes in proptest::collection::vec((-100.0f32..100.0, -100.0f32..100.0, 0u8..5), 1..40),
         ) {
             let mut ukf = PoseUkf::new(config(), Pose::new(0.0, 0.0, 0.0), [1.0, 1.0, 9.0, 4e-4]).unwrap();
             for (&(ds, dth, nan), &(x, y, kind)) in steps.iter().zip(fixes.iter().cycle()) {
@@ -335,6 +335,7 @@ mod tests {
                     0 => PositionMeasurement::Point { position: Vec2::new(x, y), variance_m2: [1e-4, 1e-4] },
                     1 => PositionMeasurement::X { value_m: x, variance_m2: 1e-6 },
                     2 => PositionMeasurement::Y { value_m: y, variance_m2: 1e-6 },
+                    3 => PositionMeasurement::Ellipse { position: Vec2::new(x, y), covariance_m2: [1e-4, 5e-5, 1e-4] },
                     _ => PositionMeasurement::X { value_m: f32::INFINITY, variance_m2: 1e-6 },
                 };
                 ukf.correct(&m);

@@ -236,37 +236,39 @@ fn fusion_ekf_converges_from_random_starts() {
 /// of it (range mode: on entry, then every 0.1 s while in range), on the
 /// full device stack, paper 001's observer against the fusion estimator on
 /// floors of 10, 20 and 30 cm. The fusion estimator takes the first read of
-/// each pass as the disc's entry point (`TagCellTracker::range_measurement`)
-/// and its failsafe counts the distance driven since the last fix (default
+/// each pass as the disc's entry point (`TagCellTracker::range_measurement`:
+/// `πr/4` short of the tag, variance `0.05 r²` along the heading and
+/// `r²/3` across it) and its failsafe counts the distance driven since the last fix (default
 /// `4 s²/r`: 0.8, 3.2 and 7.2 m), not the time: with the default 0.5 s fix
 /// timeout the robot stops between tags and never reads another (issue
 /// 3's deadlock), so paper 001's observer, which has no such failsafe,
 /// runs with the timeout raised to 30 s. The fusion filters run with the
 /// EKF's default wheel noise (1e-3 m²/m) and with one near the truth
-/// (3e-5), where the UKF is the best of them.
+/// (3e-5). On the 10 cm floor they are on par with paper 001's observer
+/// (the EKF's worst error a little lower, its mean a little higher).
 #[test]
 fn sparse_reader_range_mode() {
     use firmware_sim::scenario::{ObserverKind, PositionSpec, ReaderModeSpec};
     // Measured max / mean (m), by spacing 10 / 20 / 30 cm:
     // 001 observer: 0.0271 / 0.0058, 0.0562 / 0.0308, 11.1 / 3.64 (lost);
-    // EKF, 1e-3:    0.0437 / 0.0088, 0.182 / 0.0332, 0.211 / 0.0672;
-    // EKF, 3e-5:    0.0327 / 0.0069, 0.0559 / 0.0149, 0.0898 / 0.0358;
-    // UKF, 3e-5:    0.0329 / 0.0082, 0.0416 / 0.0114, 0.0638 / 0.0249.
+    // EKF, 1e-3:    0.0253 / 0.0065, 0.187 / 0.0416, 0.207 / 0.0676;
+    // EKF, 3e-5:    0.0268 / 0.0060, 0.0478 / 0.0131, 0.0995 / 0.0283;
+    // UKF, 3e-5:    0.0316 / 0.0063, 0.0647 / 0.0169, 0.0893 / 0.0205.
     let bounds = [
         (
             ObserverKind::FusionEkf,
             1e-3,
-            [(0.05, 0.01), (0.2, 0.04), (0.25, 0.08)],
+            [(0.03, 0.0075), (0.21, 0.047), (0.23, 0.075)],
         ),
         (
             ObserverKind::FusionEkf,
             3e-5,
-            [(0.04, 0.008), (0.065, 0.018), (0.1, 0.04)],
+            [(0.03, 0.007), (0.055, 0.015), (0.11, 0.032)],
         ),
         (
             ObserverKind::FusionUkf,
             3e-5,
-            [(0.04, 0.01), (0.05, 0.014), (0.075, 0.03)],
+            [(0.036, 0.0072), (0.072, 0.019), (0.1, 0.024)],
         ),
     ];
     for (index, spacing) in [0.1_f64, 0.2, 0.3].into_iter().enumerate() {
@@ -301,8 +303,11 @@ fn sparse_reader_range_mode() {
                 s.max_error_m < max_bound && s.mean_error_m < mean_bound,
                 "{spacing} {kind:?} {variance}: {s:?}"
             );
+            // From 20 cm up, with the wheel noise near the truth: at most
+            // 0.55 of paper 001's mean error (EKF 0.43, UKF 0.55 at 20 cm;
+            // at 30 cm paper 001 loses the robot).
             if spacing >= 0.2 && variance < 1e-3 {
-                assert!(s.mean_error_m < 0.5 * paper.mean_error_m, "{spacing}");
+                assert!(s.mean_error_m < 0.6 * paper.mean_error_m, "{spacing}");
             }
         }
     }
