@@ -126,6 +126,18 @@ pub fn workspace_root() -> PathBuf {
 /// # Errors
 /// cargo missing or the build failing.
 pub fn build_firmware(target_dir: Option<&Path>) -> anyhow::Result<PathBuf> {
+    build_firmware_with(target_dir, &[])
+}
+
+/// [`build_firmware`] with the firmware's cargo `features` added to its
+/// default (`board-qemu`), e.g. `fusion-ukf`.
+///
+/// # Errors
+/// cargo missing or the build failing.
+pub fn build_firmware_with(
+    target_dir: Option<&Path>,
+    features: &[&str],
+) -> anyhow::Result<PathBuf> {
     let root = workspace_root();
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let mut cmd = Command::new(cargo);
@@ -142,6 +154,9 @@ pub fn build_firmware(target_dir: Option<&Path>) -> anyhow::Result<PathBuf> {
     ]);
     if let Some(dir) = target_dir {
         cmd.arg("--target-dir").arg(dir);
+    }
+    if !features.is_empty() {
+        cmd.arg("--features").arg(features.join(","));
     }
     let status = cmd
         .status()

@@ -11,7 +11,9 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::time::Duration;
 
-use firmware_sim::hil::{HilOptions, QemuTarget, build_firmware, run_hil, workspace_root};
+use firmware_sim::hil::{
+    HilOptions, QemuTarget, build_firmware, build_firmware_with, run_hil, workspace_root,
+};
 use firmware_sim::{Scenario, run};
 use wmr_core::spec::SpecError;
 use wmr_core::tracking::GainError;
@@ -29,12 +31,81 @@ fn firmware() -> PathBuf {
     .clone()
 }
 
+/// The QEMU-board firmware with the fusion estimator's UKF (feature
+/// `fusion-ukf`): `WMR_FUSION_FIRMWARE_ELF` if set, else built here into
+/// `target/hil-firmware-fusion`.
+fn fusion_firmware() -> PathBuf {
+    static ELF: OnceLock<PathBuf> = OnceLock::new();
+    ELF.get_or_init(|| match std::env::var_os("WMR_FUSION_FIRMWARE_ELF") {
+        Some(path) => workspace_root().join(path),
+        None => build_firmware_with(
+            Some(&workspace_root().join("target").join("hil-firmware-fusion")),
+            &["fusion-ukf"],
+        )
+        .expect("build the QEMU-board firmware with fusion-ukf"),
+    })
+    .clone()
+}
+
 fn options() -> HilOptions {
     HilOptions {
         firmware: Some(firmware()),
         log: None,
         answer_timeout: Duration::from_secs(20),
     }
+}
+
+/// The full device stack with the fusion estimator on paper 004's UKF
+/// (wheel noise 3e-5 m²/m), 120 s.
+fn fusion_ukf_scenario() -> Scenario {
+    let mut scenario = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    scenario.duration_s = 120.0;
+    scenario.observer.kind = firmware_sim::scenario::ObserverKind::FusionUkf;
+    scenario.observer.fusion_wheel_variance_per_m = 3e-5;
+    scenario
+}
+
+/// The fusion estimator's UKF in the firmware (built with `fusion-ukf`),
+/// configured over the link: the same records as the host run, bit for
+/// bit, over 120 s of the figure-eight. The default firmware, built
+/// without the feature, refuses that configuration.
+#[test]
+fn fusion_ukf_in_the_firmware_runs_exactly_as_on_the_host() {
+    let scenario = fusion_ukf_scenario();
+    let host = run(&scenario, |_, _| {}).unwrap();
+    let fusion_options = HilOptions {
+        firmware: Some(fusion_firmware()),
+        ..options()
+    };
+    let hil = run_hil(&scenario, &fusion_options, |_, _| {}).unwrap();
+    let (h, f) = (&host.records, &hil.result.records);
+    assert_eq!(h.len(), f.len());
+    let first_difference = h
+        .iter()
+        .zip(f)
+        .find(|(a, b)| format!("{a:?}") != format!("{b:?}"))
+        .map(|(a, _)| a.tick);
+    let s = &hil.result.summary;
+    let report = s.hil.expect("hil report");
+    println!(
+        "HIL fusion UKF {} ticks: first differing record {first_difference:?}; firmware \
+         error after {} s: max {:.4} mean {:.4} m; peak stack {} B",
+        f.len(),
+        s.transient_s,
+        s.max_error_m,
+        s.mean_error_m,
+        report.peak_stack_bytes
+    );
+    assert_eq!(first_difference, None, "records differ");
+    assert_eq!(report.firmware_ticks, scenario_ticks(&scenario));
+    assert_eq!(report.firmware_link.corrupt_frames, 0);
+
+    let mut plain = QemuTarget::start(&firmware(), &options()).unwrap();
+    let configure = firmware_sim::run::hil_configuration(&scenario.validate().unwrap()).unwrap();
+    assert_eq!(
+        plain.exchange(&HostMessage::Configure(configure)).unwrap(),
+        TargetMessage::Refused(Refusal::Spec(SpecError::NotInThisBuild))
+    );
 }
 
 /// Section 6.3.2's figure-eight through the full device stack, with the

@@ -143,10 +143,14 @@ fn ci() -> Result {
         .find(|(board, _)| *board == "qemu")
         .map(|(_, elf)| elf.display().to_string())
         .ok_or("no QEMU-board firmware")?;
+    let fusion_elf = build_fusion_firmware()?.display().to_string();
     step("tests (workspace, HIL under QEMU)", || {
         cargo(
             &["test", "--workspace", "--all-targets"],
-            &[("WMR_FIRMWARE_ELF", &qemu_elf)],
+            &[
+                ("WMR_FIRMWARE_ELF", &qemu_elf),
+                ("WMR_FUSION_FIRMWARE_ELF", &fusion_elf),
+            ],
         )
     })?;
     step("doc tests (core)", || {
@@ -222,6 +226,31 @@ fn build_firmware() -> std::result::Result<Vec<(&'static str, std::path::PathBuf
         elfs.push((board, elf));
     }
     Ok(elfs)
+}
+
+/// The QEMU board with the fusion estimator's EKF and UKF (features
+/// `fusion-ukf`, which implies `fusion-ekf`) for the HIL test of the UKF
+/// in the firmware, copied to `target/firmware/wmr-firmware-qemu-fusion.elf`.
+/// Over the flash budget (README), so not a board of its own.
+fn build_fusion_firmware() -> std::result::Result<std::path::PathBuf, String> {
+    let mut built = Vec::new();
+    step("build firmware qemu + fusion-ukf (release)", || {
+        built = target::Build {
+            bins: &["wmr-firmware"],
+            no_default_features: true,
+            features: &["board-qemu", "fusion-ukf"],
+            env: &[],
+        }
+        .run("firmware-qemu-fusion")?;
+        Ok(())
+    })?;
+    let built = built.first().ok_or("no ELF built")?;
+    let elf = target::workspace_root()
+        .join("target")
+        .join("firmware")
+        .join("wmr-firmware-qemu-fusion.elf");
+    std::fs::copy(built, &elf).map_err(|e| format!("{}: {e}", built.display()))?;
+    Ok(elf)
 }
 
 /// flip-link, the firmware's linker (`.cargo/config.toml`), installed with
