@@ -918,6 +918,29 @@ mod tests {
         assert_eq!(t.counters().reference_standstill_ticks, 0);
     }
 
+    /// The fusion filter of the tests: 20 cm track, 1e-3 m²/m, 3σ gate.
+    #[cfg(feature = "fusion-ekf")]
+    fn fusion_filter() -> crate::pose_ekf::PoseFilterConfig {
+        crate::pose_ekf::PoseFilterConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap()
+    }
+
+    /// A tracker on the fusion estimator `settings`, following the line
+    /// through the origin at 0.5 rad, 0.2 m/s, h = 10 ms, fix timeout 50.
+    #[cfg(feature = "fusion-ekf")]
+    fn fusion_tracker(settings: crate::pose_ekf::FusionSettings) -> OutputFeedbackTracker {
+        let h = 0.01;
+        let line = StraightLine::new(Vec2::ZERO, 0.5, 0.2).unwrap();
+        let cfg = TrackerConfig::new(
+            HeadingObserverConfig::new(1.0, h).unwrap(),
+            TrackingGains::new(0.3, 0.3, 1.0).unwrap(),
+            line.into(),
+            50,
+        )
+        .unwrap()
+        .with_fusion(settings);
+        OutputFeedbackTracker::new(cfg)
+    }
+
     /// The fusion EKF as the tracker's estimator: from an unknown heading,
     /// on nearest-tag fixes of a 10 cm grid, the robot joins a straight line
     /// at 0.5 rad to the grid and follows it within a few millimetres.
@@ -926,19 +949,9 @@ mod tests {
     #[cfg(feature = "fusion-ekf")]
     #[test]
     fn fusion_ekf_estimator_tracks_a_line_from_tag_fixes() {
-        use crate::pose_ekf::{FusionSettings, PoseFilterConfig};
+        use crate::pose_ekf::FusionSettings;
         let h = 0.01;
-        let line = StraightLine::new(Vec2::ZERO, 0.5, 0.2).unwrap();
-        let filter = PoseFilterConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap();
-        let cfg = TrackerConfig::new(
-            HeadingObserverConfig::new(1.0, h).unwrap(),
-            TrackingGains::new(0.3, 0.3, 1.0).unwrap(),
-            line.into(),
-            50,
-        )
-        .unwrap()
-        .with_fusion(FusionSettings::new(filter, 0.1, 0.0).unwrap());
-        let mut t = OutputFeedbackTracker::new(cfg);
+        let mut t = fusion_tracker(FusionSettings::new(fusion_filter(), 0.1, 0.0).unwrap());
         let mut robot = Pose::new(-0.3, 0.4, 2.0);
         let mut odometry = OdometryStep::default();
         let nearest = |p: Vec2| Vec2::new((p.x * 10.0).round() / 10.0, (p.y * 10.0).round() / 10.0);
@@ -981,11 +994,8 @@ mod tests {
     #[cfg(feature = "fusion-ekf")]
     #[test]
     fn fusion_failsafe_counts_distance_not_time() {
-        use crate::pose_ekf::{FusionSettings, PoseFilterConfig};
-        let h = 0.01;
-        let line = StraightLine::new(Vec2::ZERO, 0.5, 0.2).unwrap();
-        let filter = PoseFilterConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap();
-        let settings = FusionSettings::new(filter, 0.3, 0.0)
+        use crate::pose_ekf::FusionSettings;
+        let settings = FusionSettings::new(fusion_filter(), 0.3, 0.0)
             .and_then(|s| s.with_read_radius(0.05))
             .and_then(|s| s.with_max_blind_distance(0.25))
             .unwrap();
@@ -993,15 +1003,7 @@ mod tests {
             settings.with_max_blind_distance(f32::NAN),
             Err(crate::pose_ekf::PoseFilterError::BlindDistance)
         );
-        let cfg = TrackerConfig::new(
-            HeadingObserverConfig::new(1.0, h).unwrap(),
-            TrackingGains::new(0.3, 0.3, 1.0).unwrap(),
-            line.into(),
-            50,
-        )
-        .unwrap()
-        .with_fusion(settings);
-        let mut t = OutputFeedbackTracker::new(cfg);
+        let mut t = fusion_tracker(settings);
         let fix = TagFix {
             position: Vec2::ZERO,
             age_ticks: 0,

@@ -1553,6 +1553,64 @@ const GUIDE_TRUST_BOUND: f32 = 0.5;
 /// stray before it counts as disagreeing, rad.
 const GUIDE_MARGIN_RAD: f32 = 0.3;
 
+/// What the pose filters' property tests share.
+#[cfg(test)]
+pub(crate) mod test_support {
+    use super::*;
+
+    /// Measurement kind `kind % 5` at `(x, y)`: a point, an axis, an
+    /// ellipse, or a non-finite one.
+    pub(crate) fn measurement(x: f32, y: f32, kind: u8) -> PositionMeasurement {
+        match kind % 5 {
+            0 => PositionMeasurement::Point {
+                position: Vec2::new(x, y),
+                variance_m2: [1e-4, 1e-4],
+            },
+            1 => PositionMeasurement::X {
+                value_m: x,
+                variance_m2: 1e-6,
+            },
+            2 => PositionMeasurement::Y {
+                value_m: y,
+                variance_m2: 1e-6,
+            },
+            3 => PositionMeasurement::Ellipse {
+                position: Vec2::new(x, y),
+                covariance_m2: [1e-4, 5e-5, 1e-4],
+            },
+            _ => PositionMeasurement::X {
+                value_m: f32::INFINITY,
+                variance_m2: 1e-6,
+            },
+        }
+    }
+
+    /// Feeds `filter` odometry steps `(Δs, Δθ, Δs is NaN)` and, cycling,
+    /// fixes `(x, y, kind)`; `true` if its pose and covariance stayed
+    /// finite throughout.
+    pub(crate) fn stays_finite<Core: PoseFilterCore>(
+        filter: &mut PoseFilter<Core>,
+        steps: &[(f32, f32, bool)],
+        fixes: &[(f32, f32, u8)],
+    ) -> bool {
+        steps
+            .iter()
+            .zip(fixes.iter().cycle())
+            .all(|(&(ds, dth, nan), &(x, y, kind))| {
+                filter.predict(&OdometryStep {
+                    ds_m: if nan { f32::NAN } else { ds },
+                    dtheta_rad: dth,
+                    ..OdometryStep::default()
+                });
+                filter.correct(&measurement(x, y, kind));
+                let p = filter.pose();
+                p.position.is_finite()
+                    && p.heading_rad.is_finite()
+                    && filter.covariance().iter().all(|v| v.is_finite())
+            })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -196,8 +196,9 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{Pose, Vec2};
+    use crate::geometry::Pose;
     use crate::pose_ekf::FixOutcome;
+    use crate::pose_ekf::test_support::stays_finite;
     use proptest::prelude::*;
 
     fn config(seed: u64) -> PoseFilterConfig {
@@ -279,25 +280,11 @@ mod tests {
         /// Finite or not, no input leaves the estimate non-finite.
         #[test]
         fn finite_out_on_any_input(
-            steps in proptest::collection::vec((-1.0f32..1.0, -1.0f32..1.0, any::<bool>()), 1..20),
-            fixes in proptest::collection::vec((-100.0f32..100.0, -100.0f32..100.0, 0u8..5), 1..20),
+            steps in proptest::collection::vec((-1.0f32..1.0, -1.0f32..1.0, any::<bool>()), 1..40),
+            fixes in proptest::collection::vec((-100.0f32..100.0, -100.0f32..100.0, 0u8..5), 1..40),
         ) {
-            let mut pf = PoseParticleFilter::<16>::new(config(3), Pose::new(0.0, 0.0, 0.0), [1.0, 1.0, 9.0, 4e-4]).unwrap();
-            for (&(ds, dth, nan), &(x, y, kind)) in steps.iter().zip(fixes.iter().cycle()) {
-                let ds = if nan { f32::NAN } else { ds };
-                pf.predict(&OdometryStep { ds_m: ds, dtheta_rad: dth, ..OdometryStep::default() });
-                let m = match kind {
-                    0 => PositionMeasurement::Point { position: Vec2::new(x, y), variance_m2: [1e-4, 1e-4] },
-                    1 => PositionMeasurement::X { value_m: x, variance_m2: 1e-6 },
-                    2 => PositionMeasurement::Y { value_m: y, variance_m2: 1e-6 },
-                    3 => PositionMeasurement::Ellipse { position: Vec2::new(x, y), covariance_m2: [1e-4, 5e-5, 1e-4] },
-                    _ => PositionMeasurement::X { value_m: f32::INFINITY, variance_m2: 1e-6 },
-                };
-                pf.correct(&m);
-                let p = pf.pose();
-                prop_assert!(p.position.is_finite() && p.heading_rad.is_finite());
-                prop_assert!(pf.covariance().iter().all(|v| v.is_finite()));
-            }
+            let mut filter = PoseParticleFilter::<16>::new(config(3), Pose::new(0.0, 0.0, 0.0), [1.0, 1.0, 9.0, 4e-4]).unwrap();
+            prop_assert!(stays_finite(&mut filter, &steps, &fixes));
         }
     }
 }

@@ -250,7 +250,8 @@ impl PoseFilterCore for UkfCore {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{Pose, Vec2};
+    use crate::geometry::Pose;
+    use crate::pose_ekf::test_support::stays_finite;
     use crate::pose_ekf::{FixOutcome, PoseEkf};
     use proptest::prelude::*;
 
@@ -327,22 +328,8 @@ mod tests {
             steps in proptest::collection::vec((-1.0f32..1.0, -1.0f32..1.0, any::<bool>()), 1..40),
             fixes in proptest::collection::vec((-100.0f32..100.0, -100.0f32..100.0, 0u8..5), 1..40),
         ) {
-            let mut ukf = PoseUkf::new(config(), Pose::new(0.0, 0.0, 0.0), [1.0, 1.0, 9.0, 4e-4]).unwrap();
-            for (&(ds, dth, nan), &(x, y, kind)) in steps.iter().zip(fixes.iter().cycle()) {
-                let ds = if nan { f32::NAN } else { ds };
-                ukf.predict(&OdometryStep { ds_m: ds, dtheta_rad: dth, ..OdometryStep::default() });
-                let m = match kind {
-                    0 => PositionMeasurement::Point { position: Vec2::new(x, y), variance_m2: [1e-4, 1e-4] },
-                    1 => PositionMeasurement::X { value_m: x, variance_m2: 1e-6 },
-                    2 => PositionMeasurement::Y { value_m: y, variance_m2: 1e-6 },
-                    3 => PositionMeasurement::Ellipse { position: Vec2::new(x, y), covariance_m2: [1e-4, 5e-5, 1e-4] },
-                    _ => PositionMeasurement::X { value_m: f32::INFINITY, variance_m2: 1e-6 },
-                };
-                ukf.correct(&m);
-                let p = ukf.pose();
-                prop_assert!(p.position.is_finite() && p.heading_rad.is_finite());
-                prop_assert!(ukf.covariance().iter().all(|v| v.is_finite()));
-            }
+            let mut filter = PoseUkf::new(config(), Pose::new(0.0, 0.0, 0.0), [1.0, 1.0, 9.0, 4e-4]).unwrap();
+            prop_assert!(stays_finite(&mut filter, &steps, &fixes));
         }
     }
 }
