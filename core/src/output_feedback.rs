@@ -668,8 +668,8 @@ impl Estimator {
             Self::Paper001(o) => o.estimate(),
             Self::Pose(o) => o.estimate().heading(),
             #[cfg(feature = "fusion-ekf")]
-            Self::Fusion(f) => f.filter().map_or(HeadingEstimate::default(), |ekf| {
-                let theta = ekf.pose().heading_rad;
+            Self::Fusion(f) => f.pose().map_or(HeadingEstimate::default(), |pose| {
+                let theta = pose.heading_rad;
                 HeadingEstimate {
                     cos_theta: math::cos(theta),
                     sin_theta: math::sin(theta),

@@ -689,6 +689,25 @@ pub(crate) fn drive_wheels(
     next
 }
 
+/// The state after an odometry step, each wheel's nominal travel scaled
+/// by its `(1 + ε)` and driven along the exact arc (the transition of the
+/// UKF's sigma points and of the particle filter's noiseless particle; the
+/// EKF computes the same move in [`linearise_odometry`], sharing its sines
+/// with the Jacobian).
+pub(crate) fn odometry_transition(
+    state: &PoseState,
+    odometry: &OdometryStep,
+    track_width_m: f32,
+) -> PoseState {
+    let (right, left) = wheel_travels(odometry.ds_m, odometry.dtheta_rad, track_width_m);
+    drive_wheels(
+        state,
+        right * (1.0 + state.w),
+        left * (1.0 + state.a),
+        track_width_m,
+    )
+}
+
 /// The variance of a wheel's travel `s`: `α|s| + σ₀²`.
 pub(crate) fn wheel_variance(config: &PoseFilterConfig, travel_m: f32) -> f32 {
     config.variance_per_m * travel_m.abs() + config.variance_floor_m2
@@ -895,7 +914,6 @@ pub(crate) fn symmetric(m: PoseCovariance) -> PoseCovariance {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TagCellTracker {
     spacing_m: f32,
-    travel_since_read_m: f32,
     last_tag: Option<Vec2>,
     same_tag_reads: u32,
     edge_corrections: u32,
@@ -911,7 +929,6 @@ impl TagCellTracker {
     pub fn new(spacing_m: f32) -> Option<Self> {
         (spacing_m.is_finite() && spacing_m > 0.0).then_some(Self {
             spacing_m,
-            travel_since_read_m: 0.0,
             last_tag: None,
             same_tag_reads: 0,
             edge_corrections: 0,
@@ -1269,7 +1286,6 @@ impl FusionEstimator {
             // The spacing is validated by `FusionSettings::new`.
             cells: TagCellTracker {
                 spacing_m: settings.tag_spacing_m,
-                travel_since_read_m: 0.0,
                 last_tag: None,
                 same_tag_reads: 0,
                 edge_corrections: 0,
@@ -1304,11 +1320,12 @@ impl FusionEstimator {
             filter.predict(odometry);
         }
         if odometry.ds_m.is_finite() {
-            self.cells.travel_since_read_m += odometry.ds_m.abs();
             self.distance_since_fix_m += odometry.ds_m.abs();
         }
         if let Some(tag) = fix {
-            self.distance_since_fix_m = 0.0;
+            // Driven since the last read: what tells a range reader's
+            // repeated read from a new pass over the same tag.
+            let travel_m = core::mem::take(&mut self.distance_since_fix_m);
             if after_gap && self.settings.read_radius_m <= 0.0 {
                 self.cells.restart();
             }
@@ -1323,27 +1340,22 @@ impl FusionEstimator {
                     self.filter.insert(filter)
                 }
             };
-            let heading = filter.pose().heading_rad;
-            let last_step = Vec2::new(
-                odometry.ds_m * math::cos(heading),
-                odometry.ds_m * math::sin(heading),
-            );
+            let pose = filter.pose();
             let relocalisations = filter.counters().relocalisations;
             let radius = self.settings.read_radius_m;
             if radius > 0.0 {
-                let heading = filter.pose().heading_rad;
-                let travel = self.cells.travel_since_read_m;
-                self.cells.travel_since_read_m = 0.0;
                 if let Some(measurement) =
-                    self.cells.range_measurement(tag, heading, travel, radius)
+                    self.cells
+                        .range_measurement(tag, pose.heading_rad, travel_m, radius)
                 {
                     filter.correct(&measurement);
                 }
             } else {
-                for measurement in self
-                    .cells
-                    .measurements(tag, last_step, filter.pose().position)
-                {
+                let last_step = Vec2::new(
+                    odometry.ds_m * math::cos(pose.heading_rad),
+                    odometry.ds_m * math::sin(pose.heading_rad),
+                );
+                for measurement in self.cells.measurements(tag, last_step, pose.position) {
                     filter.correct(&measurement);
                 }
             }

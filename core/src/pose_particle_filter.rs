@@ -44,7 +44,7 @@ use crate::odometry::OdometryStep;
 use crate::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
 use crate::pose_ekf::{
     PoseCovariance, PoseFilter, PoseFilterConfig, PoseFilterCore, PoseState, PositionMeasurement,
-    drive_wheels, scale_walk_variance, wheel_travels, wheel_variance,
+    drive_wheels, odometry_transition, scale_walk_variance, wheel_travels, wheel_variance,
 };
 
 /// Particles of the tracker's particle-filter estimator.
@@ -60,9 +60,7 @@ impl ParticleModel<5, 2> for NoisyOdometryModel {
     type Input = OdometryStep;
 
     fn transition(&self, x: &PoseState, u: &OdometryStep, _dt_s: f32) -> PoseState {
-        let b = self.config.track_width_m();
-        let (right, left) = wheel_travels(u.ds_m, u.dtheta_rad, b);
-        drive_wheels(x, right * (1.0 + x.w), left * (1.0 + x.a), b)
+        odometry_transition(x, u, self.config.track_width_m())
     }
 
     fn sample_transition(

@@ -69,7 +69,7 @@ use crate::math;
 use crate::odometry::OdometryStep;
 use crate::pose_ekf::{
     PoseCovariance, PoseFilter, PoseFilterConfig, PoseFilterCore, PoseState, PositionMeasurement,
-    drive_wheels, linearise_odometry, wheel_travels,
+    linearise_odometry, odometry_transition,
 };
 use crate::ukf::{
     MerweScaledSigmaPoints, UkfModel, UnscentedKalmanFilter, residual_with_angles,
@@ -110,9 +110,7 @@ impl UkfModel<5, 2> for OdometryPoseModel {
     }
 
     fn transition(&self, x: &PoseState, u: &OdometryStep, _dt_s: f32) -> PoseState {
-        let b = self.track_width_m;
-        let (right, left) = wheel_travels(u.ds_m, u.dtheta_rad, b);
-        drive_wheels(x, right * (1.0 + x.w), left * (1.0 + x.a), b)
+        odometry_transition(x, u, self.track_width_m)
     }
 
     fn measure(&self, x: &PoseState) -> SVector<f32, 2> {
