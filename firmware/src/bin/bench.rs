@@ -86,10 +86,10 @@ mod on_target {
     use wmr_core::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
     use wmr_core::pilot::{Measurement, Pilot, PilotOutput};
     use wmr_core::pose_ekf::{
-        PoseEkf, PoseFilter, PoseFilterConfig, PoseFilterCore, PositionMeasurement,
+        EkfCore, PoseEkf, PoseFilter, PoseFilterConfig, PoseFilterCore, PositionMeasurement,
     };
-    use wmr_core::pose_particle_filter::PoseParticleFilter;
-    use wmr_core::pose_ukf::PoseUkf;
+    use wmr_core::pose_particle_filter::{ParticleCore, PoseParticleFilter};
+    use wmr_core::pose_ukf::{PoseUkf, UkfCore};
     use wmr_core::reference::{ReferenceSample, Trajectory};
     use wmr_core::robot::{Robot, RobotTick};
     use wmr_core::slip_tracking::{PoseModel, PoseWheelModel, TrackedRobot};
@@ -630,27 +630,64 @@ mod on_target {
         resamplings: u32,
     }
 
-    /// One of paper 004's filters on its model, with `N` states all
-    /// measured, driven by a [`BodyVelocity`].
-    trait BenchFilter<const N: usize> {
-        fn bench_predict(&mut self, input: &(BodyVelocity, f32));
-        fn bench_update(&mut self, z: &SVector<f32, N>);
-        fn bench_estimate(&self) -> SVector<f32, N>;
+    /// A filter on the [`Arc`]: paper 004's on its model, with all `N`
+    /// states measured, or the fusion estimator's on odometry and fixes.
+    trait BenchFilter {
+        /// What a predict takes, the same every step.
+        type Input;
+        /// What an update takes.
+        type Fix;
+        /// Said when the filter skipped a step or lost the robot.
+        const FAULT: &'static str;
+        fn bench_input() -> Self::Input;
+        /// Drives the arc one step and returns that step's fix.
+        fn bench_fix(arc: &mut Arc) -> Self::Fix;
+        fn bench_predict(&mut self, input: &Self::Input);
+        fn bench_update(&mut self, fix: &Self::Fix);
+        fn bench_position(&self) -> Vec2;
         fn bench_health(&self) -> Health;
     }
 
-    impl<Model, const N: usize> BenchFilter<N> for ExtendedKalmanFilter<Model, N, N>
+    /// Paper 004's filters: the auxiliary `(v, ω)` of the arc over a
+    /// step, and the first `N` components of the arc's noisy measured state.
+    const PAPER_004_FAULT: &str = "a paper 004 filter skipped a step or lost the robot";
+
+    fn paper_004_input() -> (BodyVelocity, f32) {
+        (ARC, FILTER_STEP_S)
+    }
+
+    fn paper_004_fix<const N: usize>(arc: &mut Arc) -> SVector<f32, N> {
+        arc.step().fixed_rows::<N>(0).into_owned()
+    }
+
+    fn position_of<const N: usize>(x: &SVector<f32, N>) -> Vec2 {
+        Vec2::new(
+            x.get(0).copied().unwrap_or(f32::NAN),
+            x.get(1).copied().unwrap_or(f32::NAN),
+        )
+    }
+
+    impl<Model, const N: usize> BenchFilter for ExtendedKalmanFilter<Model, N, N>
     where
         Model: EkfModel<N, N, Input = BodyVelocity>,
     {
+        type Input = (BodyVelocity, f32);
+        type Fix = SVector<f32, N>;
+        const FAULT: &'static str = PAPER_004_FAULT;
+        fn bench_input() -> Self::Input {
+            paper_004_input()
+        }
+        fn bench_fix(arc: &mut Arc) -> Self::Fix {
+            paper_004_fix(arc)
+        }
         fn bench_predict(&mut self, (u, dt_s): &(BodyVelocity, f32)) {
             self.predict(u, *dt_s);
         }
         fn bench_update(&mut self, z: &SVector<f32, N>) {
             self.update(z);
         }
-        fn bench_estimate(&self) -> SVector<f32, N> {
-            *self.state()
+        fn bench_position(&self) -> Vec2 {
+            position_of(self.state())
         }
         fn bench_health(&self) -> Health {
             let c = self.counters();
@@ -661,10 +698,19 @@ mod on_target {
         }
     }
 
-    impl<Model, const N: usize, const S: usize> BenchFilter<N> for UnscentedKalmanFilter<Model, N, N, S>
+    impl<Model, const N: usize, const S: usize> BenchFilter for UnscentedKalmanFilter<Model, N, N, S>
     where
         Model: UkfModel<N, N, Input = BodyVelocity>,
     {
+        type Input = (BodyVelocity, f32);
+        type Fix = SVector<f32, N>;
+        const FAULT: &'static str = PAPER_004_FAULT;
+        fn bench_input() -> Self::Input {
+            paper_004_input()
+        }
+        fn bench_fix(arc: &mut Arc) -> Self::Fix {
+            paper_004_fix(arc)
+        }
         fn bench_predict(&mut self, (u, dt_s): &(BodyVelocity, f32)) {
             // Counted in the filter's counters (`bench_health`).
             let _outcome = self.predict(u, *dt_s);
@@ -672,8 +718,8 @@ mod on_target {
         fn bench_update(&mut self, z: &SVector<f32, N>) {
             let _outcome = self.update(z);
         }
-        fn bench_estimate(&self) -> SVector<f32, N> {
-            *self.state()
+        fn bench_position(&self) -> Vec2 {
+            position_of(self.state())
         }
         fn bench_health(&self) -> Health {
             let c = self.counters();
@@ -688,18 +734,27 @@ mod on_target {
         }
     }
 
-    impl<Model, const N: usize, const P: usize> BenchFilter<N> for ParticleFilter<Model, N, N, P>
+    impl<Model, const N: usize, const P: usize> BenchFilter for ParticleFilter<Model, N, N, P>
     where
         Model: ParticleModel<N, N, Input = BodyVelocity>,
     {
+        type Input = (BodyVelocity, f32);
+        type Fix = SVector<f32, N>;
+        const FAULT: &'static str = PAPER_004_FAULT;
+        fn bench_input() -> Self::Input {
+            paper_004_input()
+        }
+        fn bench_fix(arc: &mut Arc) -> Self::Fix {
+            paper_004_fix(arc)
+        }
         fn bench_predict(&mut self, (u, dt_s): &(BodyVelocity, f32)) {
             self.predict(u, *dt_s);
         }
         fn bench_update(&mut self, z: &SVector<f32, N>) {
             self.update(z);
         }
-        fn bench_estimate(&self) -> SVector<f32, N> {
-            self.estimate()
+        fn bench_position(&self) -> Vec2 {
+            position_of(&self.estimate())
         }
         fn bench_health(&self) -> Health {
             let c = self.counters();
@@ -711,58 +766,109 @@ mod on_target {
         }
     }
 
+    /// The particle filter's resamplings, for the fusion filters' health
+    /// (0 for the Kalman filters).
+    trait Resamplings {
+        fn resamplings(&self) -> u32 {
+            0
+        }
+    }
+
+    impl Resamplings for EkfCore {}
+    impl Resamplings for UkfCore {}
+    impl<const P: usize> Resamplings for ParticleCore<P> {
+        fn resamplings(&self) -> u32 {
+            self.filter().resamplings()
+        }
+    }
+
+    /// The fusion estimator's filters: exact odometry every step and the
+    /// true position as a 1 cm fix (the worst case: the tracker corrects
+    /// only when the tag changes).
+    impl<Core: PoseFilterCore + Resamplings> BenchFilter for PoseFilter<Core> {
+        type Input = OdometryStep;
+        type Fix = PositionMeasurement;
+        const FAULT: &'static str =
+            "a fusion filter skipped a step, gated a true fix or lost the robot";
+        fn bench_input() -> OdometryStep {
+            OdometryStep {
+                ds_m: ARC.v_m_s * FILTER_STEP_S,
+                dtheta_rad: ARC.omega_rad_s * FILTER_STEP_S,
+                ..OdometryStep::default()
+            }
+        }
+        fn bench_fix(arc: &mut Arc) -> PositionMeasurement {
+            let _measured = arc.step();
+            PositionMeasurement::Point {
+                position: arc.pose.position,
+                variance_m2: [FUSION_FIX_VARIANCE_M2; 2],
+            }
+        }
+        fn bench_predict(&mut self, odometry: &OdometryStep) {
+            self.predict(odometry);
+        }
+        fn bench_update(&mut self, fix: &PositionMeasurement) {
+            // Counted in the filter's counters.
+            let _outcome = self.correct(fix);
+        }
+        fn bench_position(&self) -> Vec2 {
+            self.pose().position
+        }
+        fn bench_health(&self) -> Health {
+            let c = self.counters();
+            Health {
+                faults: c.rejected_predictions + c.fixes_invalid + c.fixes_gated,
+                repairs: 0,
+                resamplings: self.core().resamplings(),
+            }
+        }
+    }
+
     #[inline(never)]
-    fn filter_predict<F: BenchFilter<N>, const N: usize>(
-        filter: &mut F,
-        input: &(BodyVelocity, f32),
-    ) {
+    fn filter_predict<F: BenchFilter>(filter: &mut F, input: &F::Input) {
         filter.bench_predict(input);
     }
 
     #[inline(never)]
-    fn filter_update<F: BenchFilter<N>, const N: usize>(filter: &mut F, z: &SVector<f32, N>) {
-        filter.bench_update(z);
+    fn filter_update<F: BenchFilter>(filter: &mut F, fix: &F::Fix) {
+        filter.bench_update(fix);
     }
 
     /// Runs `filter` along an [`Arc`] from `start`, a predict then an
     /// update each step, and reports both stages, the stack of one call of
     /// each, the filter's size and its health; fails if it skipped a step
-    /// or lost the robot.
-    fn bench_filter<F: BenchFilter<N>, const N: usize>(
+    /// or its RMS position error exceeds `max_rms_error_m`.
+    fn bench_filter<F: BenchFilter>(
         cal: Calibration,
         name: &str,
         [predict_name, update_name]: [&'static str; 2],
         filter: &mut F,
         start: Pose,
+        max_rms_error_m: f32,
     ) {
         let mut arc = Arc::new(start);
         let mut stages = [Stage::new(predict_name), Stage::new(update_name)];
-        let input = (ARC, FILTER_STEP_S);
-        let measure = |arc: &mut Arc| arc.step().fixed_rows::<N>(0).into_owned();
+        let input = F::bench_input();
         let mut sum_sq_error = 0.0;
         for k in 0..FILTER_WARMUP_STEPS + SAMPLES {
-            let z = measure(&mut arc);
+            let fix = F::bench_fix(&mut arc);
             let (predict, ()) = timed(&input, |i| filter_predict(filter, i));
-            let (update, ()) = timed(&z, |z| filter_update(filter, z));
+            let (update, ()) = timed(&fix, |f| filter_update(filter, f));
             if k >= FILTER_WARMUP_STEPS {
                 stages[0].record(predict);
                 stages[1].record(update);
-                let estimate = filter.bench_estimate();
-                let (dx, dy) = (
-                    estimate[0] - arc.pose.position.x,
-                    estimate[1] - arc.pose.position.y,
-                );
-                sum_sq_error += dx * dx + dy * dy;
+                let error = filter.bench_position() - arc.pose.position;
+                sum_sq_error += error.x * error.x + error.y * error.y;
             }
         }
         let rms_error = math::sqrt(sum_sq_error / SAMPLES as f32);
         for stage in &stages {
             stage.report(cal);
         }
-        let z = measure(&mut arc);
+        let fix = F::bench_fix(&mut arc);
         let stacks = [
             stack_bytes(|| filter_predict(filter, black_box(&input))),
-            stack_bytes(|| filter_update(filter, black_box(&z))),
+            stack_bytes(|| filter_update(filter, black_box(&fix))),
         ];
         for (stage, bytes) in stages.iter().zip(stacks) {
             match bytes {
@@ -782,9 +888,9 @@ mod on_target {
             FILTER_WARMUP_STEPS + SAMPLES + 1
         );
         // False for a NaN error too.
-        let tracked = rms_error <= MAX_FILTER_RMS_ERROR_M;
+        let tracked = rms_error <= max_rms_error_m;
         if health.faults > 0 || !tracked {
-            fail("a paper 004 filter skipped a step or lost the robot");
+            fail(F::FAULT);
         }
     }
 
@@ -831,6 +937,7 @@ mod on_target {
             ["ekf3_predict", "ekf3_update"],
             &mut ekf3,
             scenario_1,
+            MAX_FILTER_RMS_ERROR_M,
         );
         let mut ekf5 = built(
             ExtendedKalmanFilter::new(
@@ -848,6 +955,7 @@ mod on_target {
             ["ekf5_predict", "ekf5_update"],
             &mut ekf5,
             scenario_2,
+            MAX_FILTER_RMS_ERROR_M,
         );
 
         let mut ukf3 = built(
@@ -869,6 +977,7 @@ mod on_target {
             ["ukf3_predict", "ukf3_update"],
             &mut ukf3,
             scenario_1,
+            MAX_FILTER_RMS_ERROR_M,
         );
         let mut ukf5 = built(
             MerweScaledSigmaPoints::paper().and_then(|points| {
@@ -889,6 +998,7 @@ mod on_target {
             ["ukf5_predict", "ukf5_update"],
             &mut ukf5,
             scenario_2,
+            MAX_FILTER_RMS_ERROR_M,
         );
 
         let process_std = SVector::from(PARTICLE_PROCESS_STD);
@@ -914,6 +1024,7 @@ mod on_target {
             ["pf3_predict", "pf3_update"],
             &mut pf3,
             scenario_1,
+            MAX_FILTER_RMS_ERROR_M,
         );
         let mut pf5 = built(
             ParticleFilterConfig::new(process_std, measurement_std)
@@ -935,6 +1046,7 @@ mod on_target {
             ["pf5_predict", "pf5_update"],
             &mut pf5,
             scenario_2,
+            MAX_FILTER_RMS_ERROR_M,
         );
     }
 
@@ -952,91 +1064,6 @@ mod on_target {
     /// A fusion filter's RMS position error must stay below its fixes'.
     const MAX_FUSION_RMS_ERROR_M: f32 = 0.014;
 
-    #[inline(never)]
-    fn pose_predict<Core: PoseFilterCore>(filter: &mut PoseFilter<Core>, odometry: &OdometryStep) {
-        filter.predict(odometry);
-    }
-
-    #[inline(never)]
-    fn pose_correct<Core: PoseFilterCore>(
-        filter: &mut PoseFilter<Core>,
-        fix: &PositionMeasurement,
-    ) {
-        // Counted in the filter's counters.
-        let _outcome = filter.correct(fix);
-    }
-
-    /// A fusion filter ([`wmr_core::pose_ekf`]) along an [`Arc`] from its
-    /// start: exact odometry every step and a 2-D fix every step (the
-    /// worst case: the tracker corrects only when the tag changes), both
-    /// stages reported as [`bench_filter`] reports paper 004's filters;
-    /// `resamplings` reads the particle filter's count.
-    fn bench_pose_filter<Core: PoseFilterCore>(
-        cal: Calibration,
-        name: &str,
-        [predict_name, update_name]: [&'static str; 2],
-        filter: &mut PoseFilter<Core>,
-        resamplings: impl Fn(&PoseFilter<Core>) -> u32,
-    ) {
-        let mut arc = Arc::new(filter.pose());
-        let mut stages = [Stage::new(predict_name), Stage::new(update_name)];
-        let odometry = OdometryStep {
-            ds_m: ARC.v_m_s * FILTER_STEP_S,
-            dtheta_rad: ARC.omega_rad_s * FILTER_STEP_S,
-            ..OdometryStep::default()
-        };
-        let fix_at = |arc: &mut Arc| {
-            let _measured = arc.step();
-            PositionMeasurement::Point {
-                position: arc.pose.position,
-                variance_m2: [FUSION_FIX_VARIANCE_M2; 2],
-            }
-        };
-        let mut sum_sq_error = 0.0;
-        for k in 0..FILTER_WARMUP_STEPS + SAMPLES {
-            let fix = fix_at(&mut arc);
-            let (predict, ()) = timed(&odometry, |o| pose_predict(filter, o));
-            let (update, ()) = timed(&fix, |f| pose_correct(filter, f));
-            if k >= FILTER_WARMUP_STEPS {
-                stages[0].record(predict);
-                stages[1].record(update);
-                let error = filter.pose().position - arc.pose.position;
-                sum_sq_error += error.x * error.x + error.y * error.y;
-            }
-        }
-        let rms_error = math::sqrt(sum_sq_error / SAMPLES as f32);
-        for stage in &stages {
-            stage.report(cal);
-        }
-        let fix = fix_at(&mut arc);
-        let stacks = [
-            stack_bytes(|| pose_predict(filter, black_box(&odometry))),
-            stack_bytes(|| pose_correct(filter, black_box(&fix))),
-        ];
-        for (stage, bytes) in stages.iter().zip(stacks) {
-            match bytes {
-                Some(bytes) => hprintln!("stack {} bytes={}", stage.name, bytes),
-                None => fail("a fusion filter step used the whole painted stack window"),
-            }
-        }
-        let c = filter.counters();
-        let faults = c.rejected_predictions + c.fixes_invalid + c.fixes_gated;
-        hprintln!(
-            "filter {} state_bytes={} position_rms_error_m={:.4} faults={} repairs=0 resamplings={} steps={}",
-            name,
-            core::mem::size_of::<PoseFilter<Core>>(),
-            rms_error,
-            faults,
-            resamplings(filter),
-            FILTER_WARMUP_STEPS + SAMPLES + 1
-        );
-        // False for a NaN error too.
-        let tracked = rms_error <= MAX_FUSION_RMS_ERROR_M;
-        if faults > 0 || !tracked {
-            fail("a fusion filter skipped a step, gated a true fix or lost the robot");
-        }
-    }
-
     /// The fusion estimator's three filters (the pose and both wheel
     /// scales, N = 5), each starting at the true pose with a 1 cm, 0.1 rad
     /// spread and a 2 % wheel-scale prior.
@@ -1052,34 +1079,37 @@ mod on_target {
             PoseFilter::new(config, start, variances),
             "fusion EKF refused",
         );
-        bench_pose_filter(
+        bench_filter(
             cal,
             "fusion_ekf",
             ["fusion_ekf_predict", "fusion_ekf_update"],
             &mut ekf,
-            |_| 0,
+            start,
+            MAX_FUSION_RMS_ERROR_M,
         );
         let mut ukf: PoseUkf = built(
             PoseFilter::new(config, start, variances),
             "fusion UKF refused",
         );
-        bench_pose_filter(
+        bench_filter(
             cal,
             "fusion_ukf",
             ["fusion_ukf_predict", "fusion_ukf_update"],
             &mut ukf,
-            |_| 0,
+            start,
+            MAX_FUSION_RMS_ERROR_M,
         );
         let mut pf: PoseParticleFilter = built(
             PoseFilter::new(config, start, variances),
             "fusion particle filter refused",
         );
-        bench_pose_filter(
+        bench_filter(
             cal,
             "fusion_pf",
             ["fusion_pf_predict", "fusion_pf_update"],
             &mut pf,
-            |f| f.core().filter().resamplings(),
+            start,
+            MAX_FUSION_RMS_ERROR_M,
         );
     }
 
