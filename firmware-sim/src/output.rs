@@ -214,7 +214,6 @@ pub fn format_summary(s: &Summary) -> String {
 
 /// Image size, px.
 const SIZE: (u32, u32) = (1800, 820);
-/// Font of all text.
 /// The plots' font family (shared by every plot of the crate).
 pub(crate) const FONT: &str = "sans-serif";
 
@@ -234,6 +233,27 @@ pub fn plot_png(path: &Path, result: &RunResult) -> anyhow::Result<()> {
         .map_err(plot_err)
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
+}
+
+/// Draws a chart's series legend at `position` in the style of every plot
+/// of the crate (white box, black border, [`FONT`] at `font_size` px).
+pub(crate) fn draw_legend<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+    font_size: u32,
+) -> anyhow::Result<()>
+where
+    DB: DrawingBackend + 'a,
+    CT: CoordTranslate,
+{
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font((FONT, font_size))
+        .draw()
+        .map_err(plot_err)
 }
 
 /// A plotters error as an `anyhow` error (shared by every plot of the crate).
@@ -333,14 +353,7 @@ fn trajectory_panel(
             ])
             .map_err(plot_err)?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font((FONT, 16))
-        .draw()
-        .map_err(plot_err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 16)?;
     Ok(())
 }
 
@@ -439,13 +452,6 @@ fn error_panel(
             .label(format!("mean after transient {:.4} m", s.mean_error_m))
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREEN.stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font((FONT, 16))
-        .draw()
-        .map_err(plot_err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 16)?;
     Ok(())
 }

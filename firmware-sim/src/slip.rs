@@ -70,7 +70,7 @@ use anyhow::Context as _;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::output::{FONT, equal_axes, plot_err};
+use crate::output::{FONT, draw_legend, equal_axes, plot_err};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt as _, SeedableRng as _};
 use serde::{Deserialize, Serialize};
@@ -1916,14 +1916,7 @@ fn time_panel(
                 PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
             });
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font((FONT, 15))
-        .draw()
-        .map_err(plot_err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 15)?;
     Ok(())
 }
 
@@ -2085,14 +2078,7 @@ fn plot_trajectory(path: &Path, result: &SlipResult) -> anyhow::Result<()> {
             )
             .map_err(plot_err)?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font((FONT, 15))
-        .draw()
-        .map_err(plot_err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 15)?;
     root.present()
         .map_err(plot_err)
         .with_context(|| format!("writing {}", path.display()))

@@ -9,7 +9,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::{Percentiles, SweepResult, SweepRun, SweepSummary};
-use crate::output::{FONT, plot_err};
+use crate::output::{FONT, draw_legend, plot_err};
 
 /// Paths of the files [`write_sweep`] wrote.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -298,14 +298,7 @@ fn histogram_panel(
                 });
         }
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font((FONT, 16))
-        .draw()
-        .map_err(plot_err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 16)?;
     Ok(())
 }
 
@@ -388,14 +381,7 @@ pub fn plot_error_vs_distance(path: &Path, result: &SweepResult) -> anyhow::Resu
         .map_err(plot_err)?
         .label("not converged")
         .legend(|(x, y)| Cross::new((x + 10, y), 5, RED.stroke_width(2)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font((FONT, 16))
-        .draw()
-        .map_err(plot_err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 16)?;
     root.present()
         .map_err(plot_err)
         .with_context(|| format!("writing {}", path.display()))
