@@ -1,10 +1,7 @@
 //! The command-line interface.
 
-use std::process::Command;
-
-fn sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_firmware-sim"))
-}
+mod common;
+use common::{sim, stdout_of_success};
 
 #[test]
 fn bad_scenario_file_fails_with_the_field_named() {
@@ -52,12 +49,7 @@ fn run_writes_outputs_and_prints_the_summary() {
         .arg(dir.path())
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
+    let text = stdout_of_success(&out);
     assert!(
         text.contains("figure_eight_rfid") && text.contains("max"),
         "{text}"
@@ -69,9 +61,7 @@ fn run_writes_outputs_and_prints_the_summary() {
 
 #[test]
 fn scenarios_are_listed_and_shown() {
-    let out = sim().arg("scenarios").output().unwrap();
-    assert!(out.status.success());
-    let text = String::from_utf8_lossy(&out.stdout);
+    let text = stdout_of_success(&sim().arg("scenarios").output().unwrap());
     for (name, _) in firmware_sim::EMBEDDED
         .iter()
         .chain(firmware_sim::slip::EMBEDDED_SLIP)
@@ -79,11 +69,9 @@ fn scenarios_are_listed_and_shown() {
         assert!(text.contains(name), "{text}");
     }
     let out = sim().args(["show", "figure_eight_exact"]).output().unwrap();
-    assert!(out.status.success());
-    assert!(String::from_utf8_lossy(&out.stdout).contains("gain_per_m = 4.0"));
+    assert!(stdout_of_success(&out).contains("gain_per_m = 4.0"));
     let out = sim().args(["show", "paper_004_torque"]).output().unwrap();
-    assert!(out.status.success());
-    assert!(String::from_utf8_lossy(&out.stdout).contains("controller = \"torque\""));
+    assert!(stdout_of_success(&out).contains("controller = \"torque\""));
     let out = sim().args(["scenario-template", "nope"]).output().unwrap();
     assert!(!out.status.success());
 }

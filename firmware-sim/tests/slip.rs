@@ -1,14 +1,11 @@
 //! Paper 004's slip scenarios: the schema, its errors, the `slip`
 //! subcommand.
 
-use std::process::Command;
+mod common;
+use common::{sim, stdout_of_success};
 
 use firmware_sim::ScenarioError;
 use firmware_sim::slip::{self, Controller, EMBEDDED_SLIP, Estimator, SlipScenario};
-
-fn sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_firmware-sim"))
-}
 
 #[test]
 fn embedded_slip_scenarios_parse_and_validate() {
@@ -170,12 +167,7 @@ fn the_cli_runs_a_scenario_and_writes_its_outputs() {
         .arg(dir.path())
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
+    let text = stdout_of_success(&out);
     assert!(
         text.contains("paper_004_velocity") && text.contains("during slip"),
         "{text}"

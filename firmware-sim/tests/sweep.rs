@@ -1,14 +1,11 @@
 //! Sweeps through the library and the CLI.
 
-use std::process::Command;
+mod common;
+use common::{sim, stdout_of_success};
 
 use firmware_sim::sweep::output::runs_csv;
 use firmware_sim::sweep::{SweepOptions, plan_of, run_sweep, run_variation};
 use firmware_sim::{Scenario, run};
-
-fn sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_firmware-sim"))
-}
 
 /// The RFID figure-eight, 60 s, varying every field that applies.
 fn noisy_rfid() -> Scenario {
@@ -68,12 +65,7 @@ fn cli_sweep_writes_its_files_and_reruns_one_case() {
         .arg(dir.path().join("s"))
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = stdout_of_success(&out);
     assert!(stdout.contains("| `figure_eight_rfid` |"), "{stdout}");
     for f in [
         "runs.csv",
@@ -106,12 +98,7 @@ fn cli_sweep_writes_its_files_and_reruns_one_case() {
         .arg(dir.path().join("r"))
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(String::from_utf8_lossy(&out.stdout).contains("index 2, seed 5"));
+    assert!(stdout_of_success(&out).contains("index 2, seed 5"));
     let csv = std::fs::read_to_string(dir.path().join("s/runs.csv")).unwrap();
     let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
     let column = header.iter().position(|h| *h == "final_error_m").unwrap();
