@@ -15,28 +15,15 @@
 )]
 
 pub mod chained_form;
+pub mod control;
 pub mod devices;
 pub mod drive;
-pub mod ekf;
+pub mod estimation;
+pub mod filters;
 pub mod geometry;
-pub mod heading_observer;
 pub mod math;
-pub mod momenta_observer;
 pub mod odometry;
-pub mod output_feedback;
-pub mod particle_filter;
 pub mod pilot;
-pub mod pose_ekf;
-pub mod pose_observer;
-pub mod pose_particle_filter;
-pub mod pose_ukf;
 pub mod reference;
-pub mod robot;
-pub mod robot_frame;
-pub mod robot_frame_observers;
 pub mod scaled_momenta_observer;
 pub mod slip_tracking;
-pub mod spec;
-pub mod tracking;
-pub mod ukf;
-pub mod wheel_speed_observer;

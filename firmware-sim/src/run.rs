@@ -21,18 +21,18 @@ use std::time::Instant;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt as _, SeedableRng as _};
 use serde::Serialize;
+use wmr_core::control::saturated::{GainBound, TrackingController};
 use wmr_core::devices::{MotorDriver, MotorWiring, QuadratureCounter, RfidReader, TagLocator};
+use wmr_core::estimation::fusion::FusionFilter;
+use wmr_core::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
-use wmr_core::heading_observer::{HeadingEstimate, HeadingObserver};
 use wmr_core::odometry::OdometryStep;
-use wmr_core::output_feedback::{EstimatorChoice, LawChoice, TrackerCounters};
-use wmr_core::output_feedback::{OutputFeedbackTracker, TagFix, TrackerMode};
+use wmr_core::pilot::robot::{Motor, Robot};
+use wmr_core::pilot::spec::TagGridSpec;
+use wmr_core::pilot::tracker::{EstimatorChoice, LawChoice, TrackerCounters};
+use wmr_core::pilot::tracker::{OutputFeedbackTracker, TagFix, TrackerMode};
 use wmr_core::pilot::{Measurement, Pilot, PilotConfig, PilotCounters};
-use wmr_core::pose_ekf::FusionFilter;
 use wmr_core::reference::{TickClock, Trajectory};
-use wmr_core::robot::{Motor, Robot};
-use wmr_core::spec::TagGridSpec;
-use wmr_core::tracking::{GainBound, TrackingController};
 use wmr_link::{
     Configure, Diagnostics, MAX_UART_BYTES_PER_TICK, MotorOutput, TickInput, TickOutput,
 };
@@ -762,7 +762,7 @@ struct Outcome {
 }
 
 impl Outcome {
-    fn of_tracker(out: &wmr_core::output_feedback::TrackerOutput, fix: bool) -> Self {
+    fn of_tracker(out: &wmr_core::pilot::tracker::TrackerOutput, fix: bool) -> Self {
         let awaiting = out.mode == TrackerMode::AwaitingFix;
         Self {
             reference: out.reference.position,

@@ -17,17 +17,17 @@ use std::f64::consts::FRAC_PI_2;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
-use wmr_core::heading_observer::HeadingEstimate;
-use wmr_core::momenta_observer::WheelInertia;
-use wmr_core::output_feedback::TrackerConfig;
+use wmr_core::control::saturated::TrackingGains;
+use wmr_core::drive::momenta_observer::WheelInertia;
+use wmr_core::drive::speed_observer::WheelSpeedObserverConfig;
+use wmr_core::estimation::heading_observer::HeadingEstimate;
 use wmr_core::pilot::PilotConfig;
-use wmr_core::reference::Trajectory;
-use wmr_core::spec::{
+use wmr_core::pilot::spec::{
     self as core_spec, EstimatorSpec, FusionFilterSpec, LawSpec, PilotSpec, SpecError, TrackerSpec,
     TrajectorySpec,
 };
-use wmr_core::tracking::TrackingGains;
-use wmr_core::wheel_speed_observer::WheelSpeedObserverConfig;
+use wmr_core::pilot::tracker::TrackerConfig;
+use wmr_core::reference::Trajectory;
 
 use crate::devices::{LinkFaults, ReaderConfig, ReaderMode};
 use crate::plant::{DiffDriveParams, LoadTorque, PlantPose, WheelDynamics};
@@ -274,14 +274,14 @@ pub enum ObserverKind {
     /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`, gains
     /// `pose_gains = [a1, a2, a3, a4]`.
     Pose,
-    /// The encoder + tag fusion EKF (`wmr_core::pose_ekf`), tuned by the
+    /// The encoder + tag fusion EKF (`wmr_core::estimation::fusion`), tuned by the
     /// `fusion_*` keys; needs grid tags (`nearest_tag`, or `reader` in
     /// `paper` or `range` mode) without added noise.
     FusionEkf,
-    /// The same estimator on paper 004's UKF (`wmr_core::pose_ukf`).
+    /// The same estimator on paper 004's UKF (`wmr_core::estimation::fusion::ukf`).
     FusionUkf,
     /// The same estimator on paper 004's particle filter
-    /// (`wmr_core::pose_particle_filter`, 100 particles), its generator
+    /// (`wmr_core::estimation::fusion::particle`, 100 particles), its generator
     /// seeded with `fusion_particle_seed`.
     FusionParticleFilter,
 }
@@ -530,7 +530,7 @@ pub struct DriveSpec {
 }
 
 /// The robot as the wheel-speed observer models it (paper 003, section
-/// 6.1; see `wmr_core::wheel_speed_observer`). The wheel radius, track and
+/// 6.1; see `wmr_core::drive::speed_observer`). The wheel radius, track and
 /// the motors' no-load speed (`plant.wheel_speed_at_full_duty_rad_s`) come
 /// from the plant table; these may differ from `[plant.dynamics]` to study
 /// a mismatched model.
@@ -763,7 +763,9 @@ mod defaults {
         3.0
     }
     pub fn min_speed_m_s() -> f64 {
-        f64::from(wmr_core::heading_observer::HeadingObserverConfig::DEFAULT_MIN_SPEED_M_S)
+        f64::from(
+            wmr_core::estimation::heading_observer::HeadingObserverConfig::DEFAULT_MIN_SPEED_M_S,
+        )
     }
     pub fn wheel_radius_m() -> f64 {
         0.03
@@ -802,14 +804,14 @@ mod defaults {
         0.5
     }
     pub fn observer_lambda_per_s() -> f64 {
-        f64::from(wmr_core::wheel_speed_observer::WheelSpeedObserverConfig::DEFAULT_LAMBDA_PER_S)
+        f64::from(wmr_core::drive::speed_observer::WheelSpeedObserverConfig::DEFAULT_LAMBDA_PER_S)
     }
     pub fn observer_friction_gain() -> f64 {
-        f64::from(wmr_core::wheel_speed_observer::WheelSpeedObserverConfig::DEFAULT_FRICTION_GAIN)
+        f64::from(wmr_core::drive::speed_observer::WheelSpeedObserverConfig::DEFAULT_FRICTION_GAIN)
     }
     pub fn observer_disturbance_gain() -> f64 {
         f64::from(
-            wmr_core::wheel_speed_observer::WheelSpeedObserverConfig::DEFAULT_DISTURBANCE_GAIN,
+            wmr_core::drive::speed_observer::WheelSpeedObserverConfig::DEFAULT_DISTURBANCE_GAIN,
         )
     }
     pub fn spacing_m() -> f64 {
@@ -834,7 +836,7 @@ mod defaults {
         0.5
     }
     pub fn decel_m_s2() -> f64 {
-        f64::from(wmr_core::output_feedback::TrackerConfig::DEFAULT_FAILSAFE_DECEL_M_S2)
+        f64::from(wmr_core::pilot::tracker::TrackerConfig::DEFAULT_FAILSAFE_DECEL_M_S2)
     }
 }
 

@@ -74,15 +74,17 @@ use crate::output::{FONT, draw_legend, equal_axes, plot_err};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt as _, SeedableRng as _};
 use serde::{Deserialize, Serialize};
-use wmr_core::ekf::ExtendedKalmanFilter;
+use wmr_core::filters::ekf::ExtendedKalmanFilter;
+use wmr_core::filters::particle_filter::{
+    ParticleFilter, ParticleFilterConfig, ParticleFilterError,
+};
+use wmr_core::filters::ukf::{MerweScaledSigmaPoints, UkfError, UnscentedKalmanFilter};
 use wmr_core::geometry::{BodyVelocity, Pose, WheelSpeeds};
-use wmr_core::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleFilterError};
 use wmr_core::slip_tracking::{
     AdaptiveTorqueController, AdaptiveVelocityController, P_MAX, PiecewiseReference, PoseModel,
     PoseWheelModel, ReferenceSegment, ReferenceState, SlipGains, SlipTrackingError, TrackedRobot,
     tracking_error,
 };
-use wmr_core::ukf::{MerweScaledSigmaPoints, UkfError, UnscentedKalmanFilter};
 
 use crate::scenario::{ScenarioError, non_negative, positive};
 

@@ -7,12 +7,14 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use host_tests::paper_pilot;
 use std::hint::black_box;
+use wmr_core::control::saturated::{TrackingController, TrackingGains};
+use wmr_core::estimation::heading_observer::{
+    HeadingEstimate, HeadingObserver, HeadingObserverConfig,
+};
 use wmr_core::geometry::{BodyVelocity, Vec2};
-use wmr_core::heading_observer::{HeadingEstimate, HeadingObserver, HeadingObserverConfig};
-use wmr_core::output_feedback::TagFix;
 use wmr_core::pilot::Measurement;
+use wmr_core::pilot::tracker::TagFix;
 use wmr_core::reference::{FigureEight, Trajectory};
-use wmr_core::tracking::{TrackingController, TrackingGains};
 
 const H: f32 = 0.01;
 

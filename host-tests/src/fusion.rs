@@ -1,4 +1,4 @@
-//! The encoder + tag fusion EKF ([`wmr_core::pose_ekf`]) on paper 001's
+//! The encoder + tag fusion EKF ([`wmr_core::estimation::fusion`]) on paper 001's
 //! figure-eight with 10 cm tags, against paper 001's position-only loop.
 //!
 //! The plant is the `f64` unicycle of [`crate::paper_002::unicycle`]; the
@@ -7,13 +7,13 @@
 //! the position is the nearest tag every tick (the paper's mode). The EKF
 //! pose feeds paper 001's law (14) as if it were the measured pose.
 
+use wmr_core::control::saturated::{TrackingController, TrackingGains};
+use wmr_core::estimation::fusion::{PoseEkf, PoseFilterConfig, PoseFilterCounters, TagCellTracker};
+use wmr_core::estimation::heading_observer::{HeadingObserver, HeadingObserverConfig};
 use wmr_core::geometry::{DiffDriveGeometry, Pose, Vec2};
-use wmr_core::heading_observer::{HeadingObserver, HeadingObserverConfig};
 use wmr_core::odometry::OdometryStep;
-use wmr_core::output_feedback::{OutputFeedbackTracker, TagFix, TrackerConfig};
-use wmr_core::pose_ekf::{PoseEkf, PoseFilterConfig, PoseFilterCounters, TagCellTracker};
+use wmr_core::pilot::tracker::{OutputFeedbackTracker, TagFix, TrackerConfig};
 use wmr_core::reference::{FigureEight, Trajectory};
-use wmr_core::tracking::{TrackingController, TrackingGains};
 
 use crate::paper_002::Series;
 use crate::paper_002::unicycle::{
@@ -191,7 +191,7 @@ pub fn figure_eight_run(
                     let before = ekf.pose();
                     let outcome = ekf.correct(&m);
                     if std::env::var_os("FUSION_DEBUG").is_some()
-                        && outcome != wmr_core::pose_ekf::FixOutcome::Used
+                        && outcome != wmr_core::estimation::fusion::FixOutcome::Used
                     {
                         let c = ekf.covariance();
                         eprintln!(

@@ -7,13 +7,13 @@ pub mod paper_002;
 pub mod paper_003;
 pub mod paper_004;
 
+use wmr_core::control::saturated::TrackingGains;
 use wmr_core::drive::{DriveConfig, SpeedLoopGains};
+use wmr_core::estimation::heading_observer::HeadingObserverConfig;
 use wmr_core::geometry::DiffDriveGeometry;
-use wmr_core::heading_observer::HeadingObserverConfig;
-use wmr_core::output_feedback::TrackerConfig;
+use wmr_core::pilot::tracker::TrackerConfig;
 use wmr_core::pilot::{Pilot, PilotConfig};
 use wmr_core::reference::{FigureEight, ReferenceSample};
-use wmr_core::tracking::TrackingGains;
 
 /// Control period of [`paper_pilot`], s.
 pub const PAPER_PILOT_PERIOD_S: f32 = 0.01;

@@ -31,7 +31,7 @@ use firmware_sim::sweep::output::runs_csv;
 use firmware_sim::sweep::{
     HeadingSweep, ObserverStart, SweepOptions, SweepResult, SweepSpec, run_sweep,
 };
-use wmr_core::tracking::GainBound;
+use wmr_core::control::saturated::GainBound;
 
 /// Runs per case.
 const RUNS: u64 = 100;

@@ -1,4 +1,4 @@
-//! The encoder + tag fusion EKF (`wmr_core::pose_ekf`) against paper 001's
+//! The encoder + tag fusion EKF (`wmr_core::estimation::fusion`) against paper 001's
 //! position-only loop on the figure-eight with the nearest 10 cm tag every
 //! tick (simulation in `host_tests::fusion`). Each assertion is a bound a
 //! little weaker than the figure measured (given next to it); errors are

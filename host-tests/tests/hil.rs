@@ -15,8 +15,8 @@ use firmware_sim::hil::{
     HilOptions, QemuTarget, build_firmware, build_firmware_with, run_hil, workspace_root,
 };
 use firmware_sim::{Scenario, run};
-use wmr_core::spec::SpecError;
-use wmr_core::tracking::GainError;
+use wmr_core::control::saturated::GainError;
+use wmr_core::pilot::spec::SpecError;
 use wmr_link::{HostMessage, Refusal, TargetMessage, TickInput};
 
 fn firmware() -> PathBuf {

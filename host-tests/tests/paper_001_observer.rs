@@ -13,8 +13,8 @@
 //! hold to f32 rounding; both are asserted at every tick.
 
 use host_tests::reference_turn_rate;
+use wmr_core::estimation::heading_observer::{HeadingObserver, HeadingObserverConfig};
 use wmr_core::geometry::{BodyVelocity, Pose};
-use wmr_core::heading_observer::{HeadingObserver, HeadingObserverConfig};
 use wmr_core::reference::{FigureEight, TickClock, Trajectory};
 
 #[test]

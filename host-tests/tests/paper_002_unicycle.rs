@@ -149,7 +149,7 @@ fn proposition_5_lateral_observer_decays_at_c_y_omega_squared() {
 
 /// Proposition 6: with the controller (50) the observer error decays at
 /// `c_e ω²` = 1 /s, not at the printed `c2 + c_e ω²` = 3 /s (the `c2`
-/// term cancels: see `wmr_core::robot_frame_observers`), and the closed
+/// term cancels: see `wmr_core::control::heading_error_sine`), and the closed
 /// loop converges.
 #[test]
 fn proposition_6_longitudinal_observer_and_controller_converge() {

@@ -5,8 +5,8 @@
 use host_tests::paper_pilot;
 use proptest::prelude::*;
 use wmr_core::geometry::Vec2;
-use wmr_core::output_feedback::TagFix;
 use wmr_core::pilot::Measurement;
+use wmr_core::pilot::tracker::TagFix;
 
 fn any_coordinate() -> impl Strategy<Value = f32> {
     prop_oneof![

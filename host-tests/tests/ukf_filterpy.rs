@@ -1,4 +1,4 @@
-//! `wmr_core::ukf` against FilterPy 1.4.5, step by step.
+//! `wmr_core::filters::ukf` against FilterPy 1.4.5, step by step.
 //!
 //! The fixtures in `fixtures/ukf/` were written by `fixtures/ukf/generate.py`
 //! (FilterPy's `UnscentedKalmanFilter` with `MerweScaledSigmaPoints`, in
@@ -55,11 +55,11 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use nalgebra::{SMatrix, SVector};
-use wmr_core::math::{cos, sin, wrap_angle};
-use wmr_core::ukf::{
+use wmr_core::filters::ukf::{
     MerweScaledSigmaPoints, UkfModel, UkfOutcome, UnscentedKalmanFilter, residual_with_angles,
     unscented_mean_with_angles,
 };
+use wmr_core::math::{cos, sin, wrap_angle};
 
 type V3 = SVector<f32, 3>;
 type M3 = SMatrix<f32, 3, 3>;

@@ -50,10 +50,10 @@ pub mod session;
 
 use serde::{Deserialize, Serialize};
 use wmr_core::devices::RfidCounters;
-use wmr_core::output_feedback::{TrackerCounters, TrackerMode};
 use wmr_core::pilot::PilotCounters;
-use wmr_core::robot::RobotCounters;
-use wmr_core::spec::{PilotSpec, SpecError, TagGridSpec};
+use wmr_core::pilot::robot::RobotCounters;
+use wmr_core::pilot::spec::{PilotSpec, SpecError, TagGridSpec};
+use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 
 /// Bump when a message changes shape; both sides refuse a mismatch.
 pub const PROTOCOL_VERSION: u16 = 5;
@@ -436,7 +436,7 @@ impl Sender {
 mod tests {
     use super::*;
     use proptest::prelude::*;
-    use wmr_core::spec::{DriveSpec, TrackerSpec, TrajectorySpec};
+    use wmr_core::pilot::spec::{DriveSpec, TrackerSpec, TrajectorySpec};
 
     fn configure() -> HostMessage {
         HostMessage::Configure(Configure {
@@ -455,8 +455,8 @@ mod tests {
                     fix_timeout_ticks: 50,
                     failsafe_decel_m_s2: 0.5,
                     max_fix_age_ticks: 2,
-                    estimator: wmr_core::spec::EstimatorSpec::Paper001,
-                    law: wmr_core::spec::LawSpec::Paper001,
+                    estimator: wmr_core::pilot::spec::EstimatorSpec::Paper001,
+                    law: wmr_core::pilot::spec::LawSpec::Paper001,
                 },
                 drive: DriveSpec {
                     wheel_radius_m: 0.05,

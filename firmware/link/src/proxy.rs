@@ -3,7 +3,7 @@
 //!
 //! Each proxy implements the same embedded-hal / embedded-io trait as the
 //! real peripheral (and as the simulator's virtual device), so the core's
-//! [`wmr_core::robot::Robot`] runs unchanged on top of them. They share one
+//! [`wmr_core::pilot::robot::Robot`] runs unchanged on top of them. They share one
 //! [`ProxyBus`] through `Cell`s: the session writes a tick's readings into
 //! the bus, the robot reads and writes the proxies, the session reads the
 //! motor outputs back. Single-threaded (one control loop), no `unsafe`.

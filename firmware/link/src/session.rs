@@ -4,8 +4,8 @@
 
 use wmr_core::devices::{MotorDriver, MotorWiring, TagGrid};
 use wmr_core::pilot::Pilot;
-use wmr_core::robot::Robot;
-use wmr_core::spec::SpecError;
+use wmr_core::pilot::robot::Robot;
+use wmr_core::pilot::spec::SpecError;
 
 use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
 use crate::{
@@ -158,8 +158,8 @@ mod tests {
     use super::*;
     use crate::TickInput;
     use wmr_core::devices::encode_frame;
-    use wmr_core::output_feedback::TrackerMode;
-    use wmr_core::spec::{DriveSpec, PilotSpec, TagGridSpec, TrackerSpec, TrajectorySpec};
+    use wmr_core::pilot::spec::{DriveSpec, PilotSpec, TagGridSpec, TrackerSpec, TrajectorySpec};
+    use wmr_core::pilot::tracker::TrackerMode;
 
     pub(crate) fn configure() -> Configure {
         Configure {
@@ -178,8 +178,8 @@ mod tests {
                     fix_timeout_ticks: 50,
                     failsafe_decel_m_s2: 0.5,
                     max_fix_age_ticks: 2,
-                    estimator: wmr_core::spec::EstimatorSpec::Paper001,
-                    law: wmr_core::spec::LawSpec::Paper001,
+                    estimator: wmr_core::pilot::spec::EstimatorSpec::Paper001,
+                    law: wmr_core::pilot::spec::LawSpec::Paper001,
                 },
                 drive: DriveSpec {
                     wheel_radius_m: 0.05,

@@ -75,27 +75,27 @@ mod on_target {
     use stm32f4xx_hal as _;
 
     use nalgebra::{SMatrix, SVector};
+    use wmr_core::control::saturated::{TrackingCommand, TrackingController, TrackingGains};
     use wmr_core::devices::{MotorDriver, MotorWiring, RfidReader, TagGrid, TagId, encode_frame};
     use wmr_core::drive::{SpeedLoopGains, WheelSpeedLoop};
-    use wmr_core::ekf::{EkfModel, ExtendedKalmanFilter};
-    use wmr_core::geometry::{BodyVelocity, DiffDriveGeometry, Pose, Vec2, WheelSpeeds};
-    use wmr_core::heading_observer::{HeadingEstimate, HeadingObserver};
-    use wmr_core::math;
-    use wmr_core::odometry::{OdometryStep, WrappingCounter};
-    use wmr_core::output_feedback::TagFix;
-    use wmr_core::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
-    use wmr_core::pilot::{Measurement, Pilot, PilotOutput};
-    use wmr_core::pose_ekf::{
+    use wmr_core::estimation::fusion::particle::{ParticleCore, PoseParticleFilter};
+    use wmr_core::estimation::fusion::ukf::{PoseUkf, UkfCore};
+    use wmr_core::estimation::fusion::{
         EkfCore, PoseEkf, PoseFilter, PoseFilterConfig, PoseFilterCore, PositionMeasurement,
     };
-    use wmr_core::pose_particle_filter::{ParticleCore, PoseParticleFilter};
-    use wmr_core::pose_ukf::{PoseUkf, UkfCore};
+    use wmr_core::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
+    use wmr_core::filters::ekf::{EkfModel, ExtendedKalmanFilter};
+    use wmr_core::filters::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
+    use wmr_core::filters::ukf::{MerweScaledSigmaPoints, UkfModel, UnscentedKalmanFilter};
+    use wmr_core::geometry::{BodyVelocity, DiffDriveGeometry, Pose, Vec2, WheelSpeeds};
+    use wmr_core::math;
+    use wmr_core::odometry::{OdometryStep, WrappingCounter};
+    use wmr_core::pilot::robot::{Robot, RobotTick};
+    use wmr_core::pilot::spec::{DriveSpec, PilotSpec, TagGridSpec, TrackerSpec, TrajectorySpec};
+    use wmr_core::pilot::tracker::TagFix;
+    use wmr_core::pilot::{Measurement, Pilot, PilotOutput};
     use wmr_core::reference::{ReferenceSample, Trajectory};
-    use wmr_core::robot::{Robot, RobotTick};
     use wmr_core::slip_tracking::{PoseModel, PoseWheelModel, TrackedRobot};
-    use wmr_core::spec::{DriveSpec, PilotSpec, TagGridSpec, TrackerSpec, TrajectorySpec};
-    use wmr_core::tracking::{TrackingCommand, TrackingController, TrackingGains};
-    use wmr_core::ukf::{MerweScaledSigmaPoints, UkfModel, UnscentedKalmanFilter};
     use wmr_link::TickInput;
     use wmr_link::proxy::{ProxyBus, Side};
     use wmr_link::session::ProxyRobot;
@@ -147,8 +147,8 @@ mod on_target {
                 fix_timeout_ticks: 100,
                 failsafe_decel_m_s2: 0.5,
                 max_fix_age_ticks: 2,
-                estimator: wmr_core::spec::EstimatorSpec::Paper001,
-                law: wmr_core::spec::LawSpec::Paper001,
+                estimator: wmr_core::pilot::spec::EstimatorSpec::Paper001,
+                law: wmr_core::pilot::spec::LawSpec::Paper001,
             },
             drive: DriveSpec {
                 wheel_radius_m: 0.03,
@@ -540,7 +540,7 @@ mod on_target {
     /// `P0 = 10 I` (EKF; the particle filter's prior).
     const INITIAL_VARIANCE: [f32; 5] = [10.0; 5];
     /// The UKF's `P0`: heading variance 1 rad² (its circular mean turns
-    /// around above ~2 rad², `wmr_core::ukf` docs).
+    /// around above ~2 rad², `wmr_core::filters::ukf` docs).
     const UKF_INITIAL_VARIANCE: [f32; 5] = [10.0, 10.0, 1.0, 10.0, 10.0];
     /// Particles (paper 004).
     const PARTICLES: usize = 100;

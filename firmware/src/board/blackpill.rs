@@ -128,11 +128,11 @@ use stm32f4xx_hal::serial::config::StopBits;
 use stm32f4xx_hal::timer::{self, CounterUs, PwmChannel};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 use wmr_core::devices::{MotorDriver, MotorWiring, RfidReader};
-use wmr_core::heading_observer::HeadingObserverConfig;
-use wmr_core::output_feedback::{TrackerConfig, TrackerMode};
+use wmr_core::estimation::heading_observer::HeadingObserverConfig;
+use wmr_core::pilot::robot::{Robot, RobotTick};
+use wmr_core::pilot::spec::{DriveSpec, PilotSpec, SpecError, TrackerSpec, TrajectorySpec};
+use wmr_core::pilot::tracker::{TrackerConfig, TrackerMode};
 use wmr_core::pilot::{Pilot, PilotConfig};
-use wmr_core::robot::{Robot, RobotTick};
-use wmr_core::spec::{DriveSpec, PilotSpec, SpecError, TrackerSpec, TrajectorySpec};
 
 use devices::{Encoder, LineErrors, RfidPump, RfidUart};
 use tags::{FlashTagTable, SITE_TAGS};
@@ -157,8 +157,8 @@ pub const PILOT: PilotSpec = PilotSpec {
         fix_timeout_ticks: 50,
         failsafe_decel_m_s2: TrackerConfig::DEFAULT_FAILSAFE_DECEL_M_S2,
         max_fix_age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
-        estimator: wmr_core::spec::EstimatorSpec::Paper001,
-        law: wmr_core::spec::LawSpec::Paper001,
+        estimator: wmr_core::pilot::spec::EstimatorSpec::Paper001,
+        law: wmr_core::pilot::spec::LawSpec::Paper001,
     },
     drive: DriveSpec {
         wheel_radius_m: 0.03,

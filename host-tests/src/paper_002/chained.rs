@@ -15,9 +15,9 @@ use wmr_core::chained_form::{
     ChainedGains, ChainedInput, ChainedObserver, ChainedObserverConfig, ChainedOutput,
     ChainedReference, ChainedState, ChainedStateFeedback, ReducedOrderConfig, ReducedOrderTracker,
 };
+use wmr_core::control::robot_frame::UnicycleReference;
 use wmr_core::geometry::{BodyVelocity, Pose};
 use wmr_core::reference::{FigureEight, Trajectory};
-use wmr_core::robot_frame::UnicycleReference;
 
 /// Step of the section 2 simulations, s (the paper does not state its own).
 pub const STEP_S: f64 = 0.001;

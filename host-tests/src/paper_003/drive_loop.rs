@@ -6,10 +6,10 @@
 //! the load and the damping.
 
 use firmware_sim::plant::{DiffDriveParams, DiffDrivePlant, LoadTorque, PlantPose, WheelDynamics};
+use wmr_core::drive::momenta_observer::WheelInertia;
+use wmr_core::drive::speed_observer::WheelSpeedObserverConfig;
 use wmr_core::drive::{Drive, DriveConfig, SpeedLoopGains};
 use wmr_core::geometry::{BodyVelocity, DiffDriveGeometry, WheelSpeeds};
-use wmr_core::momenta_observer::WheelInertia;
-use wmr_core::wheel_speed_observer::WheelSpeedObserverConfig;
 
 use crate::paper_002::Series;
 

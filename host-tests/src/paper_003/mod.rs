@@ -12,7 +12,7 @@
 //!   the Cholesky factor of its inverse inertia.
 
 use nalgebra::{Matrix3, Vector3};
-use wmr_core::momenta_observer::{
+use wmr_core::drive::momenta_observer::{
     Matrix, MechanicalModel, MomentaObserver, MomentaObserverConfig, Vector, WheelInertia,
 };
 

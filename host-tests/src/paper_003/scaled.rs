@@ -10,7 +10,7 @@
 //! `p = Tᵀ M q̇ = T⁻¹ q̇`.
 
 use nalgebra::Vector3;
-use wmr_core::momenta_observer::{Matrix, Vector};
+use wmr_core::drive::momenta_observer::{Matrix, Vector};
 use wmr_core::scaled_momenta_observer::{
     InertiaFactor, InertiaModel, ScaledMomentaObserver, ScaledMomentaObserverConfig,
 };

@@ -7,8 +7,8 @@
 //! The gate, the counters, re-localisation and heading resets are
 //! [`PoseFilter`]'s, around a filter core ([`PoseFilterCore`]): this
 //! module's EKF ([`EkfCore`], [`PoseEkf`]), paper 004's UKF
-//! ([`crate::pose_ukf`]) or its particle filter
-//! ([`crate::pose_particle_filter`]), which share the state, the odometry
+//! ([`crate::estimation::fusion::ukf`]) or its particle filter
+//! ([`crate::estimation::fusion::particle`]), which share the state, the odometry
 //! noise model and the measurements described here. [`FusionEstimator`]
 //! runs the one [`FusionSettings::with_filter`] chooses.
 //!
@@ -72,10 +72,13 @@
 //! or update whose result is not finite (or whose `S` cannot be inverted)
 //! leaves the state unchanged and is counted.
 
+pub mod particle;
+pub mod ukf;
+
 use nalgebra::{Matrix2, Matrix3x2, SMatrix, SVector, Vector2};
 
+use crate::estimation::heading_observer::HeadingObserver;
 use crate::geometry::{Pose, Vec2};
-use crate::heading_observer::HeadingObserver;
 
 /// The filter's state size: `(x, y, θ, ε_R, ε_L)`.
 const STATES: usize = 5;
@@ -197,7 +200,7 @@ impl PoseFilterConfig {
     }
 
     /// The seed of the particle filter's generator
-    /// ([`crate::pose_particle_filter`]; default 1; the EKF and UKF draw
+    /// ([`crate::estimation::fusion::particle`]; default 1; the EKF and UKF draw
     /// nothing).
     #[must_use]
     pub fn with_particle_seed(self, seed: u64) -> Self {
@@ -386,7 +389,7 @@ pub trait PoseFilterCore: Sized {
 
 /// A pose filter on odometry and position fixes (module docs): the filter
 /// `Core` ([`EkfCore`], or the UKF and particle filter of
-/// [`crate::pose_ukf`] and [`crate::pose_particle_filter`]) behind the
+/// [`crate::estimation::fusion::ukf`] and [`crate::estimation::fusion::particle`]) behind the
 /// Mahalanobis gate, with re-localisation and counters.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PoseFilter<Core> {
@@ -1103,11 +1106,11 @@ pub enum FusionFilter {
     /// The EKF of this module.
     #[default]
     Ekf,
-    /// The UKF ([`crate::pose_ukf`]).
+    /// The UKF ([`crate::estimation::fusion::ukf`]).
     #[cfg(feature = "fusion-ukf")]
     Ukf,
-    /// The particle filter ([`crate::pose_particle_filter`]) with
-    /// [`crate::pose_particle_filter::FUSION_PARTICLES`] particles; its
+    /// The particle filter ([`crate::estimation::fusion::particle`]) with
+    /// [`crate::estimation::fusion::particle::FUSION_PARTICLES`] particles; its
     /// generator is seeded with the filter configuration's
     /// [`PoseFilterConfig::particle_seed`].
     #[cfg(feature = "fusion-particle-filter")]
@@ -1473,10 +1476,10 @@ pub enum RunningFilter {
     Ekf(PoseEkf),
     /// The UKF.
     #[cfg(feature = "fusion-ukf")]
-    Ukf(crate::pose_ukf::PoseUkf),
+    Ukf(crate::estimation::fusion::ukf::PoseUkf),
     /// The particle filter.
     #[cfg(feature = "fusion-particle-filter")]
-    ParticleFilter(crate::pose_particle_filter::PoseParticleFilter),
+    ParticleFilter(crate::estimation::fusion::particle::PoseParticleFilter),
 }
 
 /// `$body` with `$f` bound to the running [`PoseFilter`], whatever its core.

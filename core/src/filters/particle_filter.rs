@@ -123,7 +123,7 @@
 //! # Example
 //! ```
 //! use nalgebra::Vector1;
-//! use wmr_core::particle_filter::{
+//! use wmr_core::filters::particle_filter::{
 //!     ParticleFilter, ParticleFilterConfig, ParticleFilterError, ParticleModel,
 //! };
 //!

@@ -1,13 +1,13 @@
 //! The fusion estimator's pose filter as an unscented Kalman filter: the
 //! state, odometry noise model, tag measurements, gate and re-localisation
-//! of [`crate::pose_ekf`] (whose module docs this follows), with the
-//! prediction done by paper 004's UKF ([`crate::ukf`]) instead of the
+//! of [`crate::estimation::fusion`] (whose module docs this follows), with the
+//! prediction done by paper 004's UKF ([`crate::filters::ukf`]) instead of the
 //! EKF's linearisation.
 //!
 //! # Prediction
 //! The 11 Merwe sigma points of `(x, y, θ, ε_R, ε_L)` are each moved along
 //! the exact arc of their own wheel travels `(1 + ε) s` (as the EKF's
-//! mean, [`crate::pose_ekf`], "Prediction"); their weighted mean (circular
+//! mean, [`crate::estimation::fusion`], "Prediction"); their weighted mean (circular
 //! for `θ`) and covariance plus `Q` are the prior. `Q = G Σ Gᵀ` (the wheel
 //! travel noise mapped into the pose at the current mean, and the scale
 //! errors' random walk) is the EKF's, set before each step
@@ -30,7 +30,7 @@
 //! scales the heading's row and column of `P` together, which keeps `P`
 //! positive definite and the heading's correlations. An unknown heading
 //! (uniform on the circle, σ = 1.81 rad) is then claimed a little tighter
-//! than it is: the gate and re-localisation of [`crate::pose_ekf`], and
+//! than it is: the gate and re-localisation of [`crate::estimation::fusion`], and
 //! the fusion estimator's guide, deal with the wrong locks this allows.
 
 //! # Correction
@@ -43,7 +43,7 @@
 //! 1.0e-6 m²), so the filter fell behind its fixes. A fix is linear in the
 //! state (`H` selects `x`, `y` or both), so the innovation covariance of
 //! the points is exactly `H P Hᵀ + R`: the Mahalanobis gate of
-//! [`crate::pose_ekf`] applies unchanged. A 2-D fix is the UKF's
+//! [`crate::estimation::fusion`] applies unchanged. A 2-D fix is the UKF's
 //! `update(z, R)`; a 1-D one updates the measured component alone
 //! ([`UnscentedKalmanFilter::update_component`]).
 //!
@@ -65,16 +65,16 @@
 
 use nalgebra::{Matrix2, SMatrix, SVector, Vector2};
 
-use crate::math;
-use crate::odometry::OdometryStep;
-use crate::pose_ekf::{
+use crate::estimation::fusion::{
     PoseCovariance, PoseFilter, PoseFilterConfig, PoseFilterCore, PoseState, PositionMeasurement,
     linearise_odometry, odometry_transition,
 };
-use crate::ukf::{
+use crate::filters::ukf::{
     MerweScaledSigmaPoints, UkfModel, UnscentedKalmanFilter, residual_with_angles,
     unscented_mean_with_angles,
 };
+use crate::math;
+use crate::odometry::OdometryStep;
 
 /// Sigma-point spread `α` (module docs).
 pub const SIGMA_POINT_ALPHA: f32 = 1.0;
@@ -248,9 +248,9 @@ impl PoseFilterCore for UkfCore {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimation::fusion::test_support::stays_finite;
+    use crate::estimation::fusion::{FixOutcome, PoseEkf};
     use crate::geometry::Pose;
-    use crate::pose_ekf::test_support::stays_finite;
-    use crate::pose_ekf::{FixOutcome, PoseEkf};
     use proptest::prelude::*;
 
     fn config() -> PoseFilterConfig {
@@ -299,7 +299,7 @@ mod tests {
         assert_eq!(ukf.counters().rejected_predictions, 0);
         assert_eq!(
             ukf.core().filter().counters(),
-            crate::ukf::UkfCounters::default()
+            crate::filters::ukf::UkfCounters::default()
         );
     }
 

@@ -43,8 +43,8 @@
 //! is continuous again once `|u|` grows. Every output is finite for finite
 //! input (no division by `v` below that threshold).
 
+use crate::estimation::heading_observer::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Pose, Vec2};
-use crate::heading_observer::HeadingEstimate;
 use crate::math;
 use crate::reference::{ReferenceSample, SpeedBounds};
 

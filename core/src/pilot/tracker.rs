@@ -11,11 +11,11 @@
 //!   fed the position (fix or dead-reckoned) instead of its change;
 //! * estimator: `TrackerConfig::with_fusion` (cargo feature
 //!   `fusion-ekf`), the encoder + tag fusion estimator
-//!   ([`crate::pose_ekf`]), which predicts with the odometry and corrects
+//!   ([`crate::estimation::fusion`]), which predicts with the odometry and corrects
 //!   with the fixes itself: its pose is the law's position and heading,
 //!   between fixes too. Its filter is the EKF, or paper 004's UKF
-//!   ([`crate::pose_ukf`], feature `fusion-ukf`) or particle filter
-//!   ([`crate::pose_particle_filter`], feature `fusion-particle-filter`),
+//!   ([`crate::estimation::fusion::ukf`], feature `fusion-ukf`) or particle filter
+//!   ([`crate::estimation::fusion::particle`], feature `fusion-particle-filter`),
 //!   chosen by `FusionSettings::with_filter`;
 //! * law: [`TrackerConfig::with_cascaded_law`], the cascaded controller
 //!   (31), or [`TrackerConfig::with_heading_error_sine_law`], the observer
@@ -63,19 +63,20 @@
 //! configuration and finite measurements do not produce) is replaced by
 //! zero and counted.
 
-use crate::geometry::{BodyVelocity, Pose, Vec2};
-use crate::heading_observer::{
+use crate::control::cascaded::{CascadedController, CascadedGains};
+use crate::control::heading_error_sine::{HeadingErrorSineConfig, HeadingErrorSineTracker};
+use crate::control::robot_frame::{RobotFrameError, UnicycleReference};
+use crate::control::saturated::{GainBound, TrackingCommand, TrackingController, TrackingGains};
+#[cfg(feature = "fusion-ekf")]
+use crate::estimation::fusion::{FusionEstimator, FusionSettings};
+use crate::estimation::heading_observer::{
     HeadingEstimate, HeadingObserver, HeadingObserverConfig, ObserverConfigError,
 };
+use crate::estimation::pose_observer::{PoseEstimate, PoseObserver, PoseObserverConfig};
+use crate::geometry::{BodyVelocity, Pose, Vec2};
 use crate::math;
 use crate::odometry::OdometryStep;
-#[cfg(feature = "fusion-ekf")]
-use crate::pose_ekf::{FusionEstimator, FusionSettings};
-use crate::pose_observer::{PoseEstimate, PoseObserver, PoseObserverConfig};
 use crate::reference::{ReferenceError, ReferenceSample, TickClock, Trajectory};
-use crate::robot_frame::{CascadedController, CascadedGains, RobotFrameError, UnicycleReference};
-use crate::robot_frame_observers::{HeadingErrorSineConfig, HeadingErrorSineTracker};
-use crate::tracking::{GainBound, TrackingCommand, TrackingController, TrackingGains};
 
 /// Why a [`TrackerConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -130,7 +131,7 @@ pub enum EstimatorChoice {
     Paper001,
     /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`.
     PoseObserver(PoseObserverConfig),
-    /// The encoder + tag fusion estimator ([`crate::pose_ekf`]) on the
+    /// The encoder + tag fusion estimator ([`crate::estimation::fusion`]) on the
     /// filter its settings choose: its pose replaces both the position and
     /// the heading estimate (cargo feature `fusion-ekf`).
     #[cfg(feature = "fusion-ekf")]
@@ -920,14 +921,16 @@ mod tests {
 
     /// The fusion filter of the tests: 20 cm track, 1e-3 m²/m, 3σ gate.
     #[cfg(feature = "fusion-ekf")]
-    fn fusion_filter() -> crate::pose_ekf::PoseFilterConfig {
-        crate::pose_ekf::PoseFilterConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap()
+    fn fusion_filter() -> crate::estimation::fusion::PoseFilterConfig {
+        crate::estimation::fusion::PoseFilterConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap()
     }
 
     /// A tracker on the fusion estimator `settings`, following the line
     /// through the origin at 0.5 rad, 0.2 m/s, h = 10 ms, fix timeout 50.
     #[cfg(feature = "fusion-ekf")]
-    fn fusion_tracker(settings: crate::pose_ekf::FusionSettings) -> OutputFeedbackTracker {
+    fn fusion_tracker(
+        settings: crate::estimation::fusion::FusionSettings,
+    ) -> OutputFeedbackTracker {
         let h = 0.01;
         let line = StraightLine::new(Vec2::ZERO, 0.5, 0.2).unwrap();
         let cfg = TrackerConfig::new(
@@ -949,7 +952,7 @@ mod tests {
     #[cfg(feature = "fusion-ekf")]
     #[test]
     fn fusion_ekf_estimator_tracks_a_line_from_tag_fixes() {
-        use crate::pose_ekf::FusionSettings;
+        use crate::estimation::fusion::FusionSettings;
         let h = 0.01;
         let mut t = fusion_tracker(FusionSettings::new(fusion_filter(), 0.1, 0.0).unwrap());
         let mut robot = Pose::new(-0.3, 0.4, 2.0);
@@ -994,14 +997,14 @@ mod tests {
     #[cfg(feature = "fusion-ekf")]
     #[test]
     fn fusion_failsafe_counts_distance_not_time() {
-        use crate::pose_ekf::FusionSettings;
+        use crate::estimation::fusion::FusionSettings;
         let settings = FusionSettings::new(fusion_filter(), 0.3, 0.0)
             .and_then(|s| s.with_read_radius(0.05))
             .and_then(|s| s.with_max_blind_distance(0.25))
             .unwrap();
         assert_eq!(
             settings.with_max_blind_distance(f32::NAN),
-            Err(crate::pose_ekf::PoseFilterError::BlindDistance)
+            Err(crate::estimation::fusion::PoseFilterError::BlindDistance)
         );
         let mut t = fusion_tracker(settings);
         let fix = TagFix {

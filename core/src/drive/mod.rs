@@ -20,8 +20,11 @@
 //! * With the cargo feature `wheel-speed-observer` and
 //!   `DriveConfig::with_speed_observer`, the speed loops run on the wheel
 //!   speeds of paper 003's momenta observer
-//!   ([`crate::wheel_speed_observer`]) instead of the counts differenced
+//!   ([`crate::drive::speed_observer`]) instead of the counts differenced
 //!   over one tick; it also estimates each wheel's load torque and damping.
+
+pub mod momenta_observer;
+pub mod speed_observer;
 
 use crate::geometry::{BodyVelocity, DiffDriveGeometry, WheelSpeeds};
 use crate::math;
@@ -72,7 +75,7 @@ pub struct DriveConfig {
     max_wheel_accel_rad_s2: f32,
     speed_loop: SpeedLoopGains,
     #[cfg(feature = "wheel-speed-observer")]
-    speed_observer: Option<crate::wheel_speed_observer::WheelSpeedObserverConfig>,
+    speed_observer: Option<crate::drive::speed_observer::WheelSpeedObserverConfig>,
 }
 
 impl DriveConfig {
@@ -118,7 +121,7 @@ impl DriveConfig {
     #[cfg(feature = "wheel-speed-observer")]
     pub fn with_speed_observer(
         self,
-        observer: crate::wheel_speed_observer::WheelSpeedObserverConfig,
+        observer: crate::drive::speed_observer::WheelSpeedObserverConfig,
     ) -> Result<Self, DriveConfigError> {
         let h = observer.period_s();
         if (h - self.period_s).abs() > 1e-6 * self.period_s {
@@ -133,7 +136,9 @@ impl DriveConfig {
     /// The speed observer's configuration, if the speed loops use it.
     #[cfg(feature = "wheel-speed-observer")]
     #[must_use]
-    pub fn speed_observer(&self) -> Option<&crate::wheel_speed_observer::WheelSpeedObserverConfig> {
+    pub fn speed_observer(
+        &self,
+    ) -> Option<&crate::drive::speed_observer::WheelSpeedObserverConfig> {
         self.speed_observer.as_ref()
     }
 
@@ -287,7 +292,7 @@ pub struct Drive {
     left: WheelSpeedLoop,
     right: WheelSpeedLoop,
     #[cfg(feature = "wheel-speed-observer")]
-    speed_observer: Option<crate::wheel_speed_observer::WheelSpeedObserver>,
+    speed_observer: Option<crate::drive::speed_observer::WheelSpeedObserver>,
 }
 
 impl Drive {
@@ -302,14 +307,14 @@ impl Drive {
             #[cfg(feature = "wheel-speed-observer")]
             speed_observer: config
                 .speed_observer
-                .map(crate::wheel_speed_observer::WheelSpeedObserver::new),
+                .map(crate::drive::speed_observer::WheelSpeedObserver::new),
         }
     }
 
     /// The speed observer, if the speed loops use it.
     #[cfg(feature = "wheel-speed-observer")]
     #[must_use]
-    pub fn speed_observer(&self) -> Option<&crate::wheel_speed_observer::WheelSpeedObserver> {
+    pub fn speed_observer(&self) -> Option<&crate::drive::speed_observer::WheelSpeedObserver> {
         self.speed_observer.as_ref()
     }
 

@@ -8,7 +8,7 @@
 //!                      MotorCommand ◄── signed duty ◄── speed loops ◄── limits ◄── wheel speeds ◄── Drive
 //! ```
 //!
-//! The `Pilot` is pure logic: it never touches a device. [`crate::robot::Robot`]
+//! The `Pilot` is pure logic: it never touches a device. [`crate::pilot::robot::Robot`]
 //! reads the devices into a [`Measurement`], calls [`Pilot::step`] and writes
 //! the [`PilotOutput`]'s motor commands; the simulator and the firmware use
 //! the same path.
@@ -24,10 +24,14 @@
 //! when a wheel moved more than twice the drive's maximum wheel speed
 //! allows; its counter origin is then dropped and re-taken.
 
+pub mod robot;
+pub mod spec;
+pub mod tracker;
+
 use crate::devices::MotorCommand;
 use crate::drive::{Drive, DriveConfig, DriveOutput};
 use crate::odometry::{CounterError, OdometryStep, WrappingCounter};
-use crate::output_feedback::{OutputFeedbackTracker, TagFix, TrackerConfig, TrackerOutput};
+use crate::pilot::tracker::{OutputFeedbackTracker, TagFix, TrackerConfig, TrackerOutput};
 
 /// Why a [`PilotConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -272,11 +276,11 @@ impl Pilot {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::control::saturated::TrackingGains;
     use crate::drive::SpeedLoopGains;
+    use crate::estimation::heading_observer::HeadingObserverConfig;
     use crate::geometry::{DiffDriveGeometry, Vec2};
-    use crate::heading_observer::HeadingObserverConfig;
     use crate::reference::StraightLine;
-    use crate::tracking::TrackingGains;
 
     fn pilot() -> Pilot {
         let h = 0.01;

@@ -1,7 +1,7 @@
 //! The fusion estimator's pose filter as a particle filter: the state,
 //! odometry noise model, tag measurements, gate and re-localisation of
-//! [`crate::pose_ekf`] (whose module docs this follows), on paper 004's
-//! particle filter ([`crate::particle_filter`]).
+//! [`crate::estimation::fusion`] (whose module docs this follows), on paper 004's
+//! particle filter ([`crate::filters::particle_filter`]).
 //!
 //! # Prediction
 //! Each particle `(x, y, θ, ε_R, ε_L)` drives its own wheel travels
@@ -17,7 +17,7 @@
 //! own variance ([`ParticleFilter::update_with_std`]; an axis fix leaves
 //! the other axis unmeasured, `σ = ∞`; a fix with correlated noise,
 //! [`PositionMeasurement::Ellipse`], is taken with its marginal variances,
-//! the correlation dropped). The gate of [`crate::pose_ekf`]
+//! the correlation dropped). The gate of [`crate::estimation::fusion`]
 //! runs first on the particles' weighted mean and covariance: the
 //! predictive distribution of a linear measurement has exactly that mean
 //! and `H P Hᵀ + R`, so the chi-square thresholds mean what they say for
@@ -39,13 +39,13 @@
 
 use nalgebra::{SVector, Vector2};
 
-use crate::math;
-use crate::odometry::OdometryStep;
-use crate::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
-use crate::pose_ekf::{
+use crate::estimation::fusion::{
     PoseCovariance, PoseFilter, PoseFilterConfig, PoseFilterCore, PoseState, PositionMeasurement,
     drive_wheels, odometry_transition, scale_walk_variance, wheel_travels, wheel_variance,
 };
+use crate::filters::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
+use crate::math;
+use crate::odometry::OdometryStep;
 
 /// Particles of the tracker's particle-filter estimator.
 pub const FUSION_PARTICLES: usize = 100;
@@ -194,9 +194,9 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimation::fusion::FixOutcome;
+    use crate::estimation::fusion::test_support::stays_finite;
     use crate::geometry::Pose;
-    use crate::pose_ekf::FixOutcome;
-    use crate::pose_ekf::test_support::stays_finite;
     use proptest::prelude::*;
 
     fn config(seed: u64) -> PoseFilterConfig {

@@ -44,8 +44,8 @@
 //! The estimate is `(ĉ, ŝ)`, not an angle: no wrapping. `θ̂ = atan2(ŝ, ĉ)`
 //! in [−π, π] when needed (the paper suggests `arctan(ŝ/ĉ)`).
 
+use crate::estimation::heading_observer::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
-use crate::heading_observer::HeadingEstimate;
 use crate::math;
 
 /// Why a [`PoseObserverConfig`] was refused.

@@ -4,7 +4,7 @@
 //! (50) (Proposition 6, (49)–(50)); of `ψ = sin θ_e` from `x_e, y_e` with
 //! the output-feedback controller (64) (Proposition 7, (58)–(66)).
 //!
-//! The errors and their dynamics (30) are in [`crate::robot_frame`]. Each
+//! The errors and their dynamics (30) are in [`crate::control::robot_frame`]. Each
 //! observer is given, every step, the measured errors at the step's end,
 //! the `(v, ω)` the robot drove over the step and the reference at the
 //! step's start; it remembers the previous measurement itself.
@@ -48,13 +48,13 @@
 //! sign of `−a v_r² ẑ` (the text before (66) uses them).
 //!
 //! # Angle convention
-//! `θ_e` as in [`crate::robot_frame::RobotFrameError`]: wrapped to (−π, π].
+//! `θ_e` as in [`crate::control::robot_frame::RobotFrameError`]: wrapped to (−π, π].
 //! Proposition 7 needs `|θ_e(0)| < π` (the Lyapunov function (62) is
 //! `1 − cos θ_e`), which the wrapping gives except exactly at π.
 
+use crate::control::robot_frame::{RobotFrameError, UnicycleReference};
 use crate::geometry::BodyVelocity;
 use crate::math;
-use crate::robot_frame::{RobotFrameError, UnicycleReference};
 
 /// Why an observer or controller configuration of this module was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -406,8 +406,8 @@ impl HeadingErrorSineTracker {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::control::cascaded::{CascadedController, CascadedGains};
     use crate::geometry::{Pose, Vec2};
-    use crate::robot_frame::{CascadedController, CascadedGains};
     use proptest::prelude::*;
 
     /// A reference unicycle with constant inputs, integrated exactly.

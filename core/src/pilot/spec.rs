@@ -14,20 +14,20 @@
 //! simulator and the firmware build bit-identical configurations from the
 //! same spec.
 
+use crate::control::cascaded::{CascadedGains, CascadedGainsError};
+use crate::control::heading_error_sine::{HeadingErrorSineConfig, RobotFrameObserverError};
+use crate::control::saturated::{GainError, TrackingGains};
 use crate::devices::{TagGrid, TagGridError};
 use crate::drive::{DriveConfig, DriveConfigError, SpeedLoopGains};
-use crate::geometry::{DiffDriveGeometry, GeometryError, Vec2};
-use crate::heading_observer::{HeadingObserverConfig, ObserverConfigError};
-use crate::output_feedback::{TrackerConfig, TrackerConfigError};
-use crate::pilot::{PilotConfig, PilotConfigError};
-use crate::pose_ekf::PoseFilterError;
+use crate::estimation::fusion::PoseFilterError;
 #[cfg(feature = "fusion-ekf")]
-use crate::pose_ekf::{FusionFilter, FusionSettings, PoseFilterConfig};
-use crate::pose_observer::{PoseObserverConfig, PoseObserverConfigError};
+use crate::estimation::fusion::{FusionFilter, FusionSettings, PoseFilterConfig};
+use crate::estimation::heading_observer::{HeadingObserverConfig, ObserverConfigError};
+use crate::estimation::pose_observer::{PoseObserverConfig, PoseObserverConfigError};
+use crate::geometry::{DiffDriveGeometry, GeometryError, Vec2};
+use crate::pilot::tracker::{TrackerConfig, TrackerConfigError};
+use crate::pilot::{PilotConfig, PilotConfigError};
 use crate::reference::{Circle, FigureEight, ReferenceError, StraightLine, Trajectory};
-use crate::robot_frame::{CascadedGains, CascadedGainsError};
-use crate::robot_frame_observers::{HeadingErrorSineConfig, RobotFrameObserverError};
-use crate::tracking::{GainError, TrackingGains};
 
 /// Why a spec was refused: the part, and that part's own error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -77,7 +77,7 @@ pub enum EstimatorSpec {
         /// `[a1, a2]` (1/s) and `[a3, a4]` (1/m²) of (37).
         gains: [f32; 4],
     },
-    /// The encoder + tag fusion estimator ([`crate::pose_ekf`]) on the
+    /// The encoder + tag fusion estimator ([`crate::estimation::fusion`]) on the
     /// filter `filter`.
     Fusion {
         /// Which filter.
@@ -113,9 +113,9 @@ pub enum FusionFilterSpec {
     /// The EKF.
     #[default]
     Ekf,
-    /// Paper 004's UKF ([`crate::pose_ukf`]; cargo feature `fusion-ukf`).
+    /// Paper 004's UKF ([`crate::estimation::fusion::ukf`]; cargo feature `fusion-ukf`).
     Ukf,
-    /// Paper 004's particle filter ([`crate::pose_particle_filter`]; cargo
+    /// Paper 004's particle filter ([`crate::estimation::fusion::particle`]; cargo
     /// feature `fusion-particle-filter`).
     ParticleFilter {
         /// The generator's seed.
@@ -470,8 +470,8 @@ mod tests {
                 fix_timeout_ticks: 50,
                 failsafe_decel_m_s2: 0.5,
                 max_fix_age_ticks: 2,
-                estimator: crate::spec::EstimatorSpec::Paper001,
-                law: crate::spec::LawSpec::Paper001,
+                estimator: crate::pilot::spec::EstimatorSpec::Paper001,
+                law: crate::pilot::spec::LawSpec::Paper001,
             },
             drive: DriveSpec {
                 wheel_radius_m: 0.05,
@@ -552,7 +552,7 @@ mod tests {
             edge_constraint: false,
         };
         let expected = if cfg!(feature = "fusion-ekf") {
-            SpecError::Fusion(crate::pose_ekf::PoseFilterError::TagSpacing)
+            SpecError::Fusion(crate::estimation::fusion::PoseFilterError::TagSpacing)
         } else {
             SpecError::NotInThisBuild
         };

@@ -1,5 +1,5 @@
 //! Wheel speeds, load torques and drive-train damping from the encoder
-//! angles: paper 003's Proposition 1 ([`crate::momenta_observer`]) on the
+//! angles: paper 003's Proposition 1 ([`crate::drive::momenta_observer`]) on the
 //! differential drive written in its wheel angles ([`WheelInertia`],
 //! section 6.1), for the drive's speed loops in place of differenced
 //! counts.
@@ -28,11 +28,11 @@
 //! [`REBASE_RAD`], so `f32` keeps the resolution of the increments however
 //! far the robot drives (exact: the inertia is constant).
 
-use crate::geometry::WheelSpeeds;
-use crate::momenta_observer::{
+use crate::drive::momenta_observer::{
     ConstantInertia, MomentaObserver, MomentaObserverConfig, MomentaObserverError, Vector,
     WheelInertia,
 };
+use crate::geometry::WheelSpeeds;
 
 /// The accumulated wheel angle (rad) past which the origin is moved.
 pub const REBASE_RAD: f32 = 1000.0;
@@ -95,7 +95,7 @@ impl WheelSpeedObserverConfig {
     }
 
     /// Other gains: `λ` (1/s), `γ_r`, `γ_d` (module docs of
-    /// [`crate::momenta_observer`]).
+    /// [`crate::drive::momenta_observer`]).
     ///
     /// # Errors
     /// The gain out of range.

@@ -55,7 +55,7 @@
 //! fresh points from `(x⁻, P⁻)` instead, as those later versions do: then
 //! a linear system is the Kalman filter whatever `Q`, which a filter whose
 //! `Q` per step is as large as `R` needs (the fusion estimator's UKF,
-//! [`crate::pose_ukf`]). `K` comes
+//! [`crate::estimation::fusion::ukf`]). `K` comes
 //! from a Cholesky solve with `S` (nalgebra's inverse if `S` is not
 //! positive definite), not from `S⁻¹` as in FilterPy: in `f32`, nalgebra's
 //! closed-form 4 × 4 inverse cost the landmark fixture 3e-4 in `P`. The

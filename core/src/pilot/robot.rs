@@ -16,7 +16,7 @@ use embedded_io::{Read, ReadReady};
 use crate::devices::{
     MotorCommand, MotorDriver, MotorFault, QuadratureCounter, RfidCounters, RfidReader, TagLocator,
 };
-use crate::output_feedback::TagFix;
+use crate::pilot::tracker::TagFix;
 use crate::pilot::{Measurement, Pilot, PilotOutput};
 
 /// A motor that takes [`MotorCommand`]s (implemented by [`MotorDriver`];
