@@ -14,7 +14,6 @@
     )
 )]
 
-pub mod chained_form;
 pub mod control;
 pub mod devices;
 pub mod drive;
@@ -25,5 +24,3 @@ pub mod math;
 pub mod odometry;
 pub mod pilot;
 pub mod reference;
-pub mod scaled_momenta_observer;
-pub mod slip_tracking;

@@ -1,7 +1,7 @@
 //! Paper 004 (Iossaqui, Camino & Zampieri): the tracked robot under
 //! longitudinal slip, tracking a piecewise reference with the adaptive
 //! velocity-based (scenario 1) or torque-based (scenario 2) controller of
-//! `wmr_core::slip_tracking` on the estimates of the core's EKF, UKF or
+//! `wmr_papers::slip_tracking` on the estimates of the core's EKF, UKF or
 //! particle filter, fed with noisy full-state measurements.
 //!
 //! A [`SlipScenario`] (TOML, its own schema: `firmware-sim slip`, not
@@ -29,7 +29,7 @@
 //!   `R = diag(0.1, 0.1, 0.2, 0.01, 0.01)`, drawn from ChaCha8 seeded with
 //!   the scenario's seed (Box–Muller); the noise is drawn even for the
 //!   `exact` estimator, so that a seed gives the same draws whatever runs;
-//! * the reference (3) is `wmr_core::slip_tracking::PiecewiseReference`
+//! * the reference (3) is `wmr_papers::slip_tracking::PiecewiseReference`
 //!   (the paper's four segments: `v_r` 0.5 m/s until 51 s then 0.7, `ω_r`
 //!   0 until 15 s, −0.4 rad/s until 33 s, +0.4 until 51 s, then 0);
 //! * `h = 5 ms`, 60 s; the controllers and filters are the core's (`f32`).
@@ -80,7 +80,7 @@ use wmr_core::filters::particle_filter::{
 };
 use wmr_core::filters::ukf::{MerweScaledSigmaPoints, UkfError, UnscentedKalmanFilter};
 use wmr_core::geometry::{BodyVelocity, Pose, WheelSpeeds};
-use wmr_core::slip_tracking::{
+use wmr_papers::slip_tracking::{
     AdaptiveTorqueController, AdaptiveVelocityController, P_MAX, PiecewiseReference, PoseModel,
     PoseWheelModel, ReferenceSegment, ReferenceState, SlipGains, SlipTrackingError, TrackedRobot,
     tracking_error,

@@ -15,7 +15,7 @@
 //! same spec.
 
 use crate::control::cascaded::{CascadedGains, CascadedGainsError};
-use crate::control::heading_error_sine::{HeadingErrorSineConfig, RobotFrameObserverError};
+use crate::control::heading_error_sine::{HeadingErrorSineConfig, HeadingErrorSineConfigError};
 use crate::control::saturated::{GainError, TrackingGains};
 use crate::devices::{TagGrid, TagGridError};
 use crate::drive::{DriveConfig, DriveConfigError, SpeedLoopGains};
@@ -61,7 +61,7 @@ pub enum SpecError {
     /// Paper 002's cascaded controller (31).
     CascadedLaw(CascadedGainsError),
     /// Paper 002's Proposition 7 observer and controller.
-    HeadingErrorSineLaw(RobotFrameObserverError),
+    HeadingErrorSineLaw(HeadingErrorSineConfigError),
 }
 
 /// The tracker's heading estimator.

@@ -95,10 +95,10 @@ mod on_target {
     use wmr_core::pilot::tracker::TagFix;
     use wmr_core::pilot::{Measurement, Pilot, PilotOutput};
     use wmr_core::reference::{ReferenceSample, Trajectory};
-    use wmr_core::slip_tracking::{PoseModel, PoseWheelModel, TrackedRobot};
     use wmr_link::TickInput;
     use wmr_link::proxy::{ProxyBus, Side};
     use wmr_link::session::ProxyRobot;
+    use wmr_papers::slip_tracking::{PoseModel, PoseWheelModel, TrackedRobot};
 
     /// Math backend this binary was built with.
     const BACKEND: &str = if cfg!(feature = "micromath") {

@@ -11,13 +11,13 @@
 
 use super::unicycle::{ErrorStats, PAPER_001_START, TrackingRecorder, nearest_tag};
 use super::{Figure, Series};
-use wmr_core::chained_form::{
-    ChainedGains, ChainedInput, ChainedObserver, ChainedObserverConfig, ChainedOutput,
-    ChainedReference, ChainedState, ChainedStateFeedback, ReducedOrderConfig, ReducedOrderTracker,
-};
 use wmr_core::control::robot_frame::UnicycleReference;
 use wmr_core::geometry::{BodyVelocity, Pose};
 use wmr_core::reference::{FigureEight, Trajectory};
+use wmr_papers::chained_form::{
+    ChainedGains, ChainedInput, ChainedObserver, ChainedObserverConfig, ChainedOutput,
+    ChainedReference, ChainedState, ChainedStateFeedback, ReducedOrderConfig, ReducedOrderTracker,
+};
 
 /// Step of the section 2 simulations, s (the paper does not state its own).
 pub const STEP_S: f64 = 0.001;

@@ -10,10 +10,7 @@
 
 use super::{Figure, Series};
 use wmr_core::control::cascaded::{CascadedController, CascadedGains};
-use wmr_core::control::heading_error_sine::{
-    HeadingErrorSineConfig, HeadingErrorSineTracker, LateralErrorObserver,
-    LongitudinalErrorObserver,
-};
+use wmr_core::control::heading_error_sine::{HeadingErrorSineConfig, HeadingErrorSineTracker};
 use wmr_core::control::robot_frame::{RobotFrameError, UnicycleReference};
 use wmr_core::control::saturated::{TrackingController, TrackingGains};
 use wmr_core::estimation::heading_observer::{HeadingObserver, HeadingObserverConfig};
@@ -22,6 +19,7 @@ use wmr_core::geometry::{BodyVelocity, Vec2};
 use wmr_core::odometry::OdometryStep;
 use wmr_core::pilot::tracker::{OutputFeedbackTracker, TagFix, TrackerConfig};
 use wmr_core::reference::{FigureEight, Trajectory};
+use wmr_papers::robot_frame_observers::{LateralErrorObserver, LongitudinalErrorObserver};
 
 /// Step of the section 3 simulations, s (the paper does not state its own).
 pub const STEP_S: f64 = 0.001;

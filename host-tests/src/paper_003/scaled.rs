@@ -11,7 +11,7 @@
 
 use nalgebra::Vector3;
 use wmr_core::drive::momenta_observer::{Matrix, Vector};
-use wmr_core::scaled_momenta_observer::{
+use wmr_papers::scaled_momenta_observer::{
     InertiaFactor, InertiaModel, ScaledMomentaObserver, ScaledMomentaObserverConfig,
 };
 

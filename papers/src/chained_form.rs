@@ -63,7 +63,7 @@
 //!   observer, so the `−c2` terms of (26b) cancel against it and the error
 //!   obeys `x̃̇2e = −a1 u1² x̃2e`, not `−(a1 u1² + c2) x̃2e` as printed after
 //!   (24) and in (29b) (the same slip as Proposition 6, see
-//!   [`crate::control::heading_error_sine`]). `x̃2e` converges exponentially when
+//!   [`wmr_core::control::heading_error_sine`]). `x̃2e` converges exponentially when
 //!   `u1` is persistently exciting, which the proposition assumes of `u1r`
 //!   (and `u1 → u1r`), so its conclusion stands.
 //!
@@ -95,9 +95,9 @@
 //! reference or estimate commands [`ChainedInput::STOP`] (`u = 0`, which is
 //! `v = ω = 0`).
 
-use crate::control::robot_frame::UnicycleReference;
-use crate::geometry::{BodyVelocity, Pose, Vec2};
-use crate::math;
+use wmr_core::control::robot_frame::UnicycleReference;
+use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
+use wmr_core::math;
 
 /// Why a gain or step of this module was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

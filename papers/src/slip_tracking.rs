@@ -48,16 +48,16 @@
 //! (scenario 2: `(X, Y, ψ, ω_L, ω_R)`, wheel speeds constant over a step),
 //! both driven by the auxiliary `(v, ω)` of (6), first-order (Euler)
 //! discretisations with the full state measured. They implement
-//! [`crate::filters::ekf::EkfModel`], [`crate::filters::particle_filter::ParticleModel`] and
+//! [`wmr_core::filters::ekf::EkfModel`], [`wmr_core::filters::particle_filter::ParticleModel`] and
 //! the UKF's model trait.
 
 use nalgebra::{Matrix2, SMatrix, SVector, Vector2};
 
-use crate::filters::ekf::EkfModel;
-use crate::filters::particle_filter::ParticleModel;
-use crate::filters::ukf::{UkfModel, residual_with_angles, unscented_mean_with_angles};
-use crate::geometry::{BodyVelocity, Pose, Vec2, WheelSpeeds};
-use crate::math;
+use wmr_core::filters::ekf::EkfModel;
+use wmr_core::filters::particle_filter::ParticleModel;
+use wmr_core::filters::ukf::{UkfModel, residual_with_angles, unscented_mean_with_angles};
+use wmr_core::geometry::{BodyVelocity, Pose, Vec2, WheelSpeeds};
+use wmr_core::math;
 
 /// Largest slip factor the adaptation may reach (`i = 0.95`).
 pub const P_MAX: f32 = 20.0;

@@ -3,7 +3,7 @@
 //! for a *general* mechanical system, any inertia matrix `M(q)`, with known
 //! friction and unknown constant disturbances `d`.
 //!
-//! Where [`crate::drive::momenta_observer`] (Proposition 1) needs a factor of
+//! Where [`wmr_core::drive::momenta_observer`] (Proposition 1) needs a factor of
 //! `M⁻¹` with commuting columns and its flat coordinates `Q(q)` (a PDE
 //! solved by hand), this observer takes only `M(q)` and its partial
 //! derivatives ([`InertiaModel`]) and factors `M⁻¹ = T Tᵀ` itself with the
@@ -64,7 +64,7 @@
 //!   2-norm the proof uses: each inequality of the proof still holds;
 //! * (34) prints `T(q)ᵀ(q)∇V` and `v` for `Tᵀ∇V` and `TᵀGu`;
 //! * (47) is written for `d_P = q/r²`; with an adaptation gain `γ_d` (the
-//!   weight `1/γ_d` on `|d̃|²` in `V`, as in [`crate::drive::momenta_observer`])
+//!   weight `1/γ_d` on `|d̃|²` in `V`, as in [`wmr_core::drive::momenta_observer`])
 //!   the cross term cancels for `d_P = γ_d q/r²` (paper: `γ_d = 1`).
 //!
 //! # Discretization: innovation form
@@ -100,8 +100,8 @@
 
 use nalgebra::Cholesky;
 
-use crate::drive::momenta_observer::{Matrix, MomentaObserverError, Vector};
-use crate::math;
+use wmr_core::drive::momenta_observer::{Matrix, MomentaObserverError, Vector};
+use wmr_core::math;
 
 /// A mechanical system (1)–(2) with a configuration-dependent inertia
 /// matrix and known friction, as Proposition 2 needs it.
