@@ -39,8 +39,11 @@
 
 use nalgebra::{SVector, Vector2};
 
-use crate::estimation::fusion::{
-    PoseCovariance, PoseFilter, PoseFilterConfig, PoseFilterCore, PoseState, PositionMeasurement,
+use crate::estimation::fusion::config::PoseFilterConfig;
+use crate::estimation::fusion::gate::{
+    PoseCovariance, PoseFilter, PoseFilterCore, PoseState, PositionMeasurement,
+};
+use crate::estimation::fusion::odometry_noise::{
     drive_wheels, odometry_transition, scale_walk_variance, wheel_travels, wheel_variance,
 };
 use crate::filters::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};

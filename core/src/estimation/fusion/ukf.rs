@@ -65,10 +65,11 @@
 
 use nalgebra::{Matrix2, SMatrix, SVector, Vector2};
 
-use crate::estimation::fusion::{
-    PoseCovariance, PoseFilter, PoseFilterConfig, PoseFilterCore, PoseState, PositionMeasurement,
-    linearise_odometry, odometry_transition,
+use crate::estimation::fusion::config::PoseFilterConfig;
+use crate::estimation::fusion::gate::{
+    PoseCovariance, PoseFilter, PoseFilterCore, PoseState, PositionMeasurement,
 };
+use crate::estimation::fusion::odometry_noise::{linearise_odometry, odometry_transition};
 use crate::filters::ukf::{
     MerweScaledSigmaPoints, UkfModel, UnscentedKalmanFilter, residual_with_angles,
     unscented_mean_with_angles,
