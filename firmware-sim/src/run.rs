@@ -21,15 +21,17 @@ use std::time::Instant;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt as _, SeedableRng as _};
 use serde::Serialize;
+use wmr_core::control::LawChoice;
 use wmr_core::control::saturated::{GainBound, TrackingController};
 use wmr_core::devices::{MotorDriver, MotorWiring, QuadratureCounter, RfidReader, TagLocator};
+use wmr_core::estimation::EstimatorChoice;
 use wmr_core::estimation::fusion::FusionFilter;
 use wmr_core::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
 use wmr_core::odometry::OdometryStep;
 use wmr_core::pilot::robot::{Motor, Robot};
 use wmr_core::pilot::spec::TagGridSpec;
-use wmr_core::pilot::tracker::{EstimatorChoice, LawChoice, TrackerCounters};
+use wmr_core::pilot::tracker::TrackerCounters;
 use wmr_core::pilot::tracker::{OutputFeedbackTracker, TagFix, TrackerMode};
 use wmr_core::pilot::{Measurement, Pilot, PilotConfig, PilotCounters};
 use wmr_core::reference::{TickClock, Trajectory};
@@ -1401,23 +1403,23 @@ impl SetupLabels {
                 setup.tracker.law(),
             ) {
                 (ControllerKind::StateFeedback, ..) => "state_feedback",
-                (_, EstimatorChoice::Paper001, LawChoice::Paper001) => "output_feedback",
-                (_, EstimatorChoice::PoseObserver(_), LawChoice::Paper001) => {
+                (_, EstimatorChoice::HeadingObserver, LawChoice::Saturated) => "output_feedback",
+                (_, EstimatorChoice::PoseObserver(_), LawChoice::Saturated) => {
                     "output_feedback (pose observer, law 001)"
                 }
-                (_, EstimatorChoice::Paper001, LawChoice::Cascaded(_)) => {
+                (_, EstimatorChoice::HeadingObserver, LawChoice::Cascaded(_)) => {
                     "output_feedback (observer 001, cascaded law)"
                 }
                 (_, EstimatorChoice::PoseObserver(_), LawChoice::Cascaded(_)) => {
                     "output_feedback (pose observer, cascaded law)"
                 }
-                (_, EstimatorChoice::Paper001, LawChoice::HeadingErrorSine(_)) => {
+                (_, EstimatorChoice::HeadingObserver, LawChoice::HeadingErrorSine(_)) => {
                     "output_feedback (observer 001, sin θe law)"
                 }
                 (_, EstimatorChoice::PoseObserver(_), LawChoice::HeadingErrorSine(_)) => {
                     "output_feedback (pose observer, sin θe law)"
                 }
-                (_, EstimatorChoice::Fusion(f), LawChoice::Paper001) => match f.kind() {
+                (_, EstimatorChoice::Fusion(f), LawChoice::Saturated) => match f.kind() {
                     FusionFilter::Ekf => "output_feedback (fusion EKF, law 001)",
                     FusionFilter::Ukf => "output_feedback (fusion UKF, law 001)",
                     FusionFilter::ParticleFilter => {

@@ -1072,7 +1072,7 @@ impl Scenario {
     /// The core's estimator choice; paper 002's only with output feedback.
     fn estimator_spec(&self) -> Result<EstimatorSpec, ScenarioError> {
         match (self.observer.kind, self.controller.kind) {
-            (ObserverKind::Paper001, _) => Ok(EstimatorSpec::Paper001),
+            (ObserverKind::Paper001, _) => Ok(EstimatorSpec::HeadingObserver),
             (ObserverKind::Pose, ControllerKind::OutputFeedback) => {
                 let g = self.observer.pose_gains;
                 Ok(EstimatorSpec::PoseObserver {
@@ -1201,7 +1201,7 @@ impl Scenario {
     fn law_spec(&self) -> Result<LawSpec, ScenarioError> {
         let c = &self.controller;
         match (c.law, c.kind) {
-            (LawKind::Paper001, _) => Ok(LawSpec::Paper001),
+            (LawKind::Paper001, _) => Ok(LawSpec::Saturated),
             (_, ControllerKind::StateFeedback) => Err(ScenarioError::invalid(
                 "controller.law",
                 "selects the output-feedback law: use it with kind = \"output_feedback\"",

@@ -12,8 +12,11 @@
 //! `θ_e` comes wrapped to (−π, π] from [`RobotFrameError`](crate::control::robot_frame::RobotFrameError)
 //! (see there why), so (31) steers the short way round.
 
-use crate::control::robot_frame::UnicycleReference;
-use crate::geometry::BodyVelocity;
+use crate::control::interface::{LawCommand, TrackingCommand, TrackingLaw};
+use crate::control::robot_frame::{UnicycleReference, estimated_error};
+use crate::estimation::heading_observer::HeadingEstimate;
+use crate::geometry::{BodyVelocity, Vec2};
+use crate::reference::ReferenceSample;
 
 /// Why [`CascadedGains`] were refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -98,11 +101,38 @@ impl CascadedController {
     }
 }
 
+impl TrackingLaw for CascadedController {
+    /// (31) on the error (30) from the estimated heading
+    /// ([`estimated_error`]).
+    fn command(
+        &mut self,
+        reference: &ReferenceSample,
+        position: Vec2,
+        heading: HeadingEstimate,
+        _driven: BodyVelocity,
+    ) -> LawCommand {
+        match estimated_error(reference, position, heading) {
+            Some((r, e)) => LawCommand::Drive(TrackingCommand {
+                body: CascadedController::command(self, &r, e.x_e_m, e.theta_e_rad),
+                ..TrackingCommand::default()
+            }),
+            None => LawCommand::ReferenceStandstill,
+        }
+    }
+
+    /// Memoryless: nothing to forget.
+    fn restart(&mut self) {}
+
+    fn rejected_updates(&self) -> u32 {
+        0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::control::robot_frame::RobotFrameError;
-    use crate::geometry::{Pose, Vec2};
+    use crate::geometry::Pose;
     use crate::reference::{Circle, Trajectory};
 
     /// The closed loop (32) under (31) converges on a circle (ω_r PE).

@@ -24,9 +24,12 @@
 //! Proposition 7 needs `|θ_e(0)| < π` (the Lyapunov function (62) is
 //! `1 − cos θ_e`), which the wrapping gives except exactly at π.
 
-use crate::control::robot_frame::{RobotFrameError, UnicycleReference};
-use crate::geometry::BodyVelocity;
+use crate::control::interface::{LawCommand, TrackingCommand, TrackingLaw};
+use crate::control::robot_frame::{RobotFrameError, UnicycleReference, estimated_error};
+use crate::estimation::heading_observer::HeadingEstimate;
+use crate::geometry::{BodyVelocity, Vec2};
 use crate::math;
+use crate::reference::ReferenceSample;
 
 /// Why a [`HeadingErrorSineConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -206,10 +209,41 @@ impl HeadingErrorSineTracker {
     }
 }
 
+impl TrackingLaw for HeadingErrorSineTracker {
+    /// The observer's step and (64) on the error (30) from the estimated
+    /// heading ([`estimated_error`]).
+    fn command(
+        &mut self,
+        reference: &ReferenceSample,
+        position: Vec2,
+        heading: HeadingEstimate,
+        driven: BodyVelocity,
+    ) -> LawCommand {
+        match estimated_error(reference, position, heading) {
+            Some((r, e)) => {
+                self.update(e, driven, r);
+                LawCommand::Drive(TrackingCommand {
+                    body: HeadingErrorSineTracker::command(self, &r, e.x_e_m),
+                    ..TrackingCommand::default()
+                })
+            }
+            None => LawCommand::ReferenceStandstill,
+        }
+    }
+
+    /// The observer's memory spans only tracked steps ([`Self::restart`]).
+    fn restart(&mut self) {
+        HeadingErrorSineTracker::restart(self);
+    }
+
+    fn rejected_updates(&self) -> u32 {
+        HeadingErrorSineTracker::rejected_updates(self)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::Vec2;
     use proptest::prelude::*;
 
     #[test]

@@ -26,6 +26,7 @@
 //! `ω_r = (ẋ_r ÿ_r − ẏ_r ẍ_r)/v_r²` and `v̇_r = (ẋ_r ẍ_r + ẏ_r ÿ_r)/v_r`,
 //! defined while `v_r > 0` ([`UnicycleReference::from_sample`]).
 
+use crate::estimation::heading_observer::HeadingEstimate;
 use crate::geometry::{Pose, Vec2};
 use crate::math;
 use crate::reference::ReferenceSample;
@@ -138,6 +139,31 @@ impl RobotFrameError {
     pub fn is_finite(&self) -> bool {
         self.x_e_m.is_finite() && self.y_e_m.is_finite() && self.theta_e_rad.is_finite()
     }
+}
+
+/// The reference as a unicycle and the error (30) from an estimated heading
+/// `(ĉ, ŝ)` (normalised; `θ̂ = 0` while the estimate is still `(0, 0)`),
+/// as paper 002's laws use them on a robot that does not measure its
+/// heading; `None` where the reference stands still (its heading is
+/// undefined).
+#[must_use]
+pub fn estimated_error(
+    reference: &ReferenceSample,
+    position: Vec2,
+    heading: HeadingEstimate,
+) -> Option<(UnicycleReference, RobotFrameError)> {
+    let r = UnicycleReference::from_sample(reference)?;
+    let norm = math::hypot(heading.cos_theta, heading.sin_theta);
+    let (c, s) = if norm > 1.0e-6 {
+        (heading.cos_theta / norm, heading.sin_theta / norm)
+    } else {
+        (1.0, 0.0)
+    };
+    let theta = math::atan2(s, c);
+    Some((
+        r,
+        RobotFrameError::with_heading(r.pose(), position, c, s, theta),
+    ))
 }
 
 #[cfg(test)]

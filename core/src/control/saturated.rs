@@ -43,6 +43,9 @@
 //! is continuous again once `|u|` grows. Every output is finite for finite
 //! input (no division by `v` below that threshold).
 
+pub use crate::control::interface::TrackingCommand;
+
+use crate::control::interface::{LawCommand, TrackingLaw};
 use crate::estimation::heading_observer::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Pose, Vec2};
 use crate::math;
@@ -170,22 +173,6 @@ struct HeadingInput {
     heading_rad: f32,
 }
 
-/// The command of the tracking law and the quantities behind it.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct TrackingCommand {
-    /// `(v, ω)` to drive.
-    pub body: BodyVelocity,
-    /// Position error `(ζ1, ζ2)`, m (robot minus reference).
-    pub position_error: Vec2,
-    /// Desired heading `θ*`, rad, in [−π, π].
-    pub desired_heading_rad: f32,
-    /// `θ̇*` as used (0 while `θ*` is held), rad/s.
-    pub desired_heading_rate_rad_s: f32,
-    /// Heading error `e = wrap(θ − θ*)` (or with `θ̂`), rad.
-    pub heading_error_rad: f32,
-}
-
 /// The tracking controller of paper 001.
 ///
 /// Holds the gains and one piece of state: the last well-defined `θ*`, used
@@ -302,6 +289,27 @@ impl TrackingController {
             desired_heading_rate_rad_s,
             heading_error_rad: e,
         }
+    }
+}
+
+impl TrackingLaw for TrackingController {
+    /// Output feedback (27)–(28) ([`TrackingController::output_feedback`]).
+    fn command(
+        &mut self,
+        reference: &ReferenceSample,
+        position: Vec2,
+        heading: HeadingEstimate,
+        _driven: BodyVelocity,
+    ) -> LawCommand {
+        LawCommand::Drive(self.output_feedback(reference, position, heading))
+    }
+
+    /// The held `θ*` (module docs, "Near `v = 0`") stays: it is the last
+    /// well-defined desired heading, whatever happened since.
+    fn restart(&mut self) {}
+
+    fn rejected_updates(&self) -> u32 {
+        0
     }
 }
 

@@ -1,9 +1,135 @@
-//! Estimators of the robot's pose from odometry and tag fixes: the
-//! heading observer (5) of paper 001 ([`heading_observer`]), paper 002's
-//! Proposition 4 pose observer ([`pose_observer`]) and the encoder + tag
-//! fusion estimator ([`fusion`], on the EKF, UKF or particle filter of
-//! [`crate::filters`]).
+//! Estimators of the robot's pose from odometry and tag fixes, behind one
+//! interface ([`PoseEstimator`]) and one list ([`EstimatorChoice`],
+//! dispatched by [`Estimator`]):
+//!
+//! | choice | estimator | paper |
+//! |---|---|---|
+//! | [`EstimatorChoice::HeadingObserver`] | [`heading_observer`], with [`dead_reckoning`] | 001, observer (5) |
+//! | [`EstimatorChoice::PoseObserver`] | [`pose_observer`], with [`dead_reckoning`] | 002, Proposition 4 |
+//! | `EstimatorChoice::Fusion` (feature `fusion-ekf`) | [`fusion`]: EKF, UKF or particle filter of [`crate::filters`] | 004's filters on odometry + tags |
+//!
+//! The tracker ([`crate::pilot::tracker`]) hands the estimator each tick's
+//! odometry and the tag fix it accepted (finite, fresh); the estimator
+//! returns the position the law uses this tick and holds the heading.
+//!
+//! # Adding an estimator
+//! Its own file implementing [`PoseEstimator`] (or [`PositionObserver`],
+//! to get dead reckoning from [`DeadReckoning`]), one arm in
+//! [`EstimatorChoice`] and [`Estimator`] here, and one arm in the spec
+//! ([`crate::pilot::spec::EstimatorSpec`]) that builds it.
 
+pub mod dead_reckoning;
 pub mod fusion;
 pub mod heading_observer;
+pub mod interface;
 pub mod pose_observer;
+
+pub use dead_reckoning::{DeadReckoning, PositionObserver};
+pub use interface::{EstimatorCounters, PoseEstimator};
+
+#[cfg(feature = "fusion-ekf")]
+use crate::estimation::fusion::{FusionEstimator, FusionSettings};
+use crate::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
+use crate::estimation::pose_observer::{PoseEstimate, PoseObserver, PoseObserverConfig};
+use crate::geometry::Vec2;
+use crate::odometry::OdometryStep;
+
+/// Which estimator the tracker runs: the one list of estimators.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EstimatorChoice {
+    /// Paper 001's heading observer (5) (the tracker configuration's
+    /// `observer`), with dead reckoning between fixes.
+    HeadingObserver,
+    /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`, fed the
+    /// position (fix or dead-reckoned).
+    PoseObserver(PoseObserverConfig),
+    /// The encoder + tag fusion estimator ([`fusion`]) on the filter its
+    /// settings choose: its pose is the law's position and heading, between
+    /// fixes too (cargo feature `fusion-ekf`).
+    #[cfg(feature = "fusion-ekf")]
+    Fusion(FusionSettings),
+}
+
+/// The running estimator: [`EstimatorChoice`] built.
+// No heap to box the filter into: the tracker holds its estimator inline,
+// and the largest sets the size (the fusion EKF ~250 B, its particle
+// filter ~4.5 KB when the feature `fusion-particle-filter` is on).
+#[cfg_attr(feature = "fusion-ekf", allow(clippy::large_enum_variant))]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Estimator {
+    /// [`EstimatorChoice::HeadingObserver`].
+    HeadingObserver(DeadReckoning<HeadingObserver>),
+    /// [`EstimatorChoice::PoseObserver`].
+    PoseObserver(DeadReckoning<PoseObserver>),
+    /// `EstimatorChoice::Fusion`.
+    #[cfg(feature = "fusion-ekf")]
+    Fusion(FusionEstimator),
+}
+
+impl Estimator {
+    /// The estimator `choice` selects, starting from `observer`'s heading
+    /// estimate (paper 002's pose observer takes its `(ĉ, ŝ)`, the fusion
+    /// estimator runs it beside the filter as its guide).
+    #[must_use]
+    pub fn new(choice: EstimatorChoice, observer: HeadingObserver) -> Self {
+        match choice {
+            EstimatorChoice::HeadingObserver => Self::HeadingObserver(DeadReckoning::new(observer)),
+            EstimatorChoice::PoseObserver(config) => {
+                let start = observer.estimate();
+                Self::PoseObserver(DeadReckoning::new(PoseObserver::new(
+                    config,
+                    PoseEstimate {
+                        position: Vec2::ZERO,
+                        cos_theta: start.cos_theta,
+                        sin_theta: start.sin_theta,
+                    },
+                )))
+            }
+            #[cfg(feature = "fusion-ekf")]
+            EstimatorChoice::Fusion(settings) => {
+                Self::Fusion(FusionEstimator::new(settings, observer))
+            }
+        }
+    }
+}
+
+/// Calls the [`PoseEstimator`] method on the running estimator.
+macro_rules! dispatch {
+    ($self:ident, $method:ident($($arg:expr),*)) => {
+        match $self {
+            Self::HeadingObserver(e) => PoseEstimator::$method(e, $($arg),*),
+            Self::PoseObserver(e) => PoseEstimator::$method(e, $($arg),*),
+            #[cfg(feature = "fusion-ekf")]
+            Self::Fusion(e) => PoseEstimator::$method(e, $($arg),*),
+        }
+    };
+}
+
+impl PoseEstimator for Estimator {
+    fn step(
+        &mut self,
+        odometry: &OdometryStep,
+        fix: Option<Vec2>,
+        after_gap: bool,
+    ) -> Option<Vec2> {
+        dispatch!(self, step(odometry, fix, after_gap))
+    }
+
+    fn heading(&self) -> HeadingEstimate {
+        dispatch!(self, heading())
+    }
+
+    fn rejected_updates(&self) -> u32 {
+        dispatch!(self, rejected_updates())
+    }
+
+    fn counters(&self) -> EstimatorCounters {
+        dispatch!(self, counters())
+    }
+
+    fn blind_distance_lost(&self) -> Option<bool> {
+        dispatch!(self, blind_distance_lost())
+    }
+}

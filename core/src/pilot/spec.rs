@@ -14,11 +14,13 @@
 //! simulator and the firmware build bit-identical configurations from the
 //! same spec.
 
+use crate::control::LawChoice;
 use crate::control::cascaded::{CascadedGains, CascadedGainsError};
 use crate::control::heading_error_sine::{HeadingErrorSineConfig, HeadingErrorSineConfigError};
 use crate::control::saturated::{GainError, TrackingGains};
 use crate::devices::{TagGrid, TagGridError};
 use crate::drive::{DriveConfig, DriveConfigError, SpeedLoopGains};
+use crate::estimation::EstimatorChoice;
 use crate::estimation::fusion::PoseFilterError;
 #[cfg(feature = "fusion-ekf")]
 use crate::estimation::fusion::{FusionFilter, FusionSettings, PoseFilterConfig};
@@ -69,9 +71,9 @@ pub enum SpecError {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum EstimatorSpec {
-    /// Paper 001's observer (5), gain `observer_gain_per_m`.
+    /// Paper 001's heading observer (5), gain `observer_gain_per_m`.
     #[default]
-    Paper001,
+    HeadingObserver,
     /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`.
     PoseObserver {
         /// `[a1, a2]` (1/s) and `[a3, a4]` (1/m²) of (37).
@@ -128,9 +130,9 @@ pub enum FusionFilterSpec {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum LawSpec {
-    /// Paper 001's law (27)–(28), gains `gains`.
+    /// Paper 001's saturated output-feedback law (27)–(28), gains `gains`.
     #[default]
-    Paper001,
+    Saturated,
     /// Paper 002's cascaded controller (31).
     Cascaded {
         /// `c1`, 1/s (heading error).
@@ -252,21 +254,18 @@ impl TrackerSpec {
         let observer = HeadingObserverConfig::new(self.observer_gain_per_m, self.period_s)
             .and_then(|o| o.with_min_speed(self.observer_min_speed_m_s))
             .map_err(SpecError::Observer)?;
-        let mut config = TrackerConfig::new(observer, gains, trajectory, self.fix_timeout_ticks)
+        let config = TrackerConfig::new(observer, gains, trajectory, self.fix_timeout_ticks)
             .and_then(|t| t.with_failsafe_decel(self.failsafe_decel_m_s2))
             .map(|t| t.with_max_fix_age(self.max_fix_age_ticks))
             .map_err(SpecError::Tracker)?;
-        match self.estimator {
-            EstimatorSpec::Paper001 => {}
+        let estimator = match self.estimator {
+            EstimatorSpec::HeadingObserver => EstimatorChoice::HeadingObserver,
             EstimatorSpec::PoseObserver {
                 gains: [a1, a2, a3, a4],
-            } => {
-                let pose = PoseObserverConfig::new(a1, a2, a3, a4, self.period_s)
-                    .map_err(SpecError::PoseObserver)?;
-                config = config
-                    .with_pose_observer(pose)
-                    .map_err(SpecError::Tracker)?;
-            }
+            } => EstimatorChoice::PoseObserver(
+                PoseObserverConfig::new(a1, a2, a3, a4, self.period_s)
+                    .map_err(SpecError::PoseObserver)?,
+            ),
             #[cfg(feature = "fusion-ekf")]
             EstimatorSpec::Fusion {
                 filter,
@@ -304,31 +303,29 @@ impl TrackerSpec {
                 .map_err(SpecError::Fusion)?
                 .with_filter(kind)
                 .with_edge_constraint(edge_constraint);
-                config = config.with_fusion(settings);
+                EstimatorChoice::Fusion(settings)
             }
             #[cfg(not(feature = "fusion-ekf"))]
             EstimatorSpec::Fusion { .. } => return Err(SpecError::NotInThisBuild),
-        }
-        match self.law {
-            LawSpec::Paper001 => {}
-            LawSpec::Cascaded { c1_per_s, c2_per_s } => {
-                let gains =
-                    CascadedGains::new(c1_per_s, c2_per_s).map_err(SpecError::CascadedLaw)?;
-                config = config.with_cascaded_law(gains);
-            }
+        };
+        let law = match self.law {
+            LawSpec::Saturated => LawChoice::Saturated,
+            LawSpec::Cascaded { c1_per_s, c2_per_s } => LawChoice::Cascaded(
+                CascadedGains::new(c1_per_s, c2_per_s).map_err(SpecError::CascadedLaw)?,
+            ),
             LawSpec::HeadingErrorSine {
                 a_s_per_m2,
                 c2_per_s,
                 gamma,
-            } => {
-                let sine = HeadingErrorSineConfig::new(a_s_per_m2, c2_per_s, gamma, self.period_s)
-                    .map_err(SpecError::HeadingErrorSineLaw)?;
-                config = config
-                    .with_heading_error_sine_law(sine)
-                    .map_err(SpecError::Tracker)?;
-            }
-        }
-        Ok(config)
+            } => LawChoice::HeadingErrorSine(
+                HeadingErrorSineConfig::new(a_s_per_m2, c2_per_s, gamma, self.period_s)
+                    .map_err(SpecError::HeadingErrorSineLaw)?,
+            ),
+        };
+        config
+            .with_estimator(estimator)
+            .and_then(|config| config.with_law(law))
+            .map_err(SpecError::Tracker)
     }
 }
 
@@ -470,8 +467,8 @@ mod tests {
                 fix_timeout_ticks: 50,
                 failsafe_decel_m_s2: 0.5,
                 max_fix_age_ticks: 2,
-                estimator: crate::pilot::spec::EstimatorSpec::Paper001,
-                law: crate::pilot::spec::LawSpec::Paper001,
+                estimator: crate::pilot::spec::EstimatorSpec::HeadingObserver,
+                law: crate::pilot::spec::LawSpec::Saturated,
             },
             drive: DriveSpec {
                 wheel_radius_m: 0.05,

@@ -4,28 +4,13 @@
 //! happens before the first fix, and the failsafe when fixes stop.
 //!
 //! # Estimator and law
-//! By default the tracker runs paper 001's observer and law. Paper 002's
-//! alternatives can replace either (the configuration's builders):
-//! * estimator: [`TrackerConfig::with_pose_observer`], the observer of
-//!   `x, y, cos θ, sin θ` (paper 002, Proposition 4, [`PoseObserver`]),
-//!   fed the position (fix or dead-reckoned) instead of its change;
-//! * estimator: `TrackerConfig::with_fusion` (cargo feature
-//!   `fusion-ekf`), the encoder + tag fusion estimator
-//!   ([`crate::estimation::fusion`]), which predicts with the odometry and corrects
-//!   with the fixes itself: its pose is the law's position and heading,
-//!   between fixes too. Its filter is the EKF, or paper 004's UKF
-//!   ([`crate::estimation::fusion::ukf`], feature `fusion-ukf`) or particle filter
-//!   ([`crate::estimation::fusion::particle`], feature `fusion-particle-filter`),
-//!   chosen by `FusionSettings::with_filter`;
-//! * law: [`TrackerConfig::with_cascaded_law`], the cascaded controller
-//!   (31), or [`TrackerConfig::with_heading_error_sine_law`], the observer
-//!   of `sin θ_e` and controller (64) of Proposition 7. Both use the robot-
-//!   frame error (30) computed from the position and the estimated heading
-//!   `θ̂ = atan2(ŝ, ĉ)` (with `(ĉ, ŝ)` normalised; `θ̂ = 0` while the
-//!   estimate is still `(0, 0)`), and the reference as a unicycle
-//!   ([`UnicycleReference`]). Where the reference stands still its heading
-//!   is undefined: the command is zero and the tick is counted
-//!   ([`TrackerCounters::reference_standstill_ticks`]).
+//! By default the tracker runs paper 001's observer and law. Any estimator
+//! of [`crate::estimation`] ([`TrackerConfig::with_estimator`]) and any law
+//! of [`crate::control`] ([`TrackerConfig::with_law`]) can replace them:
+//! the tracker sees them only through [`PoseEstimator`] and
+//! [`TrackingLaw`]. Where a law on the robot-frame error finds the
+//! reference standing still (its heading undefined), the command is zero
+//! and the tick is counted ([`TrackerCounters::reference_standstill_ticks`]).
 //!
 //! The gain bound (15) ([`TrackerConfig::gain_bound`]) concerns law
 //! (27)–(28) only.
@@ -35,13 +20,14 @@
 //! that were actually driven, from the encoders) and the tag fix read this
 //! tick, if any:
 //!
-//! 1. Position: a valid fix replaces the position; without one the last
-//!    position is dead-reckoned along the odometry arc using the observer's
-//!    heading `θ̂` (so the observer sees no innovation from it).
-//! 2. Observer (5): updated with the odometry `(v, ω)` and the position
-//!    change of step 1.
-//! 3. Law (27)–(28) at `t_k = k·h` from the reference, the position and
-//!    `(ẑ3, ẑ4)`.
+//! 1. Fix: rejected (and counted) if not finite or older than
+//!    `max_fix_age_ticks`.
+//! 2. Estimator: steps with the odometry and the accepted fix and gives the
+//!    position the law uses (for the observers, the fix or, without one,
+//!    the last position dead-reckoned along the odometry arc:
+//!    [`crate::estimation::dead_reckoning`]) and the heading estimate.
+//! 3. Law at `t_k = k·h` from the reference, that position and heading, or
+//!    the failsafe below.
 //!
 //! # Modes and failsafe
 //! * [`TrackerMode::AwaitingFix`]: no fix since start: command zero (the
@@ -63,18 +49,13 @@
 //! configuration and finite measurements do not produce) is replaced by
 //! zero and counted.
 
-use crate::control::cascaded::{CascadedController, CascadedGains};
-use crate::control::heading_error_sine::{HeadingErrorSineConfig, HeadingErrorSineTracker};
-use crate::control::robot_frame::{RobotFrameError, UnicycleReference};
-use crate::control::saturated::{GainBound, TrackingCommand, TrackingController, TrackingGains};
-#[cfg(feature = "fusion-ekf")]
-use crate::estimation::fusion::{FusionEstimator, FusionSettings};
+use crate::control::saturated::{GainBound, TrackingCommand, TrackingGains};
+use crate::control::{Law, LawChoice, LawCommand, TrackingLaw};
 use crate::estimation::heading_observer::{
     HeadingEstimate, HeadingObserver, HeadingObserverConfig, ObserverConfigError,
 };
-use crate::estimation::pose_observer::{PoseEstimate, PoseObserver, PoseObserverConfig};
-use crate::geometry::{BodyVelocity, Pose, Vec2};
-use crate::math;
+use crate::estimation::{Estimator, EstimatorChoice, PoseEstimator};
+use crate::geometry::{BodyVelocity, Vec2};
 use crate::odometry::OdometryStep;
 use crate::reference::{ReferenceError, ReferenceSample, TickClock, Trajectory};
 
@@ -123,33 +104,6 @@ pub struct TrackerConfig {
     law: LawChoice,
 }
 
-/// The tracker's heading estimator.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum EstimatorChoice {
-    /// Paper 001's observer (5) (the configuration's `observer`).
-    Paper001,
-    /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`.
-    PoseObserver(PoseObserverConfig),
-    /// The encoder + tag fusion estimator ([`crate::estimation::fusion`]) on the
-    /// filter its settings choose: its pose replaces both the position and
-    /// the heading estimate (cargo feature `fusion-ekf`).
-    #[cfg(feature = "fusion-ekf")]
-    Fusion(FusionSettings),
-}
-
-/// The tracker's law.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum LawChoice {
-    /// Paper 001's law (27)–(28) (the configuration's `gains`).
-    Paper001,
-    /// Paper 002's cascaded controller (31) on the estimated error (30).
-    Cascaded(CascadedGains),
-    /// Paper 002's Proposition 7: observer of `sin θ_e` + controller (64).
-    HeadingErrorSine(HeadingErrorSineConfig),
-}
-
 impl TrackerConfig {
     /// Default failsafe deceleration, m/s².
     pub const DEFAULT_FAILSAFE_DECEL_M_S2: f32 = 0.5;
@@ -183,56 +137,40 @@ impl TrackerConfig {
             max_fix_age_ticks: Self::DEFAULT_MAX_FIX_AGE_TICKS,
             failsafe_decel_m_s2: Self::DEFAULT_FAILSAFE_DECEL_M_S2,
             gain_bound: gains.check_bound(trajectory.speed_bounds()),
-            estimator: EstimatorChoice::Paper001,
-            law: LawChoice::Paper001,
+            estimator: EstimatorChoice::HeadingObserver,
+            law: LawChoice::Saturated,
         })
     }
 
-    /// Runs paper 002's Proposition 4 observer instead of observer (5).
+    /// Runs the estimator `choice` instead of paper 001's observer (5)
+    /// ([`crate::estimation`]).
     ///
     /// # Errors
-    /// [`TrackerConfigError::AlgorithmPeriod`] if its step is not the tracker's.
-    pub fn with_pose_observer(
-        mut self,
-        observer: PoseObserverConfig,
-    ) -> Result<Self, TrackerConfigError> {
-        if observer.period_s().to_bits() != self.clock.period_s().to_bits() {
+    /// [`TrackerConfigError::AlgorithmPeriod`] if a paper 002 observer's
+    /// step is not the tracker's.
+    pub fn with_estimator(mut self, choice: EstimatorChoice) -> Result<Self, TrackerConfigError> {
+        if let EstimatorChoice::PoseObserver(observer) = choice
+            && observer.period_s().to_bits() != self.clock.period_s().to_bits()
+        {
             return Err(TrackerConfigError::AlgorithmPeriod);
         }
-        self.estimator = EstimatorChoice::PoseObserver(observer);
+        self.estimator = choice;
         Ok(self)
     }
 
-    /// Runs the encoder + tag fusion estimator instead of observer (5): the law
-    /// gets the filter's position and heading, between fixes as well (no
-    /// separate dead reckoning).
-    #[cfg(feature = "fusion-ekf")]
-    #[must_use]
-    pub fn with_fusion(mut self, settings: FusionSettings) -> Self {
-        self.estimator = EstimatorChoice::Fusion(settings);
-        self
-    }
-
-    /// Runs paper 002's cascaded controller (31) instead of law (27)–(28).
-    #[must_use]
-    pub fn with_cascaded_law(mut self, gains: CascadedGains) -> Self {
-        self.law = LawChoice::Cascaded(gains);
-        self
-    }
-
-    /// Runs paper 002's Proposition 7 (observer of `sin θ_e`, controller
-    /// (64)) instead of law (27)–(28).
+    /// Runs the law `choice` instead of paper 001's law (27)–(28)
+    /// ([`crate::control`]).
     ///
     /// # Errors
-    /// [`TrackerConfigError::AlgorithmPeriod`] if its step is not the tracker's.
-    pub fn with_heading_error_sine_law(
-        mut self,
-        config: HeadingErrorSineConfig,
-    ) -> Result<Self, TrackerConfigError> {
-        if config.period_s().to_bits() != self.clock.period_s().to_bits() {
+    /// [`TrackerConfigError::AlgorithmPeriod`] if Proposition 7's step is
+    /// not the tracker's.
+    pub fn with_law(mut self, choice: LawChoice) -> Result<Self, TrackerConfigError> {
+        if let LawChoice::HeadingErrorSine(config) = choice
+            && config.period_s().to_bits() != self.clock.period_s().to_bits()
+        {
             return Err(TrackerConfigError::AlgorithmPeriod);
         }
-        self.law = LawChoice::HeadingErrorSine(config);
+        self.law = choice;
         Ok(self)
     }
 
@@ -400,31 +338,8 @@ impl OutputFeedbackTracker {
     /// from the first fix).
     #[must_use]
     pub fn with_observer(config: TrackerConfig, observer: HeadingObserver) -> Self {
-        let estimator = match config.estimator {
-            EstimatorChoice::Paper001 => Estimator::Paper001(observer),
-            EstimatorChoice::PoseObserver(c) => {
-                let start = observer.estimate();
-                Estimator::Pose(PoseObserver::new(
-                    c,
-                    PoseEstimate {
-                        position: Vec2::ZERO,
-                        cos_theta: start.cos_theta,
-                        sin_theta: start.sin_theta,
-                    },
-                ))
-            }
-            #[cfg(feature = "fusion-ekf")]
-            EstimatorChoice::Fusion(settings) => {
-                Estimator::Fusion(FusionEstimator::new(settings, observer))
-            }
-        };
-        let law = match config.law {
-            LawChoice::Paper001 => Law::Paper001(TrackingController::new(config.gains)),
-            LawChoice::Cascaded(gains) => Law::Cascaded(CascadedController::new(gains)),
-            LawChoice::HeadingErrorSine(c) => {
-                Law::HeadingErrorSine(HeadingErrorSineTracker::new(c, 0.0))
-            }
-        };
+        let estimator = Estimator::new(config.estimator, observer);
+        let law = Law::new(config.law, config.gains);
         Self {
             config,
             estimator,
@@ -447,18 +362,12 @@ impl OutputFeedbackTracker {
     /// Counters since start.
     #[must_use]
     pub fn counters(&self) -> TrackerCounters {
-        match &self.estimator {
-            #[cfg(feature = "fusion-ekf")]
-            Estimator::Fusion(f) => {
-                let ekf = f.counters();
-                TrackerCounters {
-                    fixes_gated: ekf.fixes_gated,
-                    relocalisations: ekf.relocalisations,
-                    heading_resets: f.heading_resets(),
-                    ..self.counters
-                }
-            }
-            _ => self.counters,
+        let estimator = self.estimator.counters();
+        TrackerCounters {
+            fixes_gated: estimator.fixes_gated,
+            relocalisations: estimator.relocalisations,
+            heading_resets: estimator.heading_resets,
+            ..self.counters
         }
     }
 
@@ -466,11 +375,9 @@ impl OutputFeedbackTracker {
     /// skipped for non-finite input.
     #[must_use]
     pub fn observer_rejected_updates(&self) -> u32 {
-        let law = match &self.law {
-            Law::HeadingErrorSine(t) => t.rejected_updates(),
-            _ => 0,
-        };
-        self.estimator.rejected_updates().saturating_add(law)
+        self.estimator
+            .rejected_updates()
+            .saturating_add(self.law.rejected_updates())
     }
 
     /// One control step; `odometry` covers the last period, `fix` is this tick's.
@@ -480,46 +387,14 @@ impl OutputFeedbackTracker {
 
         let fix = fix.and_then(|f| self.accept(f));
         let previous = self.position;
-        #[cfg(feature = "fusion-ekf")]
-        if let Estimator::Fusion(fusion) = &mut self.estimator {
-            let after_gap = self.ticks_since_fix > 0;
-            let pose = fusion.step(odometry, fix, after_gap);
-            if fix.is_some() {
-                self.ticks_since_fix = 0;
-            } else if previous.is_some() {
-                self.ticks_since_fix = self.ticks_since_fix.saturating_add(1);
-                self.counters.dead_reckoned_steps =
-                    self.counters.dead_reckoned_steps.saturating_add(1);
-            }
-            self.position = pose.map(|p| p.position);
-            return self.drive(tick, odometry);
+        let after_gap = self.ticks_since_fix > 0;
+        if fix.is_some() {
+            self.ticks_since_fix = 0;
+        } else if previous.is_some() {
+            self.ticks_since_fix = self.ticks_since_fix.saturating_add(1);
+            self.counters.dead_reckoned_steps = self.counters.dead_reckoned_steps.saturating_add(1);
         }
-        let current = match (fix, previous) {
-            (Some(p), _) => {
-                self.ticks_since_fix = 0;
-                Some(p)
-            }
-            (None, Some(p)) => {
-                self.ticks_since_fix = self.ticks_since_fix.saturating_add(1);
-                self.counters.dead_reckoned_steps =
-                    self.counters.dead_reckoned_steps.saturating_add(1);
-                let pose = Pose {
-                    position: p,
-                    heading_rad: self.estimator.heading().heading_rad(),
-                };
-                let next = pose
-                    .advance_arc(odometry.ds_m, odometry.dtheta_rad)
-                    .position;
-                Some(if next.is_finite() { next } else { p })
-            }
-            (None, None) => None,
-        };
-        match (previous, current) {
-            (Some(prev), Some(now)) => self.estimator.update(odometry.body, prev, now),
-            (None, Some(first)) => self.estimator.start_at(first),
-            _ => {}
-        }
-        self.position = current;
+        self.position = self.estimator.step(odometry, fix, after_gap);
         self.drive(tick, odometry)
     }
 
@@ -554,33 +429,21 @@ impl OutputFeedbackTracker {
             self.last_command = self.ramp_down(self.last_command);
         } else {
             if self.mode != TrackerMode::Tracking {
-                // The Proposition 7 observer's memory spans only tracked steps.
-                if let Law::HeadingErrorSine(t) = &mut self.law {
-                    t.restart();
-                }
+                self.law.restart();
             }
             self.mode = TrackerMode::Tracking;
-            let body = match &mut self.law {
-                Law::Paper001(controller) => {
-                    let law = controller.output_feedback(&reference, position, heading);
-                    out.law = law;
-                    law.body
-                }
-                Law::Cascaded(controller) => match robot_frame(&reference, position, heading) {
-                    Some((r, e)) => controller.command(&r, e.x_e_m, e.theta_e_rad),
-                    None => self.reference_standstill(),
-                },
-                Law::HeadingErrorSine(tracker) => {
-                    match robot_frame(&reference, position, heading) {
-                        Some((r, e)) => {
-                            tracker.update(e, odometry.body, r);
-                            tracker.command(&r, e.x_e_m)
-                        }
-                        None => self.reference_standstill(),
-                    }
+            out.law = match self
+                .law
+                .command(&reference, position, heading, odometry.body)
+            {
+                LawCommand::Drive(command) => command,
+                LawCommand::ReferenceStandstill => {
+                    self.counters.reference_standstill_ticks =
+                        self.counters.reference_standstill_ticks.saturating_add(1);
+                    TrackingCommand::default()
                 }
             };
-            out.law.body = body;
+            let body = out.law.body;
             self.last_command = if body.is_finite() {
                 body
             } else {
@@ -599,19 +462,9 @@ impl OutputFeedbackTracker {
     /// than that distance driven since the last fix; otherwise more than
     /// `fix_timeout_ticks` without a fix.
     fn fix_lost(&self) -> bool {
-        #[cfg(feature = "fusion-ekf")]
-        if let Estimator::Fusion(fusion) = &self.estimator
-            && let Some(lost) = fusion.blind_distance_lost()
-        {
-            return lost;
-        }
-        self.ticks_since_fix > self.config.fix_timeout_ticks
-    }
-
-    fn reference_standstill(&mut self) -> BodyVelocity {
-        self.counters.reference_standstill_ticks =
-            self.counters.reference_standstill_ticks.saturating_add(1);
-        BodyVelocity::ZERO
+        self.estimator
+            .blind_distance_lost()
+            .unwrap_or(self.ticks_since_fix > self.config.fix_timeout_ticks)
     }
 
     fn accept(&mut self, fix: TagFix) -> Option<Vec2> {
@@ -649,101 +502,14 @@ impl OutputFeedbackTracker {
     }
 }
 
-/// The running heading estimator.
-// No heap to box the filter into: the tracker holds its estimator inline,
-// and the largest sets the size (the fusion EKF ~250 B, its particle
-// filter ~4.5 KB when the feature `fusion-particle-filter` is on).
-#[cfg_attr(feature = "fusion-ekf", allow(clippy::large_enum_variant))]
-#[derive(Debug, Clone, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-enum Estimator {
-    Paper001(HeadingObserver),
-    Pose(PoseObserver),
-    #[cfg(feature = "fusion-ekf")]
-    Fusion(FusionEstimator),
-}
-
-impl Estimator {
-    fn heading(&self) -> HeadingEstimate {
-        match self {
-            Self::Paper001(o) => o.estimate(),
-            Self::Pose(o) => o.estimate().heading(),
-            #[cfg(feature = "fusion-ekf")]
-            Self::Fusion(f) => f.pose().map_or(HeadingEstimate::default(), |pose| {
-                let theta = pose.heading_rad;
-                HeadingEstimate {
-                    cos_theta: math::cos(theta),
-                    sin_theta: math::sin(theta),
-                }
-            }),
-        }
-    }
-
-    /// The first position: the pose observer starts there.
-    fn start_at(&mut self, position: Vec2) {
-        if let Self::Pose(o) = self {
-            let e = o.estimate();
-            o.reset(PoseEstimate { position, ..e });
-        }
-    }
-
-    fn update(&mut self, body: BodyVelocity, previous: Vec2, now: Vec2) {
-        match self {
-            Self::Paper001(o) => o.update(body, now - previous),
-            Self::Pose(o) => o.update(body, now),
-            // Stepped on its own in `step`.
-            #[cfg(feature = "fusion-ekf")]
-            Self::Fusion(_) => {}
-        }
-    }
-
-    fn rejected_updates(&self) -> u32 {
-        match self {
-            Self::Paper001(o) => o.rejected_updates(),
-            Self::Pose(o) => o.rejected_updates(),
-            #[cfg(feature = "fusion-ekf")]
-            Self::Fusion(f) => {
-                let c = f.counters();
-                c.rejected_predictions.saturating_add(c.fixes_invalid)
-            }
-        }
-    }
-}
-
-/// The running law.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-enum Law {
-    Paper001(TrackingController),
-    Cascaded(CascadedController),
-    HeadingErrorSine(HeadingErrorSineTracker),
-}
-
-/// The reference as a unicycle and the error (30) from the estimated
-/// heading (normalised; `θ̂ = 0` while the estimate is `(0, 0)`); `None`
-/// where the reference stands still.
-fn robot_frame(
-    reference: &ReferenceSample,
-    position: Vec2,
-    heading: HeadingEstimate,
-) -> Option<(UnicycleReference, RobotFrameError)> {
-    let r = UnicycleReference::from_sample(reference)?;
-    let norm = math::hypot(heading.cos_theta, heading.sin_theta);
-    let (c, s) = if norm > 1.0e-6 {
-        (heading.cos_theta / norm, heading.sin_theta / norm)
-    } else {
-        (1.0, 0.0)
-    };
-    let theta = math::atan2(s, c);
-    Some((
-        r,
-        RobotFrameError::with_heading(r.pose(), position, c, s, theta),
-    ))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::control::cascaded::CascadedGains;
+    use crate::control::heading_error_sine::HeadingErrorSineConfig;
+    use crate::estimation::pose_observer::PoseObserverConfig;
+    use crate::geometry::Pose;
+    use crate::math;
     use crate::reference::{FigureEight, StraightLine};
 
     fn tracker(timeout: u32) -> OutputFeedbackTracker {
@@ -860,13 +626,15 @@ mod tests {
     fn paper_002_algorithms_must_share_the_tracker_step() {
         let cfg = tracker(10).config;
         assert_eq!(
-            cfg.with_pose_observer(PoseObserverConfig::new(1.0, 1.0, 1.0, 1.0, 0.02).unwrap()),
+            cfg.with_estimator(EstimatorChoice::PoseObserver(
+                PoseObserverConfig::new(1.0, 1.0, 1.0, 1.0, 0.02).unwrap()
+            )),
             Err(TrackerConfigError::AlgorithmPeriod)
         );
         assert_eq!(
-            cfg.with_heading_error_sine_law(
+            cfg.with_law(LawChoice::HeadingErrorSine(
                 HeadingErrorSineConfig::new(10.0, 1.0, 0.9, 0.02).unwrap()
-            ),
+            )),
             Err(TrackerConfigError::AlgorithmPeriod)
         );
     }
@@ -886,9 +654,12 @@ mod tests {
             10,
         )
         .unwrap()
-        .with_pose_observer(PoseObserverConfig::new(2.0, 2.0, 20.0, 20.0, h).unwrap())
+        .with_estimator(EstimatorChoice::PoseObserver(
+            PoseObserverConfig::new(2.0, 2.0, 20.0, 20.0, h).unwrap(),
+        ))
         .unwrap()
-        .with_cascaded_law(CascadedGains::new(1.0, 1.0).unwrap());
+        .with_law(LawChoice::Cascaded(CascadedGains::new(1.0, 1.0).unwrap()))
+        .unwrap();
         let mut t = OutputFeedbackTracker::new(cfg);
         let mut pose = Pose::new(-1.0, 0.5, 2.5);
         let mut odometry = OdometryStep::default();
@@ -940,7 +711,8 @@ mod tests {
             50,
         )
         .unwrap()
-        .with_fusion(settings);
+        .with_estimator(EstimatorChoice::Fusion(settings))
+        .unwrap();
         OutputFeedbackTracker::new(cfg)
     }
 

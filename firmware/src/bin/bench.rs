@@ -147,8 +147,8 @@ mod on_target {
                 fix_timeout_ticks: 100,
                 failsafe_decel_m_s2: 0.5,
                 max_fix_age_ticks: 2,
-                estimator: wmr_core::pilot::spec::EstimatorSpec::Paper001,
-                law: wmr_core::pilot::spec::LawSpec::Paper001,
+                estimator: wmr_core::pilot::spec::EstimatorSpec::HeadingObserver,
+                law: wmr_core::pilot::spec::LawSpec::Saturated,
             },
             drive: DriveSpec {
                 wheel_radius_m: 0.03,

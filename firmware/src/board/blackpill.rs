@@ -157,8 +157,8 @@ pub const PILOT: PilotSpec = PilotSpec {
         fix_timeout_ticks: 50,
         failsafe_decel_m_s2: TrackerConfig::DEFAULT_FAILSAFE_DECEL_M_S2,
         max_fix_age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
-        estimator: wmr_core::pilot::spec::EstimatorSpec::Paper001,
-        law: wmr_core::pilot::spec::LawSpec::Paper001,
+        estimator: wmr_core::pilot::spec::EstimatorSpec::HeadingObserver,
+        law: wmr_core::pilot::spec::LawSpec::Saturated,
     },
     drive: DriveSpec {
         wheel_radius_m: 0.03,

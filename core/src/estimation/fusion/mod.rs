@@ -61,7 +61,8 @@ pub use gate::{
 pub use tag_cells::{CellMeasurements, TagCellTracker};
 
 use crate::estimation::fusion::gate::PI_SQUARED;
-use crate::estimation::heading_observer::HeadingObserver;
+use crate::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
+use crate::estimation::interface::{EstimatorCounters, PoseEstimator};
 use crate::geometry::{Pose, Vec2};
 use crate::math;
 use crate::odometry::OdometryStep;
@@ -88,7 +89,7 @@ pub enum FusionFilter {
 }
 
 /// Validated settings of the tracker's fusion estimator
-/// (`TrackerConfig::with_fusion`, cargo feature `fusion-ekf`).
+/// (`EstimatorChoice::Fusion`, cargo feature `fusion-ekf`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FusionSettings {
@@ -430,6 +431,48 @@ impl defmt::Format for FusionEstimator {
             self.counters(),
             self.heading_resets
         );
+    }
+}
+
+impl PoseEstimator for FusionEstimator {
+    /// [`FusionEstimator::step`]; the position of its pose.
+    fn step(
+        &mut self,
+        odometry: &OdometryStep,
+        fix: Option<Vec2>,
+        after_gap: bool,
+    ) -> Option<Vec2> {
+        FusionEstimator::step(self, odometry, fix, after_gap).map(|pose| pose.position)
+    }
+
+    /// The filter's heading as `(cos θ̂, sin θ̂)`; `(0, 0)` before the first fix.
+    fn heading(&self) -> HeadingEstimate {
+        self.pose().map_or(HeadingEstimate::default(), |pose| {
+            let theta = pose.heading_rad;
+            HeadingEstimate {
+                cos_theta: math::cos(theta),
+                sin_theta: math::sin(theta),
+            }
+        })
+    }
+
+    /// Odometry steps refused and fixes refused as non-finite.
+    fn rejected_updates(&self) -> u32 {
+        let c = FusionEstimator::counters(self);
+        c.rejected_predictions.saturating_add(c.fixes_invalid)
+    }
+
+    fn counters(&self) -> EstimatorCounters {
+        let filter = FusionEstimator::counters(self);
+        EstimatorCounters {
+            fixes_gated: filter.fixes_gated,
+            relocalisations: filter.relocalisations,
+            heading_resets: self.heading_resets(),
+        }
+    }
+
+    fn blind_distance_lost(&self) -> Option<bool> {
+        FusionEstimator::blind_distance_lost(self)
     }
 }
 

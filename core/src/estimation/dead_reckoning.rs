@@ -1,0 +1,146 @@
+//! Dead reckoning between tag fixes for the observers that only estimate
+//! the heading from positions (paper 001's observer (5), paper 002's
+//! Proposition 4 observer).
+//!
+//! Those observers are fed a position every tick. A tick with a fix gives
+//! the tag's position; a tick without one moves the last position along the
+//! odometry arc at the observer's own heading `θ̂`
+//! ([`crate::geometry::Pose::advance_arc`]), so the observer sees no
+//! innovation from it (its update with a dead-reckoned position is the
+//! prediction alone). A non-finite dead-reckoned position keeps the last
+//! one. Before the first fix there is no position and the observer waits;
+//! the first fix starts it ([`PositionObserver::start_at`]).
+
+use crate::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
+use crate::estimation::interface::{EstimatorCounters, PoseEstimator};
+use crate::estimation::pose_observer::{PoseEstimate, PoseObserver};
+use crate::geometry::{BodyVelocity, Pose, Vec2};
+use crate::odometry::OdometryStep;
+
+/// An observer that takes a position every tick (fix or dead-reckoned).
+pub trait PositionObserver {
+    /// The heading estimate `(ĉ, ŝ)` now.
+    fn heading(&self) -> HeadingEstimate;
+
+    /// The first position (before it, the observer is not updated).
+    fn start_at(&mut self, position: Vec2);
+
+    /// One step: the `(v, ω)` driven over the step and the positions at its
+    /// start and end.
+    fn update(&mut self, driven: BodyVelocity, previous: Vec2, now: Vec2);
+
+    /// Updates skipped for non-finite input.
+    fn rejected_updates(&self) -> u32;
+}
+
+impl PositionObserver for HeadingObserver {
+    fn heading(&self) -> HeadingEstimate {
+        self.estimate()
+    }
+
+    /// Observer (5) needs only position changes: nothing to start.
+    fn start_at(&mut self, _position: Vec2) {}
+
+    fn update(&mut self, driven: BodyVelocity, previous: Vec2, now: Vec2) {
+        HeadingObserver::update(self, driven, now - previous);
+    }
+
+    fn rejected_updates(&self) -> u32 {
+        HeadingObserver::rejected_updates(self)
+    }
+}
+
+impl PositionObserver for PoseObserver {
+    fn heading(&self) -> HeadingEstimate {
+        self.estimate().heading()
+    }
+
+    /// The pose observer's position starts at the first fix (its heading
+    /// estimate is kept).
+    fn start_at(&mut self, position: Vec2) {
+        let e = self.estimate();
+        self.reset(PoseEstimate { position, ..e });
+    }
+
+    fn update(&mut self, driven: BodyVelocity, _previous: Vec2, now: Vec2) {
+        PoseObserver::update(self, driven, now);
+    }
+
+    fn rejected_updates(&self) -> u32 {
+        PoseObserver::rejected_updates(self)
+    }
+}
+
+/// A [`PositionObserver`] with dead reckoning between fixes: a
+/// [`PoseEstimator`].
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DeadReckoning<O> {
+    observer: O,
+    position: Option<Vec2>,
+}
+
+impl<O: PositionObserver> DeadReckoning<O> {
+    /// The observer, with no position yet.
+    #[must_use]
+    pub fn new(observer: O) -> Self {
+        Self {
+            observer,
+            position: None,
+        }
+    }
+
+    /// The observer.
+    #[must_use]
+    pub fn observer(&self) -> &O {
+        &self.observer
+    }
+}
+
+impl<O: PositionObserver> PoseEstimator for DeadReckoning<O> {
+    fn step(
+        &mut self,
+        odometry: &OdometryStep,
+        fix: Option<Vec2>,
+        _after_gap: bool,
+    ) -> Option<Vec2> {
+        let previous = self.position;
+        let current = match (fix, previous) {
+            (Some(p), _) => Some(p),
+            (None, Some(p)) => {
+                let pose = Pose {
+                    position: p,
+                    heading_rad: self.observer.heading().heading_rad(),
+                };
+                let next = pose
+                    .advance_arc(odometry.ds_m, odometry.dtheta_rad)
+                    .position;
+                Some(if next.is_finite() { next } else { p })
+            }
+            (None, None) => None,
+        };
+        match (previous, current) {
+            (Some(prev), Some(now)) => self.observer.update(odometry.body, prev, now),
+            (None, Some(first)) => self.observer.start_at(first),
+            _ => {}
+        }
+        self.position = current;
+        current
+    }
+
+    fn heading(&self) -> HeadingEstimate {
+        self.observer.heading()
+    }
+
+    fn rejected_updates(&self) -> u32 {
+        self.observer.rejected_updates()
+    }
+
+    fn counters(&self) -> EstimatorCounters {
+        EstimatorCounters::default()
+    }
+
+    fn blind_distance_lost(&self) -> Option<bool> {
+        None
+    }
+}
