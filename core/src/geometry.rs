@@ -178,6 +178,18 @@ pub enum GeometryError {
     CountsPerRevolution,
 }
 
+impl core::fmt::Display for GeometryError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::WheelRadius => "wheel_radius_m must be finite and > 0 m",
+            Self::TrackWidth => "track_width_m must be finite and > 0 m",
+            Self::CountsPerRevolution => "encoder_counts_per_rev must be > 0",
+        })
+    }
+}
+
+impl core::error::Error for GeometryError {}
+
 /// Dimensions of a differential-drive robot and its encoders.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -16,6 +16,16 @@ pub enum CounterError {
     Width,
 }
 
+impl core::fmt::Display for CounterError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Width => "the encoder counter width must be 2..=32 bits",
+        })
+    }
+}
+
+impl core::error::Error for CounterError {}
+
 /// Signed differences of a wrapping hardware counter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -28,6 +28,19 @@ pub enum ReferenceError {
     Placement,
 }
 
+impl core::fmt::Display for ReferenceError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Period => "period_s must be finite and > 0 s",
+            Self::Size => "the amplitude or radius (m) must be finite and > 0",
+            Self::Rate => "the angular rate or speed must be finite and > 0",
+            Self::Placement => "the phase, centre, start point and direction must be finite (and the direction non-zero)",
+        })
+    }
+}
+
+impl core::error::Error for ReferenceError {}
+
 /// Converts the integer tick index into seconds: `t = k·h`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -120,6 +120,22 @@ pub enum ChainedFormError {
     Period,
 }
 
+impl core::fmt::Display for ChainedFormError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::C1 => "c1 must be finite and > 0 1/s",
+            Self::C2 => "c2 must be finite and > 0 1/s",
+            Self::C3 => "c3 must be finite and > 0 1/m",
+            Self::A1 => "an observer's a1 must be finite and > 0",
+            Self::A2 => "Proposition 2's a2 must be finite and > 0 1/m²",
+            Self::A3 => "Proposition 2's a3 must be finite and > 0 1/s",
+            Self::Period => "period_s must be finite and > 0 s",
+        })
+    }
+}
+
+impl core::error::Error for ChainedFormError {}
+
 fn positive(x: f32) -> bool {
     x.is_finite() && x > 0.0
 }

@@ -56,6 +56,17 @@ pub enum ErrorObserverConfigError {
     Period,
 }
 
+impl core::fmt::Display for ErrorObserverConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Gain => "the observer gain (c_y or c_e) must be finite and > 0 s",
+            Self::Period => "period_s must be finite and > 0 s",
+        })
+    }
+}
+
+impl core::error::Error for ErrorObserverConfigError {}
+
 fn positive(x: f32) -> bool {
     x.is_finite() && x > 0.0
 }

@@ -86,6 +86,20 @@ pub enum SlipTrackingError {
     Reference,
 }
 
+impl core::fmt::Display for SlipTrackingError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Parameter => "a physical parameter must be finite and > 0",
+            Self::Gain => "a gain must be finite and > 0",
+            Self::Period => "period_s must be finite and > 0 s",
+            Self::SlipEstimate => "the initial slip factor must be in [1, P_MAX]",
+            Self::Reference => "the reference segments must be non-empty and finite, with start times increasing from 0",
+        })
+    }
+}
+
+impl core::error::Error for SlipTrackingError {}
+
 fn positive(x: f32) -> bool {
     x.is_finite() && x > 0.0
 }

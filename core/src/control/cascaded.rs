@@ -29,6 +29,17 @@ pub enum CascadedGainsError {
     C2,
 }
 
+impl core::fmt::Display for CascadedGainsError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::C1 => "c1_per_s must be finite and > 0 1/s",
+            Self::C2 => "c2_per_s must be finite and > 0 1/s",
+        })
+    }
+}
+
+impl core::error::Error for CascadedGainsError {}
+
 /// Gains of the cascaded controller (31).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

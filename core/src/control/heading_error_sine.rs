@@ -46,6 +46,19 @@ pub enum HeadingErrorSineConfigError {
     Period,
 }
 
+impl core::fmt::Display for HeadingErrorSineConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Gain => "a_s_per_m2 (the observer gain a) must be finite and > 0 s/m²",
+            Self::C2 => "c2_per_s must be finite and > 0 1/s",
+            Self::Gamma => "gamma (γ) must be in (0, 1)",
+            Self::Period => "period_s must be finite and > 0 s",
+        })
+    }
+}
+
+impl core::error::Error for HeadingErrorSineConfigError {}
+
 fn positive(x: f32) -> bool {
     x.is_finite() && x > 0.0
 }

@@ -64,6 +64,18 @@ pub enum GainError {
     K3,
 }
 
+impl core::fmt::Display for GainError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::K1 => "gains[0] (k1) must be finite and > 0 m/s",
+            Self::K2 => "gains[1] (k2) must be finite and > 0 m/s",
+            Self::K3 => "gains[2] (k3) must be finite and > 0 1/s",
+        })
+    }
+}
+
+impl core::error::Error for GainError {}
+
 /// What the gain bound (15) says about a set of gains and a reference.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

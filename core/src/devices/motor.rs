@@ -169,8 +169,7 @@ impl core::fmt::Display for MotorFault {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for MotorFault {}
+impl core::error::Error for MotorFault {}
 
 /// One motor: a PWM channel for the duty magnitude and a direction pin.
 ///

@@ -33,6 +33,18 @@ pub enum TagGridError {
     Size,
 }
 
+impl core::fmt::Display for TagGridError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Spacing => "spacing_m must be finite and > 0 m",
+            Self::Origin => "origin_m must be finite",
+            Self::Size => "rows and columns must each be ≥ 1",
+        })
+    }
+}
+
+impl core::error::Error for TagGridError {}
+
 /// A regular grid of floor tags.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

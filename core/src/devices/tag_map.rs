@@ -30,8 +30,7 @@ impl core::fmt::Display for TagMapError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for TagMapError {}
+impl core::error::Error for TagMapError {}
 
 /// One tag of the map.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -44,6 +44,19 @@ pub enum DriveConfigError {
     SpeedLoopGain,
 }
 
+impl core::fmt::Display for DriveConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Period => "period_s must be finite and > 0 s",
+            Self::MaxWheelSpeed => "max_wheel_speed_rad_s must be finite and > 0 rad/s",
+            Self::MaxWheelAccel => "max_wheel_accel_rad_s2 must be finite and > 0 rad/s²",
+            Self::SpeedLoopGain => "the speed-loop gains (feedforward_duty_per_rad_s, kp_duty_per_rad_s, ki_duty_per_rad) must each be finite and ≥ 0",
+        })
+    }
+}
+
+impl core::error::Error for DriveConfigError {}
+
 /// Gains of the per-wheel speed loop (duty fractions per rad/s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

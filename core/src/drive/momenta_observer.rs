@@ -140,6 +140,26 @@ pub enum MomentaObserverError {
     Parameter,
 }
 
+impl core::fmt::Display for MomentaObserverError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Lambda => "lambda_per_s (λ) must be finite and > 0 1/s",
+            Self::Period => "period_s (h) must be finite and > 0 s",
+            Self::Kappa => "kappa_per_s (κ) must be finite and > 0 1/s",
+            Self::Scaling => "the initial scaling factor r(0) must be finite and ≥ 1",
+            Self::StepTooLong => "the step is too long for the gains: Proposition 2 needs h·ψ < 1 with ψ = 4(1 + κ)",
+            Self::AdaptationGain => "the adaptation gains γ_r, γ_d must each be finite and > 0",
+            Self::FrictionIndex => "an unknown-friction coordinate index must be < N",
+            Self::DuplicateFrictionIndex => "an unknown-friction coordinate is listed twice",
+            Self::Inertia => "the inertia matrix must be finite, symmetric and positive definite",
+            Self::Friction => "a friction coefficient must be finite and ≥ 0",
+            Self::Parameter => "a physical parameter (mass, length, inertia) must be finite and > 0 (the wheel inertia ≥ 0)",
+        })
+    }
+}
+
+impl core::error::Error for MomentaObserverError {}
+
 /// Validated gains of a [`MomentaObserver`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -64,6 +64,19 @@ pub enum ObserverConfigError {
     InitialEstimate,
 }
 
+impl core::fmt::Display for ObserverConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Gain => "observer_gain_per_m (L) must be finite and > 0 1/m",
+            Self::Period => "period_s must be finite and > 0 s",
+            Self::MinSpeed => "observer_min_speed_m_s must be finite and ≥ 0 m/s",
+            Self::InitialEstimate => "the initial estimate (ĉ, ŝ) must be finite",
+        })
+    }
+}
+
+impl core::error::Error for ObserverConfigError {}
+
 /// Parameters of the heading observer (validated once).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -65,6 +65,20 @@ pub enum PoseObserverConfigError {
     Period,
 }
 
+impl core::fmt::Display for PoseObserverConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::A1 => "gains[0] (a1, the x injection) must be finite and > 0 1/s",
+            Self::A2 => "gains[1] (a2, the y injection) must be finite and > 0 1/s",
+            Self::A3 => "gains[2] (a3) must be finite and > 0 1/m²",
+            Self::A4 => "gains[3] (a4) must be finite and > 0 1/m²",
+            Self::Period => "period_s must be finite and > 0 s",
+        })
+    }
+}
+
+impl core::error::Error for PoseObserverConfigError {}
+
 /// Validated gains and step of a [`PoseObserver`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

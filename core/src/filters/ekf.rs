@@ -83,6 +83,17 @@ pub enum FilterConfigError {
     InitialState,
 }
 
+impl core::fmt::Display for FilterConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Covariance => "a covariance (P0, Q or R) must be finite, symmetric and positive semi-definite (P0 and R definite)",
+            Self::InitialState => "the initial state must be finite",
+        })
+    }
+}
+
+impl core::error::Error for FilterConfigError {}
+
 /// What the filter skipped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -277,6 +277,23 @@ pub enum ParticleFilterError {
     NoParticles,
 }
 
+impl core::fmt::Display for ParticleFilterError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::ProcessStd => "each process-noise standard deviation must be finite and ≥ 0",
+            Self::MeasurementStd => "each measurement-noise standard deviation must be finite and > 0 (and its inverse finite)",
+            Self::ResampleThreshold => "the resampling threshold must be a fraction in [0, 1]",
+            Self::RecoveryStd => "each recovery standard deviation must be finite and ≥ 0",
+            Self::CollapseGate => "the collapse gate must be > 0 (not NaN)",
+            Self::PriorMean => "the prior mean must be finite",
+            Self::PriorStd => "each prior standard deviation must be finite and ≥ 0",
+            Self::NoParticles => "the particle count P must be ≥ 1",
+        })
+    }
+}
+
+impl core::error::Error for ParticleFilterError {}
+
 /// Validated noise levels and thresholds of a [`ParticleFilter`] with `N`
 /// states and `M` measurements.
 #[derive(Debug, Clone, Copy, PartialEq)]

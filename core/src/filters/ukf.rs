@@ -162,6 +162,32 @@ pub enum UkfError {
     MeasurementNoise,
 }
 
+impl core::fmt::Display for UkfError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::SigmaPointCount => "the sigma-point count S must be 2N + 1 with N > 0",
+            Self::Alpha => "alpha (α) must be finite and > 0",
+            Self::Beta => "beta (β) must be finite",
+            Self::Kappa => "kappa (κ) must be finite with n + κ > 0",
+            Self::Spread => {
+                "n + λ = α²(n + κ) under- or overflows f32 (the weights are not finite)"
+            }
+            Self::InitialState => "the initial state must be finite",
+            Self::InitialCovariance => {
+                "the initial covariance must be finite, symmetric and positive definite"
+            }
+            Self::ProcessNoise => {
+                "the process noise Q must be finite, symmetric and positive semi-definite"
+            }
+            Self::MeasurementNoise => {
+                "the measurement noise R must be finite, symmetric and positive semi-definite"
+            }
+        })
+    }
+}
+
+impl core::error::Error for UkfError {}
+
 /// Van der Merwe's scaled sigma points for `N` states (FilterPy's
 /// `MerweScaledSigmaPoints(n, alpha, beta, kappa)` with its default
 /// Cholesky square root): the parameters and the `S = 2N + 1` weights.

@@ -44,6 +44,17 @@ pub enum PilotConfigError {
     PeriodMismatch,
 }
 
+impl core::fmt::Display for PilotConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::EncoderBits => "encoder_bits must be 2..=32",
+            Self::PeriodMismatch => "the tracker's and the drive's period_s must be equal",
+        })
+    }
+}
+
+impl core::error::Error for PilotConfigError {}
+
 impl From<CounterError> for PilotConfigError {
     fn from(_: CounterError) -> Self {
         Self::EncoderBits

@@ -66,6 +66,67 @@ pub enum SpecError {
     HeadingErrorSineLaw(HeadingErrorSineConfigError),
 }
 
+impl SpecError {
+    /// The part of the spec the error is about, as a dotted path of
+    /// [`PilotSpec`]'s fields (`""` for [`Self::NotInThisBuild`]).
+    #[must_use]
+    pub fn section(&self) -> &'static str {
+        match self {
+            Self::Trajectory(_) => "tracker.trajectory",
+            Self::Gains(_) | Self::Observer(_) | Self::Tracker(_) => "tracker",
+            Self::PoseObserver(_) => "tracker.estimator.pose_observer",
+            Self::Fusion(_) => "tracker.estimator.fusion",
+            Self::CascadedLaw(_) => "tracker.law.cascaded",
+            Self::HeadingErrorSineLaw(_) => "tracker.law.heading_error_sine",
+            Self::Geometry(_) | Self::Drive(_) => "drive",
+            Self::Pilot(_) => "",
+            Self::TagGrid(_) => "tag_grid",
+            Self::NotInThisBuild => "",
+        }
+    }
+
+    /// The part's own error.
+    fn inner(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        Some(match self {
+            Self::Trajectory(e) => e,
+            Self::Gains(e) => e,
+            Self::Observer(e) => e,
+            Self::Tracker(e) => e,
+            Self::Geometry(e) => e,
+            Self::Drive(e) => e,
+            Self::Pilot(e) => e,
+            Self::TagGrid(e) => e,
+            Self::PoseObserver(e) => e,
+            Self::Fusion(e) => e,
+            Self::CascadedLaw(e) => e,
+            Self::HeadingErrorSineLaw(e) => e,
+            Self::NotInThisBuild => return None,
+        })
+    }
+}
+
+/// `section: what is wrong`, e.g. `drive: max_wheel_speed_rad_s must be
+/// finite and > 0 rad/s`.
+impl core::fmt::Display for SpecError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self.inner() {
+            Some(e) if self.section().is_empty() => write!(f, "{e}"),
+            Some(e) => write!(f, "{}: {e}", self.section()),
+            None => f.write_str(
+                "this build of the core lacks the selected part (the fusion estimator needs \
+                 the cargo feature fusion-ekf, its UKF fusion-ukf, its particle filter \
+                 fusion-particle-filter)",
+            ),
+        }
+    }
+}
+
+impl core::error::Error for SpecError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        self.inner()
+    }
+}
+
 /// The tracker's heading estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -483,6 +544,39 @@ mod tests {
             encoder_bits: 16,
             max_encoder_fault_ticks: 5,
         }
+    }
+
+    /// Errors name the spec field and the rule, in the spec's words.
+    #[test]
+    fn errors_say_which_field_and_why() {
+        extern crate std;
+        use std::string::ToString;
+        let mut s = paper_spec();
+        s.drive.max_wheel_speed_rad_s = -1.0;
+        let e = s.build().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "drive: max_wheel_speed_rad_s must be finite and > 0 rad/s"
+        );
+        assert!(core::error::Error::source(&e).is_some());
+        let mut s = paper_spec();
+        s.tracker.gains[1] = f32::NAN;
+        assert_eq!(
+            s.build().unwrap_err().to_string(),
+            "tracker: gains[1] (k2) must be finite and > 0 m/s"
+        );
+        let mut s = paper_spec();
+        s.encoder_bits = 40;
+        assert_eq!(
+            s.build().unwrap_err().to_string(),
+            "encoder_bits must be 2..=32"
+        );
+        let mut s = paper_spec();
+        s.tracker.fix_timeout_ticks = 0;
+        assert_eq!(
+            s.build().unwrap_err().to_string(),
+            "tracker: fix_timeout_ticks must be ≥ 1"
+        );
     }
 
     #[test]

@@ -76,6 +76,29 @@ pub enum TrackerConfigError {
     AlgorithmPeriod,
 }
 
+impl core::fmt::Display for TrackerConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Period => f.write_str("period_s must be finite and > 0 s"),
+            Self::Observer(e) => core::fmt::Display::fmt(e, f),
+            Self::FailsafeDecel => f.write_str("failsafe_decel_m_s2 must be finite and > 0 m/s²"),
+            Self::FixTimeout => f.write_str("fix_timeout_ticks must be ≥ 1"),
+            Self::AlgorithmPeriod => {
+                f.write_str("a paper 002 estimator or law must run at the tracker's period_s")
+            }
+        }
+    }
+}
+
+impl core::error::Error for TrackerConfigError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Self::Observer(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
 impl From<ObserverConfigError> for TrackerConfigError {
     fn from(e: ObserverConfigError) -> Self {
         Self::Observer(e)

@@ -140,6 +140,25 @@ pub enum Refusal {
     NotConfigured,
 }
 
+impl core::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Protocol(v) => write!(f, "the firmware speaks link protocol {v}"),
+            Self::Spec(e) => write!(f, "the core refused the spec: {e}"),
+            Self::NotConfigured => f.write_str("a tick arrived before any configuration"),
+        }
+    }
+}
+
+impl core::error::Error for Refusal {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Self::Spec(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
 /// One motor as the firmware drove it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -256,6 +275,20 @@ pub enum LinkError {
     /// postcard could not decode the payload as the expected message.
     Decode,
 }
+
+impl core::fmt::Display for LinkError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::TooLong => "frame longer than MAX_FRAME_BYTES",
+            Self::Cobs => "frame is not valid COBS",
+            Self::TooShort => "frame shorter than its CRC",
+            Self::Crc => "frame CRC mismatch",
+            Self::Decode => "frame payload does not decode as the expected message",
+        })
+    }
+}
+
+impl core::error::Error for LinkError {}
 
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 

@@ -26,6 +26,27 @@ pub enum PoseFilterError {
     BlindDistance,
 }
 
+impl core::fmt::Display for PoseFilterError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::TrackWidth => "track_width_m must be finite and > 0 m",
+            Self::WheelNoise => {
+                "wheel_variance_per_m and wheel_variance_floor_m2 must each be finite and ≥ 0"
+            }
+            Self::Gate => "gate_sigma must be finite and ≥ 1",
+            Self::InitialVariance => {
+                "each initial variance (and scale_prior) must be finite and ≥ 0"
+            }
+            Self::ScaleWalk => "the wheel-scale random walk must be finite and ≥ 0 per m",
+            Self::TagSpacing => "tag_spacing_m must be finite and > 0 m",
+            Self::ReadRadius => "read_radius_m must be finite and ≥ 0 m",
+            Self::BlindDistance => "max_blind_distance_m must be finite and ≥ 0 m",
+        })
+    }
+}
+
+impl core::error::Error for PoseFilterError {}
+
 /// Validated parameters of a pose filter ([`crate::estimation::fusion::PoseFilter`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
