@@ -34,9 +34,10 @@
 //!   robot does not know where it is).
 //! * [`TrackerMode::Tracking`]: the law drives.
 //! * [`TrackerMode::FixLost`]: no fix for more than
-//!   `fix_timeout_ticks` (or, for the fusion estimator with a distance
-//!   limit, `FusionSettings::with_max_blind_distance`, more than that
-//!   distance driven since the last fix, whatever the time): the robot
+//!   `fix_timeout_ticks` (or, where the estimator has a failsafe of its
+//!   own, [`PoseEstimator::blind_distance_lost`], e.g. the fusion
+//!   estimator's limit on the distance driven since the last fix, whatever
+//!   the time): the robot
 //!   must not drive on blind forever, so the
 //!   command ramps down to zero at `failsafe_decel_m_s2` (ω scaled with v,
 //!   so it slows along the arc it was on) and stays at zero. The observer
@@ -480,10 +481,9 @@ impl OutputFeedbackTracker {
         out
     }
 
-    /// Whether the fix counts as lost: for the fusion estimator with a
-    /// distance limit (`FusionSettings::with_max_blind_distance`), more
-    /// than that distance driven since the last fix; otherwise more than
-    /// `fix_timeout_ticks` without a fix.
+    /// Whether the fix counts as lost: the estimator's own failsafe where
+    /// it has one ([`PoseEstimator::blind_distance_lost`]), otherwise more
+    /// than `fix_timeout_ticks` without a fix.
     fn fix_lost(&self) -> bool {
         self.estimator
             .blind_distance_lost()
