@@ -107,16 +107,7 @@ impl<O: PositionObserver> PoseEstimator for DeadReckoning<O> {
         let previous = self.position;
         let current = match (fix, previous) {
             (Some(p), _) => Some(p),
-            (None, Some(p)) => {
-                let pose = Pose {
-                    position: p,
-                    heading_rad: self.observer.heading().heading_rad(),
-                };
-                let next = pose
-                    .advance_arc(odometry.ds_m, odometry.dtheta_rad)
-                    .position;
-                Some(if next.is_finite() { next } else { p })
-            }
+            (None, Some(p)) => Some(dead_reckon(p, self.observer.heading(), odometry)),
             (None, None) => None,
         };
         match (previous, current) {
@@ -143,4 +134,17 @@ impl<O: PositionObserver> PoseEstimator for DeadReckoning<O> {
     fn blind_distance_lost(&self) -> Option<bool> {
         None
     }
+}
+
+/// `position` moved along the odometry arc at the heading `θ̂` of
+/// `heading`; `position` itself if that is not finite.
+fn dead_reckon(position: Vec2, heading: HeadingEstimate, odometry: &OdometryStep) -> Vec2 {
+    let pose = Pose {
+        position,
+        heading_rad: heading.heading_rad(),
+    };
+    let next = pose
+        .advance_arc(odometry.ds_m, odometry.dtheta_rad)
+        .position;
+    if next.is_finite() { next } else { position }
 }
