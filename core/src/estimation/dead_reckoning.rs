@@ -77,17 +77,13 @@ impl PositionObserver for PoseObserver {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DeadReckoning<O> {
     observer: O,
-    position: Option<Vec2>,
 }
 
 impl<O: PositionObserver> DeadReckoning<O> {
-    /// The observer, with no position yet.
+    /// Dead reckoning for `observer`.
     #[must_use]
     pub fn new(observer: O) -> Self {
-        Self {
-            observer,
-            position: None,
-        }
+        Self { observer }
     }
 
     /// The observer.
@@ -102,9 +98,10 @@ impl<O: PositionObserver> PoseEstimator for DeadReckoning<O> {
         &mut self,
         odometry: &OdometryStep,
         fix: Option<Vec2>,
+        last_position: Option<Vec2>,
         _after_gap: bool,
     ) -> Option<Vec2> {
-        let previous = self.position;
+        let previous = last_position;
         let current = match (fix, previous) {
             (Some(p), _) => Some(p),
             (None, Some(p)) => Some(dead_reckon(p, self.observer.heading(), odometry)),
@@ -115,7 +112,6 @@ impl<O: PositionObserver> PoseEstimator for DeadReckoning<O> {
             (None, Some(first)) => self.observer.start_at(first),
             _ => {}
         }
-        self.position = current;
         current
     }
 

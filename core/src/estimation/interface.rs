@@ -20,12 +20,19 @@ pub struct EstimatorCounters {
 /// A pose estimator on odometry and tag fixes.
 pub trait PoseEstimator {
     /// One tick: `odometry` over the last control period, `fix` the tag
-    /// position accepted this tick (finite and fresh), `after_gap` whether
-    /// ticks without a fix came before it. Returns the position the law
-    /// uses this tick (m, world frame); `None` while the estimator does not
-    /// know where the robot is (before the first fix).
-    fn step(&mut self, odometry: &OdometryStep, fix: Option<Vec2>, after_gap: bool)
-    -> Option<Vec2>;
+    /// position accepted this tick (finite and fresh), `last_position` what
+    /// this method returned the tick before (the tracker keeps it, so no
+    /// estimator stores it twice), `after_gap` whether ticks without a fix
+    /// came before this one. Returns the position the law uses this tick
+    /// (m, world frame); `None` while the estimator does not know where the
+    /// robot is (before the first fix).
+    fn step(
+        &mut self,
+        odometry: &OdometryStep,
+        fix: Option<Vec2>,
+        last_position: Option<Vec2>,
+        after_gap: bool,
+    ) -> Option<Vec2>;
 
     /// The heading estimate `(cos θ̂, sin θ̂)` after the last step (`(0, 0)`
     /// where nothing is known).

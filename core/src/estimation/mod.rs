@@ -112,9 +112,10 @@ impl PoseEstimator for Estimator {
         &mut self,
         odometry: &OdometryStep,
         fix: Option<Vec2>,
+        last_position: Option<Vec2>,
         after_gap: bool,
     ) -> Option<Vec2> {
-        dispatch!(self, step(odometry, fix, after_gap))
+        dispatch!(self, step(odometry, fix, last_position, after_gap))
     }
 
     fn heading(&self) -> HeadingEstimate {

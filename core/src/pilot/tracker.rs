@@ -418,7 +418,7 @@ impl OutputFeedbackTracker {
             self.ticks_since_fix = self.ticks_since_fix.saturating_add(1);
             self.counters.dead_reckoned_steps = self.counters.dead_reckoned_steps.saturating_add(1);
         }
-        self.position = self.estimator.step(odometry, fix, after_gap);
+        self.position = self.estimator.step(odometry, fix, previous, after_gap);
         self.drive(tick, odometry)
     }
 

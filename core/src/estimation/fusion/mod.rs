@@ -435,11 +435,13 @@ impl defmt::Format for FusionEstimator {
 }
 
 impl PoseEstimator for FusionEstimator {
-    /// [`FusionEstimator::step`]; the position of its pose.
+    /// [`FusionEstimator::step`]; the position of its pose (the filter
+    /// keeps its own, so `last_position` is not needed).
     fn step(
         &mut self,
         odometry: &OdometryStep,
         fix: Option<Vec2>,
+        _last_position: Option<Vec2>,
         after_gap: bool,
     ) -> Option<Vec2> {
         FusionEstimator::step(self, odometry, fix, after_gap).map(|pose| pose.position)
