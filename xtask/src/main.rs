@@ -10,14 +10,16 @@
 //!   (the hardware-in-the-loop tests run the QEMU-board firmware), rustdoc
 //!   with `-D warnings`, the default simulator scenario end to end, and
 //!   the on-target reports `size` and `bench-target` (printed, not
-//!   enforced).
+//!   enforced). It never writes a tracked file: its reports go to
+//!   `target/`.
 //! * `firmware` — release ELFs of both boards, copied to
 //!   `target/firmware/wmr-firmware-<board>.elf`.
 //! * `bench` — criterion benchmark of one control tick (host).
-//! * `bench-target` — instructions per call of the tick and its stages on
-//!   the target (QEMU `netduinoplus2`, `-icount shift=0`), for each math
-//!   backend; writes `target/bench-target.md` and README.md's
-//!   `bench-target` section (if its markers are there).
+//! * `bench-target [--write]` — instructions per call of the tick and its
+//!   stages on the target (QEMU `netduinoplus2`, `-icount shift=0`), for
+//!   each math backend; writes `target/bench-target.md`, and with
+//!   `--write` also the generated section of `docs/firmware.md` (between
+//!   its `bench-target` markers), the only task that writes a tracked file.
 //! * `size` — flash and static RAM of the release firmware (each board
 //!   that builds) and its biggest symbols; writes `target/size.md`.
 //! * `opt-levels` — firmware size and tick instructions for each release
@@ -35,8 +37,21 @@ use std::time::Instant;
 /// Microcontroller targets the core must build for.
 const TARGETS: [&str; 2] = ["thumbv7em-none-eabihf", "thumbv6m-none-eabi"];
 
+/// The command line's synopsis.
+const USAGE: &str = "usage: cargo xtask <ci|firmware|bench|bench-target [--write]|size|opt-levels>";
+
 fn main() -> ExitCode {
-    let task = std::env::args().nth(1).unwrap_or_default();
+    let mut args = std::env::args().skip(1);
+    let task = args.next().unwrap_or_default();
+    let options: Vec<String> = args.collect();
+    let write = match (task.as_str(), options.as_slice()) {
+        ("bench-target", [flag]) if flag == "--write" => true,
+        (_, []) => false,
+        _ => {
+            eprintln!("{USAGE}");
+            return ExitCode::from(2);
+        }
+    };
     let result = match task.as_str() {
         "ci" => ci(),
         "firmware" => build_firmware().map(|elfs| {
@@ -45,11 +60,11 @@ fn main() -> ExitCode {
             }
         }),
         "bench" => cargo(&["bench", "-p", "host-tests", "--bench", "tick"], &[]),
-        "bench-target" => bench_target::bench_target(),
+        "bench-target" => bench_target::bench_target(write),
         "size" => size::size(),
         "opt-levels" => opt_levels::opt_levels(),
         _ => {
-            eprintln!("usage: cargo xtask <ci|firmware|bench|bench-target|size|opt-levels>");
+            eprintln!("{USAGE}");
             return ExitCode::from(2);
         }
     };
@@ -187,7 +202,9 @@ fn ci() -> Result {
     })?;
     // Report only: CI prints the budgets, it does not enforce them.
     step("size (report)", size::size)?;
-    step("bench-target (report)", bench_target::bench_target)?;
+    step("bench-target (report)", || {
+        bench_target::bench_target(false)
+    })?;
     eprintln!(
         "\nxtask ci: every check passed in {:.0} s",
         started.elapsed().as_secs_f64()
@@ -231,7 +248,7 @@ fn build_firmware() -> std::result::Result<Vec<(&'static str, std::path::PathBuf
 /// The QEMU board with the fusion estimator's EKF and UKF (features
 /// `fusion-ukf`, which implies `fusion-ekf`) for the HIL test of the UKF
 /// in the firmware, copied to `target/firmware/wmr-firmware-qemu-fusion.elf`.
-/// Over the flash budget (README), so not a board of its own.
+/// Over the flash budget (docs/firmware.md), so not a board of its own.
 fn build_fusion_firmware() -> std::result::Result<std::path::PathBuf, String> {
     let mut built = Vec::new();
     step("build firmware qemu + fusion-ukf (release)", || {
