@@ -1,21 +1,32 @@
-//! `cargo xtask bench-target`: instructions per call on the target, under
-//! QEMU, for each math backend (see `firmware/src/bin/bench.rs`).
+//! `cargo xtask bench-target [--write]`: instructions per call on the
+//! target, under QEMU, for each math backend (see
+//! `firmware/src/bin/bench.rs`).
+//!
+//! By default it is a report: it prints the tables and writes
+//! `target/bench-target.md`, nothing tracked (so `cargo xtask ci` can run
+//! it on any checkout). With `--write` it also replaces the generated
+//! section of `docs/firmware.md` (between its `bench-target` markers),
+//! which is how the published tables are regenerated.
 
 use std::fmt::Write as _;
 use std::time::Duration;
 
 use crate::target::{
-    Build, grouped, qemu, qemu_version, rustc_version, update_readme, write_report,
+    Build, grouped, marked_section, qemu, qemu_version, rustc_version, update_marked, write_report,
 };
 
 /// The math backends: name and the firmware features that select it.
 pub const BACKENDS: [(&str, &[&str]); 2] = [("libm", &[]), ("micromath", &["micromath"])];
 
-/// Markers of the generated part of README.md.
-const README_START: &str = "<!-- bench-target:start -->";
-const README_END: &str = "<!-- bench-target:end -->";
+/// The tracked page holding the published tables (relative to the
+/// workspace root), written only with `--write`.
+pub const DOCS_PAGE: &str = "docs/firmware.md";
+/// Markers of the generated part of [`DOCS_PAGE`].
+const DOCS_START: &str = "<!-- bench-target:start -->";
+const DOCS_END: &str = "<!-- bench-target:end -->";
 
-/// Where the table is always written (relative to the workspace root).
+/// Where the table is always written (relative to the workspace root;
+/// `target/` is not tracked).
 pub const REPORT: &str = "target/bench-target.md";
 
 /// A whole run takes well under a second of host time.
@@ -253,8 +264,9 @@ pub fn run_backend(
     Ok(report)
 }
 
-/// The task.
-pub fn bench_target() -> crate::Result {
+/// The task. `write_docs` (`--write`) also updates the generated section of
+/// [`DOCS_PAGE`]; without it nothing tracked is written.
+pub fn bench_target(write_docs: bool) -> crate::Result {
     let mut reports = Vec::new();
     for (backend, features) in BACKENDS {
         eprintln!("\n==> wmr-bench, {backend}");
@@ -269,8 +281,17 @@ pub fn bench_target() -> crate::Result {
     print!("\n{table}");
     let path = write_report(REPORT, &table)?;
     eprintln!("\nwritten to {}", path.display());
-    if update_readme(README_START, README_END, &table)? {
-        eprintln!("README.md updated between {README_START} and {README_END}");
+    if write_docs {
+        let page = update_marked(DOCS_PAGE, DOCS_START, DOCS_END, &table)?;
+        eprintln!(
+            "{} updated between {DOCS_START} and {DOCS_END}",
+            page.display()
+        );
+    } else if marked_section(DOCS_PAGE, DOCS_START, DOCS_END).is_some_and(|t| t != table) {
+        eprintln!(
+            "{DOCS_PAGE}'s tables differ from this run (not written: \
+             `cargo xtask bench-target --write` updates them)"
+        );
     }
     Ok(())
 }
@@ -307,7 +328,7 @@ pub fn markdown(reports: &[Report]) -> String {
          call and the loading of its arguments included. Instructions are a proxy \
          for Cortex-M4 cycles, not cycles: QEMU models no flash wait states, \
          pipeline or FPU latencies (`vdiv.f32`, `vsqrt.f32`: 14 cycles each). \
-         Regenerate with `cargo xtask bench-target`.\n",
+         Regenerate with `cargo xtask bench-target --write`.\n",
         rustc_version(),
         qemu_version()
     );
@@ -512,6 +533,12 @@ done
             md.contains("| EKF, N = M = 3 (`PoseModel`): update | – |"),
             "{md}"
         );
+    }
+
+    #[test]
+    fn the_docs_page_has_the_markers() {
+        // `--write` fails without them; find out here, not after a bench run.
+        assert!(marked_section(DOCS_PAGE, DOCS_START, DOCS_END).is_some());
     }
 
     #[test]

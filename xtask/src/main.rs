@@ -5,19 +5,25 @@
 //!   rustup, `qemu-system-arm` via apt-get, the firmware's linker
 //!   flip-link via `cargo install`), then runs every check:
 //!   rustfmt, clippy `-D warnings` on the host and on the microcontroller
-//!   targets (the core with each math backend, with and without defmt; the
-//!   link; the firmware with each board), the cross builds, all tests
-//!   (the hardware-in-the-loop tests run the QEMU-board firmware), rustdoc
-//!   with `-D warnings`, the default simulator scenario end to end, and
-//!   the on-target reports `size` and `bench-target` (printed, not
-//!   enforced).
+//!   targets (the feature matrix of `features`, and the link), the cross
+//!   builds, all tests (the hardware-in-the-loop tests run the QEMU-board
+//!   firmware), the core's tests again with its default features alone,
+//!   rustdoc with `-D warnings`, the default simulator scenario end to end,
+//!   and the on-target reports `size` and `bench-target` (printed, not
+//!   enforced). It never writes a tracked file: its reports go to
+//!   `target/`.
+//! * `features` — clippy `-D warnings` on the feature matrix alone: the
+//!   core on both microcontroller targets and the firmware with each
+//!   board, for a covering set of the feature combinations a user can
+//!   pick (the table and why these rows: `xtask/src/features.rs`).
 //! * `firmware` — release ELFs of both boards, copied to
 //!   `target/firmware/wmr-firmware-<board>.elf`.
 //! * `bench` — criterion benchmark of one control tick (host).
-//! * `bench-target` — instructions per call of the tick and its stages on
-//!   the target (QEMU `netduinoplus2`, `-icount shift=0`), for each math
-//!   backend; writes `target/bench-target.md` and README.md's
-//!   `bench-target` section (if its markers are there).
+//! * `bench-target [--write]` — instructions per call of the tick and its
+//!   stages on the target (QEMU `netduinoplus2`, `-icount shift=0`), for
+//!   each math backend; writes `target/bench-target.md`, and with
+//!   `--write` also the generated section of `docs/firmware.md` (between
+//!   its `bench-target` markers), the only task that writes a tracked file.
 //! * `size` — flash and static RAM of the release firmware (each board
 //!   that builds) and its biggest symbols; writes `target/size.md`.
 //! * `opt-levels` — firmware size and tick instructions for each release
@@ -25,6 +31,7 @@
 //!   level rebuilds all dependencies.
 
 mod bench_target;
+mod features;
 mod opt_levels;
 mod size;
 mod target;
@@ -35,21 +42,36 @@ use std::time::Instant;
 /// Microcontroller targets the core must build for.
 const TARGETS: [&str; 2] = ["thumbv7em-none-eabihf", "thumbv6m-none-eabi"];
 
+/// The command line's synopsis.
+const USAGE: &str =
+    "usage: cargo xtask <ci|features|firmware|bench|bench-target [--write]|size|opt-levels>";
+
 fn main() -> ExitCode {
-    let task = std::env::args().nth(1).unwrap_or_default();
+    let mut args = std::env::args().skip(1);
+    let task = args.next().unwrap_or_default();
+    let options: Vec<String> = args.collect();
+    let write = match (task.as_str(), options.as_slice()) {
+        ("bench-target", [flag]) if flag == "--write" => true,
+        (_, []) => false,
+        _ => {
+            eprintln!("{USAGE}");
+            return ExitCode::from(2);
+        }
+    };
     let result = match task.as_str() {
         "ci" => ci(),
+        "features" => features::clippy_matrix(),
         "firmware" => build_firmware().map(|elfs| {
             for (board, elf) in elfs {
                 println!("{board:<10} {}", elf.display());
             }
         }),
         "bench" => cargo(&["bench", "-p", "host-tests", "--bench", "tick"], &[]),
-        "bench-target" => bench_target::bench_target(),
+        "bench-target" => bench_target::bench_target(write),
         "size" => size::size(),
         "opt-levels" => opt_levels::opt_levels(),
         _ => {
-            eprintln!("usage: cargo xtask <ci|firmware|bench|bench-target|size|opt-levels>");
+            eprintln!("{USAGE}");
             return ExitCode::from(2);
         }
     };
@@ -82,22 +104,9 @@ fn ci() -> Result {
             &[],
         )
     })?;
-    for target in TARGETS {
-        for features in [
-            &[
-                "--features",
-                "defmt,fusion-ekf,fusion-ukf,fusion-particle-filter,wheel-speed-observer",
-            ][..],
-            &["--no-default-features", "--features", "micromath"][..],
-        ] {
-            step(&format!("clippy core {target} {features:?}"), || {
-                let mut args = vec!["clippy", "-p", "wmr-core", "--target", target];
-                args.extend_from_slice(features);
-                args.extend_from_slice(&["--", "-D", "warnings"]);
-                cargo(&args, &[])
-            })?;
-        }
-    }
+    // The core on both targets and the firmware with each board, for the
+    // feature combinations of `features.rs`.
+    features::clippy_matrix()?;
     step("clippy link thumbv7em-none-eabihf", || {
         cargo(
             &[
@@ -115,28 +124,6 @@ fn ci() -> Result {
             &[],
         )
     })?;
-    for (board, feature) in BOARDS {
-        step(&format!("clippy firmware {board}"), || {
-            cargo(
-                &[
-                    "clippy",
-                    "-p",
-                    "wmr-firmware",
-                    "--release",
-                    "--target",
-                    FIRMWARE_TARGET,
-                    "--all-targets",
-                    "--no-default-features",
-                    "--features",
-                    feature,
-                    "--",
-                    "-D",
-                    "warnings",
-                ],
-                &[],
-            )
-        })?;
-    }
     let elfs = build_firmware()?;
     let qemu_elf = elfs
         .iter()
@@ -153,8 +140,12 @@ fn ci() -> Result {
             ],
         )
     })?;
-    step("doc tests (core)", || {
-        cargo(&["test", "-p", "wmr-core", "--doc"], &[])
+    // The workspace test run unifies features (the simulator and the tests
+    // turn every core feature on), so the core's default-feature paths
+    // (`libm` only, no estimator feature) are tested here, doc tests
+    // included.
+    step("tests (core, default features alone)", || {
+        cargo(&["test", "-p", "wmr-core"], &[])
     })?;
     for target in TARGETS {
         step(&format!("cross build core {target} (release)"), || {
@@ -187,7 +178,9 @@ fn ci() -> Result {
     })?;
     // Report only: CI prints the budgets, it does not enforce them.
     step("size (report)", size::size)?;
-    step("bench-target (report)", bench_target::bench_target)?;
+    step("bench-target (report)", || {
+        bench_target::bench_target(false)
+    })?;
     eprintln!(
         "\nxtask ci: every check passed in {:.0} s",
         started.elapsed().as_secs_f64()
@@ -231,7 +224,7 @@ fn build_firmware() -> std::result::Result<Vec<(&'static str, std::path::PathBuf
 /// The QEMU board with the fusion estimator's EKF and UKF (features
 /// `fusion-ukf`, which implies `fusion-ekf`) for the HIL test of the UKF
 /// in the firmware, copied to `target/firmware/wmr-firmware-qemu-fusion.elf`.
-/// Over the flash budget (README), so not a board of its own.
+/// Over the flash budget (docs/firmware.md), so not a board of its own.
 fn build_fusion_firmware() -> std::result::Result<std::path::PathBuf, String> {
     let mut built = Vec::new();
     step("build firmware qemu + fusion-ukf (release)", || {

@@ -188,28 +188,45 @@ pub fn write_report(path: &str, text: &str) -> Result<PathBuf, String> {
     Ok(path)
 }
 
-/// Replaces what lies between the `start` and `end` markers of the
-/// workspace's README.md with `body`, if both markers are there (in that
-/// order). Returns whether the README now holds `body`.
-pub fn update_readme(start: &str, end: &str, body: &str) -> Result<bool, String> {
-    let path = workspace_root().join("README.md");
-    let Ok(text) = std::fs::read_to_string(&path) else {
-        return Ok(false);
-    };
-    let Some(s) = text.find(start) else {
-        return Ok(false);
-    };
-    let after_start = s + start.len();
-    let Some(e) = text[after_start..].find(end).map(|e| e + after_start) else {
-        return Err(format!(
-            "README.md has `{start}` but no `{end}` after it: not updated"
-        ));
-    };
-    let updated = format!("{}\n{body}{}", &text[..after_start], &text[e..]);
+/// The text between the `start` and `end` markers of `path` (relative to
+/// the workspace root), without the newline that follows `start`; `None`
+/// if the file or either marker is missing.
+pub fn marked_section(path: &str, start: &str, end: &str) -> Option<String> {
+    let text = std::fs::read_to_string(workspace_root().join(path)).ok()?;
+    let (body_start, body_end) = marker_span(&text, start, end).ok()?;
+    Some(text[body_start..body_end].to_string())
+}
+
+/// Replaces what lies between the `start` and `end` markers of `path`
+/// (relative to the workspace root, a tracked file) with `body`. Only for
+/// an explicit request (`bench-target --write`): fails if the file or a
+/// marker is missing, so that nothing is silently left stale.
+pub fn update_marked(path: &str, start: &str, end: &str, body: &str) -> Result<PathBuf, String> {
+    let full = workspace_root().join(path);
+    let text =
+        std::fs::read_to_string(&full).map_err(|e| format!("read {}: {e}", full.display()))?;
+    let (body_start, body_end) =
+        marker_span(&text, start, end).map_err(|e| format!("{}: {e}", full.display()))?;
+    let updated = format!("{}{body}{}", &text[..body_start], &text[body_end..]);
     if updated != text {
-        std::fs::write(&path, updated).map_err(|e| format!("write {}: {e}", path.display()))?;
+        std::fs::write(&full, updated).map_err(|e| format!("write {}: {e}", full.display()))?;
     }
-    Ok(true)
+    Ok(full)
+}
+
+/// Byte range of the body between `start` (and the newline after it) and
+/// `end`.
+fn marker_span(text: &str, start: &str, end: &str) -> Result<(usize, usize), String> {
+    let s = text
+        .find(start)
+        .ok_or_else(|| format!("no `{start}` marker"))?;
+    let after_start = s + start.len();
+    let body_start = after_start + usize::from(text[after_start..].starts_with('\n'));
+    let body_end = text[body_start..]
+        .find(end)
+        .map(|e| e + body_start)
+        .ok_or_else(|| format!("`{start}` but no `{end}` after it"))?;
+    Ok((body_start, body_end))
 }
 
 /// `1234567` → `1 234 567` (thin-space-free, for markdown tables).
@@ -227,7 +244,16 @@ pub fn grouped(n: u64) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::grouped;
+    use super::{grouped, marker_span};
+
+    #[test]
+    fn finds_the_marked_body() {
+        let text = "intro\n<!-- a -->\nold\nbody\n<!-- b -->\noutro\n";
+        let (s, e) = marker_span(text, "<!-- a -->", "<!-- b -->").unwrap();
+        assert_eq!(&text[s..e], "old\nbody\n");
+        assert!(marker_span(text, "<!-- b -->", "<!-- a -->").is_err());
+        assert!(marker_span(text, "<!-- c -->", "<!-- b -->").is_err());
+    }
 
     #[test]
     fn groups_thousands() {

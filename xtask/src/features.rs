@@ -1,0 +1,235 @@
+//! The feature matrix: the feature combinations `cargo xtask ci` lints
+//! (`cargo xtask features` runs only them), in one place.
+//!
+//! A user picks, for the core: a math backend (`libm`, `micromath` or both,
+//! where `micromath` wins), an estimator (none: paper 001's observer and
+//! paper 002's; `fusion-ekf`; `fusion-ukf` or `fusion-particle-filter`,
+//! each of which implies `fusion-ekf`; or all), `wheel-speed-observer`,
+//! `defmt` and `serde`. The power set is 3 × 5 × 2³ = 120 builds per
+//! target, about 2 s each once the dependencies are built. The lints a
+//! `cfg` hides (unused imports, dead code, a missing derive) almost always
+//! come from one feature being on or off, so a covering set is enough:
+//! every feature is built on in one row and off in another, each math
+//! backend alone and both together, and each estimator feature alone,
+//! including no estimator at all (the `not(feature = "fusion-ekf")` paths,
+//! which the workspace build, where the simulator turns every feature on,
+//! never compiles). The last row turns everything on. `std` is left out:
+//! it is for host tools, which the host clippy of the workspace covers.
+//!
+//! The firmware always takes the core with `defmt` and `libm` (and `serde`
+//! through the link), so its choices are a board, `micromath` and the
+//! estimator and `wheel-speed-observer` features; each row runs with each
+//! board.
+//!
+//! The tests below check these properties against `core/Cargo.toml` and
+//! `firmware/Cargo.toml`, so a new feature that the matrix misses fails
+//! `cargo test -p xtask`.
+
+/// The core's rows, each its whole feature set (built with
+/// `--no-default-features`), linted on each of [`crate::TARGETS`].
+pub const CORE: [&[&str]; 6] = [
+    // The default build (`libm`), no estimator feature: paper 001 and 002 only.
+    &["libm"],
+    // The other backend alone, no estimator feature.
+    &["micromath"],
+    // The fusion EKF alone, with serde.
+    &["micromath", "serde", "fusion-ekf"],
+    // The fusion UKF alone (implies the EKF), with defmt.
+    &["libm", "defmt", "fusion-ukf"],
+    // The particle filter alone (implies the EKF), both backends, the
+    // wheel-speed observer.
+    &[
+        "libm",
+        "micromath",
+        "fusion-particle-filter",
+        "wheel-speed-observer",
+    ],
+    // Everything.
+    &[
+        "libm",
+        "micromath",
+        "defmt",
+        "serde",
+        "fusion-ukf",
+        "fusion-particle-filter",
+        "wheel-speed-observer",
+    ],
+];
+
+/// The firmware's rows (built with `--no-default-features` and the board's
+/// feature added), linted with each board of [`crate::BOARDS`].
+pub const FIRMWARE: [&[&str]; 4] = [
+    // The shipped configuration: libm, paper 001 and 002 only.
+    &[],
+    &["micromath", "fusion-ekf"],
+    &["fusion-ukf", "wheel-speed-observer"],
+    &["micromath", "fusion-particle-filter"],
+];
+
+/// Clippy `-D warnings` on every row of the matrix.
+pub fn clippy_matrix() -> crate::Result {
+    for target in crate::TARGETS {
+        for row in CORE {
+            let features = row.join(",");
+            crate::step(&format!("clippy core {target} [{features}]"), || {
+                crate::cargo(
+                    &[
+                        "clippy",
+                        "-p",
+                        "wmr-core",
+                        "--target",
+                        target,
+                        "--no-default-features",
+                        "--features",
+                        &features,
+                        "--",
+                        "-D",
+                        "warnings",
+                    ],
+                    &[],
+                )
+            })?;
+        }
+    }
+    for (board, board_feature) in crate::BOARDS {
+        for row in FIRMWARE {
+            let features = std::iter::once(board_feature)
+                .chain(row.iter().copied())
+                .collect::<Vec<_>>()
+                .join(",");
+            crate::step(&format!("clippy firmware {board} [{features}]"), || {
+                crate::cargo(
+                    &[
+                        "clippy",
+                        "-p",
+                        "wmr-firmware",
+                        "--release",
+                        "--target",
+                        crate::FIRMWARE_TARGET,
+                        "--all-targets",
+                        "--no-default-features",
+                        "--features",
+                        &features,
+                        "--",
+                        "-D",
+                        "warnings",
+                    ],
+                    &[],
+                )
+            })?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{CORE, FIRMWARE};
+    use std::collections::{BTreeMap, BTreeSet};
+
+    /// A manifest's `[features]`: each feature and the features of the same
+    /// package it turns on (entries with `dep:` or `/` are left out).
+    fn features(manifest: &str) -> BTreeMap<String, Vec<String>> {
+        let path = crate::target::workspace_root().join(manifest);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mut in_features = false;
+        let mut out = BTreeMap::new();
+        for line in text.lines().map(str::trim) {
+            if line.starts_with('[') {
+                in_features = line == "[features]";
+                continue;
+            }
+            if !in_features || line.starts_with('#') || line.is_empty() {
+                continue;
+            }
+            let (name, list) = line.split_once('=').unwrap();
+            let implied = list
+                .trim()
+                .trim_start_matches('[')
+                .trim_end_matches(']')
+                .split(',')
+                .map(|f| f.trim().trim_matches('"'))
+                .filter(|f| !f.is_empty() && !f.starts_with("dep:") && !f.contains('/'))
+                .map(str::to_string)
+                .collect();
+            out.insert(name.trim().to_string(), implied);
+        }
+        out
+    }
+
+    /// `row` with every implied feature added.
+    fn closure(row: &[&str], all: &BTreeMap<String, Vec<String>>) -> BTreeSet<String> {
+        let mut on: BTreeSet<String> = row.iter().map(|f| f.to_string()).collect();
+        loop {
+            let implied: Vec<String> = on
+                .iter()
+                .flat_map(|f| all[f].iter().cloned())
+                .filter(|f| !on.contains(f))
+                .collect();
+            if implied.is_empty() {
+                return on;
+            }
+            on.extend(implied);
+        }
+    }
+
+    /// Every feature of `manifest` but `skip` is on in a row and off in
+    /// another; each `fusion-*` feature is a row's only estimator feature,
+    /// and one row has none.
+    fn check(manifest: &str, rows: &[&[&str]], skip: &[&str]) {
+        let all = features(manifest);
+        let rows: Vec<BTreeSet<String>> = rows
+            .iter()
+            .inspect(|row| {
+                for f in row.iter() {
+                    assert!(all.contains_key(*f), "{manifest} has no feature `{f}`");
+                }
+            })
+            .map(|row| closure(row, &all))
+            .collect();
+        for f in all.keys().filter(|f| !skip.contains(&f.as_str())) {
+            assert!(rows.iter().any(|r| r.contains(f)), "`{f}` never on");
+            assert!(rows.iter().any(|r| !r.contains(f)), "`{f}` never off");
+        }
+        let estimators = |r: &BTreeSet<String>| -> BTreeSet<String> {
+            r.iter()
+                .filter(|f| f.starts_with("fusion-"))
+                .cloned()
+                .collect()
+        };
+        assert!(rows.iter().any(|r| estimators(r).is_empty()));
+        for f in all.keys().filter(|f| f.starts_with("fusion-")) {
+            let alone = closure(&[f.as_str()], &all);
+            assert!(
+                rows.iter().any(|r| estimators(r) == alone),
+                "`{f}` never the only estimator feature"
+            );
+        }
+    }
+
+    #[test]
+    fn core_rows_cover_every_choice() {
+        check("core/Cargo.toml", &CORE, &["default", "std"]);
+        let has = |r: &&[&str], f: &str| r.contains(&f);
+        // Each math backend alone and both together.
+        assert!(CORE.iter().any(|r| has(r, "libm") && !has(r, "micromath")));
+        assert!(CORE.iter().any(|r| !has(r, "libm") && has(r, "micromath")));
+        assert!(CORE.iter().any(|r| has(r, "libm") && has(r, "micromath")));
+        // Every row has a backend (without one the core refuses to build).
+        assert!(CORE.iter().all(|r| has(r, "libm") || has(r, "micromath")));
+    }
+
+    #[test]
+    fn firmware_rows_cover_every_choice() {
+        let boards: Vec<&str> = crate::BOARDS.iter().map(|(_, f)| *f).collect();
+        let mut skip = vec!["default"];
+        skip.extend(&boards);
+        check("firmware/Cargo.toml", &FIRMWARE, &skip);
+        assert!(
+            FIRMWARE
+                .iter()
+                .all(|r| r.iter().all(|f| !boards.contains(f))),
+            "the board is added per run"
+        );
+    }
+}
