@@ -56,6 +56,11 @@ pub const CORE: [&[&str]; 6] = [
     ],
 ];
 
+/// The rows of `wmr-papers` (the papers' algorithms no robot runs; built
+/// with `--no-default-features`), linted on each of [`crate::TARGETS`]:
+/// each math backend of the core it calls, `defmt` and `serde` on and off.
+pub const PAPERS: [&[&str]; 2] = [&["libm"], &["micromath", "defmt", "serde"]];
+
 /// The firmware's rows (built with `--no-default-features` and the board's
 /// feature added), linted with each board of [`crate::BOARDS`].
 pub const FIRMWARE: [&[&str]; 4] = [
@@ -77,6 +82,29 @@ pub fn clippy_matrix() -> crate::Result {
                         "clippy",
                         "-p",
                         "wmr-core",
+                        "--target",
+                        target,
+                        "--no-default-features",
+                        "--features",
+                        &features,
+                        "--",
+                        "-D",
+                        "warnings",
+                    ],
+                    &[],
+                )
+            })?;
+        }
+    }
+    for target in crate::TARGETS {
+        for row in PAPERS {
+            let features = row.join(",");
+            crate::step(&format!("clippy papers {target} [{features}]"), || {
+                crate::cargo(
+                    &[
+                        "clippy",
+                        "-p",
+                        "wmr-papers",
                         "--target",
                         target,
                         "--no-default-features",

@@ -148,16 +148,37 @@ fn ci() -> Result {
         cargo(&["test", "-p", "wmr-core"], &[])
     })?;
     for target in TARGETS {
-        step(&format!("cross build core {target} (release)"), || {
-            cargo(
-                &["build", "-p", "wmr-core", "--release", "--target", target],
-                &[],
-            )
-        })?;
+        step(
+            &format!("cross build core, papers {target} (release)"),
+            || {
+                cargo(
+                    &[
+                        "build",
+                        "-p",
+                        "wmr-core",
+                        "-p",
+                        "wmr-papers",
+                        "--release",
+                        "--target",
+                        target,
+                    ],
+                    &[],
+                )
+            },
+        )?;
     }
-    step("rustdoc -D warnings (core, link)", || {
+    step("rustdoc -D warnings (core, papers, link)", || {
         cargo(
-            &["doc", "-p", "wmr-core", "-p", "wmr-link", "--no-deps"],
+            &[
+                "doc",
+                "-p",
+                "wmr-core",
+                "-p",
+                "wmr-papers",
+                "-p",
+                "wmr-link",
+                "--no-deps",
+            ],
             &[("RUSTDOCFLAGS", "-D warnings")],
         )
     })?;
