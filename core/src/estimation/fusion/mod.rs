@@ -135,7 +135,7 @@ impl FusionSettings {
     /// cell back to its edge ([`TagCellTracker::with_edge_constraint`];
     /// nearest-tag reader only; default off). Under random wheel slip,
     /// with a wheel-noise model near the slip's, it is what lets the
-    /// filter see the lateral drift along a row of tags (README figures).
+    /// filter see the lateral drift along a row of tags (figures in docs/fusion.md).
     #[must_use]
     pub fn with_edge_constraint(self, edge_constraint: bool) -> Self {
         Self {

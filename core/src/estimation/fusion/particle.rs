@@ -35,7 +35,7 @@
 //! (`PoseFilterConfig::with_particle_seed`): a run repeats bit
 //! for bit from its seed. A prediction draws `4P` Gaussians and drives `P`
 //! arcs; with [`FUSION_PARTICLES`] = 100 that needs the `micromath`
-//! backend to fit a 10 ms tick on a Cortex-M4 (README bench table).
+//! backend to fit a 10 ms tick on a Cortex-M4 (bench table in docs/firmware.md).
 
 use nalgebra::{SVector, Vector2};
 
