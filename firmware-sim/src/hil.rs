@@ -22,13 +22,13 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail, ensure};
-use serde::Serialize;
 use wmr_link::{
-    Diagnostics, Finished, HostMessage, LinkCounters, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver,
-    Refusal, Sender, TargetMessage, TickInput, TickOutput,
+    Diagnostics, Finished, HostMessage, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver, Refusal,
+    Sender, TargetMessage, TickInput, TickOutput,
 };
 
-use crate::run::{RunResult, TargetLink, hil_configuration, run_with_target};
+use crate::report::{HilReport, RunResult};
+use crate::run::{TargetLink, hil_configuration, run_with_target};
 use crate::scenario::Scenario;
 
 /// The QEMU binary looked for on `PATH`.
@@ -55,21 +55,6 @@ impl Default for HilOptions {
             answer_timeout: Duration::from_secs(10),
         }
     }
-}
-
-/// What the HIL run adds to the summary.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-pub struct HilReport {
-    /// Ticks the firmware ran.
-    pub firmware_ticks: u32,
-    /// The firmware's deepest stack use since reset, bytes.
-    pub peak_stack_bytes: u32,
-    /// The link as the firmware saw it.
-    pub firmware_link: LinkCounters,
-    /// The link as the simulator saw it.
-    pub host_link: LinkCounters,
-    /// UART bytes the firmware's proxy buffer lost.
-    pub uart_overruns: u32,
 }
 
 /// A run through the firmware.

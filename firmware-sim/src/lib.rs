@@ -16,6 +16,8 @@
 //! * [`tags`]: the floor's tag grid (the core's `TagGrid` encoding) and the
 //!   nearest-tag lookup.
 //! * [`scenario`]: the TOML schema, its validation, the embedded scenarios.
+//! * [`report`]: the per-tick records and the summary of a run, shared by
+//!   everything after the simulation.
 //! * [`mod@run`]: the loop, calling the core's tracker or controller directly
 //!   (unicycle) or its `Robot`/`Pilot` with virtual devices (diff drive).
 //! * [`output`]: CSV, JSON summary and PNG plot.
@@ -38,11 +40,13 @@ pub mod devices;
 pub mod hil;
 pub mod output;
 pub mod plant;
+pub mod report;
 pub mod run;
 pub mod scenario;
 pub mod slip;
 pub mod sweep;
 pub mod tags;
 
-pub use run::{Record, RunResult, Summary, run};
+pub use report::{Record, RunResult, Summary};
+pub use run::run;
 pub use scenario::{EMBEDDED, Scenario, ScenarioError, Setup};

@@ -48,7 +48,8 @@ use rand::{Rng as _, RngExt as _, SeedableRng as _};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::run::{Record, RunResult, run};
+use crate::report::{Record, RunResult};
+use crate::run::run;
 use crate::scenario::{
     ControllerKind, PlantSetup, PlantSpec, PositionSetup, PositionSpec, Scenario, ScenarioError,
     Setup, non_negative, positive, probability,
@@ -894,7 +895,7 @@ pub fn run_sweep(
 
 /// "plant, controller, position" as a run's summary names them.
 fn setup_label(setup: &Setup) -> String {
-    let l = crate::run::SetupLabels::of(setup);
+    let l = crate::report::SetupLabels::of(setup);
     format!(
         "{} plant, {}, position {}",
         l.plant, l.controller, l.position_source
@@ -1051,7 +1052,7 @@ mod tests {
             left_duty: None,
             right_duty: None,
             fix: true,
-            mode: crate::run::Mode::Tracking,
+            mode: crate::report::Mode::Tracking,
             error_m,
         }
     }
