@@ -845,27 +845,27 @@ mod defaults {
 pub const EMBEDDED: &[(&str, &str)] = &[
     (
         "figure_eight_rfid",
-        include_str!("../scenarios/figure_eight_rfid.toml"),
+        include_str!("../../scenarios/figure_eight_rfid.toml"),
     ),
     (
         "figure_eight_rfid_full_stack",
-        include_str!("../scenarios/figure_eight_rfid_full_stack.toml"),
+        include_str!("../../scenarios/figure_eight_rfid_full_stack.toml"),
     ),
     (
         "figure_eight_rfid_pose_observer",
-        include_str!("../scenarios/figure_eight_rfid_pose_observer.toml"),
+        include_str!("../../scenarios/figure_eight_rfid_pose_observer.toml"),
     ),
     (
         "figure_eight_rfid_fusion_ekf",
-        include_str!("../scenarios/figure_eight_rfid_fusion_ekf.toml"),
+        include_str!("../../scenarios/figure_eight_rfid_fusion_ekf.toml"),
     ),
     (
         "figure_eight_exact",
-        include_str!("../scenarios/figure_eight_exact.toml"),
+        include_str!("../../scenarios/figure_eight_exact.toml"),
     ),
     (
         "figure_eight_state_feedback",
-        include_str!("../scenarios/figure_eight_state_feedback.toml"),
+        include_str!("../../scenarios/figure_eight_state_feedback.toml"),
     ),
 ];
 
