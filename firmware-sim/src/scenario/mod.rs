@@ -31,8 +31,15 @@ use wmr_core::reference::Trajectory;
 
 use crate::devices::{LinkFaults, ReaderConfig, ReaderMode};
 use crate::plant::{DiffDriveParams, LoadTorque, PlantPose, WheelDynamics};
-use crate::sweep::{SweepPlan, SweepSpec};
 use crate::tags::FloorTags;
+
+mod sweep_spec;
+
+pub use sweep_spec::{
+    DEFAULT_EXACT_THRESHOLD_M, DEFAULT_HOLD_FRACTION, DEFAULT_START_RADIUS_M,
+    DEFAULT_THRESHOLD_SPACINGS, EncoderChoices, HeadingSweep, MAX_ENCODER_CHOICES, ObserverStart,
+    SweepPlan, SweepSpec,
+};
 
 /// Why a scenario was refused.
 #[derive(Debug, thiserror::Error)]
