@@ -1041,3 +1041,29 @@ fn summarize(
         hil: None,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::SpeedObserverSpec;
+
+    #[test]
+    fn a_speed_observer_is_refused_for_hil() {
+        // The link does not carry it: a HIL run is refused, not run without it.
+        let mut full = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+        assert!(hil_configuration(&full.validate().unwrap()).is_ok());
+        let mut drive = full.drive.unwrap_or_default();
+        drive.speed_observer = Some(SpeedObserverSpec {
+            mass_kg: 4.0,
+            yaw_inertia_kg_m2: 0.08,
+            wheel_inertia_kg_m2: 0.0,
+            stall_torque_nm: 0.6,
+            lambda_per_s: 5.0,
+            friction_gain: 0.01,
+            disturbance_gain: 0.1,
+        });
+        full.drive = Some(drive);
+        let e = hil_configuration(&full.validate().unwrap()).unwrap_err();
+        assert!(e.to_string().contains("speed_observer"), "{e}");
+    }
+}

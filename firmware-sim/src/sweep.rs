@@ -3,10 +3,9 @@
 //! convergence and error statistics.
 //!
 //! # What is varied
-//! The scenario's optional `[sweep]` table: see
-//! [`SweepSpec`](crate::scenario::SweepSpec) for its fields, their defaults
-//! and where each applies; [`Scenario::validate`] resolves it into a
-//! [`SweepPlan`](crate::scenario::SweepPlan).
+//! The scenario's optional `[sweep]` table: see [`SweepSpec`] for its
+//! fields, their defaults and where each applies; [`Scenario::validate`]
+//! resolves it into a [`SweepPlan`].
 //!
 //! # Seeds
 //! Run `i` of a sweep with seed `S` draws everything from a ChaCha8
