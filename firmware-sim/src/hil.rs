@@ -28,8 +28,8 @@ use wmr_link::{
 };
 
 use crate::report::{HilReport, RunResult};
-use crate::run::{TargetLink, hil_configuration, run_with_target};
 use crate::scenario::Scenario;
+use crate::simulation::{TargetLink, hil_configuration, run_with_target};
 
 /// The QEMU binary looked for on `PATH`.
 pub const QEMU: &str = "qemu-system-arm";

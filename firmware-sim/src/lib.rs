@@ -18,7 +18,7 @@
 //! * [`scenario`]: the TOML schema, its validation, the embedded scenarios.
 //! * [`report`]: the per-tick records and the summary of a run, shared by
 //!   everything after the simulation.
-//! * [`mod@run`]: the loop, calling the core's tracker or controller directly
+//! * [`simulation`]: the loop, calling the core's tracker or controller directly
 //!   (unicycle) or its `Robot`/`Pilot` with virtual devices (diff drive).
 //! * [`output`]: CSV, JSON summary and PNG plot.
 //! * [`sweep`]: Monte Carlo sweeps: seeded variations of a scenario run in
@@ -41,12 +41,12 @@ pub mod hil;
 pub mod output;
 pub mod plant;
 pub mod report;
-pub mod run;
 pub mod scenario;
+pub mod simulation;
 pub mod slip;
 pub mod sweep;
 pub mod tags;
 
 pub use report::{Record, RunResult, Summary};
-pub use run::run;
 pub use scenario::{EMBEDDED, Scenario, ScenarioError, Setup};
+pub use simulation::run;

@@ -36,11 +36,11 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::report::{Record, RunResult};
-use crate::run::run;
 use crate::scenario::{
     ControllerKind, HeadingSweep, ObserverStart, PlantSpec, PositionSpec, Scenario, ScenarioError,
     Setup, SweepPlan, SweepSpec,
 };
+use crate::simulation::run;
 
 impl SweepPlan {
     /// Samples run `index` of the sweep with seed `sweep_seed` (see the
