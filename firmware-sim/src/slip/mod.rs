@@ -126,11 +126,11 @@ pub const MAX_SEGMENTS: usize = 8;
 pub const EMBEDDED_SLIP: &[(&str, &str)] = &[
     (
         "paper_004_velocity",
-        include_str!("../scenarios/slip/paper_004_velocity.toml"),
+        include_str!("../../scenarios/slip/paper_004_velocity.toml"),
     ),
     (
         "paper_004_torque",
-        include_str!("../scenarios/slip/paper_004_torque.toml"),
+        include_str!("../../scenarios/slip/paper_004_torque.toml"),
     ),
 ];
 
