@@ -1,7 +1,7 @@
 //! The `[sweep]` table of a scenario (what `firmware-sim sweep` varies:
 //! [`SweepSpec`]) and its validated form, the [`SweepPlan`] a
 //! [`Setup`](super::Setup) carries. The sweep itself (variations, runs,
-//! statistics) is `crate::sweep`, which builds on these.
+//! statistics) builds on these.
 
 use serde::{Deserialize, Serialize};
 
