@@ -7,24 +7,55 @@
 //!                                                                      └─ Summary (errors, counters)
 //! ```
 //!
+//! # Modules, in dependency order
+//! Each module uses only modules listed before it; none uses one after it,
+//! and no two use each other:
+//!
+//! ```text
+//! tags ──┐
+//! plant ─┴─► devices ─► scenario ─► report ─┬─► simulation ─┬─► hil
+//!                          │                │               └─► sweep
+//!                          │                └─► output ─────────► sweep
+//!                          │                      └─────────────► slip
+//!                          └────────────────────────────────────► slip
+//! ```
+//!
+//! (`A ─► B`: `B` uses `A`; uses that follow along the chain, such as
+//! `simulation` using `scenario`, are not drawn.)
+//!
+//! * [`tags`]: the floor's tag grid (the core's `TagGrid` encoding) and the
+//!   nearest-tag lookup. Uses nothing of this crate.
 //! * [`plant`]: the kinematic unicycle of paper 001 (exact arcs) and a
 //!   differential-drive body with first-order DC motors or, with
-//!   `[plant.dynamics]`, rigid-body wheel dynamics (RK4).
+//!   `[plant.dynamics]`, rigid-body wheel dynamics (RK4). Uses nothing of
+//!   this crate.
 //! * [`devices`]: virtual PWM, direction pins, quadrature encoders and an
 //!   RFID reader on a baud-timed UART, implementing the same traits as the
-//!   firmware's peripherals.
-//! * [`tags`]: the floor's tag grid (the core's `TagGrid` encoding) and the
-//!   nearest-tag lookup.
-//! * [`scenario`]: the TOML schema, its validation, the embedded scenarios.
-//! * [`mod@run`]: the loop, calling the core's tracker or controller directly
-//!   (unicycle) or its `Robot`/`Pilot` with virtual devices (diff drive).
-//! * [`output`]: CSV, JSON summary and PNG plot.
-//! * [`sweep`]: Monte Carlo sweeps: seeded variations of a scenario run in
-//!   parallel, convergence and error statistics.
+//!   firmware's peripherals. Uses `plant`, `tags`.
+//! * [`scenario`]: the TOML schema (with the `[sweep]` table's), its
+//!   defaults, its validation into a [`Setup`], the embedded scenarios.
+//!   Uses `devices`, `plant`, `tags`.
+//! * [`report`]: what a run reports: the per-tick [`Record`], the
+//!   [`Summary`] (with the HIL figures), the [`RunResult`]. Uses
+//!   `devices`, `scenario`.
+//! * [`output`]: CSV, JSON summary and PNG plot, and the plot helpers
+//!   `sweep` and `slip` share. Uses `report`.
+//! * [`simulation`]: the loop, calling the core's tracker or controller
+//!   directly (unicycle) or its `Robot`/`Pilot` with virtual devices (diff
+//!   drive), or a remote tick over a `TargetLink`. Uses `devices`, `plant`,
+//!   `tags`, `scenario`, `report`.
 //! * [`hil`]: the same runs with the control tick in the real firmware
-//!   under QEMU, in lock-step over a serial link.
+//!   under QEMU, in lock-step over a serial link. Uses `scenario`,
+//!   `report`, `simulation`.
+//! * [`sweep`]: Monte Carlo sweeps: seeded variations of a scenario run in
+//!   parallel, convergence and error statistics, their files. Uses
+//!   `scenario`, `report`, `simulation`, `output`.
 //! * [`slip`]: paper 004's tracked robot under slip with the adaptive
-//!   controllers and the EKF, UKF or particle filter (`firmware-sim slip`).
+//!   controllers and the EKF, UKF or particle filter (`firmware-sim slip`),
+//!   a second application with its own schema. Uses `scenario` (its error
+//!   type and value checks) and `output` (the plot helpers).
+//!
+//! The binary (`main.rs`, the CLI) uses them all; nothing here uses it.
 //!
 //! ```no_run
 //! use firmware_sim::{run, Scenario};
@@ -38,11 +69,13 @@ pub mod devices;
 pub mod hil;
 pub mod output;
 pub mod plant;
-pub mod run;
+pub mod report;
 pub mod scenario;
+pub mod simulation;
 pub mod slip;
 pub mod sweep;
 pub mod tags;
 
-pub use run::{Record, RunResult, Summary, run};
+pub use report::{Record, RunResult, Summary};
 pub use scenario::{EMBEDDED, Scenario, ScenarioError, Setup};
+pub use simulation::run;

@@ -8,7 +8,7 @@ use anyhow::Context as _;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::run::{Record, RunResult, Summary};
+use crate::report::{Record, RunResult, Summary};
 
 /// Paths of the files [`write_all`] wrote.
 #[derive(Debug, Clone, PartialEq, Eq)]

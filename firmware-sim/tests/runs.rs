@@ -1,7 +1,7 @@
 //! Short runs of every embedded scenario and of the other code paths.
 
 use firmware_sim::output::{format_summary, write_all};
-use firmware_sim::run::Mode;
+use firmware_sim::report::Mode;
 use firmware_sim::{EMBEDDED, RunResult, Scenario, run};
 
 fn short(mut s: Scenario, duration_s: f64) -> RunResult {

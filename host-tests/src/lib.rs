@@ -57,7 +57,7 @@ pub fn paper_pilot() -> Pilot {
 pub fn run_scenario_variant(
     name: &str,
     edit: impl FnOnce(&mut firmware_sim::Scenario),
-) -> firmware_sim::run::Summary {
+) -> firmware_sim::Summary {
     let mut scenario = firmware_sim::Scenario::embedded(name).expect("embedded scenario");
     edit(&mut scenario);
     let toml = scenario.to_toml_string().expect("serializable");

@@ -27,10 +27,9 @@
 use std::time::Instant;
 
 use firmware_sim::Scenario;
+use firmware_sim::scenario::{HeadingSweep, ObserverStart, SweepSpec};
 use firmware_sim::sweep::output::runs_csv;
-use firmware_sim::sweep::{
-    HeadingSweep, ObserverStart, SweepOptions, SweepResult, SweepSpec, run_sweep,
-};
+use firmware_sim::sweep::{SweepOptions, SweepResult, run_sweep};
 use wmr_core::control::saturated::GainBound;
 
 /// Runs per case.

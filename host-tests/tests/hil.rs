@@ -101,7 +101,8 @@ fn fusion_ukf_in_the_firmware_runs_exactly_as_on_the_host() {
     assert_eq!(report.firmware_link.corrupt_frames, 0);
 
     let mut plain = QemuTarget::start(&firmware(), &options()).unwrap();
-    let configure = firmware_sim::run::hil_configuration(&scenario.validate().unwrap()).unwrap();
+    let configure =
+        firmware_sim::simulation::hil_configuration(&scenario.validate().unwrap()).unwrap();
     assert_eq!(
         plain.exchange(&HostMessage::Configure(configure)).unwrap(),
         TargetMessage::Refused(Refusal::Spec(SpecError::NotInThisBuild))
@@ -162,7 +163,7 @@ fn scenario_ticks(s: &Scenario) -> u32 {
 
 fn configure() -> wmr_link::Configure {
     let scenario = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
-    firmware_sim::run::hil_configuration(&scenario.validate().unwrap()).unwrap()
+    firmware_sim::simulation::hil_configuration(&scenario.validate().unwrap()).unwrap()
 }
 
 fn tick(k: u32, counts: u32) -> HostMessage {

@@ -1,19 +1,5 @@
-//! Hardware-in-the-loop: the real firmware binary under QEMU, in lock-step
-//! with the simulator.
-//!
-//! ```text
-//! firmware-sim                         qemu-system-arm -M netduinoplus2
-//!  plant, encoders, RFID reader ─Tick─► USART1 ─► wmr-firmware (board-qemu)
-//!  virtual PWM + DIR pins ◄──Ticked──── USART1 ◄─ core Robot on link proxies
-//! ```
-//!
-//! USART1 is a unix socket (`-serial unix:PATH,server=on,wait=on`): QEMU
-//! waits for the simulator to connect before it starts the CPU. The
-//! firmware's defmt log (semihosting, QEMU's stdout) is saved raw next to
-//! the run (`firmware.defmt`) and decoded with the ELF's format table into
-//! `firmware.log`. The run
-//! ends with `Finish`: the firmware reports its stack high-water mark and
-//! exits through semihosting; QEMU is killed if it does not exit.
+//! QEMU running the firmware ([`QemuTarget`]), how it is run
+//! ([`HilOptions`]), and the lock-step link to its USART1.
 
 use std::io::{Read, Write};
 use std::os::unix::net::UnixStream;
@@ -22,19 +8,15 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail, ensure};
-use serde::Serialize;
 use wmr_link::{
-    Diagnostics, Finished, HostMessage, LinkCounters, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver,
-    Refusal, Sender, TargetMessage, TickInput, TickOutput,
+    Diagnostics, Finished, HostMessage, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver, Refusal,
+    Sender, TargetMessage, TickInput, TickOutput,
 };
 
-use crate::run::{RunResult, TargetLink, hil_configuration, run_with_target};
-use crate::scenario::Scenario;
+use crate::simulation::TargetLink;
 
 /// The QEMU binary looked for on `PATH`.
 pub const QEMU: &str = "qemu-system-arm";
-/// The firmware's target triple.
-pub const FIRMWARE_TARGET: &str = "thumbv7em-none-eabihf";
 
 /// How to run the firmware.
 #[derive(Debug, Clone)]
@@ -57,188 +39,18 @@ impl Default for HilOptions {
     }
 }
 
-/// What the HIL run adds to the summary.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-pub struct HilReport {
-    /// Ticks the firmware ran.
-    pub firmware_ticks: u32,
-    /// The firmware's deepest stack use since reset, bytes.
-    pub peak_stack_bytes: u32,
-    /// The link as the firmware saw it.
-    pub firmware_link: LinkCounters,
-    /// The link as the simulator saw it.
-    pub host_link: LinkCounters,
-    /// UART bytes the firmware's proxy buffer lost.
-    pub uart_overruns: u32,
-}
-
-/// A run through the firmware.
-#[derive(Debug, Clone)]
-pub struct HilRun {
-    /// The same records and summary as a local run.
-    pub result: RunResult,
-    /// The link and target figures.
-    pub report: HilReport,
-    /// The firmware that ran.
-    pub firmware: PathBuf,
-}
-
-/// Decodes a raw defmt log (the firmware's semihosting output) with the
-/// firmware ELF's format table, one line per message.
-///
-/// # Errors
-/// The ELF has no defmt table, or a file cannot be read.
-pub fn decode_defmt_log(elf: &Path, raw_log: &Path) -> anyhow::Result<String> {
-    let elf_bytes = std::fs::read(elf).with_context(|| format!("reading {}", elf.display()))?;
-    let table = defmt_decoder::Table::parse(&elf_bytes)?
-        .ok_or_else(|| anyhow::anyhow!("{} has no defmt table", elf.display()))?;
-    let raw = std::fs::read(raw_log).with_context(|| format!("reading {}", raw_log.display()))?;
-    let mut decoder = table.new_stream_decoder();
-    decoder.received(&raw);
-    let mut text = String::new();
-    loop {
-        match decoder.decode() {
-            Ok(frame) => {
-                text.push_str(&frame.display(false).to_string());
-                text.push('\n');
-            }
-            Err(defmt_decoder::DecodeError::UnexpectedEof) => break,
-            Err(defmt_decoder::DecodeError::Malformed) => {
-                text.push_str("(malformed defmt frame skipped)\n");
-            }
-        }
-    }
-    Ok(text)
-}
-
-/// The workspace root (this crate's parent directory, fixed at build time).
-#[must_use]
-pub fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
-}
-
-/// Builds the QEMU-board firmware (release) with cargo and returns its ELF.
-///
-/// `target_dir`: cargo's target directory (`None`: the workspace's).
-///
-/// # Errors
-/// cargo missing or the build failing.
-pub fn build_firmware(target_dir: Option<&Path>) -> anyhow::Result<PathBuf> {
-    build_firmware_with(target_dir, &[])
-}
-
-/// [`build_firmware`] with the firmware's cargo `features` added to its
-/// default (`board-qemu`), e.g. `fusion-ukf`.
-///
-/// # Errors
-/// cargo missing or the build failing.
-pub fn build_firmware_with(
-    target_dir: Option<&Path>,
-    features: &[&str],
-) -> anyhow::Result<PathBuf> {
-    let root = workspace_root();
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let mut cmd = Command::new(cargo);
-    cmd.current_dir(&root).args([
-        "build",
-        "--quiet",
-        "--release",
-        "--package",
-        "wmr-firmware",
-        "--bin",
-        "wmr-firmware",
-        "--target",
-        FIRMWARE_TARGET,
-    ]);
-    if let Some(dir) = target_dir {
-        cmd.arg("--target-dir").arg(dir);
-    }
-    if !features.is_empty() {
-        cmd.arg("--features").arg(features.join(","));
-    }
-    let status = cmd
-        .status()
-        .context("running cargo to build the firmware")?;
-    ensure!(
-        status.success(),
-        "building the firmware failed ({status}); is the target installed? \
-         `rustup target add {FIRMWARE_TARGET}`"
-    );
-    let dir = target_dir.map_or_else(|| root.join("target"), Path::to_path_buf);
-    Ok(dir
-        .join(FIRMWARE_TARGET)
-        .join("release")
-        .join("wmr-firmware"))
-}
-
-/// Runs `scenario` with its control tick in the firmware under QEMU.
-///
-/// # Errors
-/// QEMU missing or failing, the firmware refusing the configuration, not
-/// answering in time, or answering with corrupt or unexpected frames.
-pub fn run_hil(
-    scenario: &Scenario,
-    options: &HilOptions,
-    progress: impl FnMut(u64, u64),
-) -> anyhow::Result<HilRun> {
-    let setup = scenario.validate()?;
-    let configure = hil_configuration(&setup)?;
-    let firmware = match &options.firmware {
-        Some(path) => path.clone(),
-        None => build_firmware(None)?,
-    };
-    ensure!(
-        firmware.is_file(),
-        "no firmware ELF at {}",
-        firmware.display()
-    );
-    let mut target = QemuTarget::start(&firmware, options)?;
-    match target.exchange(&HostMessage::Configure(configure))? {
-        TargetMessage::Configured => {}
-        TargetMessage::Refused(why) => bail!("the firmware refused the configuration: {why:?}"),
-        other => bail!("unexpected answer to Configure: {other:?}"),
-    }
-    let mut result = run_with_target(scenario, &mut target, progress)?;
-    let finished = target
-        .finished
-        .ok_or_else(|| anyhow::anyhow!("the run ended without the firmware's report"))?;
-    let report = HilReport {
-        firmware_ticks: finished.ticks,
-        peak_stack_bytes: finished.peak_stack_bytes,
-        firmware_link: finished.counters.link,
-        host_link: target.rx.counters(),
-        uart_overruns: finished.counters.uart_overruns,
-    };
-    result.summary.hil = Some(report);
-    if let Some(raw) = &options.log {
-        // QEMU has exited: the log is complete. It is diagnostics, so a
-        // failure to decode it is reported, not fatal.
-        let text = decode_defmt_log(&firmware, raw)
-            .unwrap_or_else(|e| format!("(defmt log not decoded: {e:#})\n"));
-        let path = raw.with_extension("log");
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-    }
-    Ok(HilRun {
-        result,
-        report,
-        firmware,
-    })
-}
-
 /// QEMU running the firmware, and the socket to its USART1.
 pub struct QemuTarget {
     child: Child,
     stream: UnixStream,
-    rx: Receiver,
+    pub(super) rx: Receiver,
     tx: Sender,
     timeout: Duration,
     /// Bytes read from the socket and not yet given to `rx`.
     pending: Vec<u8>,
     pending_at: usize,
     /// The firmware's end-of-run report, once received.
-    finished: Option<Finished>,
+    pub(super) finished: Option<Finished>,
     // Keeps the socket's directory alive.
     _dir: tempfile::TempDir,
 }

@@ -1,0 +1,100 @@
+//! The firmware under test: building the QEMU board's ELF with cargo, and
+//! decoding its defmt log.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{Context, ensure};
+
+/// The firmware's target triple.
+pub const FIRMWARE_TARGET: &str = "thumbv7em-none-eabihf";
+
+/// The workspace root (this crate's parent directory, fixed at build time).
+#[must_use]
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+}
+
+/// Builds the QEMU-board firmware (release) with cargo and returns its ELF.
+///
+/// `target_dir`: cargo's target directory (`None`: the workspace's).
+///
+/// # Errors
+/// cargo missing or the build failing.
+pub fn build_firmware(target_dir: Option<&Path>) -> anyhow::Result<PathBuf> {
+    build_firmware_with(target_dir, &[])
+}
+
+/// [`build_firmware`] with the firmware's cargo `features` added to its
+/// default (`board-qemu`), e.g. `fusion-ukf`.
+///
+/// # Errors
+/// cargo missing or the build failing.
+pub fn build_firmware_with(
+    target_dir: Option<&Path>,
+    features: &[&str],
+) -> anyhow::Result<PathBuf> {
+    let root = workspace_root();
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let mut cmd = Command::new(cargo);
+    cmd.current_dir(&root).args([
+        "build",
+        "--quiet",
+        "--release",
+        "--package",
+        "wmr-firmware",
+        "--bin",
+        "wmr-firmware",
+        "--target",
+        FIRMWARE_TARGET,
+    ]);
+    if let Some(dir) = target_dir {
+        cmd.arg("--target-dir").arg(dir);
+    }
+    if !features.is_empty() {
+        cmd.arg("--features").arg(features.join(","));
+    }
+    let status = cmd
+        .status()
+        .context("running cargo to build the firmware")?;
+    ensure!(
+        status.success(),
+        "building the firmware failed ({status}); is the target installed? \
+         `rustup target add {FIRMWARE_TARGET}`"
+    );
+    let dir = target_dir.map_or_else(|| root.join("target"), Path::to_path_buf);
+    Ok(dir
+        .join(FIRMWARE_TARGET)
+        .join("release")
+        .join("wmr-firmware"))
+}
+
+/// Decodes a raw defmt log (the firmware's semihosting output) with the
+/// firmware ELF's format table, one line per message.
+///
+/// # Errors
+/// The ELF has no defmt table, or a file cannot be read.
+pub fn decode_defmt_log(elf: &Path, raw_log: &Path) -> anyhow::Result<String> {
+    let elf_bytes = std::fs::read(elf).with_context(|| format!("reading {}", elf.display()))?;
+    let table = defmt_decoder::Table::parse(&elf_bytes)?
+        .ok_or_else(|| anyhow::anyhow!("{} has no defmt table", elf.display()))?;
+    let raw = std::fs::read(raw_log).with_context(|| format!("reading {}", raw_log.display()))?;
+    let mut decoder = table.new_stream_decoder();
+    decoder.received(&raw);
+    let mut text = String::new();
+    loop {
+        match decoder.decode() {
+            Ok(frame) => {
+                text.push_str(&frame.display(false).to_string());
+                text.push('\n');
+            }
+            Err(defmt_decoder::DecodeError::UnexpectedEof) => break,
+            Err(defmt_decoder::DecodeError::Malformed) => {
+                text.push_str("(malformed defmt frame skipped)\n");
+            }
+        }
+    }
+    Ok(text)
+}

@@ -1,0 +1,103 @@
+//! Hardware-in-the-loop: the real firmware binary under QEMU, in lock-step
+//! with the simulator.
+//!
+//! ```text
+//! firmware-sim                         qemu-system-arm -M netduinoplus2
+//!  plant, encoders, RFID reader ─Tick─► USART1 ─► wmr-firmware (board-qemu)
+//!  virtual PWM + DIR pins ◄──Ticked──── USART1 ◄─ core Robot on link proxies
+//! ```
+//!
+//! USART1 is a unix socket (`-serial unix:PATH,server=on,wait=on`): QEMU
+//! waits for the simulator to connect before it starts the CPU. The
+//! firmware's defmt log (semihosting, QEMU's stdout) is saved raw next to
+//! the run (`firmware.defmt`) and decoded with the ELF's format table into
+//! `firmware.log`. The run
+//! ends with `Finish`: the firmware reports its stack high-water mark and
+//! exits through semihosting; QEMU is killed if it does not exit.
+//!
+//! `firmware` builds the ELF and decodes its log, `qemu` runs it and
+//! speaks the link ([`QemuTarget`], a
+//! [`TargetLink`](crate::simulation::TargetLink)); this file runs a
+//! scenario through them ([`run_hil`]).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail, ensure};
+use wmr_link::{HostMessage, TargetMessage};
+
+use crate::report::{HilReport, RunResult};
+use crate::scenario::Scenario;
+use crate::simulation::{hil_configuration, run_with_target};
+
+mod firmware;
+mod qemu;
+
+pub use firmware::{
+    FIRMWARE_TARGET, build_firmware, build_firmware_with, decode_defmt_log, workspace_root,
+};
+pub use qemu::{HilOptions, QEMU, QemuTarget};
+
+/// A run through the firmware.
+#[derive(Debug, Clone)]
+pub struct HilRun {
+    /// The same records and summary as a local run.
+    pub result: RunResult,
+    /// The link and target figures.
+    pub report: HilReport,
+    /// The firmware that ran.
+    pub firmware: PathBuf,
+}
+
+/// Runs `scenario` with its control tick in the firmware under QEMU.
+///
+/// # Errors
+/// QEMU missing or failing, the firmware refusing the configuration, not
+/// answering in time, or answering with corrupt or unexpected frames.
+pub fn run_hil(
+    scenario: &Scenario,
+    options: &HilOptions,
+    progress: impl FnMut(u64, u64),
+) -> anyhow::Result<HilRun> {
+    let setup = scenario.validate()?;
+    let configure = hil_configuration(&setup)?;
+    let firmware = match &options.firmware {
+        Some(path) => path.clone(),
+        None => build_firmware(None)?,
+    };
+    ensure!(
+        firmware.is_file(),
+        "no firmware ELF at {}",
+        firmware.display()
+    );
+    let mut target = QemuTarget::start(&firmware, options)?;
+    match target.exchange(&HostMessage::Configure(configure))? {
+        TargetMessage::Configured => {}
+        TargetMessage::Refused(why) => bail!("the firmware refused the configuration: {why:?}"),
+        other => bail!("unexpected answer to Configure: {other:?}"),
+    }
+    let mut result = run_with_target(scenario, &mut target, progress)?;
+    let finished = target
+        .finished
+        .ok_or_else(|| anyhow::anyhow!("the run ended without the firmware's report"))?;
+    let report = HilReport {
+        firmware_ticks: finished.ticks,
+        peak_stack_bytes: finished.peak_stack_bytes,
+        firmware_link: finished.counters.link,
+        host_link: target.rx.counters(),
+        uart_overruns: finished.counters.uart_overruns,
+    };
+    result.summary.hil = Some(report);
+    if let Some(raw) = &options.log {
+        // QEMU has exited: the log is complete. It is diagnostics, so a
+        // failure to decode it is reported, not fatal.
+        let text = decode_defmt_log(&firmware, raw)
+            .unwrap_or_else(|e| format!("(defmt log not decoded: {e:#})\n"));
+        let path = raw.with_extension("log");
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(HilRun {
+        result,
+        report,
+        firmware,
+    })
+}

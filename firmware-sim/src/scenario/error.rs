@@ -1,0 +1,90 @@
+//! Why a scenario is refused, and the checks of single values that make
+//! the refusals (shared by the scenario's validation, the sweep table's
+//! and the slip scenarios').
+
+/// Why a scenario was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    #[error("cannot read scenario file {path}")]
+    Io {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// Not valid TOML, or not the scenario schema (the message names the
+    /// key and the line).
+    #[error("scenario is not valid: {0}")]
+    Parse(String),
+    /// A value out of range or inconsistent with another.
+    #[error("scenario field `{field}`: {reason}")]
+    Invalid {
+        /// Dotted path of the field, e.g. `plant.wheel_radius_m`.
+        field: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+}
+
+impl ScenarioError {
+    pub(crate) fn invalid(field: &str, reason: impl Into<String>) -> Self {
+        Self::Invalid {
+            field: field.to_owned(),
+            reason: reason.into(),
+        }
+    }
+
+    /// The offending field's dotted path, for [`Self::Invalid`].
+    #[must_use]
+    pub fn field(&self) -> Option<&str> {
+        match self {
+            Self::Invalid { field, .. } => Some(field),
+            _ => None,
+        }
+    }
+}
+
+pub(crate) fn positive(field: &str, v: f64) -> Result<f64, ScenarioError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(ScenarioError::invalid(
+            field,
+            format!("must be finite and > 0 (got {v})"),
+        ))
+    }
+}
+
+pub(crate) fn non_negative(field: &str, v: f64) -> Result<f64, ScenarioError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(ScenarioError::invalid(
+            field,
+            format!("must be finite and ≥ 0 (got {v})"),
+        ))
+    }
+}
+
+pub(super) fn finite(field: &str, v: f64) -> Result<f64, ScenarioError> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(ScenarioError::invalid(
+            field,
+            format!("must be finite (got {v})"),
+        ))
+    }
+}
+
+pub(crate) fn probability(field: &str, v: f64) -> Result<f64, ScenarioError> {
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(ScenarioError::invalid(
+            field,
+            format!("must be a probability in [0, 1] (got {v})"),
+        ))
+    }
+}

@@ -1,0 +1,159 @@
+//! Scenarios: what to simulate, as TOML, validated into the core's configs.
+//!
+//! A scenario file names every quantity with its unit (`period_s`, `h1_m`);
+//! everything but `name`, `duration_s` and the reference has a default (the
+//! paper's section 6.3.2 values where the paper gives one). Unknown keys are
+//! errors, and every validation error names the offending field:
+//!
+//! ```text
+//! scenario field `observer.gain_per_m`: must be finite and > 0 (got -1)
+//! ```
+//!
+//! [`Scenario::validate`] turns a scenario into a [`Setup`]: the core's own
+//! validated configurations
+//! ([`TrackerConfig`](wmr_core::pilot::tracker::TrackerConfig),
+//! [`PilotConfig`](wmr_core::pilot::PilotConfig), ...) plus the simulator's
+//! plant, floor and reader models.
+//!
+//! By job, each file using only those above it:
+//! * `error`: [`ScenarioError`] and the checks of single values
+//!   (`positive`, `non_negative`, ...), which the slip scenarios share;
+//! * `defaults`: the default values;
+//! * `sweep_spec`: the `[sweep]` table ([`SweepSpec`]) and its validated
+//!   [`SweepPlan`];
+//! * `schema`: the serde tables ([`Scenario`] and what it holds);
+//! * `validate`: [`Scenario::validate`] and what it builds ([`Setup`],
+//!   [`PlantSetup`], [`PositionSetup`]);
+//! * this file: parsing, files and the embedded scenarios ([`EMBEDDED`]).
+
+use std::path::Path;
+
+mod defaults;
+mod error;
+mod schema;
+mod sweep_spec;
+mod validate;
+
+#[cfg(test)]
+mod tests;
+
+pub use error::ScenarioError;
+pub(crate) use error::{non_negative, positive};
+pub use schema::{
+    ControllerKind, ControllerSpec, DriveSpec, DynamicsSpec, FailsafeSpec, InitialSpec, LawKind,
+    MeasurementSpec, ObserverKind, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
+    ReferenceSpec, Scenario, SpeedObserverSpec,
+};
+pub use sweep_spec::{
+    DEFAULT_EXACT_THRESHOLD_M, DEFAULT_HOLD_FRACTION, DEFAULT_START_RADIUS_M,
+    DEFAULT_THRESHOLD_SPACINGS, EncoderChoices, HeadingSweep, MAX_ENCODER_CHOICES, ObserverStart,
+    SweepPlan, SweepSpec,
+};
+pub use validate::{PlantSetup, PositionSetup, Setup, reference_bounds};
+
+/// The scenarios shipped with the simulator, as `(file name, TOML text)`.
+/// The first is the default.
+pub const EMBEDDED: &[(&str, &str)] = &[
+    (
+        "figure_eight_rfid",
+        include_str!("../../scenarios/figure_eight_rfid.toml"),
+    ),
+    (
+        "figure_eight_rfid_full_stack",
+        include_str!("../../scenarios/figure_eight_rfid_full_stack.toml"),
+    ),
+    (
+        "figure_eight_rfid_pose_observer",
+        include_str!("../../scenarios/figure_eight_rfid_pose_observer.toml"),
+    ),
+    (
+        "figure_eight_rfid_fusion_ekf",
+        include_str!("../../scenarios/figure_eight_rfid_fusion_ekf.toml"),
+    ),
+    (
+        "figure_eight_exact",
+        include_str!("../../scenarios/figure_eight_exact.toml"),
+    ),
+    (
+        "figure_eight_state_feedback",
+        include_str!("../../scenarios/figure_eight_state_feedback.toml"),
+    ),
+];
+
+/// The TOML text of an embedded scenario, by file name (without `.toml`).
+#[must_use]
+pub fn embedded_source(name: &str) -> Option<&'static str> {
+    let name = name.strip_suffix(".toml").unwrap_or(name);
+    EMBEDDED.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
+}
+
+/// Reads `path` and parses it with `parse`, naming the file in parse
+/// errors (shared by the scenario kinds of this crate).
+pub(crate) fn read_file<T>(
+    path: &Path,
+    parse: impl FnOnce(&str) -> Result<T, ScenarioError>,
+) -> Result<T, ScenarioError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    parse(&text).map_err(|e| match e {
+        ScenarioError::Parse(m) => ScenarioError::Parse(format!("{}: {m}", path.display())),
+        other => other,
+    })
+}
+
+impl Scenario {
+    /// Parses and validates a scenario from TOML text.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Parse`] for bad TOML or schema (unknown or missing
+    /// keys, wrong types), [`ScenarioError::Invalid`] for bad values.
+    pub fn from_toml_str(text: &str) -> Result<Self, ScenarioError> {
+        let scenario: Self =
+            toml::from_str(text).map_err(|e| ScenarioError::Parse(e.to_string()))?;
+        scenario.validate()?;
+        Ok(scenario)
+    }
+
+    /// Reads, parses and validates a scenario file.
+    ///
+    /// # Errors
+    /// As [`Self::from_toml_str`], plus [`ScenarioError::Io`].
+    pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
+        read_file(path, Self::from_toml_str)
+    }
+
+    /// An embedded scenario by name (see [`EMBEDDED`]).
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] (field `name`) for an unknown name; an
+    /// embedded scenario that does not parse is a bug, caught by the tests.
+    pub fn embedded(name: &str) -> Result<Self, ScenarioError> {
+        let text = embedded_source(name).ok_or_else(|| {
+            let names: Vec<&str> = EMBEDDED.iter().map(|(n, _)| *n).collect();
+            ScenarioError::invalid(
+                "name",
+                format!("no embedded scenario `{name}` (have: {})", names.join(", ")),
+            )
+        })?;
+        Self::from_toml_str(text)
+    }
+
+    /// The default scenario: paper 001, section 6.3.2 (figure-eight, nearest
+    /// RFID tag every tick, unicycle).
+    #[must_use]
+    pub fn default_scenario() -> Self {
+        // The embedded scenarios are checked by the tests.
+        #[allow(clippy::expect_used)]
+        Self::embedded(EMBEDDED[0].0).expect("embedded default scenario is valid")
+    }
+
+    /// The scenario as TOML.
+    ///
+    /// # Errors
+    /// Never for a scenario that was parsed (all values representable).
+    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
+        toml::to_string_pretty(self)
+    }
+}

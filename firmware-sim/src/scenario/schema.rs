@@ -1,0 +1,596 @@
+//! The scenario file's schema: the serde tables of the TOML file, with
+//! their units in the key names and their defaults (see `defaults`).
+//! Checking the values is `validate`'s job.
+
+use serde::{Deserialize, Serialize};
+
+use super::defaults;
+use super::sweep_spec::SweepSpec;
+
+/// A simulation scenario (the TOML file's top level).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Short name (used for the default output directory).
+    pub name: String,
+    /// Free text.
+    #[serde(default)]
+    pub description: String,
+    /// Simulated time, s.
+    pub duration_s: f64,
+    /// Control period `h`, s.
+    #[serde(default = "defaults::period_s")]
+    pub period_s: f64,
+    /// Error statistics are taken over `t ≥ transient_s`, s.
+    #[serde(default)]
+    pub transient_s: f64,
+    /// The reference trajectory.
+    pub reference: ReferenceSpec,
+    /// Initial pose and observer estimate.
+    #[serde(default)]
+    pub initial: InitialSpec,
+    /// Tracking law and gains.
+    #[serde(default)]
+    pub controller: ControllerSpec,
+    /// Heading observer (output feedback only).
+    #[serde(default)]
+    pub observer: ObserverSpec,
+    /// The simulated robot body.
+    #[serde(default)]
+    pub plant: PlantSpec,
+    /// Drive limits and speed loops (`diff_drive` plant only).
+    #[serde(default)]
+    pub drive: Option<DriveSpec>,
+    /// Where the position measurement comes from.
+    #[serde(default)]
+    pub position: PositionSpec,
+    /// What the tracker does when fixes stop.
+    #[serde(default)]
+    pub failsafe: FailsafeSpec,
+    /// Noise and misses on the position fix (`exact` and `nearest_tag`
+    /// sources).
+    #[serde(default, skip_serializing_if = "MeasurementSpec::is_default")]
+    pub measurement: MeasurementSpec,
+    /// What `firmware-sim sweep` varies (ignored by `run`, but validated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sweep: Option<SweepSpec>,
+}
+
+/// The reference trajectory.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ReferenceSpec {
+    /// Paper 001's figure-eight, `x = h1 sin 2s`, `y = h1 sin s`, `s = h2 t + φ`.
+    FigureEight {
+        /// Half-width `h1`, m.
+        #[serde(default = "defaults::h1_m")]
+        h1_m: f64,
+        /// Rate `h2`, rad/s.
+        #[serde(default = "defaults::h2_rad_s")]
+        h2_rad_s: f64,
+        /// Phase `φ`, rad (−π/2 starts at (0, −h1), as the paper's runs).
+        #[serde(default = "defaults::phase_rad")]
+        phase_rad: f64,
+    },
+    /// A circle.
+    Circle {
+        /// Centre `[x, y]`, m.
+        #[serde(default)]
+        center_m: [f64; 2],
+        /// Radius, m.
+        radius_m: f64,
+        /// Angular rate, rad/s (negative: clockwise).
+        rate_rad_s: f64,
+        /// Polar angle of the start point, rad.
+        #[serde(default)]
+        phase_rad: f64,
+    },
+    /// A straight line at constant speed.
+    Line {
+        /// Start `[x, y]`, m.
+        #[serde(default)]
+        start_m: [f64; 2],
+        /// Direction, rad.
+        #[serde(default)]
+        heading_rad: f64,
+        /// Speed, m/s.
+        speed_m_s: f64,
+    },
+}
+
+/// Initial pose of the robot and of the observer's estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSpec {
+    /// x, m.
+    #[serde(default)]
+    pub x_m: f64,
+    /// y, m.
+    #[serde(default)]
+    pub y_m: f64,
+    /// Heading θ(0), rad.
+    #[serde(default)]
+    pub heading_rad: f64,
+    /// Observer's initial `ẑ3` (estimate of cos θ); 0 = heading unknown.
+    #[serde(default)]
+    pub estimate_cos: f64,
+    /// Observer's initial `ẑ4` (estimate of sin θ).
+    #[serde(default)]
+    pub estimate_sin: f64,
+}
+
+/// Which tracking law.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ControllerKind {
+    /// Observer (5) + law (27)–(28): position only (paper 001, Theorem 3).
+    #[default]
+    OutputFeedback,
+    /// Law (14) with the true heading (paper 001, Theorem 2).
+    StateFeedback,
+}
+
+/// Which position-only law the output-feedback tracker runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum LawKind {
+    /// Paper 001's law (27)–(28), gains `k1, k2, k3`.
+    #[default]
+    Paper001,
+    /// Paper 002's cascaded controller (31), gains `c1, c2`, on the error
+    /// (30) from the estimated heading.
+    Cascaded,
+    /// Paper 002's Proposition 7: observer of `sin θ_e` (gain `a`) and
+    /// controller (64) (gains `c2`, `gamma`).
+    HeadingErrorSine,
+}
+
+/// Tracking law and gains.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControllerSpec {
+    /// Which law.
+    #[serde(default)]
+    pub kind: ControllerKind,
+    /// With `kind = "output_feedback"`: which position-only law.
+    #[serde(default)]
+    pub law: LawKind,
+    /// `c1` of (31), 1/s.
+    #[serde(default = "defaults::c1")]
+    pub c1: f64,
+    /// `c2` of (31) and (64), 1/s.
+    #[serde(default = "defaults::c2")]
+    pub c2: f64,
+    /// Observer gain `a` of Proposition 7, s/m².
+    #[serde(default = "defaults::sine_a")]
+    pub a: f64,
+    /// `γ ∈ (0, 1)` of (64).
+    #[serde(default = "defaults::gamma")]
+    pub gamma: f64,
+    /// `k1`, m/s.
+    #[serde(default = "defaults::k12")]
+    pub k1: f64,
+    /// `k2`, m/s.
+    #[serde(default = "defaults::k12")]
+    pub k2: f64,
+    /// `k3`, 1/s.
+    #[serde(default = "defaults::k3")]
+    pub k3: f64,
+}
+
+impl Default for ControllerSpec {
+    fn default() -> Self {
+        Self {
+            kind: ControllerKind::default(),
+            law: LawKind::default(),
+            c1: defaults::c1(),
+            c2: defaults::c2(),
+            a: defaults::sine_a(),
+            gamma: defaults::gamma(),
+            k1: defaults::k12(),
+            k2: defaults::k12(),
+            k3: defaults::k3(),
+        }
+    }
+}
+
+/// Which heading estimator the output-feedback tracker runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ObserverKind {
+    /// Paper 001's observer (5), gain `gain_per_m`.
+    #[default]
+    Paper001,
+    /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`, gains
+    /// `pose_gains = [a1, a2, a3, a4]`.
+    Pose,
+    /// The encoder + tag fusion EKF (`wmr_core::estimation::fusion`), tuned by the
+    /// `fusion_*` keys; needs grid tags (`nearest_tag`, or `reader` in
+    /// `paper` or `range` mode) without added noise.
+    FusionEkf,
+    /// The same estimator on paper 004's UKF (`wmr_core::estimation::fusion::ukf`).
+    FusionUkf,
+    /// The same estimator on paper 004's particle filter
+    /// (`wmr_core::estimation::fusion::particle`, 100 particles), its generator
+    /// seeded with `fusion_particle_seed`.
+    FusionParticleFilter,
+}
+
+/// Heading observer parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObserverSpec {
+    /// Which estimator.
+    #[serde(default)]
+    pub kind: ObserverKind,
+    /// `[a1, a2]` (1/s), `[a3, a4]` (1/m²) of paper 002's (37).
+    #[serde(default = "defaults::pose_gains")]
+    pub pose_gains: [f64; 4],
+    /// Fusion EKF: each wheel's travel variance per metre driven, m²/m.
+    #[serde(default = "defaults::fusion_wheel_variance_per_m")]
+    pub fusion_wheel_variance_per_m: f64,
+    /// Fusion EKF: Mahalanobis gate, standard deviations.
+    #[serde(default = "defaults::fusion_gate_sigma")]
+    pub fusion_gate_sigma: f64,
+    /// Fusion EKF: prior variance of each wheel's scale error (0: the
+    /// wheels are taken as calibrated; 4e-4 learns them from a 2 % prior).
+    #[serde(default)]
+    pub fusion_scale_prior: f64,
+    /// Fusion estimator: the failsafe's limit on the distance driven since
+    /// the last fix, m, which then replaces the fix timeout (0: the timeout
+    /// decides). Default with a `range` reader, where gaps between tags are
+    /// normal: `4 s²/r` for spacing `s` and range `r` (1.6 m for the 20 cm
+    /// grid and 5 cm range; `defaults::fusion_range_max_blind_distance_m`);
+    /// 0 otherwise.
+    #[serde(default)]
+    pub fusion_max_blind_distance_m: Option<f64>,
+    /// Fusion estimator: reads of an unchanged tag pull an estimate that
+    /// left the tag's cell back to its edge (nearest-tag reader; default
+    /// off; with `fusion_wheel_variance_per_m` near the real wheel noise
+    /// it is the tuning for wheels that slip).
+    #[serde(default)]
+    pub fusion_edge_constraint: bool,
+    /// Fusion particle filter: its generator's seed (default 1).
+    #[serde(default = "defaults::fusion_particle_seed")]
+    pub fusion_particle_seed: u64,
+    /// Observer gain `L`, 1/m.
+    #[serde(default = "defaults::gain_per_m")]
+    pub gain_per_m: f64,
+    /// Speed below which position changes are ignored, m/s.
+    #[serde(default = "defaults::min_speed_m_s")]
+    pub min_speed_m_s: f64,
+}
+
+impl Default for ObserverSpec {
+    fn default() -> Self {
+        Self {
+            kind: ObserverKind::default(),
+            pose_gains: defaults::pose_gains(),
+            fusion_wheel_variance_per_m: defaults::fusion_wheel_variance_per_m(),
+            fusion_gate_sigma: defaults::fusion_gate_sigma(),
+            fusion_scale_prior: 0.0,
+            fusion_particle_seed: defaults::fusion_particle_seed(),
+            fusion_max_blind_distance_m: None,
+            fusion_edge_constraint: false,
+            gain_per_m: defaults::gain_per_m(),
+            min_speed_m_s: defaults::min_speed_m_s(),
+        }
+    }
+}
+
+/// The simulated robot body.
+///
+/// (De)serialized by hand around the derived code (`remote = "Self"`
+/// makes the derives inherent `PlantSpec::serialize`/`deserialize`): serde
+/// ignores keys beside a unit variant's tag, so a `[plant.dynamics]` table
+/// under `kind = "unicycle"` would otherwise vanish silently.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(
+    remote = "Self",
+    tag = "kind",
+    rename_all = "snake_case",
+    deny_unknown_fields
+)]
+pub enum PlantSpec {
+    /// Paper 001's kinematic unicycle (1): commands are velocities. The
+    /// core's tracker (or controller) is called directly.
+    #[default]
+    Unicycle,
+    /// Two DC motors, PWM drivers, quadrature encoders: runs the core's
+    /// `Robot` (or `Pilot`) against virtual devices.
+    DiffDrive {
+        /// Wheel radius, m.
+        #[serde(default = "defaults::wheel_radius_m")]
+        wheel_radius_m: f64,
+        /// Track width, m.
+        #[serde(default = "defaults::track_width_m")]
+        track_width_m: f64,
+        /// Motor + wheel time constant `τ`, s.
+        #[serde(default = "defaults::motor_time_constant_s")]
+        motor_time_constant_s: f64,
+        /// Wheel speed at full duty, rad/s.
+        #[serde(default = "defaults::wheel_speed_at_full_duty_rad_s")]
+        wheel_speed_at_full_duty_rad_s: f64,
+        /// Quadrature counts per wheel revolution.
+        #[serde(default = "defaults::encoder_counts_per_rev")]
+        encoder_counts_per_rev: u32,
+        /// Width of the hardware encoder counters, bits.
+        #[serde(default = "defaults::encoder_bits")]
+        encoder_bits: u32,
+        /// PWM full-scale duty, steps.
+        #[serde(default = "defaults::pwm_max_duty")]
+        pwm_max_duty: u16,
+        /// RK4 substeps per control period.
+        #[serde(default = "defaults::substeps")]
+        substeps: u32,
+        /// Rigid-body wheel dynamics (`[plant.dynamics]`); absent: each
+        /// wheel is the first-order system of `motor_time_constant_s`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        dynamics: Option<DynamicsSpec>,
+    },
+}
+
+impl Serialize for PlantSpec {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        // The derived serializer (inherent, from `remote = "Self"`).
+        PlantSpec::serialize(self, serializer)
+    }
+}
+
+impl<'de> Deserialize<'de> for PlantSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error as _;
+        let table = toml::Table::deserialize(deserializer)?;
+        if table.get("kind").and_then(toml::Value::as_str) == Some("unicycle")
+            && table.contains_key("dynamics")
+        {
+            return Err(D::Error::custom(
+                "`plant.dynamics` is only used with kind = \"diff_drive\" (the unicycle's \
+                 commands are its velocities); remove the [plant.dynamics] table",
+            ));
+        }
+        // The derived deserializer (inherent, from `remote = "Self"`); its
+        // error's text ends in a newline the outer error adds again.
+        PlantSpec::deserialize(toml::Value::Table(table))
+            .map_err(|e| D::Error::custom(e.to_string().trim_end()))
+    }
+}
+
+/// Rigid-body wheel dynamics of the `diff_drive` plant, the
+/// `[plant.dynamics]` table (see
+/// [`WheelDynamics`](crate::plant::WheelDynamics)): the wheels carry the
+/// robot's mass and yaw inertia, each motor gives `stall_torque_nm` at
+/// full duty and zero speed less its back-EMF (no-load speed
+/// `plant.wheel_speed_at_full_duty_rad_s`), and a slope load may start at
+/// `load_start_s`. `plant.motor_time_constant_s` is then unused.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DynamicsSpec {
+    /// Robot mass, kg.
+    pub mass_kg: f64,
+    /// Yaw inertia about the axle midpoint, kg m².
+    pub yaw_inertia_kg_m2: f64,
+    /// Each wheel's inertia with its motor and gearbox reflected to the
+    /// wheel, kg m².
+    #[serde(default)]
+    pub wheel_inertia_kg_m2: f64,
+    /// Viscous friction of each wheel's drive train, N·m·s/rad.
+    #[serde(default)]
+    pub viscous_friction_nm_s_per_rad: f64,
+    /// Motor torque at the wheel at full duty and zero speed, N·m.
+    pub stall_torque_nm: f64,
+    /// When the robot starts onto the slope, s of scenario time.
+    #[serde(default)]
+    pub load_start_s: f64,
+    /// Time the slope angle takes to reach its final value (linear in the
+    /// angle), s; 0 = step.
+    #[serde(default)]
+    pub load_ramp_s: f64,
+    /// Final grade driven uphill, percent (rise per 100 of run; negative:
+    /// downhill; 0: no load).
+    #[serde(default)]
+    pub load_grade_percent: f64,
+}
+
+/// Drive limits and per-wheel speed loops (`diff_drive` plant only).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveSpec {
+    /// Wheel speed limit, rad/s.
+    #[serde(default = "defaults::max_wheel_speed_rad_s")]
+    pub max_wheel_speed_rad_s: f64,
+    /// Wheel acceleration limit, rad/s².
+    #[serde(default = "defaults::max_wheel_accel_rad_s2")]
+    pub max_wheel_accel_rad_s2: f64,
+    /// Feed-forward, duty per rad/s (default: 1 / wheel speed at full duty).
+    #[serde(default)]
+    pub feedforward_duty_per_rad_s: Option<f64>,
+    /// Proportional gain, duty per rad/s.
+    #[serde(default = "defaults::kp_duty_per_rad_s")]
+    pub kp_duty_per_rad_s: f64,
+    /// Integral gain, duty per rad.
+    #[serde(default = "defaults::ki_duty_per_rad")]
+    pub ki_duty_per_rad: f64,
+    /// Run the speed loops on paper 003's wheel-speed observer instead of
+    /// the counts differenced over a tick (`[drive.speed_observer]`).
+    #[serde(default)]
+    pub speed_observer: Option<SpeedObserverSpec>,
+}
+
+/// The robot as the wheel-speed observer models it (paper 003, section
+/// 6.1; see `wmr_core::drive::speed_observer`). The wheel radius, track and
+/// the motors' no-load speed (`plant.wheel_speed_at_full_duty_rad_s`) come
+/// from the plant table; these may differ from `[plant.dynamics]` to study
+/// a mismatched model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeedObserverSpec {
+    /// Robot mass, kg.
+    pub mass_kg: f64,
+    /// Yaw inertia about the axle midpoint, kg m².
+    pub yaw_inertia_kg_m2: f64,
+    /// Each wheel's drive-train inertia at the wheel, kg m² (default 0).
+    #[serde(default)]
+    pub wheel_inertia_kg_m2: f64,
+    /// Motor torque at the wheel at full duty and standstill, N·m.
+    pub stall_torque_nm: f64,
+    /// `λ`, 1/s (default 5).
+    #[serde(default = "defaults::observer_lambda_per_s")]
+    pub lambda_per_s: f64,
+    /// Damping adaptation gain `γ_r` (default 0.01).
+    #[serde(default = "defaults::observer_friction_gain")]
+    pub friction_gain: f64,
+    /// Load adaptation gain `γ_d` (default 0.1).
+    #[serde(default = "defaults::observer_disturbance_gain")]
+    pub disturbance_gain: f64,
+}
+
+impl Default for DriveSpec {
+    fn default() -> Self {
+        Self {
+            max_wheel_speed_rad_s: defaults::max_wheel_speed_rad_s(),
+            max_wheel_accel_rad_s2: defaults::max_wheel_accel_rad_s2(),
+            feedforward_duty_per_rad_s: None,
+            kp_duty_per_rad_s: defaults::kp_duty_per_rad_s(),
+            ki_duty_per_rad: defaults::ki_duty_per_rad(),
+            speed_observer: None,
+        }
+    }
+}
+
+/// When the virtual reader reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ReaderModeSpec {
+    /// The nearest tag, every tick (paper 001, section 6.3.2).
+    #[default]
+    Paper,
+    /// Tags within `read_radius_m`, on entry and every `repeat_interval_s`.
+    Range,
+}
+
+/// Where the position measurement comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PositionSpec {
+    /// The true position, every tick.
+    #[default]
+    Exact,
+    /// The nearest tag's position, every tick, with no reader or UART in
+    /// between (paper 001, section 6.3.2).
+    NearestTag {
+        /// Tag spacing, m.
+        #[serde(default = "defaults::spacing_m")]
+        spacing_m: f64,
+        /// A lattice point `[x, y]`, m.
+        #[serde(default)]
+        offset_m: [f64; 2],
+        /// Margin around the reference and start when `extent_m` is not given, m.
+        #[serde(default = "defaults::margin_m")]
+        margin_m: f64,
+        /// Covered rectangle `[x_min, y_min, x_max, y_max]`, m (default: automatic).
+        #[serde(default)]
+        extent_m: Option<[f64; 4]>,
+    },
+    /// Frames from a virtual RFID reader over a virtual UART, parsed by the
+    /// core's reader and looked up in the core's tag grid.
+    Reader {
+        /// Tag spacing, m.
+        #[serde(default = "defaults::spacing_m")]
+        spacing_m: f64,
+        /// A lattice point `[x, y]`, m.
+        #[serde(default)]
+        offset_m: [f64; 2],
+        /// Margin around the reference and start when `extent_m` is not given, m.
+        #[serde(default = "defaults::margin_m")]
+        margin_m: f64,
+        /// Covered rectangle `[x_min, y_min, x_max, y_max]`, m (default: automatic).
+        #[serde(default)]
+        extent_m: Option<[f64; 4]>,
+        /// `paper` (nearest tag every tick) or `range`.
+        #[serde(default)]
+        mode: ReaderModeSpec,
+        /// Read radius around the antenna (`range` mode), m.
+        #[serde(default = "defaults::read_radius_m")]
+        read_radius_m: f64,
+        /// Antenna ahead of the axle midpoint, m.
+        #[serde(default)]
+        antenna_offset_m: f64,
+        /// Line speed, baud.
+        #[serde(default = "defaults::baud")]
+        baud: u32,
+        /// Repeat interval while a tag stays in range (`range` mode), s.
+        #[serde(default = "defaults::repeat_interval_s")]
+        repeat_interval_s: f64,
+        /// Probability that a byte arrives with a flipped bit.
+        #[serde(default)]
+        corrupt_byte_probability: f64,
+        /// Probability that a frame is lost.
+        #[serde(default)]
+        drop_frame_probability: f64,
+        /// Seed of the fault RNG.
+        #[serde(default = "defaults::seed")]
+        seed: u64,
+    },
+}
+
+/// What the tracker does when fixes stop.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FailsafeSpec {
+    /// Time without a valid fix before the failsafe engages, s.
+    #[serde(default = "defaults::fix_timeout_s")]
+    pub fix_timeout_s: f64,
+    /// Failsafe deceleration, m/s².
+    #[serde(default = "defaults::decel_m_s2")]
+    pub decel_m_s2: f64,
+}
+
+impl Default for FailsafeSpec {
+    fn default() -> Self {
+        Self {
+            fix_timeout_s: defaults::fix_timeout_s(),
+            decel_m_s2: defaults::decel_m_s2(),
+        }
+    }
+}
+
+/// Faults on the position fix of the `exact` and `nearest_tag` sources
+/// (the `reader` source has its own link faults,
+/// `position.drop_frame_probability` and `position.corrupt_byte_probability`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeasurementSpec {
+    /// Standard deviation of the zero-mean Gaussian noise added to each
+    /// axis of every fix, m.
+    #[serde(default)]
+    pub noise_std_m: f64,
+    /// Probability that a tick has no fix (the tracker dead-reckons).
+    #[serde(default)]
+    pub miss_probability: f64,
+    /// Seed of the noise and miss RNG.
+    #[serde(default = "defaults::seed")]
+    pub seed: u64,
+}
+
+impl Default for MeasurementSpec {
+    fn default() -> Self {
+        Self {
+            noise_std_m: 0.0,
+            miss_probability: 0.0,
+            seed: defaults::seed(),
+        }
+    }
+}
+
+impl MeasurementSpec {
+    /// Whether the fix is passed through untouched.
+    #[must_use]
+    pub fn is_clean(&self) -> bool {
+        self.noise_std_m == 0.0 && self.miss_probability == 0.0
+    }
+
+    fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+}

@@ -1,0 +1,330 @@
+//! The scenario's parsing, defaults and validation.
+
+use super::*;
+use crate::plant::{DiffDriveParams, LoadTorque, WheelDynamics};
+
+const MINIMAL: &str = r#"
+    name = "t"
+    duration_s = 10.0
+    [reference]
+    kind = "figure_eight"
+"#;
+
+fn err_of(text: &str) -> ScenarioError {
+    Scenario::from_toml_str(text).unwrap_err()
+}
+
+#[test]
+fn embedded_scenarios_parse_and_validate() {
+    assert_eq!(EMBEDDED.len(), 6);
+    for (name, text) in EMBEDDED {
+        let s = Scenario::from_toml_str(text).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(&s.name, name);
+        // Round trip through TOML.
+        let again = Scenario::from_toml_str(&s.to_toml_string().unwrap()).unwrap();
+        assert_eq!(again, s);
+    }
+    assert_eq!(Scenario::default_scenario().name, "figure_eight_rfid");
+    assert!(embedded_source("figure_eight_exact.toml").is_some());
+    assert_eq!(
+        Scenario::embedded("nope").unwrap_err().field(),
+        Some("name")
+    );
+}
+
+#[test]
+fn minimal_scenario_takes_the_paper_defaults() {
+    let s = Scenario::from_toml_str(MINIMAL).unwrap();
+    let setup = s.validate().unwrap();
+    assert_eq!(setup.ticks, 1000);
+    assert_eq!(s.controller.k1, 0.11);
+    assert_eq!(s.observer.gain_per_m, 0.6);
+    assert_eq!(setup.position, PositionSetup::Exact);
+    assert_eq!(setup.plant, PlantSetup::Unicycle);
+    let p = setup.trajectory.sample(0.0).position;
+    assert!(p.x.abs() < 1e-5 && (p.y + 5.0).abs() < 1e-5);
+    assert_eq!(setup.tracker.fix_timeout_ticks(), 50);
+}
+
+#[test]
+fn unknown_keys_are_refused_with_their_name() {
+    let e = err_of(&format!("{MINIMAL}\nperiod_ms = 10\n")).to_string();
+    assert!(e.contains("period_ms"), "{e}");
+    let e = err_of(&MINIMAL.replace("kind = \"figure_eight\"", "kind = \"figure_eight\"\nh1 = 3"))
+        .to_string();
+    assert!(e.contains("h1"), "{e}");
+    let e = err_of(&format!(
+        "{MINIMAL}\n[plant]\nkind = \"diff_drive\"\nradius_m = 0.1\n"
+    ))
+    .to_string();
+    assert!(e.contains("radius_m"), "{e}");
+    let e = err_of(&MINIMAL.replace("figure_eight", "spiral")).to_string();
+    assert!(e.contains("spiral"), "{e}");
+    let e = err_of("name = \"x\"\n[reference]\nkind = \"figure_eight\"\n").to_string();
+    assert!(e.contains("duration_s"), "{e}");
+}
+
+#[test]
+fn bad_values_name_their_field() {
+    let cases = [
+        ("[observer]\ngain_per_m = -1.0", "observer.gain_per_m"),
+        ("[observer]\nmin_speed_m_s = -1.0", "observer.min_speed_m_s"),
+        ("[controller]\nk3 = 0.0", "controller.k3"),
+        (
+            "[plant]\nkind = \"diff_drive\"\nwheel_radius_m = 0.0",
+            "plant.wheel_radius_m",
+        ),
+        (
+            "[plant]\nkind = \"diff_drive\"\nencoder_bits = 40",
+            "plant.encoder_bits",
+        ),
+        ("[drive]\nkp_duty_per_rad_s = 0.1", "drive"),
+        (
+            "[plant]\nkind = \"diff_drive\"\n[drive]\nmax_wheel_speed_rad_s = 0.0",
+            "drive.max_wheel_speed_rad_s",
+        ),
+        (
+            "[position]\nkind = \"nearest_tag\"\nspacing_m = 0.0",
+            "position.spacing_m",
+        ),
+        (
+            "[position]\nkind = \"nearest_tag\"\nspacing_m = 1e-5",
+            "position.extent_m",
+        ),
+        ("[position]\nkind = \"reader\"\nbaud = 0", "position.baud"),
+        (
+            "[position]\nkind = \"reader\"\ndrop_frame_probability = 1.5",
+            "position.drop_frame_probability",
+        ),
+        (
+            "[position]\nkind = \"reader\"\n[controller]\nkind = \"state_feedback\"",
+            "position.kind",
+        ),
+        (
+            "[plant]\nkind = \"diff_drive\"\n[controller]\nkind = \"state_feedback\"",
+            "controller.kind",
+        ),
+        ("[failsafe]\nfix_timeout_s = 0.0", "failsafe.fix_timeout_s"),
+        ("[failsafe]\ndecel_m_s2 = -2.0", "failsafe.decel_m_s2"),
+        ("[initial]\nx_m = nan", "initial.x_m"),
+        (
+            "[initial]\nestimate_cos = 1.0\n[plant]\nkind = \"diff_drive\"",
+            "initial.estimate_cos",
+        ),
+        (
+            "[measurement]\nnoise_std_m = -0.1",
+            "measurement.noise_std_m",
+        ),
+        (
+            "[measurement]\nmiss_probability = 1.5",
+            "measurement.miss_probability",
+        ),
+        (
+            "[position]\nkind = \"reader\"\n[measurement]\nnoise_std_m = 0.01",
+            "measurement.noise_std_m",
+        ),
+        (
+            "[controller]\nkind = \"state_feedback\"\n[measurement]\nmiss_probability = 0.1",
+            "measurement.miss_probability",
+        ),
+        ("transient_s = 20.0", "transient_s"),
+        ("period_s = -0.01", "period_s"),
+    ];
+    for (extra, field) in cases {
+        // Top-level keys must come before the tables.
+        let text = if extra.starts_with('[') {
+            format!("{MINIMAL}\n{extra}\n")
+        } else {
+            format!("{extra}\n{MINIMAL}")
+        };
+        let e = err_of(&text);
+        assert_eq!(e.field(), Some(field), "{extra}: {e}");
+        assert!(e.to_string().contains(field));
+    }
+    let e = err_of(&MINIMAL.replace(
+        "kind = \"figure_eight\"",
+        "kind = \"figure_eight\"\nh2_rad_s = -0.1",
+    ));
+    assert_eq!(e.field(), Some("reference.h2_rad_s"));
+}
+
+const DIFF_DRIVE: &str = "[plant]\nkind = \"diff_drive\"\n";
+const DYNAMICS: &str = "[plant.dynamics]\nmass_kg = 4.0\nyaw_inertia_kg_m2 = 0.08\n\
+                        stall_torque_nm = 0.6\n";
+
+fn dynamics_of(setup: &Setup) -> Option<WheelDynamics> {
+    match setup.plant {
+        PlantSetup::DiffDrive { params, .. } => params.dynamics,
+        PlantSetup::Unicycle => panic!("diff_drive expected"),
+    }
+}
+
+#[test]
+fn plant_dynamics_table_gives_the_wheel_dynamics() {
+    // Absent: the first-order wheels, as before.
+    let s = Scenario::from_toml_str(&format!("{MINIMAL}\n{DIFF_DRIVE}")).unwrap();
+    assert_eq!(dynamics_of(&s.validate().unwrap()), None);
+    let full = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    assert_eq!(dynamics_of(&full.validate().unwrap()), None);
+    assert!(!full.to_toml_string().unwrap().contains("dynamics"));
+
+    // The required keys only: the others default to 0 (no load).
+    let s = Scenario::from_toml_str(&format!("{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}")).unwrap();
+    let expected = WheelDynamics {
+        mass_kg: 4.0,
+        yaw_inertia_kg_m2: 0.08,
+        wheel_inertia_kg_m2: 0.0,
+        viscous_friction_nm_s_per_rad: 0.0,
+        stall_torque_nm: 0.6,
+        load: LoadTorque::NONE,
+    };
+    assert_eq!(dynamics_of(&s.validate().unwrap()), Some(expected));
+
+    // Every key.
+    let text = format!(
+        "{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}wheel_inertia_kg_m2 = 2e-4\n\
+         viscous_friction_nm_s_per_rad = 0.01\nload_start_s = 30.0\nload_ramp_s = 2.5\n\
+         load_grade_percent = -5.0\n"
+    );
+    let s = Scenario::from_toml_str(&text).unwrap();
+    let setup = s.validate().unwrap();
+    assert_eq!(
+        dynamics_of(&setup),
+        Some(WheelDynamics {
+            wheel_inertia_kg_m2: 2e-4,
+            viscous_friction_nm_s_per_rad: 0.01,
+            load: LoadTorque {
+                start_s: 30.0,
+                ramp_s: 2.5,
+                grade_percent: -5.0,
+            },
+            ..expected
+        })
+    );
+    // The rest of the plant is untouched.
+    let PlantSetup::DiffDrive { params, .. } = setup.plant else {
+        panic!("diff_drive expected");
+    };
+    assert_eq!(
+        DiffDriveParams {
+            dynamics: None,
+            ..params
+        },
+        DiffDriveParams::default()
+    );
+    // Round trip through TOML.
+    let again = Scenario::from_toml_str(&s.to_toml_string().unwrap()).unwrap();
+    assert_eq!(again, s);
+}
+
+#[test]
+fn bad_plant_dynamics_keys_name_their_field() {
+    let cases = [
+        ("mass_kg = 0.0", "mass_kg"),
+        ("mass_kg = -4.0", "mass_kg"),
+        ("yaw_inertia_kg_m2 = 0.0", "yaw_inertia_kg_m2"),
+        ("yaw_inertia_kg_m2 = inf", "yaw_inertia_kg_m2"),
+        ("wheel_inertia_kg_m2 = -1e-4", "wheel_inertia_kg_m2"),
+        ("wheel_inertia_kg_m2 = nan", "wheel_inertia_kg_m2"),
+        (
+            "viscous_friction_nm_s_per_rad = -0.01",
+            "viscous_friction_nm_s_per_rad",
+        ),
+        ("stall_torque_nm = 0.0", "stall_torque_nm"),
+        ("stall_torque_nm = nan", "stall_torque_nm"),
+        ("load_start_s = -1.0", "load_start_s"),
+        ("load_ramp_s = -0.5", "load_ramp_s"),
+        ("load_ramp_s = inf", "load_ramp_s"),
+        ("load_grade_percent = 100.0", "load_grade_percent"),
+        ("load_grade_percent = -100.0", "load_grade_percent"),
+        ("load_grade_percent = nan", "load_grade_percent"),
+    ];
+    for (line, key) in cases {
+        // TOML refuses a key given twice: drop the table's own line.
+        let name = line.split(' ').next().unwrap();
+        let table: String = DYNAMICS
+            .lines()
+            .filter(|l| !l.starts_with(name))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let text = format!("{MINIMAL}\n{DIFF_DRIVE}{table}{line}\n");
+        let e = err_of(&text);
+        let field = format!("plant.dynamics.{key}");
+        assert_eq!(e.field(), Some(field.as_str()), "{line}: {e}");
+        assert!(e.to_string().contains(&field), "{e}");
+    }
+    // The extremes inside the range are accepted.
+    for grade in ["99.9", "-99.9"] {
+        let text = format!("{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}load_grade_percent = {grade}\n");
+        assert!(Scenario::from_toml_str(&text).is_ok(), "{grade}");
+    }
+}
+
+#[test]
+fn speed_observer_table_is_validated() {
+    let table = "[drive.speed_observer]\nmass_kg = 4.0\nyaw_inertia_kg_m2 = 0.08\n";
+    let ok = format!("{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}{table}stall_torque_nm = 0.6\n");
+    let setup = Scenario::from_toml_str(&ok).unwrap().validate().unwrap();
+    let PlantSetup::DiffDrive { pilot, .. } = setup.plant else {
+        panic!("diff drive");
+    };
+    assert!(pilot.drive().speed_observer().is_some());
+    for (line, key) in [
+        ("stall_torque_nm = 0.0", "stall_torque_nm"),
+        ("stall_torque_nm = 0.6\nlambda_per_s = -1.0", "lambda_per_s"),
+        (
+            "stall_torque_nm = 0.6\nfriction_gain = nan",
+            "friction_gain",
+        ),
+        (
+            "stall_torque_nm = 0.6\ndisturbance_gain = 0.0",
+            "disturbance_gain",
+        ),
+    ] {
+        let text = format!("{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}{table}{line}\n");
+        let e = err_of(&text);
+        let field = format!("drive.speed_observer.{key}");
+        assert_eq!(e.field(), Some(field.as_str()), "{line}: {e}");
+    }
+}
+
+#[test]
+fn plant_dynamics_table_is_refused_where_it_does_not_belong() {
+    // With the unicycle (explicit kind).
+    let text = format!("{MINIMAL}\n[plant]\nkind = \"unicycle\"\n{DYNAMICS}");
+    let e = err_of(&text);
+    assert!(matches!(e, ScenarioError::Parse(_)), "{e:?}");
+    assert!(e.to_string().contains("plant.dynamics"), "{e}");
+    assert!(e.to_string().contains("diff_drive"), "{e}");
+    // Without a plant kind.
+    let e = err_of(&format!("{MINIMAL}\n{DYNAMICS}")).to_string();
+    assert!(e.contains("kind"), "{e}");
+    // Unknown or missing keys in the table.
+    let e = err_of(&format!(
+        "{MINIMAL}\n{DIFF_DRIVE}{DYNAMICS}mass_g = 4000.0\n"
+    ))
+    .to_string();
+    assert!(e.contains("mass_g"), "{e}");
+    let e = err_of(&format!(
+        "{MINIMAL}\n{DIFF_DRIVE}[plant.dynamics]\nmass_kg = 4.0\nyaw_inertia_kg_m2 = 0.08\n"
+    ))
+    .to_string();
+    assert!(e.contains("stall_torque_nm"), "{e}");
+    // The unicycle still parses as before, with or without its table.
+    let s = Scenario::from_toml_str(&format!("{MINIMAL}\n[plant]\nkind = \"unicycle\"\n")).unwrap();
+    assert_eq!(s.plant, PlantSpec::Unicycle);
+}
+
+#[test]
+fn floor_covers_the_reference_and_the_start() {
+    let text = format!(
+        "{MINIMAL}\n[initial]\ny_m = -6.0\n[position]\nkind = \"nearest_tag\"\nmargin_m = 0.5\n"
+    );
+    let setup = Scenario::from_toml_str(&text).unwrap().validate().unwrap();
+    let PositionSetup::NearestTag(floor) = setup.position else {
+        panic!("nearest tag expected");
+    };
+    let (lo, hi) = floor.bounds();
+    // The start (0, −6) with its margin, and the reference's start (0, −5).
+    assert!(lo[1] <= -6.5 + 1e-9 && hi[1] >= -4.5, "{lo:?} {hi:?}");
+}

@@ -1,0 +1,109 @@
+//! The diff-drive hardware around the core: the body and the plant-side
+//! handles of its virtual devices, and the devices the core drives.
+
+use wmr_core::devices::{MotorDriver, MotorWiring};
+use wmr_core::pilot::PilotCounters;
+use wmr_core::pilot::robot::Robot;
+
+use crate::devices::{
+    MotorSignals, VirtualDirectionPin, VirtualEncoder, VirtualPwm, VirtualUart, WheelShaft,
+};
+use crate::plant::{DiffDriveParams, DiffDrivePlant, PlantPose};
+use crate::report::PilotReport;
+
+pub(super) type VirtualMotor = MotorDriver<VirtualPwm, VirtualDirectionPin>;
+pub(super) type SimRobot = Robot<
+    VirtualEncoder,
+    VirtualEncoder,
+    VirtualMotor,
+    VirtualMotor,
+    VirtualUart,
+    wmr_core::devices::TagGrid,
+>;
+
+/// The diff-drive body and its virtual devices' plant-side handles.
+#[derive(Debug)]
+pub(super) struct Hardware {
+    pub(super) plant: DiffDrivePlant,
+    pub(super) signals: (MotorSignals, MotorSignals),
+    shafts: (WheelShaft, WheelShaft),
+    limits: (u64, u64),
+    max_abs_duty: f64,
+}
+
+/// The devices the core drives.
+pub(super) struct Devices {
+    pub(super) encoders: (VirtualEncoder, VirtualEncoder),
+    pub(super) motors: (VirtualMotor, VirtualMotor),
+}
+
+impl Hardware {
+    pub(super) fn new(
+        params: DiffDriveParams,
+        pose: PlantPose,
+        counts_per_rev: u32,
+        bits: u32,
+        pwm_max: u16,
+    ) -> (Self, Devices) {
+        let signals = (MotorSignals::new(pwm_max), MotorSignals::new(pwm_max));
+        let shafts = (WheelShaft::new(), WheelShaft::new());
+        let motor = |s: &MotorSignals| {
+            MotorDriver::new(
+                VirtualPwm::new(s.clone()),
+                VirtualDirectionPin::new(s.clone()),
+                MotorWiring::default(),
+            )
+        };
+        let devices = Devices {
+            encoders: (
+                VirtualEncoder::new(shafts.0.clone(), counts_per_rev, bits),
+                VirtualEncoder::new(shafts.1.clone(), counts_per_rev, bits),
+            ),
+            motors: (motor(&signals.0), motor(&signals.1)),
+        };
+        (
+            Self {
+                plant: DiffDrivePlant::new(params, pose),
+                signals,
+                shafts,
+                limits: (0, 0),
+                max_abs_duty: 0.0,
+            },
+            devices,
+        )
+    }
+
+    pub(super) fn duties(&self) -> (f64, f64) {
+        (self.signals.0.signed_duty(), self.signals.1.signed_duty())
+    }
+
+    pub(super) fn note(&mut self, speed_limited: bool, accel_limited: bool) {
+        self.limits.0 += u64::from(speed_limited);
+        self.limits.1 += u64::from(accel_limited);
+        let (l, r) = self.duties();
+        self.max_abs_duty = self.max_abs_duty.max(l.abs()).max(r.abs());
+    }
+
+    pub(super) fn advance(&mut self, dt_s: f64) {
+        let (l, r) = self.duties();
+        self.plant.step(l, r, dt_s);
+        let (al, ar) = self.plant.wheel_angles_rad();
+        self.shafts.0.set_angle_rad(al);
+        self.shafts.1.set_angle_rad(ar);
+    }
+
+    pub(super) fn report(&self, c: PilotCounters, motor_faults: u32) -> PilotReport {
+        let (l, r) = (self.signals.0.line(), self.signals.1.line());
+        PilotReport {
+            encoder_fault_ticks: c.encoder_fault_ticks,
+            implausible_encoder_reads: c.implausible_encoder_reads,
+            encoder_halt_ticks: c.encoder_halt_ticks,
+            motor_faults,
+            speed_limited_ticks: self.limits.0,
+            accel_limited_ticks: self.limits.1,
+            reversals_under_drive: l.reversals_under_drive + r.reversals_under_drive,
+            out_of_range_pwm_writes: l.out_of_range_writes + r.out_of_range_writes,
+            max_abs_duty: self.max_abs_duty,
+        }
+    }
+}

@@ -1,0 +1,87 @@
+//! The control tick run elsewhere: the [`TargetLink`] a remote robot (the
+//! firmware under QEMU) answers on, and the configuration it needs.
+
+use wmr_core::pilot::spec::TagGridSpec;
+use wmr_link::{Configure, Diagnostics, TickInput, TickOutput};
+
+use crate::scenario::{PlantSetup, PositionSetup, Setup};
+
+/// A robot whose control tick runs elsewhere (the firmware under QEMU,
+/// over the HIL link): it gets the devices' readings, answers with what it
+/// drove.
+pub trait TargetLink {
+    /// One lock-step exchange.
+    ///
+    /// # Errors
+    /// The link failed (timeout, corrupt or unexpected answer).
+    fn tick(&mut self, input: &TickInput) -> anyhow::Result<TickOutput>;
+
+    /// Ends the run; returns the target's final counters.
+    ///
+    /// # Errors
+    /// The link failed.
+    fn finish(&mut self) -> anyhow::Result<Diagnostics>;
+}
+
+/// What the firmware must be configured with to run `setup` (diff-drive
+/// plant with a reader only: the firmware's devices are encoders, motors
+/// and the reader's UART).
+///
+/// # Errors
+/// A scenario whose position source or plant no device delivers.
+pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
+    let (
+        PlantSetup::DiffDrive {
+            pwm_max_duty,
+            pilot_spec,
+            pilot,
+            ..
+        },
+        PositionSetup::Reader(floor, _),
+    ) = (setup.plant, setup.position)
+    else {
+        anyhow::bail!(
+            "hardware-in-the-loop runs need plant.kind = \"diff_drive\" and position.kind = \"reader\" \
+             (the firmware senses through encoders and the RFID reader's UART only)"
+        );
+    };
+    if pilot.drive().speed_observer().is_some() {
+        anyhow::bail!(
+            "[drive.speed_observer] is not sent over the link (protocol {}): run it on the host",
+            wmr_link::PROTOCOL_VERSION
+        );
+    }
+    Ok(Configure {
+        protocol: wmr_link::PROTOCOL_VERSION,
+        pilot: pilot_spec,
+        grid: TagGridSpec::of(floor.grid()),
+        pwm_max_duty,
+    })
+}
+
+#[cfg(test)]
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::{Scenario, SpeedObserverSpec};
+
+    #[test]
+    fn a_speed_observer_is_refused_for_hil() {
+        // The link does not carry it: a HIL run is refused, not run without it.
+        let mut full = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+        assert!(hil_configuration(&full.validate().unwrap()).is_ok());
+        let mut drive = full.drive.unwrap_or_default();
+        drive.speed_observer = Some(SpeedObserverSpec {
+            mass_kg: 4.0,
+            yaw_inertia_kg_m2: 0.08,
+            wheel_inertia_kg_m2: 0.0,
+            stall_torque_nm: 0.6,
+            lambda_per_s: 5.0,
+            friction_gain: 0.01,
+            disturbance_gain: 0.1,
+        });
+        full.drive = Some(drive);
+        let e = hil_configuration(&full.validate().unwrap()).unwrap_err();
+        assert!(e.to_string().contains("speed_observer"), "{e}");
+    }
+}
