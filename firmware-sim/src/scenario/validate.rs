@@ -115,7 +115,7 @@ fn with_speed_observer(
             o.wheel_inertia_kg_m2,
         )?),
     )
-    .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e:?}")))?;
+    .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e}")))?;
     let stall = f(positive(&field("stall_torque_nm"), o.stall_torque_nm)?);
     let gains = (
         f(positive(&field("lambda_per_s"), o.lambda_per_s)?),
@@ -129,14 +129,14 @@ fn with_speed_observer(
         config.drive().period_s(),
     )
     .and_then(|c| c.with_gains(gains.0, gains.1, gains.2))
-    .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e:?}")))?;
+    .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e}")))?;
     let drive = config
         .drive()
         .with_speed_observer(observer)
-        .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e:?}")))?;
+        .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e}")))?;
     PilotConfig::new(*config.tracker(), drive, encoder_bits)
         .map(|c| c.with_max_encoder_fault_ticks(PilotConfig::DEFAULT_MAX_ENCODER_FAULT_TICKS))
-        .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e:?}")))
+        .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e}")))
 }
 
 /// A refusal of the core's spec builder, named by the scenario table it
@@ -154,7 +154,7 @@ fn spec_refusal(e: SpecError) -> ScenarioError {
         SpecError::Fusion(_) | SpecError::NotInThisBuild => "observer",
         SpecError::CascadedLaw(_) | SpecError::HeadingErrorSineLaw(_) => "controller",
     };
-    ScenarioError::invalid(field, format!("refused by the core: {e:?}"))
+    ScenarioError::invalid(field, format!("refused by the core: {e}"))
 }
 
 /// `f32` of a validated `f64` (the core's precision).
@@ -350,7 +350,7 @@ impl Scenario {
 
         let trajectory_spec = self.reference.spec()?;
         let trajectory = trajectory_spec.build().map_err(|e| {
-            ScenarioError::invalid("reference", format!("refused by the core: {e:?}"))
+            ScenarioError::invalid("reference", format!("refused by the core: {e}"))
         })?;
         let c = &self.controller;
         let gains = [
@@ -383,7 +383,7 @@ impl Scenario {
         };
         let tracker = tracker_spec.build().map_err(spec_refusal)?;
         let gains = TrackingGains::new(gains[0], gains[1], gains[2])
-            .map_err(|e| ScenarioError::invalid("controller", format!("{e:?}")))?;
+            .map_err(|e| ScenarioError::invalid("controller", format!("{e}")))?;
 
         let i = &self.initial;
         let initial_pose = PlantPose::new(
@@ -719,7 +719,7 @@ impl ReferenceSpec {
     pub fn build(&self) -> Result<Trajectory, ScenarioError> {
         self.spec()?
             .build()
-            .map_err(|e| ScenarioError::invalid("reference", format!("refused by the core: {e:?}")))
+            .map_err(|e| ScenarioError::invalid("reference", format!("refused by the core: {e}")))
     }
 
     /// The core's plain spec of the reference (checked field by field).

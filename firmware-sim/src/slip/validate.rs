@@ -87,7 +87,7 @@ fn ukf_field(e: UkfError) -> ScenarioError {
         UkfError::MeasurementNoise => ("measurement.variance", "refused"),
         _ => ("filter.ukf", "refused"),
     };
-    ScenarioError::invalid(field, format!("{what} (the core's UKF: {e:?})"))
+    ScenarioError::invalid(field, format!("{what} (the core's UKF: {e})"))
 }
 
 fn pf_field(e: ParticleFilterError) -> ScenarioError {
@@ -101,7 +101,7 @@ fn pf_field(e: ParticleFilterError) -> ScenarioError {
     };
     ScenarioError::invalid(
         field,
-        format!("refused by the core's particle filter: {e:?}"),
+        format!("refused by the core's particle filter: {e}"),
     )
 }
 
@@ -184,7 +184,7 @@ impl SlipScenario {
             positive("robot.mass_kg", r.mass_kg)? as f32,
             positive("robot.yaw_inertia_kg_m2", r.yaw_inertia_kg_m2)? as f32,
         )
-        .map_err(|e| ScenarioError::invalid("robot", format!("refused by the core: {e:?}")))?;
+        .map_err(|e| ScenarioError::invalid("robot", format!("refused by the core: {e}")))?;
         if robot.wheel_inertia().try_inverse().is_none() {
             return Err(ScenarioError::invalid(
                 "robot",
@@ -200,7 +200,7 @@ impl SlipScenario {
             positive("gains.k5", g.k5)? as f32,
             positive("gains.rho", g.rho)? as f32,
         )
-        .map_err(|e| ScenarioError::invalid("gains", format!("refused by the core: {e:?}")))?;
+        .map_err(|e| ScenarioError::invalid("gains", format!("refused by the core: {e}")))?;
         let p0 = g.initial_slip_estimate;
         if !(p0.is_finite() && (1.0..=f64::from(P_MAX)).contains(&p0)) {
             return Err(ScenarioError::invalid(
@@ -210,7 +210,7 @@ impl SlipScenario {
         }
         let velocity = AdaptiveVelocityController::new(robot, gains, period_s as f32, p0 as f32)
             .map_err(|e| {
-                ScenarioError::invalid("period_s", format!("refused by the core: {e:?}"))
+                ScenarioError::invalid("period_s", format!("refused by the core: {e}"))
             })?;
         let w = &self.windows;
         window("windows.before_slip_s", w.before_slip_s)?;
@@ -283,7 +283,7 @@ impl SlipScenario {
             _ => sampler::<MAX_SEGMENTS>(start, &segments),
         };
         built.map_err(|e| {
-            ScenarioError::invalid("reference.segments", format!("refused by the core: {e:?}"))
+            ScenarioError::invalid("reference.segments", format!("refused by the core: {e}"))
         })
     }
 
@@ -322,7 +322,7 @@ impl SlipScenario {
         let ekf_field = |e| {
             ScenarioError::invalid(
                 "filter",
-                format!("the core's EKF refused P0, Q or R: {e:?}"),
+                format!("the core's EKF refused P0, Q or R: {e}"),
             )
         };
         // Every filter is built (so that every setting is checked); the one
