@@ -11,7 +11,7 @@
 
 use std::path::PathBuf;
 
-use host_tests::paper_002::{Figure, chained, unicycle};
+use host_tests::paper_002::{Figure, chained, comparison, unicycle};
 
 #[path = "common/plot.rs"]
 mod common;
@@ -40,7 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!(
         "Figure-eight (paper 001 §6.3.2), nearest 10 cm tag every tick, 480 s, h = 10 ms; \
          position error after 100 s:\n\n{}",
-        unicycle::comparison_markdown()
+        comparison::comparison_markdown()
     );
     Ok(())
 }

@@ -7,6 +7,7 @@
 //! `h = 10 ms` (figure-eight comparison). Decay rates are least-squares
 //! slopes of `ln|error|` (1/s).
 
+use host_tests::paper_002::comparison::comparison_markdown;
 use host_tests::paper_002::unicycle::*;
 use host_tests::paper_002::{Series, log_decay_rate};
 

@@ -8,6 +8,7 @@
 //!   position-only comparison on paper 001's figure-eight.
 
 pub mod chained;
+pub mod comparison;
 pub mod unicycle;
 
 /// One curve of a figure: `(t [s], value)` points.
