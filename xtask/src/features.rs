@@ -73,50 +73,31 @@ pub const FIRMWARE: [&[&str]; 4] = [
 
 /// Clippy `-D warnings` on every row of the matrix.
 pub fn clippy_matrix() -> crate::Result {
+    let libraries: [(&str, &[&[&str]]); 2] = [("core", &CORE), ("papers", &PAPERS)];
     for target in crate::TARGETS {
-        for row in CORE {
-            let features = row.join(",");
-            crate::step(&format!("clippy core {target} [{features}]"), || {
-                crate::cargo(
-                    &[
-                        "clippy",
-                        "-p",
-                        "wmr-core",
-                        "--target",
-                        target,
-                        "--no-default-features",
-                        "--features",
-                        &features,
-                        "--",
-                        "-D",
-                        "warnings",
-                    ],
-                    &[],
-                )
-            })?;
-        }
-    }
-    for target in crate::TARGETS {
-        for row in PAPERS {
-            let features = row.join(",");
-            crate::step(&format!("clippy papers {target} [{features}]"), || {
-                crate::cargo(
-                    &[
-                        "clippy",
-                        "-p",
-                        "wmr-papers",
-                        "--target",
-                        target,
-                        "--no-default-features",
-                        "--features",
-                        &features,
-                        "--",
-                        "-D",
-                        "warnings",
-                    ],
-                    &[],
-                )
-            })?;
+        for (name, rows) in libraries {
+            for row in rows {
+                let features = row.join(",");
+                let package = format!("wmr-{name}");
+                crate::step(&format!("clippy {name} {target} [{features}]"), || {
+                    crate::cargo(
+                        &[
+                            "clippy",
+                            "-p",
+                            &package,
+                            "--target",
+                            target,
+                            "--no-default-features",
+                            "--features",
+                            &features,
+                            "--",
+                            "-D",
+                            "warnings",
+                        ],
+                        &[],
+                    )
+                })?;
+            }
         }
     }
     for (board, board_feature) in crate::BOARDS {

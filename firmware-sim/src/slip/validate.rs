@@ -99,10 +99,7 @@ fn pf_field(e: ParticleFilterError) -> ScenarioError {
         ParticleFilterError::PriorMean => "initial",
         _ => "filter.particle_filter",
     };
-    ScenarioError::invalid(
-        field,
-        format!("refused by the core's particle filter: {e}"),
-    )
+    ScenarioError::invalid(field, format!("refused by the core's particle filter: {e}"))
 }
 
 /// A validated scenario, ready to run.
@@ -209,9 +206,7 @@ impl SlipScenario {
             ));
         }
         let velocity = AdaptiveVelocityController::new(robot, gains, period_s as f32, p0 as f32)
-            .map_err(|e| {
-                ScenarioError::invalid("period_s", format!("refused by the core: {e}"))
-            })?;
+            .map_err(|e| ScenarioError::invalid("period_s", format!("refused by the core: {e}")))?;
         let w = &self.windows;
         window("windows.before_slip_s", w.before_slip_s)?;
         window("windows.during_slip_s", w.during_slip_s)?;
@@ -319,12 +314,8 @@ impl SlipScenario {
         let gate = gate as f32;
         let prior = p0.map(f32::sqrt);
         let x0 = x0.map(|x| x as f32);
-        let ekf_field = |e| {
-            ScenarioError::invalid(
-                "filter",
-                format!("the core's EKF refused P0, Q or R: {e}"),
-            )
-        };
+        let ekf_field =
+            |e| ScenarioError::invalid("filter", format!("the core's EKF refused P0, Q or R: {e}"));
         // Every filter is built (so that every setting is checked); the one
         // that runs is kept.
         let ekf3 = ExtendedKalmanFilter::new(
