@@ -98,10 +98,9 @@ impl<O: PositionObserver> PoseEstimator for DeadReckoning<O> {
         &mut self,
         odometry: &OdometryStep,
         fix: Option<Vec2>,
-        last_position: Option<Vec2>,
+        previous: Option<Vec2>,
         _after_gap: bool,
     ) -> Option<Vec2> {
-        let previous = last_position;
         let current = match (fix, previous) {
             (Some(p), _) => Some(p),
             (None, Some(p)) => Some(dead_reckon(p, self.observer.heading(), odometry)),
@@ -143,4 +142,52 @@ fn dead_reckon(position: Vec2, heading: HeadingEstimate, odometry: &OdometryStep
         .advance_arc(odometry.ds_m, odometry.dtheta_rad)
         .position;
     if next.is_finite() { next } else { position }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimation::heading_observer::HeadingObserverConfig;
+
+    fn moving(ds_m: f32) -> OdometryStep {
+        OdometryStep {
+            ds_m,
+            body: BodyVelocity {
+                v_m_s: ds_m / 0.01,
+                omega_rad_s: 0.0,
+            },
+            ..OdometryStep::default()
+        }
+    }
+
+    /// Nothing before the first fix; the fix itself on a fix tick; without
+    /// one, the last position moved along the observer's heading; a
+    /// non-finite step keeps the last position.
+    #[test]
+    fn fixes_then_dead_reckoning_at_the_observer_heading() {
+        let config = HeadingObserverConfig::new(1.0, 0.01).unwrap();
+        // Heading estimate +y (cos 0, sin 1).
+        let observer = HeadingObserver::with_initial_estimate(
+            config,
+            HeadingEstimate {
+                cos_theta: 0.0,
+                sin_theta: 1.0,
+            },
+        )
+        .unwrap();
+        let mut estimator = DeadReckoning::new(observer);
+        assert_eq!(estimator.step(&moving(0.0), None, None, false), None);
+        let first = Vec2::new(1.0, 2.0);
+        let p = estimator.step(&moving(0.0), Some(first), None, false);
+        assert_eq!(p, Some(first));
+        let p = estimator.step(&moving(0.01), None, p, false).unwrap();
+        assert!(
+            (p.x - 1.0).abs() < 1e-6 && (p.y - 2.01).abs() < 1e-6,
+            "{p:?}"
+        );
+        let q = estimator.step(&moving(f32::NAN), None, Some(p), true);
+        assert_eq!(q, Some(p));
+        assert_eq!(estimator.counters(), EstimatorCounters::default());
+        assert_eq!(estimator.blind_distance_lost(), None);
+    }
 }
