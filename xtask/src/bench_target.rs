@@ -404,14 +404,14 @@ fn filters_markdown(md: &mut String, reports: &[Report], samples: u32) {
         "\nPaper 004's nonlinear filters, per call: the EKF (`ExtendedKalmanFilter`), \
          the UKF (`UnscentedKalmanFilter`, `MerweScaledSigmaPoints::paper()`) and the \
          particle filter (`ParticleFilter`, 100 particles, systematic resampling below \
-         an effective sample size of 50) on `slip_tracking::PoseModel` (scenario 1) \
+         an effective sample size of 50) on `wmr_papers::slip_tracking::PoseModel` (scenario 1) \
          and `PoseWheelModel` (scenario 2), set up as in `host-tests/src/paper_004.rs`. \
          Paper 004's tracked robot drives an arc at 0.5 m/s and 0.25 rad/s, its whole \
          state measured with deterministic uniform noise of `R`'s variances; a predict \
          (h = 5 ms) then an update each step (the UKF's update reuses the predict's \
          sigma points). Mean over {samples} steps after 2 s (the particle filters \
          converge from `P0` in about 1 s), min–max in parentheses. The fusion \
-         estimator's filters (`pose_ekf`, `pose_ukf`, `pose_particle_filter`: the pose \
+         estimator's filters (`fusion::{{ekf, ukf, particle}}`: the pose \
          and both wheel scales, wheel noise 3e-5 m²/m) drive the same arc on exact \
          odometry and correct with the true position as a 1 cm fix every step (the \
          tracker corrects only when the tag changes): their RMS error is near 0 by \
