@@ -68,7 +68,8 @@ pub enum SpecError {
 
 impl SpecError {
     /// The part of the spec the error is about, as a dotted path of
-    /// [`PilotSpec`]'s fields (`""` for [`Self::NotInThisBuild`]).
+    /// [`PilotSpec`]'s fields: `""` where the field stands at its top
+    /// (`encoder_bits`, [`Self::Pilot`]) and for [`Self::NotInThisBuild`].
     #[must_use]
     pub fn section(&self) -> &'static str {
         match self {
