@@ -5,6 +5,7 @@
 //! `|p − p_r|` after 100 s, m.
 
 use host_tests::fusion::*;
+use wmr_core::pilot::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec};
 
 fn run(estimator: Estimator, wheels: WheelTruth, tuning: FusionTuning) -> FusionRun {
     let r = figure_eight_run(estimator, wheels, tuning);
@@ -128,36 +129,35 @@ fn random_slip_with_the_cell_edge_constraint() {
     assert!(default.tracking.max_m > 0.1, "{:?}", default.tracking);
 }
 
-/// The same tuning in the `Pilot` (scenario keys
-/// `fusion_wheel_variance_per_m = 3e-5`, `fusion_edge_constraint = true`)
+/// The same tuning in the `Pilot` (scenario keys `[estimator.fusion]`
+/// `wheel_variance_per_m = 3e-5`, `edge_constraint = true`)
 /// on the simulator's exact-odometry unicycle and on the full device
 /// stack, whose plants have no slip: measured 0.0045 / 0.0005 and 0.0231 /
 /// 0.0023 m with the EKF (the edges cost the stack's worst error: 0.0033
 /// without them), 0.0068 / 0.0009 and 0.0078 / 0.0019 m with the UKF.
 #[test]
 fn the_slip_tuning_in_the_pilot() {
-    use firmware_sim::scenario::ObserverKind;
     let runs = [
         (
-            ObserverKind::FusionEkf,
+            FusionFilterSpec::Ekf,
             "figure_eight_rfid_fusion_ekf",
             0.006,
             0.0007,
         ),
         (
-            ObserverKind::FusionEkf,
+            FusionFilterSpec::Ekf,
             "figure_eight_rfid_full_stack",
             0.03,
             0.003,
         ),
         (
-            ObserverKind::FusionUkf,
+            FusionFilterSpec::Ukf,
             "figure_eight_rfid_fusion_ekf",
             0.009,
             0.0011,
         ),
         (
-            ObserverKind::FusionUkf,
+            FusionFilterSpec::Ukf,
             "figure_eight_rfid_full_stack",
             0.01,
             0.0025,
@@ -165,9 +165,12 @@ fn the_slip_tuning_in_the_pilot() {
     ];
     for (kind, name, max_bound, mean_bound) in runs {
         let s = host_tests::run_scenario_variant(name, |scenario| {
-            scenario.observer.kind = kind;
-            scenario.observer.fusion_wheel_variance_per_m = 3e-5;
-            scenario.observer.fusion_edge_constraint = true;
+            scenario.estimator = EstimatorSpec::Fusion(FusionSpec {
+                filter: kind,
+                wheel_variance_per_m: 3e-5,
+                edge_constraint: true,
+                ..FusionSpec::default()
+            });
         });
         println!(
             "{kind:?}, {name}: max {:.4} m, mean {:.4} m",
@@ -180,20 +183,19 @@ fn the_slip_tuning_in_the_pilot() {
     }
 }
 
-/// The fusion EKF chosen in a scenario file (`[observer] kind =
-/// "fusion_ekf"`), through the simulator on the unicycle and through the
+/// The fusion EKF chosen in a scenario file (`[estimator.fusion]`,
+/// `filter = "ekf"`), through the simulator on the unicycle and through the
 /// whole device stack (motors, 2048-count encoders, the RFID reader over
 /// its UART, the `Pilot`).
 #[test]
 fn fusion_ekf_from_a_scenario_file_through_the_simulator_and_the_pilot() {
-    use firmware_sim::scenario::ObserverKind;
     // Measured: 0.0047 / 0.0005 m (unicycle), 0.0051 / 0.0016 m (stack).
     for (name, max_bound, mean_bound) in [
         ("figure_eight_rfid_fusion_ekf", 0.01, 0.001),
         ("figure_eight_rfid_full_stack", 0.01, 0.003),
     ] {
         let s = host_tests::run_scenario_variant(name, |scenario| {
-            scenario.observer.kind = ObserverKind::FusionEkf;
+            scenario.estimator = EstimatorSpec::fusion(FusionFilterSpec::Ekf);
         });
         assert_eq!(s.non_finite_ticks, 0);
         assert!(
@@ -248,7 +250,7 @@ fn fusion_ekf_converges_from_random_starts() {
 /// (the EKF's worst error a little lower, its mean a little higher).
 #[test]
 fn sparse_reader_range_mode() {
-    use firmware_sim::scenario::{ObserverKind, PositionSpec, ReaderModeSpec};
+    use firmware_sim::scenario::{PositionSpec, ReaderModeSpec};
     // Measured max / mean (m), by spacing 10 / 20 / 30 cm:
     // 001 observer: 0.0271 / 0.0058, 0.0562 / 0.0308, 11.1 / 3.64 (lost);
     // EKF, 1e-3:    0.0253 / 0.0065, 0.187 / 0.0416, 0.207 / 0.0676;
@@ -256,26 +258,25 @@ fn sparse_reader_range_mode() {
     // UKF, 3e-5:    0.0316 / 0.0063, 0.0647 / 0.0169, 0.0893 / 0.0205.
     let bounds = [
         (
-            ObserverKind::FusionEkf,
+            FusionFilterSpec::Ekf,
             1e-3,
             [(0.03, 0.0075), (0.21, 0.047), (0.23, 0.075)],
         ),
         (
-            ObserverKind::FusionEkf,
+            FusionFilterSpec::Ekf,
             3e-5,
             [(0.03, 0.007), (0.055, 0.015), (0.11, 0.032)],
         ),
         (
-            ObserverKind::FusionUkf,
+            FusionFilterSpec::Ukf,
             3e-5,
             [(0.036, 0.0072), (0.072, 0.019), (0.1, 0.024)],
         ),
     ];
     for (index, spacing) in [0.1_f64, 0.2, 0.3].into_iter().enumerate() {
-        let run = |kind, variance, timeout_s| {
+        let run = |estimator: EstimatorSpec, timeout_s| {
             let s = host_tests::run_scenario_variant("figure_eight_rfid_full_stack", |scenario| {
-                scenario.observer.kind = kind;
-                scenario.observer.fusion_wheel_variance_per_m = variance;
+                scenario.estimator = estimator;
                 if let PositionSpec::Reader {
                     mode, spacing_m, ..
                 } = &mut scenario.position
@@ -285,18 +286,33 @@ fn sparse_reader_range_mode() {
                 }
                 scenario.failsafe.fix_timeout_s = timeout_s;
             });
+            let label = match estimator {
+                EstimatorSpec::Fusion(f) => {
+                    format!(
+                        "{:?}, wheel variance {:e}",
+                        f.filter, f.wheel_variance_per_m
+                    )
+                }
+                other => format!("{other:?}"),
+            };
             println!(
-                "{spacing} m tags, {kind:?}, wheel variance {variance:e}: max {:.4} m, mean {:.4} m, \
-                 ticks without fix {}",
+                "{spacing} m tags, {label}: max {:.4} m, mean {:.4} m, ticks without fix {}",
                 s.max_error_m, s.mean_error_m, s.mode_ticks.fix_lost
             );
             s
         };
-        let paper = run(ObserverKind::Paper001, 1e-3, 30.0);
+        let paper = run(EstimatorSpec::HeadingObserver, 30.0);
         for (kind, variance, per_spacing) in bounds {
             let (max_bound, mean_bound) = per_spacing[index];
             // The default fix timeout: the distance failsafe decides.
-            let s = run(kind, variance, 0.5);
+            let s = run(
+                EstimatorSpec::Fusion(FusionSpec {
+                    filter: kind,
+                    wheel_variance_per_m: variance,
+                    ..FusionSpec::default()
+                }),
+                0.5,
+            );
             assert_eq!(s.non_finite_ticks, 0);
             assert_eq!(s.mode_ticks.fix_lost, 0, "{spacing}: {s:?}");
             assert!(
@@ -314,7 +330,7 @@ fn sparse_reader_range_mode() {
 }
 
 /// Paper 004's UKF and particle filter as the `Pilot`'s fusion estimator
-/// (`[observer] kind = "fusion_ukf"` / `"fusion_particle_filter"`), with
+/// (`[estimator.fusion]`, `filter = "ukf"` / `"particle_filter"`), with
 /// the guide observer, on the unicycle and on the full device stack. Both
 /// need a wheel-noise model close to the truth (3e-5 m²/m instead of the
 /// EKF's default 1e-3): with the EKF's inflated heading variance the UKF's
@@ -325,32 +341,31 @@ fn sparse_reader_range_mode() {
 /// the seed.
 #[test]
 fn the_ukf_and_the_particle_filter_as_the_pilots_estimator() {
-    use firmware_sim::scenario::ObserverKind;
     // (kind, scenario, max bound, mean bound); measured max / mean, m:
     // UKF 0.0070 / 0.0008 and 0.0064 / 0.0019; particle filter
     // 0.0617 / 0.0072 and 0.0343 / 0.0035 (the EKF, above: 0.0047 /
     // 0.0005 and 0.0051 / 0.0016).
     let runs = [
         (
-            ObserverKind::FusionUkf,
+            FusionFilterSpec::Ukf,
             "figure_eight_rfid_fusion_ekf",
             0.01,
             0.001,
         ),
         (
-            ObserverKind::FusionUkf,
+            FusionFilterSpec::Ukf,
             "figure_eight_rfid_full_stack",
             0.01,
             0.0025,
         ),
         (
-            ObserverKind::FusionParticleFilter,
+            FusionFilterSpec::ParticleFilter,
             "figure_eight_rfid_fusion_ekf",
             0.08,
             0.01,
         ),
         (
-            ObserverKind::FusionParticleFilter,
+            FusionFilterSpec::ParticleFilter,
             "figure_eight_rfid_full_stack",
             0.05,
             0.005,
@@ -358,9 +373,12 @@ fn the_ukf_and_the_particle_filter_as_the_pilots_estimator() {
     ];
     let run = |kind, name, seed| {
         host_tests::run_scenario_variant(name, |scenario| {
-            scenario.observer.kind = kind;
-            scenario.observer.fusion_wheel_variance_per_m = 3e-5;
-            scenario.observer.fusion_particle_seed = seed;
+            scenario.estimator = EstimatorSpec::Fusion(FusionSpec {
+                filter: kind,
+                wheel_variance_per_m: 3e-5,
+                particle_seed: seed,
+                ..FusionSpec::default()
+            });
         })
     };
     for (kind, name, max_bound, mean_bound) in runs {
@@ -375,7 +393,7 @@ fn the_ukf_and_the_particle_filter_as_the_pilots_estimator() {
             "{kind:?} {name}: {s:?}"
         );
     }
-    let kind = ObserverKind::FusionParticleFilter;
+    let kind = FusionFilterSpec::ParticleFilter;
     let name = "figure_eight_rfid_fusion_ekf";
     let (first, again, other) = (run(kind, name, 1), run(kind, name, 1), run(kind, name, 2));
     // Everything but the wall time repeats.

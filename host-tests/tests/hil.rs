@@ -16,7 +16,7 @@ use firmware_sim::hil::{
 };
 use firmware_sim::{Scenario, run};
 use wmr_core::control::saturated::GainError;
-use wmr_core::pilot::spec::SpecError;
+use wmr_core::pilot::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec, SpecError};
 use wmr_link::{HostMessage, Refusal, TargetMessage, TickInput};
 
 fn firmware() -> PathBuf {
@@ -60,8 +60,11 @@ fn options() -> HilOptions {
 fn fusion_ukf_scenario() -> Scenario {
     let mut scenario = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
     scenario.duration_s = 120.0;
-    scenario.observer.kind = firmware_sim::scenario::ObserverKind::FusionUkf;
-    scenario.observer.fusion_wheel_variance_per_m = 3e-5;
+    scenario.estimator = EstimatorSpec::Fusion(FusionSpec {
+        filter: FusionFilterSpec::Ukf,
+        wheel_variance_per_m: 3e-5,
+        ..FusionSpec::default()
+    });
     scenario
 }
 

@@ -201,28 +201,43 @@ fn figure_eight_position_only_pairings() {
 /// the quantization noise (see the bounds).
 #[test]
 fn pairings_selected_in_a_scenario_file_run_in_the_simulator_and_the_pilot() {
-    use firmware_sim::scenario::{LawKind, ObserverKind};
+    use firmware_sim::scenario::{EstimatorSpec, LawSpec};
     let cases = [
-        (ObserverKind::Paper001, LawKind::Paper001, 0.03, 0.005),
+        (
+            EstimatorSpec::HeadingObserver,
+            LawSpec::Saturated,
+            0.03,
+            0.005,
+        ),
         // Measured (unicycle / full stack): 0.0432 / 0.0067 m, 0.0431 / 0.0073 m.
-        (ObserverKind::Pose, LawKind::Paper001, 0.05, 0.008),
+        (
+            EstimatorSpec::POSE_OBSERVER,
+            LawSpec::Saturated,
+            0.05,
+            0.008,
+        ),
         // 0.4158 / 0.1038 m, 0.4515 / 0.1032 m.
-        (ObserverKind::Pose, LawKind::Cascaded, 0.5, 0.12),
+        (EstimatorSpec::POSE_OBSERVER, LawSpec::CASCADED, 0.5, 0.12),
         // 0.532 / 0.197 m, 1.434 / 0.668 m: bounded, but the y_e feedthrough
         // `a v_r y_e` of (58a) turns the 5 cm tag quantization into ψ̂ noise
         // (a v_r ≈ 8 /m), and the result depends on the noise's path.
-        (ObserverKind::Pose, LawKind::HeadingErrorSine, 1.6, 0.75),
+        (
+            EstimatorSpec::POSE_OBSERVER,
+            LawSpec::HEADING_ERROR_SINE,
+            1.6,
+            0.75,
+        ),
     ];
     for name in ["figure_eight_rfid", "figure_eight_rfid_full_stack"] {
-        for (observer, law, max_bound, mean_bound) in cases {
+        for (estimator, law, max_bound, mean_bound) in cases {
             let s = host_tests::run_scenario_variant(name, |scenario| {
-                scenario.observer.kind = observer;
+                scenario.estimator = estimator;
                 scenario.controller.law = law;
             });
             assert_eq!(s.non_finite_ticks, 0);
             assert!(
                 s.max_error_m < max_bound && s.mean_error_m < mean_bound,
-                "{name} {observer:?} {law:?}: {:.4} / {:.4}",
+                "{name} {estimator:?} {law:?}: {:.4} / {:.4}",
                 s.max_error_m,
                 s.mean_error_m
             );

@@ -64,6 +64,8 @@ pub enum SpecError {
     CascadedLaw(CascadedGainsError),
     /// Paper 002's Proposition 7 observer and controller.
     HeadingErrorSineLaw(HeadingErrorSineConfigError),
+    /// The sensors' track width differs from the drive's.
+    SensorTrackWidth,
 }
 
 impl SpecError {
@@ -76,6 +78,12 @@ impl SpecError {
             Self::Trajectory(_) => "tracker.trajectory",
             Self::Gains(_) | Self::Observer(_) | Self::Tracker(_) => "tracker",
             Self::PoseObserver(_) => "tracker.estimator.pose_observer",
+            Self::Fusion(
+                PoseFilterError::TrackWidth
+                | PoseFilterError::TagSpacing
+                | PoseFilterError::ReadRadius,
+            )
+            | Self::SensorTrackWidth => "tracker.sensors",
             Self::Fusion(_) => "tracker.estimator.fusion",
             Self::CascadedLaw(_) => "tracker.law.cascaded",
             Self::HeadingErrorSineLaw(_) => "tracker.law.heading_error_sine",
@@ -101,7 +109,7 @@ impl SpecError {
             Self::Fusion(e) => e,
             Self::CascadedLaw(e) => e,
             Self::HeadingErrorSineLaw(e) => e,
-            Self::NotInThisBuild => return None,
+            Self::NotInThisBuild | Self::SensorTrackWidth => return None,
         })
     }
 }
@@ -113,6 +121,11 @@ impl core::fmt::Display for SpecError {
         match self.inner() {
             Some(e) if self.section().is_empty() => write!(f, "{e}"),
             Some(e) => write!(f, "{}: {e}", self.section()),
+            None if *self == Self::SensorTrackWidth => write!(
+                f,
+                "{}: track_width_m must equal drive.track_width_m",
+                self.section()
+            ),
             None => f.write_str(
                 "this build of the core lacks the selected part (the fusion estimator needs \
                  the cargo feature fusion-ekf, its UKF fusion-ukf, its particle filter \
@@ -128,89 +141,291 @@ impl core::error::Error for SpecError {
     }
 }
 
-/// The tracker's heading estimator.
+/// The tracker's estimator: which one, and its own tuning.
+///
+/// What the estimator needs to know of the robot's sensors (track width,
+/// count quantization, tag spacing, reader range) is not here but in
+/// [`SensorSpec`], so that a scenario or robot file states those facts
+/// once. With the `serde` feature this is the `[estimator]` table of a
+/// scenario file, externally tagged in `snake_case`:
+/// `estimator = "heading_observer"` (the default), `[estimator.pose_observer]`
+/// or `[estimator.fusion]`, each field optional with the default documented
+/// on it.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "snake_case", deny_unknown_fields)
+)]
 pub enum EstimatorSpec {
-    /// Paper 001's heading observer (5), gain `observer_gain_per_m`.
+    /// Paper 001's heading observer (5), gain
+    /// [`TrackerSpec::observer_gain_per_m`], with dead reckoning between
+    /// fixes.
     #[default]
     HeadingObserver,
     /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`.
     PoseObserver {
-        /// `[a1, a2]` (1/s) and `[a3, a4]` (1/m²) of (37).
+        /// `[a1, a2]` (1/s) and `[a3, a4]` (1/m²) of (37); default
+        /// [`EstimatorSpec::DEFAULT_POSE_OBSERVER_GAINS`].
+        #[cfg_attr(
+            feature = "serde",
+            serde(default = "EstimatorSpec::default_pose_observer_gains")
+        )]
         gains: [f32; 4],
     },
-    /// The encoder + tag fusion estimator ([`crate::estimation::fusion`]) on the
-    /// filter `filter`.
-    Fusion {
-        /// Which filter.
-        filter: FusionFilterSpec,
-        /// Track width, m.
-        track_width_m: f32,
-        /// Each wheel's travel variance per metre driven, m²/m.
-        wheel_variance_per_m: f32,
-        /// Its floor (count quantization), m².
-        wheel_variance_floor_m2: f32,
-        /// Mahalanobis gate, standard deviations (≥ 1).
-        gate_sigma: f32,
-        /// Tag grid spacing, m.
-        tag_spacing_m: f32,
-        /// Prior variance of each wheel's scale error (0: not estimated).
-        scale_prior: f32,
-        /// Reader range, m (0: the nearest tag is read every tick).
-        read_radius_m: f32,
-        /// The failsafe's limit on the distance driven since the last fix,
-        /// m (0: the tracker's fix timeout decides instead).
-        max_blind_distance_m: f32,
-        /// Reads of an unchanged tag pull an estimate that left the cell
-        /// back to its edge.
-        edge_constraint: bool,
-    },
+    /// The encoder + tag fusion estimator ([`crate::estimation::fusion`]).
+    Fusion(FusionSpec),
+}
+
+impl EstimatorSpec {
+    /// Paper 002's Proposition 4 gains `[a1, a2, a3, a4]` the simulator
+    /// reproduces the paper with.
+    pub const DEFAULT_POSE_OBSERVER_GAINS: [f32; 4] = [1.5, 1.5, 100.0, 100.0];
+    /// Paper 002's pose observer with [`Self::DEFAULT_POSE_OBSERVER_GAINS`].
+    pub const POSE_OBSERVER: Self = Self::PoseObserver {
+        gains: Self::DEFAULT_POSE_OBSERVER_GAINS,
+    };
+
+    /// The fusion estimator on `filter` with default tuning.
+    #[must_use]
+    pub fn fusion(filter: FusionFilterSpec) -> Self {
+        Self::Fusion(FusionSpec {
+            filter,
+            ..FusionSpec::default()
+        })
+    }
+
+    #[cfg(feature = "serde")]
+    fn default_pose_observer_gains() -> [f32; 4] {
+        Self::DEFAULT_POSE_OBSERVER_GAINS
+    }
+}
+
+/// The fusion estimator's tuning (the `[estimator.fusion]` table).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default, deny_unknown_fields)
+)]
+pub struct FusionSpec {
+    /// Which filter (default the EKF).
+    pub filter: FusionFilterSpec,
+    /// Each wheel's travel variance per metre driven, m²/m (default 1e-3).
+    pub wheel_variance_per_m: f32,
+    /// Mahalanobis gate, standard deviations, ≥ 1 (default 3).
+    pub gate_sigma: f32,
+    /// Prior variance of each wheel's scale error (default 0: the wheels
+    /// are taken as calibrated; 4e-4 learns them from a 2 % prior).
+    pub scale_prior: f32,
+    /// The failsafe's limit on the distance driven since the last fix, m,
+    /// which then replaces the fix timeout; `Some(0.0)`: the timeout
+    /// decides. `None` (the default): `4 s²/r` for tag spacing `s` and a
+    /// reader of range `r > 0` ([`SensorSpec`]), where gaps between tags
+    /// are normal (eight times `s²/2r`, the mean distance a straight line
+    /// runs between the grid's read discs; 3.2 m for a 20 cm grid and a
+    /// 5 cm range), and 0 for a reader of the nearest tag.
+    pub max_blind_distance_m: Option<f32>,
+    /// Reads of an unchanged tag pull an estimate that left the tag's cell
+    /// back to its edge (default off; with `wheel_variance_per_m` near the
+    /// real wheel noise it is the tuning for wheels that slip).
+    pub edge_constraint: bool,
+    /// The particle filter's generator seed (default 1; the other filters
+    /// ignore it).
+    pub particle_seed: u64,
+}
+
+impl FusionSpec {
+    /// The default of [`Self::wheel_variance_per_m`], m²/m.
+    pub const DEFAULT_WHEEL_VARIANCE_PER_M: f32 = 1e-3;
+    /// The default of [`Self::gate_sigma`].
+    pub const DEFAULT_GATE_SIGMA: f32 = 3.0;
+    /// The default of [`Self::particle_seed`].
+    pub const DEFAULT_PARTICLE_SEED: u64 = 1;
+
+    /// The blind-distance limit this spec gives with `sensors`, m (see
+    /// [`Self::max_blind_distance_m`]).
+    #[must_use]
+    pub fn max_blind_distance_m(&self, sensors: &SensorSpec) -> f32 {
+        match self.max_blind_distance_m {
+            Some(limit) => limit,
+            None if sensors.read_radius_m > 0.0 => {
+                4.0 * sensors.tag_spacing_m * sensors.tag_spacing_m / sensors.read_radius_m
+            }
+            None => 0.0,
+        }
+    }
+}
+
+#[cfg(feature = "fusion-ekf")]
+impl FusionSpec {
+    /// The validated settings with `sensors`.
+    ///
+    /// # Errors
+    /// [`SpecError::Fusion`] for a value out of range,
+    /// [`SpecError::NotInThisBuild`] for a filter this build lacks.
+    pub fn build(&self, sensors: &SensorSpec) -> Result<FusionSettings, SpecError> {
+        // The particle filter's seed; the EKF and UKF draw nothing and keep
+        // the configuration's default of 1.
+        let (kind, seed) = match self.filter {
+            FusionFilterSpec::Ekf => (FusionFilter::Ekf, Self::DEFAULT_PARTICLE_SEED),
+            #[cfg(feature = "fusion-ukf")]
+            FusionFilterSpec::Ukf => (FusionFilter::Ukf, Self::DEFAULT_PARTICLE_SEED),
+            #[cfg(feature = "fusion-particle-filter")]
+            FusionFilterSpec::ParticleFilter => (FusionFilter::ParticleFilter, self.particle_seed),
+            #[allow(unreachable_patterns)]
+            _ => return Err(SpecError::NotInThisBuild),
+        };
+        PoseFilterConfig::new(
+            sensors.track_width_m,
+            self.wheel_variance_per_m,
+            sensors.wheel_variance_floor_m2,
+            self.gate_sigma,
+        )
+        .map(|filter| filter.with_particle_seed(seed))
+        .and_then(|filter| FusionSettings::new(filter, sensors.tag_spacing_m, self.scale_prior))
+        .and_then(|settings| settings.with_read_radius(sensors.read_radius_m))
+        .and_then(|settings| settings.with_max_blind_distance(self.max_blind_distance_m(sensors)))
+        .map(|settings| {
+            settings
+                .with_filter(kind)
+                .with_edge_constraint(self.edge_constraint)
+        })
+        .map_err(SpecError::Fusion)
+    }
+}
+
+impl Default for FusionSpec {
+    fn default() -> Self {
+        Self {
+            filter: FusionFilterSpec::default(),
+            wheel_variance_per_m: Self::DEFAULT_WHEEL_VARIANCE_PER_M,
+            gate_sigma: Self::DEFAULT_GATE_SIGMA,
+            scale_prior: 0.0,
+            max_blind_distance_m: None,
+            edge_constraint: false,
+            particle_seed: Self::DEFAULT_PARTICLE_SEED,
+        }
+    }
 }
 
 /// The fusion estimator's filter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "snake_case")
+)]
 pub enum FusionFilterSpec {
     /// The EKF.
     #[default]
     Ekf,
     /// Paper 004's UKF ([`crate::estimation::fusion::ukf`]; cargo feature `fusion-ukf`).
     Ukf,
-    /// Paper 004's particle filter ([`crate::estimation::fusion::particle`]; cargo
-    /// feature `fusion-particle-filter`).
-    ParticleFilter {
-        /// The generator's seed.
-        seed: u64,
-    },
+    /// Paper 004's particle filter ([`crate::estimation::fusion::particle`];
+    /// cargo feature `fusion-particle-filter`), seeded with
+    /// [`FusionSpec::particle_seed`].
+    ParticleFilter,
 }
 
-/// The tracker's law.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+/// What the estimators know of the robot's sensors: the odometry's track
+/// width and count quantization, the floor's tag spacing and the reader's
+/// range. Facts of the robot and its floor, stated once (the fusion
+/// estimator is the only one that uses them today); in a [`PilotSpec`] the
+/// track width must equal the drive's.
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct SensorSpec {
+    /// Distance between the wheels' contact points, m.
+    pub track_width_m: f32,
+    /// Variance of one wheel's measured travel from the count quantization
+    /// alone, m² (`q²/12` for a count quantum `q = 2π r / counts per
+    /// revolution`).
+    pub wheel_variance_floor_m2: f32,
+    /// Spacing of the floor's tag grid, m.
+    pub tag_spacing_m: f32,
+    /// Reader range around the antenna, m (0: the nearest tag is read
+    /// every tick).
+    pub read_radius_m: f32,
+}
+
+/// The tracker's law (with the `serde` feature, the `law` key of a
+/// scenario's `[controller]` table, externally tagged in `snake_case`:
+/// `law = "saturated"`, the default, also spelled `"paper_001"`, or
+/// `[controller.law.cascaded]` / `[controller.law.heading_error_sine]`,
+/// each field optional with the default documented on it).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "snake_case", deny_unknown_fields)
+)]
 pub enum LawSpec {
-    /// Paper 001's saturated output-feedback law (27)–(28), gains `gains`.
+    /// Paper 001's saturated output-feedback law (27)–(28), gains
+    /// [`TrackerSpec::gains`].
     #[default]
+    #[cfg_attr(feature = "serde", serde(alias = "paper_001"))]
     Saturated,
     /// Paper 002's cascaded controller (31).
     Cascaded {
-        /// `c1`, 1/s (heading error).
+        /// `c1`, 1/s (heading error; default 0.5).
+        #[cfg_attr(feature = "serde", serde(default = "LawSpec::default_c"))]
         c1_per_s: f32,
-        /// `c2`, 1/s (along-track error).
+        /// `c2`, 1/s (along-track error; default 0.5).
+        #[cfg_attr(feature = "serde", serde(default = "LawSpec::default_c"))]
         c2_per_s: f32,
     },
     /// Paper 002's Proposition 7: observer of `sin θ_e` and controller (64).
     HeadingErrorSine {
-        /// Observer gain `a`, s/m².
+        /// Observer gain `a`, s/m² (default 100).
+        #[cfg_attr(feature = "serde", serde(default = "LawSpec::default_sine_a"))]
         a_s_per_m2: f32,
-        /// `c2`, 1/s.
+        /// `c2`, 1/s (default 0.5).
+        #[cfg_attr(feature = "serde", serde(default = "LawSpec::default_c"))]
         c2_per_s: f32,
-        /// `γ ∈ (0, 1)`.
+        /// `γ ∈ (0, 1)` (default 0.9).
+        #[cfg_attr(feature = "serde", serde(default = "LawSpec::default_gamma"))]
         gamma: f32,
     },
+}
+
+impl LawSpec {
+    /// The default `c1`, `c2` of [`Self::Cascaded`] and `c2` of
+    /// [`Self::HeadingErrorSine`], 1/s.
+    pub const DEFAULT_C_PER_S: f32 = 0.5;
+    /// The default observer gain `a` of [`Self::HeadingErrorSine`], s/m².
+    pub const DEFAULT_SINE_A_S_PER_M2: f32 = 100.0;
+    /// The default `γ` of [`Self::HeadingErrorSine`].
+    pub const DEFAULT_GAMMA: f32 = 0.9;
+    /// The cascaded law with its default gains.
+    pub const CASCADED: Self = Self::Cascaded {
+        c1_per_s: Self::DEFAULT_C_PER_S,
+        c2_per_s: Self::DEFAULT_C_PER_S,
+    };
+    /// Proposition 7 with its default gains.
+    pub const HEADING_ERROR_SINE: Self = Self::HeadingErrorSine {
+        a_s_per_m2: Self::DEFAULT_SINE_A_S_PER_M2,
+        c2_per_s: Self::DEFAULT_C_PER_S,
+        gamma: Self::DEFAULT_GAMMA,
+    };
+
+    #[cfg(feature = "serde")]
+    fn default_c() -> f32 {
+        Self::DEFAULT_C_PER_S
+    }
+    #[cfg(feature = "serde")]
+    fn default_sine_a() -> f32 {
+        Self::DEFAULT_SINE_A_S_PER_M2
+    }
+    #[cfg(feature = "serde")]
+    fn default_gamma() -> f32 {
+        Self::DEFAULT_GAMMA
+    }
 }
 
 /// A reference trajectory by its parameters (SI units, radians).
@@ -298,8 +513,10 @@ pub struct TrackerSpec {
     pub failsafe_decel_m_s2: f32,
     /// Age beyond which a fix is stale, ticks.
     pub max_fix_age_ticks: u32,
-    /// The heading estimator (paper 001's observer by default).
+    /// The estimator (paper 001's observer by default).
     pub estimator: EstimatorSpec,
+    /// What the estimator knows of the robot's sensors.
+    pub sensors: SensorSpec,
     /// The law (paper 001's by default).
     pub law: LawSpec,
 }
@@ -329,46 +546,9 @@ impl TrackerSpec {
                     .map_err(SpecError::PoseObserver)?,
             ),
             #[cfg(feature = "fusion-ekf")]
-            EstimatorSpec::Fusion {
-                filter,
-                track_width_m,
-                wheel_variance_per_m,
-                wheel_variance_floor_m2,
-                gate_sigma,
-                tag_spacing_m,
-                scale_prior,
-                read_radius_m,
-                max_blind_distance_m,
-                edge_constraint,
-            } => {
-                let (kind, seed) = match filter {
-                    FusionFilterSpec::Ekf => (FusionFilter::Ekf, 1),
-                    #[cfg(feature = "fusion-ukf")]
-                    FusionFilterSpec::Ukf => (FusionFilter::Ukf, 1),
-                    #[cfg(feature = "fusion-particle-filter")]
-                    FusionFilterSpec::ParticleFilter { seed } => {
-                        (FusionFilter::ParticleFilter, seed)
-                    }
-                    #[allow(unreachable_patterns)]
-                    _ => return Err(SpecError::NotInThisBuild),
-                };
-                let settings = PoseFilterConfig::new(
-                    track_width_m,
-                    wheel_variance_per_m,
-                    wheel_variance_floor_m2,
-                    gate_sigma,
-                )
-                .map(|filter| filter.with_particle_seed(seed))
-                .and_then(|filter| FusionSettings::new(filter, tag_spacing_m, scale_prior))
-                .and_then(|settings| settings.with_read_radius(read_radius_m))
-                .and_then(|settings| settings.with_max_blind_distance(max_blind_distance_m))
-                .map_err(SpecError::Fusion)?
-                .with_filter(kind)
-                .with_edge_constraint(edge_constraint);
-                EstimatorChoice::Fusion(settings)
-            }
+            EstimatorSpec::Fusion(fusion) => EstimatorChoice::Fusion(fusion.build(&self.sensors)?),
             #[cfg(not(feature = "fusion-ekf"))]
-            EstimatorSpec::Fusion { .. } => return Err(SpecError::NotInThisBuild),
+            EstimatorSpec::Fusion(_) => return Err(SpecError::NotInThisBuild),
         };
         let law = match self.law {
             LawSpec::Saturated => LawChoice::Saturated,
@@ -464,6 +644,9 @@ impl PilotSpec {
     pub fn build(&self) -> Result<PilotConfig, SpecError> {
         let tracker = self.tracker.build()?;
         let drive = self.drive.build(self.tracker.period_s)?;
+        if self.tracker.sensors.track_width_m.to_bits() != self.drive.track_width_m.to_bits() {
+            return Err(SpecError::SensorTrackWidth);
+        }
         PilotConfig::new(tracker, drive, self.encoder_bits)
             .map(|p| p.with_max_encoder_fault_ticks(self.max_encoder_fault_ticks))
             .map_err(SpecError::Pilot)
@@ -529,8 +712,14 @@ mod tests {
                 fix_timeout_ticks: 50,
                 failsafe_decel_m_s2: 0.5,
                 max_fix_age_ticks: 2,
-                estimator: crate::pilot::spec::EstimatorSpec::HeadingObserver,
-                law: crate::pilot::spec::LawSpec::Saturated,
+                estimator: EstimatorSpec::HeadingObserver,
+                law: LawSpec::Saturated,
+                sensors: SensorSpec {
+                    track_width_m: 0.3,
+                    wheel_variance_floor_m2: 2.5e-10,
+                    tag_spacing_m: 0.1,
+                    read_radius_m: 0.0,
+                },
             },
             drive: DriveSpec {
                 wheel_radius_m: 0.05,
@@ -578,6 +767,47 @@ mod tests {
             s.build().unwrap_err().to_string(),
             "tracker: fix_timeout_ticks must be ≥ 1"
         );
+        let mut s = paper_spec();
+        s.tracker.sensors.track_width_m = 0.31;
+        assert_eq!(
+            s.build().unwrap_err().to_string(),
+            "tracker.sensors: track_width_m must equal drive.track_width_m"
+        );
+        if cfg!(feature = "fusion-ekf") {
+            let mut s = paper_spec();
+            s.tracker.estimator = EstimatorSpec::Fusion(FusionSpec {
+                gate_sigma: 0.5,
+                ..FusionSpec::default()
+            });
+            assert_eq!(
+                s.build().unwrap_err().to_string(),
+                "tracker.estimator.fusion: gate_sigma must be finite and ≥ 1"
+            );
+            s.tracker.estimator = EstimatorSpec::Fusion(FusionSpec::default());
+            s.tracker.sensors.read_radius_m = -1.0;
+            assert_eq!(
+                s.build().unwrap_err().to_string(),
+                "tracker.sensors: read_radius_m must be finite and ≥ 0 m"
+            );
+        }
+    }
+
+    /// The blind-distance default follows the reader: `4 s²/r` for a range
+    /// reader, none for the nearest-tag reader, and an explicit value wins.
+    #[test]
+    fn fusion_blind_distance_default_follows_the_reader() {
+        let mut sensors = paper_spec().tracker.sensors;
+        let fusion = FusionSpec::default();
+        assert_eq!(fusion.max_blind_distance_m(&sensors), 0.0);
+        sensors.tag_spacing_m = 0.2;
+        sensors.read_radius_m = 0.05;
+        let limit = fusion.max_blind_distance_m(&sensors);
+        assert!((limit - 3.2).abs() < 1e-6, "{limit}");
+        let explicit = FusionSpec {
+            max_blind_distance_m: Some(0.0),
+            ..fusion
+        };
+        assert_eq!(explicit.max_blind_distance_m(&sensors), 0.0);
     }
 
     #[test]
@@ -631,24 +861,17 @@ mod tests {
             Err(SpecError::Drive(DriveConfigError::SpeedLoopGain))
         );
         let mut s = paper_spec();
-        s.tracker.estimator = EstimatorSpec::Fusion {
-            filter: FusionFilterSpec::Ekf,
-            track_width_m: 0.2,
-            wheel_variance_per_m: 1e-3,
-            wheel_variance_floor_m2: 1e-9,
-            gate_sigma: 3.0,
-            tag_spacing_m: 0.0,
-            scale_prior: 0.0,
-            read_radius_m: 0.0,
-            max_blind_distance_m: 0.0,
-            edge_constraint: false,
-        };
+        s.tracker.estimator = EstimatorSpec::Fusion(FusionSpec::default());
+        s.tracker.sensors.tag_spacing_m = 0.0;
         let expected = if cfg!(feature = "fusion-ekf") {
             SpecError::Fusion(crate::estimation::fusion::PoseFilterError::TagSpacing)
         } else {
             SpecError::NotInThisBuild
         };
         assert_eq!(s.build(), Err(expected));
+        let mut s = paper_spec();
+        s.tracker.sensors.track_width_m = 0.31;
+        assert_eq!(s.build(), Err(SpecError::SensorTrackWidth));
         let mut s = paper_spec();
         s.encoder_bits = 33;
         assert_eq!(

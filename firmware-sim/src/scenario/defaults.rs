@@ -21,40 +21,8 @@ pub fn k12() -> f64 {
 pub fn k3() -> f64 {
     0.1
 }
-pub fn c1() -> f64 {
-    0.5
-}
-pub fn c2() -> f64 {
-    0.5
-}
-pub fn sine_a() -> f64 {
-    100.0
-}
-pub fn gamma() -> f64 {
-    0.9
-}
-pub fn pose_gains() -> [f64; 4] {
-    [1.5, 1.5, 100.0, 100.0]
-}
 pub fn gain_per_m() -> f64 {
     0.6
-}
-pub fn fusion_wheel_variance_per_m() -> f64 {
-    1e-3
-}
-/// The fusion estimator's blind-distance limit with a range reader of
-/// radius `r` on a grid of spacing `s`, m: `4 s²/r`, eight times
-/// `s²/2r`, the mean distance a straight line runs between read discs
-/// of the grid (the figure-eight's longest gaps on 20 and 30 cm floors
-/// stopped the robot at 2 m, none at this).
-pub fn fusion_range_max_blind_distance_m(spacing_m: f64, read_radius_m: f64) -> f64 {
-    4.0 * spacing_m * spacing_m / read_radius_m
-}
-pub fn fusion_particle_seed() -> u64 {
-    1
-}
-pub fn fusion_gate_sigma() -> f64 {
-    3.0
 }
 pub fn min_speed_m_s() -> f64 {
     f64::from(wmr_core::estimation::heading_observer::HeadingObserverConfig::DEFAULT_MIN_SPEED_M_S)

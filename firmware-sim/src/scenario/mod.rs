@@ -21,7 +21,11 @@
 //! * `defaults`: the default values;
 //! * `sweep_spec`: the `[sweep]` table ([`SweepSpec`]) and its validated
 //!   [`SweepPlan`];
-//! * `schema`: the serde tables ([`Scenario`] and what it holds);
+//! * `legacy`: the keys that moved, and the new key an error names;
+//! * `schema`: the serde tables ([`Scenario`] and what it holds); the
+//!   estimator and the law are the core's own spec types
+//!   ([`EstimatorSpec`], [`LawSpec`]), so the list of both is written once,
+//!   in the core;
 //! * `validate`: [`Scenario::validate`] and what it builds ([`Setup`],
 //!   [`PlantSetup`], [`PositionSetup`]);
 //! * this file: parsing, files and the embedded scenarios ([`EMBEDDED`]).
@@ -30,6 +34,7 @@ use std::path::Path;
 
 mod defaults;
 mod error;
+mod legacy;
 mod schema;
 mod sweep_spec;
 mod validate;
@@ -40,9 +45,9 @@ mod tests;
 pub use error::ScenarioError;
 pub(crate) use error::{non_negative, positive};
 pub use schema::{
-    ControllerKind, ControllerSpec, DriveSpec, DynamicsSpec, FailsafeSpec, InitialSpec, LawKind,
-    MeasurementSpec, ObserverKind, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
-    ReferenceSpec, Scenario, SpeedObserverSpec,
+    ControllerKind, ControllerSpec, DriveSpec, DynamicsSpec, FailsafeSpec, InitialSpec,
+    MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec, ReferenceSpec,
+    Scenario, SpeedObserverSpec,
 };
 pub use sweep_spec::{
     DEFAULT_EXACT_THRESHOLD_M, DEFAULT_HOLD_FRACTION, DEFAULT_START_RADIUS_M,
@@ -50,6 +55,9 @@ pub use sweep_spec::{
     SweepPlan, SweepSpec,
 };
 pub use validate::{PlantSetup, PositionSetup, Setup, reference_bounds};
+/// The core's estimator and law specs, which the scenario's `[estimator]`
+/// table and `controller.law` key deserialize into.
+pub use wmr_core::pilot::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec, LawSpec};
 
 /// The scenarios shipped with the simulator, as `(file name, TOML text)`.
 /// The first is the default.

@@ -3,6 +3,7 @@
 //! Checking the values is `validate`'s job.
 
 use serde::{Deserialize, Serialize};
+use wmr_core::pilot::spec::{EstimatorSpec, LawSpec};
 
 use super::defaults;
 use super::sweep_spec::SweepSpec;
@@ -32,9 +33,15 @@ pub struct Scenario {
     /// Tracking law and gains.
     #[serde(default)]
     pub controller: ControllerSpec,
-    /// Heading observer (output feedback only).
+    /// Paper 001's heading observer (5), which runs under every estimator
+    /// (the fusion filter's heading guide).
     #[serde(default)]
     pub observer: ObserverSpec,
+    /// The output-feedback tracker's estimator: the core's own
+    /// [`EstimatorSpec`] (`estimator = "heading_observer"`, the default;
+    /// `[estimator.pose_observer]`; `[estimator.fusion]`).
+    #[serde(default)]
+    pub estimator: EstimatorSpec,
     /// The simulated robot body.
     #[serde(default)]
     pub plant: PlantSpec,
@@ -130,43 +137,22 @@ pub enum ControllerKind {
     StateFeedback,
 }
 
-/// Which position-only law the output-feedback tracker runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum LawKind {
-    /// Paper 001's law (27)–(28), gains `k1, k2, k3`.
-    #[default]
-    Paper001,
-    /// Paper 002's cascaded controller (31), gains `c1, c2`, on the error
-    /// (30) from the estimated heading.
-    Cascaded,
-    /// Paper 002's Proposition 7: observer of `sin θ_e` (gain `a`) and
-    /// controller (64) (gains `c2`, `gamma`).
-    HeadingErrorSine,
-}
-
 /// Tracking law and gains.
+///
+/// (De)serialized by hand around the derived code (`remote = "Self"`), to
+/// name the new key of a key that moved (see `legacy`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(remote = "Self", deny_unknown_fields)]
 pub struct ControllerSpec {
     /// Which law.
     #[serde(default)]
     pub kind: ControllerKind,
-    /// With `kind = "output_feedback"`: which position-only law.
+    /// With `kind = "output_feedback"`: which position-only law, the core's
+    /// own [`LawSpec`] (`law = "saturated"`, the default, also spelled
+    /// `"paper_001"`; `[controller.law.cascaded]`;
+    /// `[controller.law.heading_error_sine]`).
     #[serde(default)]
-    pub law: LawKind,
-    /// `c1` of (31), 1/s.
-    #[serde(default = "defaults::c1")]
-    pub c1: f64,
-    /// `c2` of (31) and (64), 1/s.
-    #[serde(default = "defaults::c2")]
-    pub c2: f64,
-    /// Observer gain `a` of Proposition 7, s/m².
-    #[serde(default = "defaults::sine_a")]
-    pub a: f64,
-    /// `γ ∈ (0, 1)` of (64).
-    #[serde(default = "defaults::gamma")]
-    pub gamma: f64,
+    pub law: LawSpec,
     /// `k1`, m/s.
     #[serde(default = "defaults::k12")]
     pub k1: f64,
@@ -182,11 +168,7 @@ impl Default for ControllerSpec {
     fn default() -> Self {
         Self {
             kind: ControllerKind::default(),
-            law: LawKind::default(),
-            c1: defaults::c1(),
-            c2: defaults::c2(),
-            a: defaults::sine_a(),
-            gamma: defaults::gamma(),
+            law: LawSpec::default(),
             k1: defaults::k12(),
             k2: defaults::k12(),
             k3: defaults::k3(),
@@ -194,65 +176,32 @@ impl Default for ControllerSpec {
     }
 }
 
-/// Which heading estimator the output-feedback tracker runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum ObserverKind {
-    /// Paper 001's observer (5), gain `gain_per_m`.
-    #[default]
-    Paper001,
-    /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`, gains
-    /// `pose_gains = [a1, a2, a3, a4]`.
-    Pose,
-    /// The encoder + tag fusion EKF (`wmr_core::estimation::fusion`), tuned by the
-    /// `fusion_*` keys; needs grid tags (`nearest_tag`, or `reader` in
-    /// `paper` or `range` mode) without added noise.
-    FusionEkf,
-    /// The same estimator on paper 004's UKF (`wmr_core::estimation::fusion::ukf`).
-    FusionUkf,
-    /// The same estimator on paper 004's particle filter
-    /// (`wmr_core::estimation::fusion::particle`, 100 particles), its generator
-    /// seeded with `fusion_particle_seed`.
-    FusionParticleFilter,
+impl Serialize for ControllerSpec {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        // The derived serializer (inherent, from `remote = "Self"`).
+        ControllerSpec::serialize(self, serializer)
+    }
 }
 
-/// Heading observer parameters.
+impl<'de> Deserialize<'de> for ControllerSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error as _;
+        let table = toml::Table::deserialize(deserializer)?;
+        if let Some(moved) = super::legacy::controller_key(&table) {
+            return Err(D::Error::custom(moved));
+        }
+        ControllerSpec::deserialize(toml::Value::Table(table))
+            .map_err(|e| D::Error::custom(e.to_string().trim_end()))
+    }
+}
+
+/// Paper 001's heading observer (5).
+///
+/// (De)serialized by hand around the derived code (`remote = "Self"`), to
+/// name the new key of a key that moved to `[estimator]` (see `legacy`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(remote = "Self", deny_unknown_fields)]
 pub struct ObserverSpec {
-    /// Which estimator.
-    #[serde(default)]
-    pub kind: ObserverKind,
-    /// `[a1, a2]` (1/s), `[a3, a4]` (1/m²) of paper 002's (37).
-    #[serde(default = "defaults::pose_gains")]
-    pub pose_gains: [f64; 4],
-    /// Fusion EKF: each wheel's travel variance per metre driven, m²/m.
-    #[serde(default = "defaults::fusion_wheel_variance_per_m")]
-    pub fusion_wheel_variance_per_m: f64,
-    /// Fusion EKF: Mahalanobis gate, standard deviations.
-    #[serde(default = "defaults::fusion_gate_sigma")]
-    pub fusion_gate_sigma: f64,
-    /// Fusion EKF: prior variance of each wheel's scale error (0: the
-    /// wheels are taken as calibrated; 4e-4 learns them from a 2 % prior).
-    #[serde(default)]
-    pub fusion_scale_prior: f64,
-    /// Fusion estimator: the failsafe's limit on the distance driven since
-    /// the last fix, m, which then replaces the fix timeout (0: the timeout
-    /// decides). Default with a `range` reader, where gaps between tags are
-    /// normal: `4 s²/r` for spacing `s` and range `r` (1.6 m for the 20 cm
-    /// grid and 5 cm range; `defaults::fusion_range_max_blind_distance_m`);
-    /// 0 otherwise.
-    #[serde(default)]
-    pub fusion_max_blind_distance_m: Option<f64>,
-    /// Fusion estimator: reads of an unchanged tag pull an estimate that
-    /// left the tag's cell back to its edge (nearest-tag reader; default
-    /// off; with `fusion_wheel_variance_per_m` near the real wheel noise
-    /// it is the tuning for wheels that slip).
-    #[serde(default)]
-    pub fusion_edge_constraint: bool,
-    /// Fusion particle filter: its generator's seed (default 1).
-    #[serde(default = "defaults::fusion_particle_seed")]
-    pub fusion_particle_seed: u64,
     /// Observer gain `L`, 1/m.
     #[serde(default = "defaults::gain_per_m")]
     pub gain_per_m: f64,
@@ -264,17 +213,28 @@ pub struct ObserverSpec {
 impl Default for ObserverSpec {
     fn default() -> Self {
         Self {
-            kind: ObserverKind::default(),
-            pose_gains: defaults::pose_gains(),
-            fusion_wheel_variance_per_m: defaults::fusion_wheel_variance_per_m(),
-            fusion_gate_sigma: defaults::fusion_gate_sigma(),
-            fusion_scale_prior: 0.0,
-            fusion_particle_seed: defaults::fusion_particle_seed(),
-            fusion_max_blind_distance_m: None,
-            fusion_edge_constraint: false,
             gain_per_m: defaults::gain_per_m(),
             min_speed_m_s: defaults::min_speed_m_s(),
         }
+    }
+}
+
+impl Serialize for ObserverSpec {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        // The derived serializer (inherent, from `remote = "Self"`).
+        ObserverSpec::serialize(self, serializer)
+    }
+}
+
+impl<'de> Deserialize<'de> for ObserverSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error as _;
+        let table = toml::Table::deserialize(deserializer)?;
+        if let Some(moved) = super::legacy::observer_key(&table) {
+            return Err(D::Error::custom(moved));
+        }
+        ObserverSpec::deserialize(toml::Value::Table(table))
+            .map_err(|e| D::Error::custom(e.to_string().trim_end()))
     }
 }
 

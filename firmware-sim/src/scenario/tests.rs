@@ -328,3 +328,107 @@ fn floor_covers_the_reference_and_the_start() {
     // The start (0, −6) with its margin, and the reference's start (0, −5).
     assert!(lo[1] <= -6.5 + 1e-9 && hi[1] >= -4.5, "{lo:?} {hi:?}");
 }
+
+/// `[estimator]` and `controller.law` are the core's own spec types: their
+/// defaults are the core's, their values are checked by the core, and the
+/// error names the scenario key with the core's words for the rule.
+#[test]
+fn estimator_and_law_tables_are_the_cores_specs() {
+    const TAGS: &str = "[position]\nkind = \"nearest_tag\"\n";
+    let s = Scenario::from_toml_str(&format!("{MINIMAL}\n{TAGS}[estimator.fusion]\n")).unwrap();
+    assert_eq!(s.estimator, EstimatorSpec::Fusion(FusionSpec::default()));
+    assert!(s.validate().is_ok());
+    let s = Scenario::from_toml_str(&format!(
+        "estimator = \"heading_observer\"\n{MINIMAL}\n[controller]\nlaw = \"paper_001\"\n"
+    ))
+    .unwrap();
+    assert_eq!(
+        (s.estimator, s.controller.law),
+        (EstimatorSpec::HeadingObserver, LawSpec::Saturated)
+    );
+    let s = Scenario::from_toml_str(&format!(
+        "{MINIMAL}\n[estimator.pose_observer]\n[controller.law.heading_error_sine]\ngamma = 0.8\n"
+    ))
+    .unwrap();
+    assert_eq!(s.estimator, EstimatorSpec::POSE_OBSERVER);
+    assert_eq!(
+        s.controller.law,
+        LawSpec::HeadingErrorSine {
+            a_s_per_m2: LawSpec::DEFAULT_SINE_A_S_PER_M2,
+            c2_per_s: LawSpec::DEFAULT_C_PER_S,
+            gamma: 0.8,
+        }
+    );
+
+    let cases = [
+        (
+            format!("{TAGS}[estimator.fusion]\ngate_sigma = 0.5"),
+            "estimator.fusion",
+            "gate_sigma must be finite and ≥ 1",
+        ),
+        (
+            "[estimator.pose_observer]\ngains = [0.0, 1.5, 100.0, 100.0]".to_string(),
+            "estimator.pose_observer",
+            "a1",
+        ),
+        (
+            "[controller.law.cascaded]\nc1_per_s = -1.0".to_string(),
+            "controller.law.cascaded",
+            "c1",
+        ),
+        (
+            "[controller.law.heading_error_sine]\ngamma = 1.5".to_string(),
+            "controller.law.heading_error_sine",
+            "γ",
+        ),
+        (
+            "[estimator.fusion]".to_string(),
+            "estimator.fusion",
+            "nearest_tag or reader",
+        ),
+        (
+            "[estimator.pose_observer]\n[controller]\nkind = \"state_feedback\"".to_string(),
+            "estimator",
+            "no estimator runs",
+        ),
+    ];
+    for (extra, field, reason) in cases {
+        let e = err_of(&format!("{MINIMAL}\n{extra}\n"));
+        assert_eq!(e.field(), Some(field), "{extra}: {e}");
+        assert!(e.to_string().contains(reason), "{extra}: {e}");
+    }
+    let e = err_of(&format!(
+        "{MINIMAL}\n[estimator.fusion]\nfusion_gate_sigma = 3.0\n"
+    ));
+    assert!(e.to_string().contains("fusion_gate_sigma"), "{e}");
+}
+
+/// Scenario files of the old layout fail with the new key's name.
+#[test]
+fn old_estimator_and_law_keys_name_their_new_keys() {
+    for (old, new) in [
+        (
+            "[observer]\nkind = \"fusion_ekf\"",
+            "[estimator.fusion] with filter = \"ekf\"",
+        ),
+        (
+            "[observer]\nfusion_wheel_variance_per_m = 1e-3",
+            "estimator.fusion.wheel_variance_per_m",
+        ),
+        (
+            "[observer]\npose_gains = [1.5, 1.5, 100.0, 100.0]",
+            "estimator.pose_observer.gains",
+        ),
+        (
+            "[controller]\nlaw = \"cascaded\"\nc1 = 0.5",
+            "[controller.law.cascaded]",
+        ),
+        (
+            "[controller]\ngamma = 0.9",
+            "controller.law.heading_error_sine.gamma",
+        ),
+    ] {
+        let e = err_of(&format!("{MINIMAL}\n{old}\n")).to_string();
+        assert!(e.contains(new), "{old}: {e}");
+    }
+}

@@ -8,7 +8,7 @@ use wmr_core::drive::speed_observer::WheelSpeedObserverConfig;
 use wmr_core::estimation::heading_observer::HeadingEstimate;
 use wmr_core::pilot::PilotConfig;
 use wmr_core::pilot::spec::{
-    self as core_spec, EstimatorSpec, FusionFilterSpec, LawSpec, PilotSpec, SpecError, TrackerSpec,
+    self as core_spec, EstimatorSpec, LawSpec, PilotSpec, SensorSpec, SpecError, TrackerSpec,
     TrajectorySpec,
 };
 use wmr_core::pilot::tracker::TrackerConfig;
@@ -21,8 +21,8 @@ use crate::tags::FloorTags;
 use super::defaults;
 use super::error::{ScenarioError, finite, non_negative, positive, probability};
 use super::schema::{
-    ControllerKind, DynamicsSpec, LawKind, MeasurementSpec, ObserverKind, PlantSpec, PositionSpec,
-    ReaderModeSpec, ReferenceSpec, Scenario, SpeedObserverSpec,
+    ControllerKind, DynamicsSpec, MeasurementSpec, PlantSpec, PositionSpec, ReaderModeSpec,
+    ReferenceSpec, Scenario, SpeedObserverSpec,
 };
 use super::sweep_spec::{
     DEFAULT_EXACT_THRESHOLD_M, DEFAULT_HOLD_FRACTION, DEFAULT_START_RADIUS_M,
@@ -139,22 +139,32 @@ fn with_speed_observer(
         .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e}")))
 }
 
-/// A refusal of the core's spec builder, named by the scenario table it
-/// came from.
+/// A refusal of the core's spec builder, named by the scenario key it came
+/// from, in the core's own words (which name the field and the rule).
 fn spec_refusal(e: SpecError) -> ScenarioError {
-    let field = match e {
-        SpecError::Trajectory(_) => "reference",
-        SpecError::Gains(_) => "controller",
-        SpecError::Observer(_) => "observer",
-        SpecError::Tracker(_) => "failsafe",
-        SpecError::Geometry(_) | SpecError::Pilot(_) => "plant",
-        SpecError::Drive(_) => "drive",
-        SpecError::TagGrid(_) => "position",
-        SpecError::PoseObserver(_) => "observer.pose_gains",
-        SpecError::Fusion(_) | SpecError::NotInThisBuild => "observer",
-        SpecError::CascadedLaw(_) | SpecError::HeadingErrorSineLaw(_) => "controller",
+    let field = match e.section() {
+        "tracker.trajectory" => "reference",
+        "tracker.estimator.pose_observer" => "estimator.pose_observer",
+        "tracker.estimator.fusion" => "estimator.fusion",
+        "tracker.law.cascaded" => "controller.law.cascaded",
+        "tracker.law.heading_error_sine" => "controller.law.heading_error_sine",
+        // The sensor facts come from the plant and the floor.
+        "tracker.sensors" => "position",
+        "drive" => "drive",
+        "tag_grid" => "position",
+        _ => match e {
+            SpecError::Gains(_) => "controller",
+            SpecError::Observer(_) => "observer",
+            SpecError::Tracker(_) => "failsafe",
+            SpecError::Geometry(_) | SpecError::Pilot(_) => "plant",
+            _ => "estimator",
+        },
     };
-    ScenarioError::invalid(field, format!("refused by the core: {e}"))
+    let reason = match core::error::Error::source(&e) {
+        Some(inner) => format!("refused by the core: {inner}"),
+        None => format!("refused by the core: {e}"),
+    };
+    ScenarioError::invalid(field, reason)
 }
 
 /// `f32` of a validated `f64` (the core's precision).
@@ -163,46 +173,41 @@ fn f(v: f64) -> f32 {
 }
 
 impl Scenario {
-    /// The core's estimator choice; paper 002's only with output feedback.
+    /// The core's estimator spec, as the scenario chose it; paper 002's and
+    /// the fusion estimator only with output feedback, the fusion
+    /// estimator only on a tag grid read without added noise. The core
+    /// checks its values.
     fn estimator_spec(&self) -> Result<EstimatorSpec, ScenarioError> {
-        match (self.observer.kind, self.controller.kind) {
-            (ObserverKind::Paper001, _) => Ok(EstimatorSpec::HeadingObserver),
-            (ObserverKind::Pose, ControllerKind::OutputFeedback) => {
-                let g = self.observer.pose_gains;
-                Ok(EstimatorSpec::PoseObserver {
-                    gains: [
-                        f(positive("observer.pose_gains[0]", g[0])?),
-                        f(positive("observer.pose_gains[1]", g[1])?),
-                        f(positive("observer.pose_gains[2]", g[2])?),
-                        f(positive("observer.pose_gains[3]", g[3])?),
-                    ],
-                })
+        match (self.estimator, self.controller.kind) {
+            (EstimatorSpec::HeadingObserver, _) => {}
+            (_, ControllerKind::StateFeedback) => {
+                return Err(ScenarioError::invalid(
+                    "estimator",
+                    "state feedback measures the heading: no estimator runs",
+                ));
             }
-            (
-                ObserverKind::FusionEkf
-                | ObserverKind::FusionUkf
-                | ObserverKind::FusionParticleFilter,
-                ControllerKind::OutputFeedback,
-            ) => self.fusion_spec(),
-            (
-                ObserverKind::FusionEkf
-                | ObserverKind::FusionUkf
-                | ObserverKind::FusionParticleFilter,
-                ControllerKind::StateFeedback,
-            ) => Err(ScenarioError::invalid(
-                "observer.kind",
-                "state feedback measures the heading: no estimator runs",
-            )),
-            (ObserverKind::Pose, ControllerKind::StateFeedback) => Err(ScenarioError::invalid(
-                "observer.kind",
-                "state feedback measures the heading: no observer runs",
-            )),
+            (EstimatorSpec::PoseObserver { .. }, ControllerKind::OutputFeedback) => {}
+            (EstimatorSpec::Fusion(_), ControllerKind::OutputFeedback) => {
+                if matches!(self.position, PositionSpec::Exact) {
+                    return Err(ScenarioError::invalid(
+                        "estimator.fusion",
+                        "the fusion estimator models tag reads: use position nearest_tag or reader",
+                    ));
+                }
+                if self.measurement.noise_std_m > 0.0 {
+                    return Err(ScenarioError::invalid(
+                        "measurement.noise_std_m",
+                        "the fusion estimator's tag model needs fixes on the tag grid (no added noise)",
+                    ));
+                }
+            }
         }
+        Ok(self.estimator)
     }
 
-    /// The fusion EKF's spec: its tag model needs a grid read nearest-first
-    /// without added noise; the wheel geometry comes from the plant.
-    fn fusion_spec(&self) -> Result<EstimatorSpec, ScenarioError> {
+    /// What the estimator knows of the sensors: the plant's track width and
+    /// count quantization, the floor's spacing and the reader's range.
+    fn sensor_spec(&self) -> SensorSpec {
         let (spacing_m, read_radius_m) = match self.position {
             PositionSpec::NearestTag { spacing_m, .. } => (spacing_m, 0.0),
             PositionSpec::Reader {
@@ -216,19 +221,9 @@ impl Scenario {
                 read_radius_m,
                 ..
             } => (spacing_m, read_radius_m),
-            PositionSpec::Exact => {
-                return Err(ScenarioError::invalid(
-                    "observer.kind",
-                    "the fusion EKF models tag reads: use position nearest_tag or reader",
-                ));
-            }
+            // No tags: the fusion estimator is refused above.
+            PositionSpec::Exact => (0.0, 0.0),
         };
-        if self.measurement.noise_std_m > 0.0 {
-            return Err(ScenarioError::invalid(
-                "measurement.noise_std_m",
-                "the fusion EKF's tag model needs fixes on the tag grid (no added noise)",
-            ));
-        }
         let (track_width_m, floor_m2) = match self.plant {
             PlantSpec::DiffDrive {
                 wheel_radius_m,
@@ -244,79 +239,25 @@ impl Scenario {
             // geometry matters, taken as the default robot's.
             PlantSpec::Unicycle => (defaults::track_width_m(), 1e-9),
         };
-        let o = &self.observer;
-        let non_negative = |field: &'static str, v: f64| {
-            if v.is_finite() && v >= 0.0 {
-                Ok(v)
-            } else {
-                Err(ScenarioError::invalid(
-                    field,
-                    format!("must be ≥ 0 (got {v})"),
-                ))
-            }
-        };
-        let range_default = if read_radius_m > 0.0 {
-            defaults::fusion_range_max_blind_distance_m(spacing_m, read_radius_m)
-        } else {
-            0.0
-        };
-        let max_blind_distance_m = non_negative(
-            "observer.fusion_max_blind_distance_m",
-            o.fusion_max_blind_distance_m.unwrap_or(range_default),
-        )?;
-        let filter = match o.kind {
-            ObserverKind::FusionUkf => FusionFilterSpec::Ukf,
-            ObserverKind::FusionParticleFilter => FusionFilterSpec::ParticleFilter {
-                seed: o.fusion_particle_seed,
-            },
-            _ => FusionFilterSpec::Ekf,
-        };
-        Ok(EstimatorSpec::Fusion {
-            filter,
-            max_blind_distance_m: f(max_blind_distance_m),
-            edge_constraint: o.fusion_edge_constraint,
+        SensorSpec {
             track_width_m: f(track_width_m),
-            wheel_variance_per_m: f(non_negative(
-                "observer.fusion_wheel_variance_per_m",
-                o.fusion_wheel_variance_per_m,
-            )?),
             wheel_variance_floor_m2: f(floor_m2),
-            gate_sigma: f(positive("observer.fusion_gate_sigma", o.fusion_gate_sigma)?),
             tag_spacing_m: f(spacing_m),
             read_radius_m: f(read_radius_m),
-            scale_prior: f(non_negative(
-                "observer.fusion_scale_prior",
-                o.fusion_scale_prior,
-            )?),
-        })
+        }
     }
 
-    /// The core's law choice; paper 002's only with output feedback.
+    /// The core's law spec; paper 002's only with output feedback. The
+    /// core checks its values.
     fn law_spec(&self) -> Result<LawSpec, ScenarioError> {
-        let c = &self.controller;
-        match (c.law, c.kind) {
-            (LawKind::Paper001, _) => Ok(LawSpec::Saturated),
+        match (self.controller.law, self.controller.kind) {
+            (LawSpec::Saturated, _) | (_, ControllerKind::OutputFeedback) => {
+                Ok(self.controller.law)
+            }
             (_, ControllerKind::StateFeedback) => Err(ScenarioError::invalid(
                 "controller.law",
                 "selects the output-feedback law: use it with kind = \"output_feedback\"",
             )),
-            (LawKind::Cascaded, ControllerKind::OutputFeedback) => Ok(LawSpec::Cascaded {
-                c1_per_s: f(positive("controller.c1", c.c1)?),
-                c2_per_s: f(positive("controller.c2", c.c2)?),
-            }),
-            (LawKind::HeadingErrorSine, ControllerKind::OutputFeedback) => {
-                if !(c.gamma > 0.0 && c.gamma < 1.0) {
-                    return Err(ScenarioError::invalid(
-                        "controller.gamma",
-                        format!("must be in (0, 1) (got {})", c.gamma),
-                    ));
-                }
-                Ok(LawSpec::HeadingErrorSine {
-                    a_s_per_m2: f(positive("controller.a", c.a)?),
-                    c2_per_s: f(positive("controller.c2", c.c2)?),
-                    gamma: f(c.gamma),
-                })
-            }
         }
     }
 
@@ -380,6 +321,7 @@ impl Scenario {
             max_fix_age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
             estimator: self.estimator_spec()?,
             law: self.law_spec()?,
+            sensors: self.sensor_spec(),
         };
         let tracker = tracker_spec.build().map_err(spec_refusal)?;
         let gains = TrackingGains::new(gains[0], gains[1], gains[2])

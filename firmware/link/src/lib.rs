@@ -55,8 +55,10 @@ use wmr_core::pilot::robot::RobotCounters;
 use wmr_core::pilot::spec::{PilotSpec, SpecError, TagGridSpec};
 use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 
-/// Bump when a message changes shape; both sides refuse a mismatch.
-pub const PROTOCOL_VERSION: u16 = 5;
+/// Bump when a message changes shape; both sides refuse a mismatch (6:
+/// the estimator's sensor facts left `EstimatorSpec::Fusion` for
+/// `TrackerSpec::sensors`).
+pub const PROTOCOL_VERSION: u16 = 6;
 
 /// Largest encoded frame, bytes, including COBS overhead and the `0x00`.
 pub const MAX_FRAME_BYTES: usize = 512;
@@ -490,6 +492,13 @@ mod tests {
                     max_fix_age_ticks: 2,
                     estimator: wmr_core::pilot::spec::EstimatorSpec::HeadingObserver,
                     law: wmr_core::pilot::spec::LawSpec::Saturated,
+                    sensors: wmr_core::pilot::spec::SensorSpec {
+                        track_width_m: 0.3,
+                        // Count quantum q = 2π·0.05 m / 2048: q²/12.
+                        wheel_variance_floor_m2: 1.96e-9,
+                        tag_spacing_m: 0.1,
+                        read_radius_m: 0.0,
+                    },
                 },
                 drive: DriveSpec {
                     wheel_radius_m: 0.05,

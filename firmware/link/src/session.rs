@@ -180,6 +180,13 @@ mod tests {
                     max_fix_age_ticks: 2,
                     estimator: wmr_core::pilot::spec::EstimatorSpec::HeadingObserver,
                     law: wmr_core::pilot::spec::LawSpec::Saturated,
+                    sensors: wmr_core::pilot::spec::SensorSpec {
+                        track_width_m: 0.3,
+                        // Count quantum q = 2π·0.05 m / 2048: q²/12.
+                        wheel_variance_floor_m2: 1.96e-9,
+                        tag_spacing_m: 0.1,
+                        read_radius_m: 0.0,
+                    },
                 },
                 drive: DriveSpec {
                     wheel_radius_m: 0.05,

@@ -159,6 +159,15 @@ pub const PILOT: PilotSpec = PilotSpec {
         max_fix_age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
         estimator: wmr_core::pilot::spec::EstimatorSpec::HeadingObserver,
         law: wmr_core::pilot::spec::LawSpec::Saturated,
+        sensors: wmr_core::pilot::spec::SensorSpec {
+            track_width_m: 0.2,
+            // Count quantum q = 2π·0.03 m / 2048: q²/12. No tag grid: the site's
+            // tags are a map, which the fusion estimator (refusing a zero
+            // spacing) cannot use.
+            wheel_variance_floor_m2: 7.06e-10,
+            tag_spacing_m: 0.0,
+            read_radius_m: 0.0,
+        },
     },
     drive: DriveSpec {
         wheel_radius_m: 0.03,
