@@ -32,7 +32,7 @@ pub const COUNTS_PER_REV: u32 = 2048;
 pub enum Estimator {
     /// Paper 001: heading observer (5) + output-feedback law (27)–(28),
     /// `L = 0.6`, fed the same encoder odometry and every tag read.
-    Paper001,
+    HeadingObserver,
     /// The fusion EKF + law (14) on its pose.
     FusionEkf,
 }
@@ -177,7 +177,7 @@ pub fn figure_eight_run(
     let mut last_step = Vec2::ZERO;
     let mut recorder = TrackingRecorder::new(match estimator {
         Estimator::FusionEkf => "fusion EKF + 001 law (14)",
-        Estimator::Paper001 => "001 observer (5) + law (27)–(28)",
+        Estimator::HeadingObserver => "001 observer (5) + law (27)–(28)",
     });
     let mut estimation = ErrorAccumulator::default();
     let mut heading_error_max: f64 = 0.0;
@@ -210,7 +210,7 @@ pub fn figure_eight_run(
                 }
                 (law.state_feedback(&sample, ekf.pose()).body, ekf.pose())
             }
-            Estimator::Paper001 => {
+            Estimator::HeadingObserver => {
                 let fix = TagFix {
                     position: tag(&robot),
                     age_ticks: 0,
@@ -236,7 +236,7 @@ pub fn figure_eight_run(
         let (v, w) = (f64::from(command.v_m_s), f64::from(command.omega_rad_s));
         let [scale_right, scale_left] = match estimator {
             Estimator::FusionEkf => ekf.wheel_scale_errors().map(|e| 1.0 + f64::from(e)),
-            Estimator::Paper001 => [1.0; 2],
+            Estimator::HeadingObserver => [1.0; 2],
         };
         let turn_right = (v + 0.5 * w * TRACK_WIDTH_M) * h / (WHEEL_RADIUS_M * scale_right);
         let turn_left = (v - 0.5 * w * TRACK_WIDTH_M) * h / (WHEEL_RADIUS_M * scale_left);

@@ -30,7 +30,7 @@ fn run(estimator: Estimator, wheels: WheelTruth, tuning: FusionTuning) -> Fusion
 #[test]
 fn fusion_beats_paper_001_on_the_papers_run() {
     let paper = run(
-        Estimator::Paper001,
+        Estimator::HeadingObserver,
         WheelTruth::IDEAL,
         FusionTuning::FIXED_WHEELS,
     );
@@ -55,7 +55,11 @@ fn learning_the_wheel_scales_removes_the_radius_error() {
         slip_std_per_sqrt_m: 0.0,
         ..WheelTruth::REALISTIC
     };
-    let paper = run(Estimator::Paper001, wheels, FusionTuning::FIXED_WHEELS);
+    let paper = run(
+        Estimator::HeadingObserver,
+        wheels,
+        FusionTuning::FIXED_WHEELS,
+    );
     let fixed = run(Estimator::FusionEkf, wheels, FusionTuning::FIXED_WHEELS);
     let learnt = run(Estimator::FusionEkf, wheels, FusionTuning::LEARN_WHEELS);
     // Measured: 001 0.113 / 0.083; fixed wheels 0.149 / 0.042; learnt
@@ -111,7 +115,11 @@ fn random_slip_with_the_cell_edge_constraint() {
         ),
     ];
     for (wheels, base, max_bound, mean_bound) in cases {
-        let paper = run(Estimator::Paper001, wheels, FusionTuning::FIXED_WHEELS);
+        let paper = run(
+            Estimator::HeadingObserver,
+            wheels,
+            FusionTuning::FIXED_WHEELS,
+        );
         let fusion = run(Estimator::FusionEkf, wheels, robust(base));
         assert!(
             fusion.tracking.max_m < max_bound && fusion.tracking.mean_m < mean_bound,

@@ -171,7 +171,7 @@ fn proposition_6_longitudinal_observer_and_controller_converge() {
 fn figure_eight_position_only_pairings() {
     println!("{}", comparison_markdown());
     let stats = |p| figure_eight_comparison(p).0;
-    let paper_001 = stats(Pairing::Paper001);
+    let paper_001 = stats(Pairing::HeadingObserverWithSaturatedLaw);
     // Same run as paper 001 §6.3.2's scenario: 0.0263 / 0.0037 m.
     assert!(
         paper_001.max_m < 0.03 && paper_001.mean_m < 0.005,
@@ -179,7 +179,7 @@ fn figure_eight_position_only_pairings() {
     );
     // Measured 0.0433 / 0.0067 m: the 4-state observer works with 001's
     // law but filters the tag quantization less well than observer (5).
-    let prop4 = stats(Pairing::PoseObserverWith001Law);
+    let prop4 = stats(Pairing::PoseObserverWithSaturatedLaw);
     assert!(prop4.max_m < 0.05 && prop4.mean_m < 0.008, "{prop4:?}");
     // Measured 0.416 / 0.104 m and 0.218 / 0.107 m: they track, coarsely;
     // the figure-eight's ω_r (≤ 0.03 rad/s) barely excites the y_e

@@ -3,10 +3,12 @@
 //! A scenario file names every quantity with its unit (`period_s`, `h1_m`);
 //! everything but `name`, `duration_s` and the reference has a default (the
 //! paper's section 6.3.2 values where the paper gives one). Unknown keys are
-//! errors, and every validation error names the offending field:
+//! errors, and every validation error names the offending field; values the
+//! core checks are refused in the core's words:
 //!
 //! ```text
-//! scenario field `observer.gain_per_m`: must be finite and > 0 (got -1)
+//! scenario field `observer.gain_per_m`: refused by the core: observer_gain_per_m (L) must be finite and > 0 1/m
+//! scenario field `plant.wheel_radius_m`: must be finite and > 0 (got 0)
 //! ```
 //!
 //! [`Scenario::validate`] turns a scenario into a [`Setup`]: the core's own

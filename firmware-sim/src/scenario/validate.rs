@@ -2,16 +2,19 @@
 //! [`Setup`], the core's own validated configurations plus the
 //! simulator's plant, floor and reader models.
 
-use wmr_core::control::saturated::TrackingGains;
+use wmr_core::control::saturated::{GainError, TrackingGains};
+use wmr_core::drive::DriveConfigError;
 use wmr_core::drive::momenta_observer::WheelInertia;
 use wmr_core::drive::speed_observer::WheelSpeedObserverConfig;
 use wmr_core::estimation::heading_observer::HeadingEstimate;
+use wmr_core::estimation::heading_observer::ObserverConfigError;
 use wmr_core::pilot::PilotConfig;
 use wmr_core::pilot::spec::{
     self as core_spec, EstimatorSpec, LawSpec, PilotSpec, SensorSpec, SpecError, TrackerSpec,
     TrajectorySpec,
 };
 use wmr_core::pilot::tracker::TrackerConfig;
+use wmr_core::pilot::tracker::TrackerConfigError;
 use wmr_core::reference::Trajectory;
 
 use crate::devices::{LinkFaults, ReaderConfig, ReaderMode};
@@ -153,12 +156,24 @@ fn spec_refusal(e: SpecError) -> ScenarioError {
         "drive" => "drive",
         "tag_grid" => "position",
         _ => match e {
-            SpecError::Gains(_) => "controller",
+            SpecError::Gains(GainError::K1) => "controller.k1",
+            SpecError::Gains(GainError::K2) => "controller.k2",
+            SpecError::Gains(GainError::K3) => "controller.k3",
+            SpecError::Observer(ObserverConfigError::Gain) => "observer.gain_per_m",
+            SpecError::Observer(ObserverConfigError::MinSpeed) => "observer.min_speed_m_s",
             SpecError::Observer(_) => "observer",
+            SpecError::Tracker(TrackerConfigError::FailsafeDecel) => "failsafe.decel_m_s2",
+            SpecError::Tracker(TrackerConfigError::FixTimeout) => "failsafe.fix_timeout_s",
+            SpecError::Tracker(TrackerConfigError::Period) => "period_s",
             SpecError::Tracker(_) => "failsafe",
             SpecError::Geometry(_) | SpecError::Pilot(_) => "plant",
             _ => "estimator",
         },
+    };
+    let field = match e {
+        SpecError::Drive(DriveConfigError::MaxWheelSpeed) => "drive.max_wheel_speed_rad_s",
+        SpecError::Drive(DriveConfigError::MaxWheelAccel) => "drive.max_wheel_accel_rad_s2",
+        _ => field,
     };
     let reason = match core::error::Error::source(&e) {
         Some(inner) => format!("refused by the core: {inner}"),
@@ -293,16 +308,12 @@ impl Scenario {
         let trajectory = trajectory_spec.build().map_err(|e| {
             ScenarioError::invalid("reference", format!("refused by the core: {e}"))
         })?;
+        // The gains, the observer and the failsafe deceleration are checked
+        // by the core (`spec_refusal` names their keys); the timeout is
+        // checked here, where it becomes a tick count.
         let c = &self.controller;
-        let gains = [
-            f(positive("controller.k1", c.k1)?),
-            f(positive("controller.k2", c.k2)?),
-            f(positive("controller.k3", c.k3)?),
-        ];
-        let gain_per_m = positive("observer.gain_per_m", self.observer.gain_per_m)?;
-        let min_speed = non_negative("observer.min_speed_m_s", self.observer.min_speed_m_s)?;
+        let gains = [f(c.k1), f(c.k2), f(c.k3)];
         let timeout_s = positive("failsafe.fix_timeout_s", self.failsafe.fix_timeout_s)?;
-        let decel = positive("failsafe.decel_m_s2", self.failsafe.decel_m_s2)?;
         let fix_timeout_ticks = (timeout_s / period_s - 1e-9).ceil().max(1.0);
         if fix_timeout_ticks >= f64::from(u32::MAX) {
             return Err(ScenarioError::invalid(
@@ -314,10 +325,10 @@ impl Scenario {
             period_s: f(period_s),
             trajectory: trajectory_spec,
             gains,
-            observer_gain_per_m: f(gain_per_m),
-            observer_min_speed_m_s: f(min_speed),
+            observer_gain_per_m: f(self.observer.gain_per_m),
+            observer_min_speed_m_s: f(self.observer.min_speed_m_s),
             fix_timeout_ticks: fix_timeout_ticks as u32,
-            failsafe_decel_m_s2: f(decel),
+            failsafe_decel_m_s2: f(self.failsafe.decel_m_s2),
             max_fix_age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
             estimator: self.estimator_spec()?,
             law: self.law_spec()?,
@@ -470,7 +481,7 @@ impl Scenario {
                 }
                 let d = self.drive.unwrap_or_default();
                 let feedforward = match d.feedforward_duty_per_rad_s {
-                    Some(v) => non_negative("drive.feedforward_duty_per_rad_s", v)?,
+                    Some(v) => v,
                     None => 1.0 / params.wheel_speed_at_full_duty_rad_s,
                 };
                 let pilot_spec = PilotSpec {
@@ -479,23 +490,12 @@ impl Scenario {
                         wheel_radius_m: f(params.wheel_radius_m),
                         track_width_m: f(params.track_width_m),
                         encoder_counts_per_rev,
-                        max_wheel_speed_rad_s: f(positive(
-                            "drive.max_wheel_speed_rad_s",
-                            d.max_wheel_speed_rad_s,
-                        )?),
-                        max_wheel_accel_rad_s2: f(positive(
-                            "drive.max_wheel_accel_rad_s2",
-                            d.max_wheel_accel_rad_s2,
-                        )?),
+                        // Checked by the core (`spec_refusal`).
+                        max_wheel_speed_rad_s: f(d.max_wheel_speed_rad_s),
+                        max_wheel_accel_rad_s2: f(d.max_wheel_accel_rad_s2),
                         feedforward_duty_per_rad_s: f(feedforward),
-                        kp_duty_per_rad_s: f(non_negative(
-                            "drive.kp_duty_per_rad_s",
-                            d.kp_duty_per_rad_s,
-                        )?),
-                        ki_duty_per_rad: f(non_negative(
-                            "drive.ki_duty_per_rad",
-                            d.ki_duty_per_rad,
-                        )?),
+                        kp_duty_per_rad_s: f(d.kp_duty_per_rad_s),
+                        ki_duty_per_rad: f(d.ki_duty_per_rad),
                     },
                     encoder_bits,
                     max_encoder_fault_ticks: PilotConfig::DEFAULT_MAX_ENCODER_FAULT_TICKS,

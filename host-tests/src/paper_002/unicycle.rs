@@ -294,9 +294,9 @@ pub fn fading_speed_inputs(t: f64) -> (f64, f64, f64) {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Pairing {
     /// Paper 001: heading observer (5) + law (27)–(28).
-    Paper001,
+    HeadingObserverWithSaturatedLaw,
     /// Proposition 4's observer `(ĉ, ŝ)` in place of 001's + law (27)–(28).
-    PoseObserverWith001Law,
+    PoseObserverWithSaturatedLaw,
     /// Proposition 4's observer, `θ̂ = atan2(ŝ, ĉ)`, errors (30) from it,
     /// cascaded controller (31).
     PoseObserverWithCascaded,
@@ -308,8 +308,8 @@ pub enum Pairing {
 impl Pairing {
     /// Every pairing that runs on position-only data.
     pub const ALL: [Self; 4] = [
-        Self::Paper001,
-        Self::PoseObserverWith001Law,
+        Self::HeadingObserverWithSaturatedLaw,
+        Self::PoseObserverWithSaturatedLaw,
         Self::PoseObserverWithCascaded,
         Self::PoseObserverWithProp7,
     ];
@@ -318,8 +318,8 @@ impl Pairing {
     #[must_use]
     pub fn label(self) -> &'static str {
         match self {
-            Self::Paper001 => "001 observer (5) + 001 law (27)–(28)",
-            Self::PoseObserverWith001Law => "002 Prop. 4 observer (37) + 001 law (27)–(28)",
+            Self::HeadingObserverWithSaturatedLaw => "001 observer (5) + 001 law (27)–(28)",
+            Self::PoseObserverWithSaturatedLaw => "002 Prop. 4 observer (37) + 001 law (27)–(28)",
             Self::PoseObserverWithCascaded => "002 Prop. 4 observer (37) + cascaded law (31)",
             Self::PoseObserverWithProp7 => {
                 "002 Prop. 4 observer (37) → (x_e, y_e) + Prop. 7 (64)–(65)"
@@ -474,7 +474,7 @@ pub fn figure_eight_comparison(pairing: Pairing) -> (ErrorStats, Series) {
         recorder.record(k, t, &robot, sample.position);
         let position = tag(robot);
         let command = match pairing {
-            Pairing::Paper001 => {
+            Pairing::HeadingObserverWithSaturatedLaw => {
                 let odometry = OdometryStep {
                     ds_m: applied.v_m_s * hf,
                     dtheta_rad: applied.omega_rad_s * hf,
@@ -507,7 +507,7 @@ pub fn figure_eight_comparison(pairing: Pairing) -> (ErrorStats, Series) {
                 let error =
                     RobotFrameError::with_heading(reference.pose(), position, c, s, theta_hat);
                 match pairing {
-                    Pairing::PoseObserverWith001Law => {
+                    Pairing::PoseObserverWithSaturatedLaw => {
                         law.output_feedback(&sample, position, e.heading()).body
                     }
                     Pairing::PoseObserverWithCascaded => {
