@@ -201,7 +201,6 @@ impl Scenario {
                     "state feedback measures the heading: no estimator runs",
                 ));
             }
-            (EstimatorSpec::PoseObserver { .. }, ControllerKind::OutputFeedback) => {}
             (EstimatorSpec::Fusion(_), ControllerKind::OutputFeedback) => {
                 if matches!(self.position, PositionSpec::Exact) {
                     return Err(ScenarioError::invalid(
@@ -216,6 +215,8 @@ impl Scenario {
                     ));
                 }
             }
+            // Any other estimator needs nothing of the simulator.
+            (_, ControllerKind::OutputFeedback) => {}
         }
         Ok(self.estimator)
     }
