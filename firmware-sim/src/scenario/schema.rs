@@ -185,14 +185,27 @@ impl Serialize for ControllerSpec {
 
 impl<'de> Deserialize<'de> for ControllerSpec {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        use serde::de::Error as _;
-        let table = toml::Table::deserialize(deserializer)?;
-        if let Some(moved) = super::legacy::controller_key(&table) {
-            return Err(D::Error::custom(moved));
-        }
-        ControllerSpec::deserialize(toml::Value::Table(table))
-            .map_err(|e| D::Error::custom(e.to_string().trim_end()))
+        checked_table(deserializer, super::legacy::controller_key, |table| {
+            ControllerSpec::deserialize(table)
+        })
     }
+}
+
+/// A table through its derived deserializer (inherent, from `remote =
+/// "Self"`), unless `refuse` finds a reason in the raw table first.
+fn checked_table<'de, D: serde::Deserializer<'de>, T>(
+    deserializer: D,
+    refuse: impl Fn(&toml::Table) -> Option<String>,
+    derived: impl Fn(toml::Value) -> Result<T, toml::de::Error>,
+) -> Result<T, D::Error> {
+    use serde::de::Error as _;
+    let table = toml::Table::deserialize(deserializer)?;
+    if let Some(reason) = refuse(&table) {
+        return Err(D::Error::custom(reason));
+    }
+    // The derived deserializer's error text ends in a newline the outer
+    // error adds again.
+    derived(toml::Value::Table(table)).map_err(|e| D::Error::custom(e.to_string().trim_end()))
 }
 
 /// Paper 001's heading observer (5).
@@ -228,13 +241,9 @@ impl Serialize for ObserverSpec {
 
 impl<'de> Deserialize<'de> for ObserverSpec {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        use serde::de::Error as _;
-        let table = toml::Table::deserialize(deserializer)?;
-        if let Some(moved) = super::legacy::observer_key(&table) {
-            return Err(D::Error::custom(moved));
-        }
-        ObserverSpec::deserialize(toml::Value::Table(table))
-            .map_err(|e| D::Error::custom(e.to_string().trim_end()))
+        checked_table(deserializer, super::legacy::observer_key, |table| {
+            ObserverSpec::deserialize(table)
+        })
     }
 }
 
@@ -299,20 +308,18 @@ impl Serialize for PlantSpec {
 
 impl<'de> Deserialize<'de> for PlantSpec {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        use serde::de::Error as _;
-        let table = toml::Table::deserialize(deserializer)?;
-        if table.get("kind").and_then(toml::Value::as_str) == Some("unicycle")
-            && table.contains_key("dynamics")
-        {
-            return Err(D::Error::custom(
+        let unicycle_dynamics = |table: &toml::Table| {
+            (table.get("kind").and_then(toml::Value::as_str) == Some("unicycle")
+                && table.contains_key("dynamics"))
+            .then(|| {
                 "`plant.dynamics` is only used with kind = \"diff_drive\" (the unicycle's \
-                 commands are its velocities); remove the [plant.dynamics] table",
-            ));
-        }
-        // The derived deserializer (inherent, from `remote = "Self"`); its
-        // error's text ends in a newline the outer error adds again.
-        PlantSpec::deserialize(toml::Value::Table(table))
-            .map_err(|e| D::Error::custom(e.to_string().trim_end()))
+                 commands are its velocities); remove the [plant.dynamics] table"
+                    .to_string()
+            })
+        };
+        checked_table(deserializer, unicycle_dynamics, |table| {
+            PlantSpec::deserialize(table)
+        })
     }
 }
 
