@@ -269,7 +269,9 @@ fn ln_rows(stride: u32) {
     }
 }
 
-fn atan_rows(stride: u32) {
+/// `negative`: the mirror inputs too (the exhaustive run leaves them out:
+/// `atanf` works on `|x|` and sets the sign last).
+fn atan_rows(stride: u32, negative: bool) {
     let ranges: [(&str, f32, f32); 3] = [
         ("[0, 7/16)", 0.0, above_magnitude(0.4375, -1)),
         ("[7/16, 39/16)", 0.4375, above_magnitude(2.4375, -1)),
@@ -277,7 +279,12 @@ fn atan_rows(stride: u32) {
     ];
     for (range, from, to) in ranges {
         let worst = sweep(from, to, stride, |x| {
-            ulp_error(atan(x), f64::from(x).atan()).max(ulp_error(atan(-x), f64::from(-x).atan()))
+            let e = ulp_error(atan(x), f64::from(x).atan());
+            if negative {
+                e.max(ulp_error(atan(-x), f64::from(-x).atan()))
+            } else {
+                e
+            }
         });
         check("atan", range, worst, ATAN_BOUND);
     }
@@ -390,7 +397,7 @@ fn exp_ln_atan_within_bound_strided() {
     header();
     exp_rows(251);
     ln_rows(1_021);
-    atan_rows(1_021);
+    atan_rows(1_021, true);
     atan2_row(1 << 20);
 }
 
@@ -400,7 +407,7 @@ fn exp_ln_atan_within_bound_exhaustive() {
     header();
     exp_rows(1);
     ln_rows(1);
-    atan_rows(1);
+    atan_rows(1, false);
     atan2_row(1 << 26);
 }
 
