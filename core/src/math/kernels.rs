@@ -20,7 +20,7 @@
 //!   an `f32` in this range can give.
 //! * `|x| > 128`, up to `f32::MAX`: Payne–Hanek in integers: `x·2/π mod 4`
 //!   as a 2.126-bit fixed-point number from the 24-bit significand times a
-//!   128-bit window of the bits of 2/π ([`TWO_OVER_PI`]), exact to
+//!   128-bit window of the bits of 2/π (the table `TWO_OVER_PI`), exact to
 //!   `2⁻¹⁰²` of a quadrant; the remainder is turned back into `hi + lo` and
 //!   multiplied by π/2 in pieces whose products are exact. Slower (`u128`
 //!   arithmetic) but as accurate as the fast path: no input range is
