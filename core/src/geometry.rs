@@ -107,10 +107,11 @@ impl Pose {
     pub fn advance_arc(self, ds_m: f32, dtheta_rad: f32) -> Self {
         let chord = ds_m * math::sinc(0.5 * dtheta_rad);
         let mid = self.heading_rad + 0.5 * dtheta_rad;
+        let (sin_mid, cos_mid) = math::sincos(mid);
         Self {
             position: Vec2::new(
-                self.position.x + chord * math::cos(mid),
-                self.position.y + chord * math::sin(mid),
+                self.position.x + chord * cos_mid,
+                self.position.y + chord * sin_mid,
             ),
             heading_rad: self.heading_rad + dtheta_rad,
         }

@@ -156,7 +156,7 @@ impl FigureEight {
         // Reduce the phase to (−π, π] before doubling it, so that sin/cos
         // see small arguments however long the run.
         let s = math::wrap_angle(h2 * t_s + self.phase_rad);
-        let (s1, c1) = (math::sin(s), math::cos(s));
+        let (s1, c1) = math::sincos(s);
         let (s2, c2) = (2.0 * s1 * c1, c1 * c1 - s1 * s1);
         ReferenceSample {
             position: Vec2::new(h1 * s2, h1 * s1),
@@ -218,7 +218,7 @@ impl Circle {
 
     fn sample(&self, t_s: f32) -> ReferenceSample {
         let a = math::wrap_angle(self.rate_rad_s * t_s + self.phase_rad);
-        let (s, c) = (math::sin(a), math::cos(a));
+        let (s, c) = math::sincos(a);
         let (r, w) = (self.radius_m, self.rate_rad_s);
         ReferenceSample {
             position: Vec2::new(self.centre.x + r * c, self.centre.y + r * s),

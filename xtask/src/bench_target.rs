@@ -16,7 +16,13 @@ use crate::target::{
 };
 
 /// The math backends: name and the firmware features that select it.
-pub const BACKENDS: [(&str, &[&str]); 2] = [("libm", &[]), ("micromath", &["micromath"])];
+/// `f32` is the default (the core's `f32`-native functions), `libm` every
+/// function from the `libm` crate (its `sinf`/`cosf` in software `f64`).
+pub const BACKENDS: [(&str, &[&str]); 3] = [
+    ("f32", &[]),
+    ("libm", &["libm"]),
+    ("micromath", &["micromath"]),
+];
 
 /// The tracked page holding the published tables (relative to the
 /// workspace root), written only with `--write`.
@@ -58,9 +64,10 @@ const STAGES: [(&str, &str); 6] = [
 ];
 
 /// Math backend calls, per call.
-const MATH: [(&str, &str); 6] = [
+const MATH: [(&str, &str); 7] = [
     ("math_sin", "`sin`"),
     ("math_cos", "`cos`"),
+    ("math_sincos", "`sincos` (and one `f32` add of the pair)"),
     ("math_atan", "`atan`"),
     ("math_atan2", "`atan2`"),
     ("math_exp", "`exp`"),

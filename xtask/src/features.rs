@@ -1,11 +1,12 @@
 //! The feature matrix: the feature combinations `cargo xtask ci` lints
 //! (`cargo xtask features` runs only them), in one place.
 //!
-//! A user picks, for the core: a math backend (`libm`, `micromath` or both,
-//! where `micromath` wins), an estimator (none: paper 001's observer and
+//! A user picks, for the core: a math backend (none: the `f32`-native
+//! default; `libm`, `micromath` or both, where `micromath` wins), an
+//! estimator (none: paper 001's observer and
 //! paper 002's; `fusion-ekf`; `fusion-ukf` or `fusion-particle-filter`,
 //! each of which implies `fusion-ekf`; or all), `wheel-speed-observer`,
-//! `defmt` and `serde`. The power set is 3 × 5 × 2³ = 120 builds per
+//! `defmt` and `serde`. The power set is 4 × 5 × 2³ = 160 builds per
 //! target, about 2 s each once the dependencies are built. The lints a
 //! `cfg` hides (unused imports, dead code, a missing derive) almost always
 //! come from one feature being on or off, so a covering set is enough:
@@ -16,10 +17,10 @@
 //! never compiles). The last row turns everything on. `std` is left out:
 //! it is for host tools, which the host clippy of the workspace covers.
 //!
-//! The firmware always takes the core with `defmt` and `libm` (and `serde`
-//! through the link), so its choices are a board, `micromath` and the
-//! estimator and `wheel-speed-observer` features; each row runs with each
-//! board.
+//! The firmware always takes the core with `defmt` (and `serde` through
+//! the link), so its choices are a board, the math backend (`micromath`,
+//! or `libm` for comparison) and the estimator and `wheel-speed-observer`
+//! features; each row runs with each board.
 //!
 //! The tests below check these properties against `core/Cargo.toml` and
 //! `firmware/Cargo.toml`, so a new feature that the matrix misses fails
@@ -28,8 +29,9 @@
 /// The core's rows, each its whole feature set (built with
 /// `--no-default-features`), linted on each of [`crate::TARGETS`].
 pub const CORE: [&[&str]; 6] = [
-    // The default build (`libm`), no estimator feature: paper 001 and 002 only.
-    &["libm"],
+    // The default build (the f32 backend), no estimator feature: paper
+    // 001 and 002 only.
+    &[],
     // The other backend alone, no estimator feature.
     &["micromath"],
     // The fusion EKF alone, with serde.
@@ -59,15 +61,15 @@ pub const CORE: [&[&str]; 6] = [
 /// The rows of `wmr-papers` (the papers' algorithms no robot runs; built
 /// with `--no-default-features`), linted on each of [`crate::TARGETS`]:
 /// each math backend of the core it calls, `defmt` and `serde` on and off.
-pub const PAPERS: [&[&str]; 2] = [&["libm"], &["micromath", "defmt", "serde"]];
+pub const PAPERS: [&[&str]; 3] = [&[], &["libm"], &["micromath", "defmt", "serde"]];
 
 /// The firmware's rows (built with `--no-default-features` and the board's
 /// feature added), linted with each board of [`crate::BOARDS`].
 pub const FIRMWARE: [&[&str]; 4] = [
-    // The shipped configuration: libm, paper 001 and 002 only.
+    // The shipped configuration: the f32 backend, paper 001 and 002 only.
     &[],
     &["micromath", "fusion-ekf"],
-    &["fusion-ukf", "wheel-speed-observer"],
+    &["libm", "fusion-ukf", "wheel-speed-observer"],
     &["micromath", "fusion-particle-filter"],
 ];
 
@@ -220,12 +222,11 @@ mod tests {
     fn core_rows_cover_every_choice() {
         check("core/Cargo.toml", &CORE, &["default", "std"]);
         let has = |r: &&[&str], f: &str| r.contains(&f);
-        // Each math backend alone and both together.
+        // The default backend, each other one alone and both together.
+        assert!(CORE.iter().any(|r| !has(r, "libm") && !has(r, "micromath")));
         assert!(CORE.iter().any(|r| has(r, "libm") && !has(r, "micromath")));
         assert!(CORE.iter().any(|r| !has(r, "libm") && has(r, "micromath")));
         assert!(CORE.iter().any(|r| has(r, "libm") && has(r, "micromath")));
-        // Every row has a backend (without one the core refuses to build).
-        assert!(CORE.iter().all(|r| has(r, "libm") || has(r, "micromath")));
     }
 
     #[test]

@@ -115,8 +115,6 @@ fn ci() -> Result {
                 "wmr-link",
                 "--target",
                 FIRMWARE_TARGET,
-                "--features",
-                "wmr-core/libm",
                 "--",
                 "-D",
                 "warnings",
@@ -142,7 +140,7 @@ fn ci() -> Result {
     })?;
     // The workspace test run unifies features (the simulator and the tests
     // turn every core feature on), so the core's default-feature paths
-    // (`libm` only, no estimator feature) are tested here, doc tests
+    // (the f32 backend, no estimator feature) are tested here, doc tests
     // included.
     step("tests (core, default features alone)", || {
         cargo(&["test", "-p", "wmr-core"], &[])

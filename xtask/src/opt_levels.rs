@@ -51,7 +51,8 @@ pub fn opt_levels() -> crate::Result {
     for (backend, _) in BACKENDS {
         let _ = write!(md, " `Robot::tick`, {backend} | `Pilot::step`, {backend} |");
     }
-    md.push_str(" tick stack, libm |\n| --- | ---: | ---: |");
+    let _ = write!(md, " tick stack, {} |", BACKENDS[0].0);
+    md.push_str("\n| --- | ---: | ---: |");
     for _ in BACKENDS {
         md.push_str(" ---: | ---: |");
     }

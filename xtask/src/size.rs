@@ -1,5 +1,9 @@
 //! `cargo xtask size`: flash and static RAM of the release firmware, from
-//! the ELF's section headers, and its biggest symbols.
+//! the ELF's section headers, and its biggest symbols; and the check that
+//! it links no software double-precision routine (the core computes in
+//! `f32` on the Cortex-M4F's single-precision FPU: an `f64` operation
+//! anywhere in the firmware costs hundreds of instructions, see
+//! [`soft_f64_routine`]).
 
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
@@ -35,6 +39,57 @@ pub struct Sizes {
     pub other: Vec<(String, u64)>,
     /// The biggest symbols: size, section, demangled name.
     pub symbols: Vec<(u64, String, String)>,
+    /// Every software double-precision routine in the symbol table (name
+    /// as [`soft_f64_routine`] matched it), sorted; expected: none.
+    pub soft_f64: Vec<String>,
+}
+
+/// Software double-precision routines of compiler-builtins / compiler-rt
+/// that the ARM EABI prefix `__aeabi_d` does not catch.
+const SOFT_F64: [&str; 31] = [
+    "__adddf3",
+    "__subdf3",
+    "__muldf3",
+    "__divdf3",
+    "__negdf2",
+    "__powidf2",
+    "__eqdf2",
+    "__nedf2",
+    "__ltdf2",
+    "__ledf2",
+    "__gtdf2",
+    "__gedf2",
+    "__unorddf2",
+    "__cmpdf2",
+    "__extendsfdf2",
+    "__extendhfdf2",
+    "__truncdfsf2",
+    "__truncdfhf2",
+    "__fixdfsi",
+    "__fixdfdi",
+    "__fixdfti",
+    "__fixunsdfsi",
+    "__fixunsdfdi",
+    "__fixunsdfti",
+    "__floatsidf",
+    "__floatdidf",
+    "__floattidf",
+    "__floatunsidf",
+    "__floatundidf",
+    "__floatuntidf",
+    "__aeabi_f2d",
+];
+
+/// Whether a (demangled) symbol is a software double-precision routine:
+/// its last path segment is one of [`SOFT_F64`] or an ARM EABI `f64`
+/// helper (`__aeabi_d*`: `dadd`, `dmul`, `dcmpeq`, `d2f`, …, and the
+/// integer-to-`f64` conversions `__aeabi_i2d`, `__aeabi_ui2d`,
+/// `__aeabi_l2d`, `__aeabi_ul2d`). Returns that segment.
+pub fn soft_f64_routine(symbol: &str) -> Option<&str> {
+    let base = symbol.rsplit("::").next().unwrap_or(symbol);
+    let eabi_int_to_f64 = ["__aeabi_i2d", "__aeabi_ui2d", "__aeabi_l2d", "__aeabi_ul2d"];
+    (base.starts_with("__aeabi_d") || eabi_int_to_f64.contains(&base) || SOFT_F64.contains(&base))
+        .then_some(base)
 }
 
 /// Reads the sizes from an ELF's section headers and symbol table.
@@ -58,6 +113,14 @@ pub fn analyse(elf: &Path) -> Result<Sizes, String> {
         .filter_map(|s| Some((s.name().ok()?.to_string(), s.size())))
         .filter(|(name, size)| {
             *size > 0 && !FLASH.contains(&name.as_str()) && !RAM.contains(&name.as_str())
+        })
+        .collect();
+
+    let soft_f64: BTreeSet<String> = file
+        .symbols()
+        .filter_map(|s| {
+            let name = format!("{:#}", rustc_demangle::demangle(s.name().ok()?));
+            soft_f64_routine(&name).map(str::to_string)
         })
         .collect();
 
@@ -92,6 +155,7 @@ pub fn analyse(elf: &Path) -> Result<Sizes, String> {
         ram,
         other,
         symbols,
+        soft_f64: soft_f64.into_iter().collect(),
     })
 }
 
@@ -123,7 +187,8 @@ pub fn build_firmware(
 }
 
 /// The task: every board that builds is reported; the default board
-/// (`board-qemu`) must build.
+/// (`board-qemu`) must build, and no ELF that built may contain a software
+/// double-precision routine.
 pub fn size() -> crate::Result {
     let mut results = Vec::new();
     for (board, default) in BOARDS {
@@ -141,7 +206,30 @@ pub fn size() -> crate::Result {
     print!("\n{md}");
     let path = write_report(REPORT, &md)?;
     eprintln!("\nwritten to {}", path.display());
-    Ok(())
+    soft_f64_check(&results)
+}
+
+/// Err naming every board whose ELF links a software `f64` routine, and
+/// the routines.
+pub fn soft_f64_check(results: &[(&str, Result<Sizes, String>)]) -> crate::Result {
+    let offenders: Vec<String> = results
+        .iter()
+        .filter_map(|(board, r)| {
+            let s = r.as_ref().ok()?;
+            (!s.soft_f64.is_empty()).then(|| format!("{board}: {}", s.soft_f64.join(", ")))
+        })
+        .collect();
+    if offenders.is_empty() {
+        return Ok(());
+    }
+    Err(format!(
+        "the release firmware links software double-precision routines ({}). The \
+         Cortex-M4F has a single-precision FPU only: find the `f64` operation that \
+         pulls them in (`llvm-objdump -d` on the ELF in target/xtask/elf/, look for \
+         the callers of these symbols) and make it `f32`; the core's default math \
+         backend computes in `f32` only (core/src/math/).",
+        offenders.join("; ")
+    ))
 }
 
 /// The report's markdown.
@@ -196,6 +284,24 @@ pub fn markdown(results: &[(&str, Result<Sizes, String>)]) -> String {
     }
     for (board, result) in results {
         let Ok(s) = result else { continue };
+        if s.soft_f64.is_empty() {
+            let _ = writeln!(
+                md,
+                "\n`{board}` links no software double-precision routine (`__aeabi_d*`, \
+                 `__adddf3`, `__muldf3`, `__extendsfdf2`, …)."
+            );
+        } else {
+            let _ = writeln!(
+                md,
+                "\n**`{board}` links software double-precision routines** (the check \
+                 fails): {}.",
+                s.soft_f64
+                    .iter()
+                    .map(|n| format!("`{n}`"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
         for (name, size) in &s.other {
             let _ = writeln!(
                 md,
@@ -218,4 +324,59 @@ pub fn markdown(results: &[(&str, Result<Sizes, String>)]) -> String {
         }
     }
     md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recognises_software_f64_routines() {
+        for name in [
+            "__aeabi_dadd",
+            "__aeabi_dcmpun",
+            "__aeabi_d2f",
+            "__aeabi_f2d",
+            "__aeabi_ui2d",
+            "compiler_builtins::float::add::__adddf3",
+            "compiler_builtins::float::mul::__muldf3",
+            "compiler_builtins::float::extend::__extendsfdf2",
+            "__truncdfsf2",
+        ] {
+            assert!(soft_f64_routine(name).is_some(), "{name}");
+        }
+        for name in [
+            "__aeabi_fadd",
+            "__aeabi_f2iz",
+            "__addsf3",
+            "__aeabi_uldivmod",
+            "compiler_builtins::int::mul::__multi3",
+            "libm::math::sqrtf::sqrtf",
+            "wmr_core::math::kernels::sincos",
+            "_defmt_write",
+        ] {
+            assert!(soft_f64_routine(name).is_none(), "{name}");
+        }
+    }
+
+    #[test]
+    fn the_check_names_the_board_and_the_routines() {
+        let sizes = |soft_f64: &[&str]| Sizes {
+            sections: Vec::new(),
+            flash: 0,
+            ram: 0,
+            other: Vec::new(),
+            symbols: Vec::new(),
+            soft_f64: soft_f64.iter().map(|s| (*s).to_string()).collect(),
+        };
+        assert!(soft_f64_check(&[("board-qemu", Ok(sizes(&[])))]).is_ok());
+        let e = soft_f64_check(&[
+            ("board-qemu", Ok(sizes(&[]))),
+            ("board-blackpill", Ok(sizes(&["__adddf3", "__aeabi_dmul"]))),
+            ("board-x", Err("does not build".into())),
+        ])
+        .unwrap_err();
+        assert!(e.contains("board-blackpill: __adddf3, __aeabi_dmul"), "{e}");
+        assert!(!e.contains("board-qemu") && !e.contains("board-x"), "{e}");
+    }
 }

@@ -106,7 +106,7 @@ impl RobotFrameError {
     /// The error (30) of `robot` against `reference`.
     #[must_use]
     pub fn new(reference: Pose, robot: Pose) -> Self {
-        let (s, c) = (math::sin(robot.heading_rad), math::cos(robot.heading_rad));
+        let (s, c) = math::sincos(robot.heading_rad);
         Self::with_heading(reference, robot.position, c, s, robot.heading_rad)
     }
 

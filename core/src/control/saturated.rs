@@ -222,9 +222,10 @@ impl TrackingController {
 
     /// State feedback (14): the true pose is known.
     pub fn state_feedback(&mut self, reference: &ReferenceSample, pose: Pose) -> TrackingCommand {
+        let (sin_theta, cos_theta) = math::sincos(pose.heading_rad);
         let heading = HeadingInput {
-            cos_theta: math::cos(pose.heading_rad),
-            sin_theta: math::sin(pose.heading_rad),
+            cos_theta,
+            sin_theta,
             heading_rad: pose.heading_rad,
         };
         self.law(reference, pose.position, heading)
@@ -287,8 +288,9 @@ impl TrackingController {
         let half = 0.5 * e;
         let sc = math::sinc(half);
         let mid = desired_heading_rad + half;
-        let g1 = -math::sin(mid) * sc;
-        let g2 = math::cos(mid) * sc;
+        let (sin_mid, cos_mid) = math::sincos(mid);
+        let g1 = -sin_mid * sc;
+        let g2 = cos_mid * sc;
         let omega = desired_heading_rate_rad_s - k3 * e - v * error.x * g1 - v * error.y * g2;
 
         TrackingCommand {

@@ -167,8 +167,9 @@ impl PoseEstimate {
     pub fn lyapunov(&self, config: &PoseObserverConfig, position: Vec2, heading_rad: f32) -> f32 {
         let ex = position.x - self.position.x;
         let ey = position.y - self.position.y;
-        let es = math::sin(heading_rad) - self.sin_theta;
-        let ec = math::cos(heading_rad) - self.cos_theta;
+        let (sin_theta, cos_theta) = math::sincos(heading_rad);
+        let es = sin_theta - self.sin_theta;
+        let ec = cos_theta - self.cos_theta;
         0.5 * (config.a4_per_m2 * ex * ex + config.a3_per_m2 * ey * ey + es * es + ec * ec)
     }
 }

@@ -499,8 +499,9 @@ impl Noise {
         let angle = math::TAU * self.uniform();
         // max(0): an approximate ln(1) may come out a hair above 0.
         let radius = math::sqrt((-2.0 * math::ln(u1)).max(0.0));
-        self.spare = Some(radius * math::sin(angle));
-        radius * math::cos(angle)
+        let (sin, cos) = math::sincos(angle);
+        self.spare = Some(radius * sin);
+        radius * cos
     }
 
     /// `x + σ ∘ ξ`, `ξ ~ N(0, I)`, angle components wrapped; a component
@@ -1000,8 +1001,9 @@ where
                 .zip(sines.iter_mut().zip(cosines.iter_mut()));
             for ((((&value, &reference), &angle), sum), (sin_sum, cos_sum)) in components {
                 if angle {
-                    *sin_sum += w * math::sin(value);
-                    *cos_sum += w * math::cos(value);
+                    let (sin, cos) = math::sincos(value);
+                    *sin_sum += w * sin;
+                    *cos_sum += w * cos;
                 } else {
                     *sum += w * (value - reference);
                 }

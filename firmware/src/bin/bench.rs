@@ -52,7 +52,7 @@
 //!
 //! # Output (semihosting, one record a line)
 //! ```text
-//! wmr-bench backend=<libm|micromath> samples=<n>
+//! wmr-bench backend=<f32|libm|micromath> samples=<n>
 //! calibration counts_per_instruction=<f> loop_counts_per_iteration=<f> nop_counts_per_instruction=<f> overhead_instructions=<f>
 //! bench <name> mean=<f> median=<i> min=<i> max=<i> n=<i>
 //! stack <filter step> bytes=<i>
@@ -103,8 +103,10 @@ mod on_target {
     /// Math backend this binary was built with.
     const BACKEND: &str = if cfg!(feature = "micromath") {
         "micromath"
-    } else {
+    } else if cfg!(feature = "libm") {
         "libm"
+    } else {
+        "f32"
     };
 
     /// Core clock of QEMU's `netduinoplus2`, Hz.
@@ -477,7 +479,7 @@ mod on_target {
         fn spread(k: usize, a: f32, b: f32) -> f32 {
             a + (b - a) * k as f32 / (SAMPLES - 1) as f32
         }
-        let cases: [(&str, MathFn, Arguments); 6] = [
+        let cases: [(&str, MathFn, Arguments); 7] = [
             (
                 "math_sin",
                 |x| math::sin(x[0]),
@@ -486,6 +488,14 @@ mod on_target {
             (
                 "math_cos",
                 |x| math::cos(x[0]),
+                |k| [spread(k, -3.2, 3.2), 0.0],
+            ),
+            (
+                "math_sincos",
+                |x| {
+                    let (s, c) = math::sincos(x[0]);
+                    s + c
+                },
                 |k| [spread(k, -3.2, 3.2), 0.0],
             ),
             (

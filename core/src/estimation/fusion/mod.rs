@@ -322,10 +322,8 @@ impl FusionEstimator {
                     filter.correct(&measurement);
                 }
             } else {
-                let last_step = Vec2::new(
-                    odometry.ds_m * math::cos(pose.heading_rad),
-                    odometry.ds_m * math::sin(pose.heading_rad),
-                );
+                let (sin_theta, cos_theta) = math::sincos(pose.heading_rad);
+                let last_step = Vec2::new(odometry.ds_m * cos_theta, odometry.ds_m * sin_theta);
                 for measurement in self.cells.measurements(tag, last_step, pose.position) {
                     filter.correct(&measurement);
                 }
@@ -450,10 +448,10 @@ impl PoseEstimator for FusionEstimator {
     /// The filter's heading as `(cos θ̂, sin θ̂)`; `(0, 0)` before the first fix.
     fn heading(&self) -> HeadingEstimate {
         self.pose().map_or(HeadingEstimate::default(), |pose| {
-            let theta = pose.heading_rad;
+            let (sin_theta, cos_theta) = math::sincos(pose.heading_rad);
             HeadingEstimate {
-                cos_theta: math::cos(theta),
-                sin_theta: math::sin(theta),
+                cos_theta,
+                sin_theta,
             }
         })
     }

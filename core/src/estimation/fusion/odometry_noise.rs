@@ -50,8 +50,9 @@ pub(crate) fn drive_wheels(
     let mid = state.z + 0.5 * dth;
     let chord = ds * math::sinc(0.5 * dth);
     let mut next = *state;
-    next.x += chord * math::cos(mid);
-    next.y += chord * math::sin(mid);
+    let (sin_mid, cos_mid) = math::sincos(mid);
+    next.x += chord * cos_mid;
+    next.y += chord * sin_mid;
     next.z = math::wrap_angle(state.z + dth);
     next
 }
@@ -99,7 +100,7 @@ pub(crate) fn linearise_odometry(
     let (right, left) = (nominal_r * (1.0 + eps_r), nominal_l * (1.0 + eps_l));
     let (ds, dth) = (0.5 * (right + left), (right - left) / b);
     let mid = theta + 0.5 * dth;
-    let (sin_m, cos_m) = (math::sin(mid), math::cos(mid));
+    let (sin_m, cos_m) = math::sincos(mid);
     let chord = ds * math::sinc(0.5 * dth);
     let mut next = *state;
     next.x += chord * cos_m;

@@ -123,7 +123,7 @@ impl TagCellTracker {
         let back = core::f32::consts::FRAC_PI_4 * radius_m;
         let r2 = radius_m * radius_m;
         let (along, across) = (ENTRY_ALONG_VARIANCE * r2, r2 / 3.0);
-        let (c, s) = (math::cos(heading), math::sin(heading));
+        let (s, c) = math::sincos(heading);
         Some(PositionMeasurement::Ellipse {
             position: Vec2::new(tag.x - back * c, tag.y - back * s),
             // R(θ) diag(along, across) R(θ)ᵀ.
