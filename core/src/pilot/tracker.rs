@@ -532,7 +532,6 @@ mod tests {
     use crate::control::heading_error_sine::HeadingErrorSineConfig;
     use crate::estimation::pose_observer::PoseObserverConfig;
     use crate::geometry::Pose;
-    use crate::math;
     use crate::reference::{FigureEight, StraightLine};
 
     fn tracker(timeout: u32) -> OutputFeedbackTracker {
@@ -772,8 +771,10 @@ mod tests {
             robot = robot.advance_arc(c.v_m_s * h, c.omega_rad_s * h);
             if k >= 4000 {
                 let r = out.reference.position;
-                worst_late =
-                    worst_late.max(math::hypot(robot.position.x - r.x, robot.position.y - r.y));
+                worst_late = worst_late.max(crate::math::hypot(
+                    robot.position.x - r.x,
+                    robot.position.y - r.y,
+                ));
             }
         }
         // Measured 0.0037 m.
