@@ -124,6 +124,21 @@ pub fn figure_eight_run(
     wheels: WheelTruth,
     tuning: FusionTuning,
 ) -> FusionRun {
+    figure_eight_run_from(estimator, wheels, tuning, 0.0)
+}
+
+/// [`figure_eight_run`] from a start moved `start_offset_m` along x (the
+/// ensembles of [`crate::ENSEMBLE_OFFSETS_M`]).
+///
+/// # Panics
+/// Never (constant, valid parameters).
+#[must_use]
+pub fn figure_eight_run_from(
+    estimator: Estimator,
+    wheels: WheelTruth,
+    tuning: FusionTuning,
+    start_offset_m: f64,
+) -> FusionRun {
     let h = 0.01_f64;
     let hf = h as f32;
     let spacing = TAG_SPACING_M;
@@ -141,6 +156,7 @@ pub fn figure_eight_run(
     .expect("valid filter");
     let tag = nearest_tag;
     let mut robot = PAPER_001_START;
+    robot.x += start_offset_m;
     let first = tag(&robot);
     let cell = (spacing * spacing / 12.0) as f32;
     let mut ekf = PoseEkf::new(

@@ -89,12 +89,16 @@ fn random_slip_with_the_cell_edge_constraint() {
         edges: true,
         ..base
     };
-    // (wheels, tuning base, fusion max / mean bounds); measured fusion
-    // (001) max / mean, m: 2 mm/√m slip 0.0529 / 0.0102 (0.0590 /
-    // 0.0134); realistic (radii + 1 cm/√m, scales learnt) 0.186 / 0.0482
-    // (0.291 / 0.0931); exact wheels 0.0098 / 0.0010 (0.0263 / 0.0037);
-    // radii only, learnt 0.0236 / 0.0015 (0.113 / 0.0834). The default
-    // tuning under 2 mm/√m: 0.120 / 0.0127.
+    // (wheels, tuning base, fusion max / mean bounds on the ensemble's
+    // medians). Measured medians over 32 starts, fusion with the f32
+    // kernels [libm's sinf/cosf] (001, one run), max / mean, m: 2 mm/√m
+    // slip 0.0530 [0.0532] / 0.0102 [0.0101] (0.0590 / 0.0134); realistic
+    // (radii + 1 cm/√m, scales learnt) 0.176 [0.190] / 0.0445 [0.0455]
+    // (0.291 / 0.0931); exact wheels 0.0160 [0.0224] / 0.0012 [0.0014]
+    // (0.0263 / 0.0037); radii only, learnt 0.0243 [0.0169] / 0.0017
+    // [0.0011] (0.113 / 0.0834). The default tuning under 2 mm/√m, one
+    // run: 0.120 / 0.0127. The exact-wheels bound was 0.012 for one run of
+    // 0.0098 m, a start whose ensemble spans 0.0098–0.0263 m with libm.
     let cases = [
         (slip(0.002), FusionTuning::FIXED_WHEELS, 0.058, 0.012),
         (
@@ -103,7 +107,7 @@ fn random_slip_with_the_cell_edge_constraint() {
             0.2,
             0.055,
         ),
-        (WheelTruth::IDEAL, FusionTuning::FIXED_WHEELS, 0.012, 0.0015),
+        (WheelTruth::IDEAL, FusionTuning::FIXED_WHEELS, 0.025, 0.0015),
         (
             WheelTruth {
                 slip_std_per_sqrt_m: 0.0,
@@ -114,21 +118,37 @@ fn random_slip_with_the_cell_edge_constraint() {
             0.002,
         ),
     ];
+    let mut failures = Vec::new();
     for (wheels, base, max_bound, mean_bound) in cases {
         let paper = run(
             Estimator::HeadingObserver,
             wheels,
             FusionTuning::FIXED_WHEELS,
         );
-        let fusion = run(Estimator::FusionEkf, wheels, robust(base));
-        assert!(
-            fusion.tracking.max_m < max_bound && fusion.tracking.mean_m < mean_bound,
-            "{wheels:?}: {:?}",
-            fusion.tracking
+        // The ensemble of starts (`host_tests::ENSEMBLE_OFFSETS_M`): the
+        // bounds hold for its median.
+        let runs: Vec<FusionRun> = host_tests::ENSEMBLE_OFFSETS_M
+            .iter()
+            .map(|&offset| {
+                figure_eight_run_from(Estimator::FusionEkf, wheels, robust(base), offset)
+            })
+            .collect();
+        let maxima: Vec<f64> = runs.iter().map(|r| r.tracking.max_m).collect();
+        let means: Vec<f64> = runs.iter().map(|r| r.tracking.mean_m).collect();
+        println!(
+            "FusionEkf ensemble, {wheels:?}: tracking max {}, mean {} (min / median / max)",
+            host_tests::spread(&maxima),
+            host_tests::spread(&means)
         );
-        assert!(fusion.tracking.max_m < paper.tracking.max_m);
-        assert!(fusion.tracking.mean_m < paper.tracking.mean_m);
+        let (max, mean) = (host_tests::median(&maxima), host_tests::median(&means));
+        if !(max < max_bound && mean < mean_bound) {
+            failures.push(format!("{wheels:?}: median max {max}, median mean {mean}"));
+        }
+        if !(max < paper.tracking.max_m && mean < paper.tracking.mean_m) {
+            failures.push(format!("{wheels:?}: not better than paper 001's"));
+        }
     }
+    assert!(failures.is_empty(), "{failures:#?}");
     let default = run(
         Estimator::FusionEkf,
         slip(0.002),
@@ -140,17 +160,21 @@ fn random_slip_with_the_cell_edge_constraint() {
 /// The same tuning in the `Pilot` (scenario keys `[estimator.fusion]`
 /// `wheel_variance_per_m = 3e-5`, `edge_constraint = true`)
 /// on the simulator's exact-odometry unicycle and on the full device
-/// stack, whose plants have no slip: measured 0.0045 / 0.0005 and 0.0231 /
-/// 0.0023 m with the EKF (the edges cost the stack's worst error: 0.0033
-/// without them), 0.0068 / 0.0009 and 0.0078 / 0.0019 m with the UKF.
+/// stack, whose plants have no slip. Medians over 32 starts
+/// (`host_tests::ENSEMBLE_OFFSETS_M`), max / mean with the f32 kernels
+/// [libm's sinf/cosf]: EKF 0.0177 [0.0222] / 0.0013 [0.0014] and 0.0175
+/// [0.0205] / 0.0021 [0.0023] m, UKF 0.0068 / 0.0008 and 0.0067 [0.0070]
+/// / 0.0019 m. The EKF's spread is wide (0.0044–0.0256 m on the unicycle):
+/// the single run this test asserted before (0.0045 m, bound 0.006) was
+/// one of its best starts.
 #[test]
 fn the_slip_tuning_in_the_pilot() {
     let runs = [
         (
             FusionFilterSpec::Ekf,
             "figure_eight_rfid_fusion_ekf",
-            0.006,
-            0.0007,
+            0.025,
+            0.0016,
         ),
         (
             FusionFilterSpec::Ekf,
@@ -171,8 +195,11 @@ fn the_slip_tuning_in_the_pilot() {
             0.0025,
         ),
     ];
+    let mut failures = Vec::new();
     for (kind, name, max_bound, mean_bound) in runs {
-        let s = host_tests::run_scenario_variant(name, |scenario| {
+        // The ensemble of starts (`host_tests::ENSEMBLE_OFFSETS_M`): the
+        // bounds hold for its median.
+        let ensemble = host_tests::run_scenario_ensemble(name, |scenario| {
             scenario.estimator = EstimatorSpec::Fusion(FusionSpec {
                 filter: kind,
                 wheel_variance_per_m: 3e-5,
@@ -180,15 +207,21 @@ fn the_slip_tuning_in_the_pilot() {
                 ..FusionSpec::default()
             });
         });
+        let maxima: Vec<f64> = ensemble.iter().map(|s| s.max_error_m).collect();
+        let means: Vec<f64> = ensemble.iter().map(|s| s.mean_error_m).collect();
         println!(
-            "{kind:?}, {name}: max {:.4} m, mean {:.4} m",
-            s.max_error_m, s.mean_error_m
+            "{kind:?}, {name}: max {} m, mean {} m (min / median / max)",
+            host_tests::spread(&maxima),
+            host_tests::spread(&means)
         );
-        assert!(
-            s.max_error_m < max_bound && s.mean_error_m < mean_bound,
-            "{kind:?} {name}: {s:?}"
-        );
+        let (max, mean) = (host_tests::median(&maxima), host_tests::median(&means));
+        if !(max < max_bound && mean < mean_bound) {
+            failures.push(format!(
+                "{kind:?} {name}: median max {max}, median mean {mean}"
+            ));
+        }
     }
+    assert!(failures.is_empty(), "{failures:#?}");
 }
 
 /// The fusion EKF chosen in a scenario file (`[estimator.fusion]`,
@@ -202,16 +235,26 @@ fn fusion_ekf_from_a_scenario_file_through_the_simulator_and_the_pilot() {
         ("figure_eight_rfid_fusion_ekf", 0.01, 0.001),
         ("figure_eight_rfid_full_stack", 0.01, 0.003),
     ] {
-        let s = host_tests::run_scenario_variant(name, |scenario| {
+        // Every run of the ensemble of starts (`host_tests::ENSEMBLE_OFFSETS_M`).
+        let ensemble = host_tests::run_scenario_ensemble(name, |scenario| {
             scenario.estimator = EstimatorSpec::fusion(FusionFilterSpec::Ekf);
         });
-        assert_eq!(s.non_finite_ticks, 0);
-        assert!(
-            s.max_error_m < max_bound && s.mean_error_m < mean_bound,
-            "{name}: {:.4} / {:.4}",
-            s.max_error_m,
-            s.mean_error_m
+        let maxima: Vec<f64> = ensemble.iter().map(|s| s.max_error_m).collect();
+        let means: Vec<f64> = ensemble.iter().map(|s| s.mean_error_m).collect();
+        println!(
+            "fusion EKF, {name}: max {} m, mean {} m (min / median / max)",
+            host_tests::spread(&maxima),
+            host_tests::spread(&means)
         );
+        for s in &ensemble {
+            assert_eq!(s.non_finite_ticks, 0);
+            assert!(
+                s.max_error_m < max_bound && s.mean_error_m < mean_bound,
+                "{name}: {:.4} / {:.4}",
+                s.max_error_m,
+                s.mean_error_m
+            );
+        }
     }
 }
 
@@ -242,6 +285,14 @@ fn fusion_ekf_converges_from_random_starts() {
     assert!(s.max_error_m.max < 0.03, "{:?}", s.max_error_m);
 }
 
+/// Medians over an ensemble of starts, and the runs that lost the fix.
+#[derive(Debug)]
+struct Ensemble {
+    max_m: f64,
+    mean_m: f64,
+    lost: usize,
+}
+
 /// The sparse reader: a tag is read only while the antenna is within 5 cm
 /// of it (range mode: on entry, then every 0.1 s while in range), on the
 /// full device stack, paper 001's observer against the fusion estimator on
@@ -254,16 +305,30 @@ fn fusion_ekf_converges_from_random_starts() {
 /// 3's deadlock), so paper 001's observer, which has no such failsafe,
 /// runs with the timeout raised to 30 s. The fusion filters run with the
 /// EKF's default wheel noise (1e-3 m²/m) and with one near the truth
-/// (3e-5). On the 10 cm floor they are on par with paper 001's observer
-/// (the EKF's worst error a little lower, its mean a little higher).
+/// (3e-5). On the 10 cm floor they are on par with paper 001's observer.
+///
+/// Figures are medians over the ensemble of 32 starts
+/// (`host_tests::ENSEMBLE_OFFSETS_M`). The EKF at its default wheel noise
+/// loses the fix on the 20 cm floor in some of them (5 of 32 with the
+/// core's f32 kernels, 6 of 32 with libm's `sinf`/`cosf`; the single run
+/// this test asserted before happened to keep it): that row is held to its
+/// medians only, and every other row to no lost fix at all.
 #[test]
 fn sparse_reader_range_mode() {
     use firmware_sim::scenario::{PositionSpec, ReaderModeSpec};
-    // Measured max / mean (m), by spacing 10 / 20 / 30 cm:
-    // 001 observer: 0.0271 / 0.0058, 0.0562 / 0.0308, 11.1 / 3.64 (lost);
-    // EKF, 1e-3:    0.0253 / 0.0065, 0.187 / 0.0416, 0.207 / 0.0676;
-    // EKF, 3e-5:    0.0268 / 0.0060, 0.0478 / 0.0131, 0.0995 / 0.0283;
-    // UKF, 3e-5:    0.0316 / 0.0063, 0.0647 / 0.0169, 0.0893 / 0.0205.
+    // Ensemble medians, max / mean (m), by spacing 10 / 20 / 30 cm, with the
+    // f32 kernels (libm's sinf/cosf: the same to the digits shown except
+    // where given in brackets):
+    // 001 observer: 0.0271 / 0.0058, 0.0604 [0.0565] / 0.0306, 11.1 / 3.64
+    //               (31 of 32 lost);
+    // EKF, 1e-3:    0.0270 / 0.0068, 0.187 / 0.0379 [0.0396] (5 [6] of 32
+    //               lost), 0.208 / 0.0625 [0.0664];
+    // EKF, 3e-5:    0.0275 [0.0269] / 0.0064, 0.0492 [0.0495] / 0.0136,
+    //               0.0993 / 0.0295 [0.0288];
+    // UKF, 3e-5:    0.0301 / 0.0064 [0.0065], 0.0639 [0.0641] / 0.0163
+    //               [0.0169], 0.104 [0.102] / 0.0262.
+    // (Single runs gave 0.0893 / 0.0205 for the UKF on 30 cm, the bound
+    // before the ensembles, which both medians exceed.)
     let bounds = [
         (
             FusionFilterSpec::Ekf,
@@ -278,12 +343,13 @@ fn sparse_reader_range_mode() {
         (
             FusionFilterSpec::Ukf,
             3e-5,
-            [(0.036, 0.0072), (0.072, 0.019), (0.1, 0.024)],
+            [(0.036, 0.0072), (0.072, 0.019), (0.11, 0.028)],
         ),
     ];
+    let mut failures = Vec::new();
     for (index, spacing) in [0.1_f64, 0.2, 0.3].into_iter().enumerate() {
         let run = |estimator: EstimatorSpec, timeout_s| {
-            let s = host_tests::run_scenario_variant("figure_eight_rfid_full_stack", |scenario| {
+            let s = host_tests::run_scenario_ensemble("figure_eight_rfid_full_stack", |scenario| {
                 scenario.estimator = estimator;
                 if let PositionSpec::Reader {
                     mode, spacing_m, ..
@@ -303,11 +369,22 @@ fn sparse_reader_range_mode() {
                 }
                 other => format!("{other:?}"),
             };
+            let maxima: Vec<f64> = s.iter().map(|s| s.max_error_m).collect();
+            let means: Vec<f64> = s.iter().map(|s| s.mean_error_m).collect();
+            let lost = s.iter().filter(|s| s.mode_ticks.fix_lost > 0).count();
             println!(
-                "{spacing} m tags, {label}: max {:.4} m, mean {:.4} m, ticks without fix {}",
-                s.max_error_m, s.mean_error_m, s.mode_ticks.fix_lost
+                "{spacing} m tags, {label}: max {} m, mean {} m (min / median / max), \
+                 {lost} of {} runs lost the fix",
+                host_tests::spread(&maxima),
+                host_tests::spread(&means),
+                s.len()
             );
-            s
+            assert!(s.iter().all(|s| s.non_finite_ticks == 0));
+            Ensemble {
+                max_m: host_tests::median(&maxima),
+                mean_m: host_tests::median(&means),
+                lost,
+            }
         };
         let paper = run(EstimatorSpec::HeadingObserver, 30.0);
         for (kind, variance, per_spacing) in bounds {
@@ -321,20 +398,21 @@ fn sparse_reader_range_mode() {
                 }),
                 0.5,
             );
-            assert_eq!(s.non_finite_ticks, 0);
-            assert_eq!(s.mode_ticks.fix_lost, 0, "{spacing}: {s:?}");
-            assert!(
-                s.max_error_m < max_bound && s.mean_error_m < mean_bound,
-                "{spacing} {kind:?} {variance}: {s:?}"
-            );
+            let may_lose = kind == FusionFilterSpec::Ekf && variance >= 1e-3 && spacing >= 0.2;
+            if !((s.lost == 0 || may_lose) && s.max_m < max_bound && s.mean_m < mean_bound) {
+                failures.push(format!("{spacing} {kind:?} {variance}: {s:?}"));
+            }
             // From 20 cm up, with the wheel noise near the truth: at most
             // 0.55 of paper 001's mean error (EKF 0.43, UKF 0.55 at 20 cm;
             // at 30 cm paper 001 loses the robot).
-            if spacing >= 0.2 && variance < 1e-3 {
-                assert!(s.mean_error_m < 0.6 * paper.mean_error_m, "{spacing}");
+            if spacing >= 0.2 && variance < 1e-3 && s.mean_m >= 0.6 * paper.mean_m {
+                failures.push(format!(
+                    "{spacing} {kind:?} {variance}: not 0.6 of 001's mean"
+                ));
             }
         }
     }
+    assert!(failures.is_empty(), "{failures:#?}");
 }
 
 /// Paper 004's UKF and particle filter as the `Pilot`'s fusion estimator

@@ -142,10 +142,17 @@ fn particle_filter_runs_repeat_from_the_seed() {
 }
 
 /// A diverged run is flagged in the summary (`diverged`, also in
-/// `summary.json`): the particle filter in scenario 2 for seeds 2, 3 and 5
-/// (tracking errors of 62–404 m, `p̂` pinned at 20), and no EKF or UKF run
-/// of either scenario (whose largest error is the initial offset, 1.5 m
-/// in scenario 1).
+/// `summary.json`), exactly when its tracking error leaves the converging
+/// runs' range: the particle filter in scenario 2 diverges for some seeds
+/// (tracking errors of 60–420 m, `p̂` pinned at 20; issue 17), and no EKF or
+/// UKF run of either scenario does (their largest error is the initial
+/// offset, 1.5 m in scenario 1).
+///
+/// Which seeds diverge depends on the last bit of every transcendental the
+/// particles draw through: seeds 2, 3 and 5 with libm's `sinf`/`cosf`
+/// (f64 inside), seeds 1, 2, 3 and 5 with the core's f32 kernels (seed 4
+/// stays at 1.6 m with both). So the test asserts the flag against the
+/// error, and that the broken case still shows, not a list of seeds.
 #[test]
 fn diverged_runs_are_flagged() {
     let diverged = |scenario, estimator, seed| {
@@ -159,8 +166,16 @@ fn diverged_runs_are_flagged() {
     let flags: Vec<(bool, f64)> = (1..=5)
         .map(|seed| diverged(Scenario::Torque, Estimator::ParticleFilter, seed))
         .collect();
-    let flagged: Vec<bool> = flags.iter().map(|f| f.0).collect();
-    assert_eq!(flagged, [false, true, true, false, true], "{flags:?}");
+    for &(flag, worst) in &flags {
+        assert_eq!(
+            flag,
+            worst > firmware_sim::slip::DIVERGED_TRACKING_ERROR_M,
+            "{flags:?}"
+        );
+        assert!(worst < 2.0 || worst > 50.0, "{flags:?}");
+    }
+    let diverged_seeds = flags.iter().filter(|f| f.0).count();
+    assert!((1..5).contains(&diverged_seeds), "{flags:?}");
     for scenario in [Scenario::Velocity, Scenario::Torque] {
         for estimator in [Estimator::Ekf, Estimator::Ukf] {
             for seed in 1..=5 {
