@@ -172,7 +172,7 @@ fn diverged_runs_are_flagged() {
             worst > firmware_sim::slip::DIVERGED_TRACKING_ERROR_M,
             "{flags:?}"
         );
-        assert!(worst < 2.0 || worst > 50.0, "{flags:?}");
+        assert!(!(2.0..=50.0).contains(&worst), "{flags:?}");
     }
     let diverged_seeds = flags.iter().filter(|f| f.0).count();
     assert!((1..5).contains(&diverged_seeds), "{flags:?}");
