@@ -286,7 +286,9 @@ pub fn bench_target(write_docs: bool) -> crate::Result {
     }
     let table = markdown(&reports);
     print!("\n{table}");
-    let path = write_report(REPORT, &table)?;
+    let (budget_table, verdict) = check_budgets(&reports)?;
+    print!("\n{budget_table}");
+    let path = write_report(REPORT, &format!("{table}\n{budget_table}"))?;
     eprintln!("\nwritten to {}", path.display());
     if write_docs {
         let page = update_marked(DOCS_PAGE, DOCS_START, DOCS_END, &table)?;
@@ -300,7 +302,35 @@ pub fn bench_target(write_docs: bool) -> crate::Result {
              `cargo xtask bench-target --write` updates them)"
         );
     }
-    Ok(())
+    verdict
+}
+
+/// The default backend's figures against `firmware/budgets.toml`: the
+/// table (budgets, then issue 15's targets) and the verdict.
+fn check_budgets(reports: &[Report]) -> Result<(String, crate::Result), String> {
+    let budgets = crate::budgets::Budgets::load()?;
+    let default = reports
+        .iter()
+        .find(|r| r.backend == BACKENDS[0].0)
+        .ok_or("no run of the default backend")?;
+    let mean = |name: &str| default.stat(name).map(|s| s.mean);
+    let mut verdicts = budgets.check("instructions", &budgets.instructions, mean)?;
+    verdicts.extend(budgets.check("stack_bytes", &budgets.stack_bytes, |name| {
+        if name == "robot_tick" {
+            Some(default.tick_stack_bytes as f64)
+        } else {
+            default.stack(name).map(|b| b as f64)
+        }
+    })?);
+    let (md, verdict) = crate::budgets::report(&verdicts, budgets.tolerance);
+    let md = format!(
+        "Budgets (`{}`, backend {}, tolerance {:.0} %):\n\n{md}\nIssue 15's targets (not enforced):\n\n{}",
+        crate::budgets::FILE,
+        default.backend,
+        budgets.tolerance * 100.0,
+        budgets.targets_report(mean)
+    );
+    Ok((md, verdict))
 }
 
 /// `mean (min–max)`.

@@ -9,9 +9,10 @@
 //!   builds, all tests (the hardware-in-the-loop tests run the QEMU-board
 //!   firmware), the core's tests again with its default features alone,
 //!   rustdoc with `-D warnings`, the default simulator scenario end to end,
-//!   and the on-target reports `size` and `bench-target` (printed, not
-//!   enforced). It never writes a tracked file: its reports go to
-//!   `target/`.
+//!   and the on-target gates `size` and `bench-target`, which fail on a
+//!   figure over its budget in `firmware/budgets.toml` (or a software
+//!   `f64` routine in the firmware). It never writes a tracked file: its
+//!   reports go to `target/`.
 //! * `features` — clippy `-D warnings` on the feature matrix alone: the
 //!   core on both microcontroller targets and the firmware with each
 //!   board, for a covering set of the feature combinations a user can
@@ -23,14 +24,18 @@
 //!   stages on the target (QEMU `netduinoplus2`, `-icount shift=0`), for
 //!   each math backend; writes `target/bench-target.md`, and with
 //!   `--write` also the generated section of `docs/firmware.md` (between
-//!   its `bench-target` markers), the only task that writes a tracked file.
+//!   its `bench-target` markers), the only task that writes a tracked file;
+//!   fails when the default backend's instructions or tick stack exceed
+//!   their budgets (`firmware/budgets.toml`, `xtask/src/budgets.rs`).
 //! * `size` — flash and static RAM of the release firmware (each board
-//!   that builds) and its biggest symbols; writes `target/size.md`.
+//!   that builds) and its biggest symbols; writes `target/size.md`; fails
+//!   on a flash budget or limit exceeded, or a software `f64` routine.
 //! * `opt-levels` — firmware size and tick instructions for each release
 //!   opt-level (3, 2, s, z); writes `target/opt-levels.md`. Slow: every
 //!   level rebuilds all dependencies.
 
 mod bench_target;
+mod budgets;
 mod features;
 mod opt_levels;
 mod size;
@@ -195,9 +200,9 @@ fn ci() -> Result {
             &[],
         )
     })?;
-    // Report only: CI prints the budgets, it does not enforce them.
-    step("size (report)", size::size)?;
-    step("bench-target (report)", || {
+    // Gates: a figure over its budget in firmware/budgets.toml fails CI.
+    step("size (budgets)", size::size)?;
+    step("bench-target (budgets)", || {
         bench_target::bench_target(false)
     })?;
     eprintln!(

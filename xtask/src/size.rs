@@ -204,9 +204,53 @@ pub fn size() -> crate::Result {
     }
     let md = markdown(&results);
     print!("\n{md}");
-    let path = write_report(REPORT, &md)?;
+    let (budget_table, verdict) = check_budgets(&results)?;
+    print!("\n{budget_table}");
+    let path = write_report(REPORT, &format!("{md}\n{budget_table}"))?;
     eprintln!("\nwritten to {}", path.display());
-    soft_f64_check(&results)
+    soft_f64_check(&results)?;
+    verdict
+}
+
+/// Each built board's flash against `firmware/budgets.toml`: its budget
+/// (regressions) and its hard limit.
+fn check_budgets(
+    results: &[(&str, Result<Sizes, String>)],
+) -> Result<(String, crate::Result), String> {
+    let budgets = crate::budgets::Budgets::load()?;
+    let flash = |board: &str| {
+        results
+            .iter()
+            .find(|(b, _)| *b == board)
+            .and_then(|(_, r)| r.as_ref().ok())
+            .map(|s| s.flash as f64)
+    };
+    // A board that did not build is reported as such above; its budget
+    // waits for it.
+    let built: std::collections::BTreeMap<String, f64> = budgets
+        .flash_bytes
+        .iter()
+        .filter(|(board, _)| flash(board).is_some())
+        .map(|(board, &b)| (board.clone(), b))
+        .collect();
+    let mut verdicts = budgets.check("flash_bytes", &built, flash)?;
+    for (board, &limit) in &budgets.flash_limit_bytes {
+        if let Some(bytes) = flash(board) {
+            // A hard limit: no tolerance, never stale.
+            verdicts.push(crate::budgets::Verdict {
+                what: format!("flash_limit_bytes {board}"),
+                figure: bytes,
+                budget: limit,
+                over: bytes > limit,
+                stale: false,
+            });
+        }
+    }
+    let (md, verdict) = crate::budgets::report(&verdicts, budgets.tolerance);
+    Ok((
+        format!("Budgets (`{}`):\n\n{md}", crate::budgets::FILE),
+        verdict,
+    ))
 }
 
 /// Err naming every board whose ELF links a software `f64` routine, and
