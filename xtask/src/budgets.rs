@@ -18,6 +18,9 @@ pub struct Budgets {
     pub tolerance: f64,
     /// Relative margin below a budget reported as stale.
     pub stale_below: f64,
+    /// Absolute slack above a budget, in the figure's unit, for small
+    /// figures.
+    pub min_slack: f64,
     /// Mean instructions per call, by bench stage.
     pub instructions: BTreeMap<String, f64>,
     /// Peak stack, bytes, by bench stage.
@@ -84,6 +87,7 @@ impl Budgets {
                 key.as_str(),
                 "tolerance"
                     | "stale_below"
+                    | "min_slack"
                     | "instructions"
                     | "stack_bytes"
                     | "flash_bytes"
@@ -96,6 +100,11 @@ impl Budgets {
         Ok(Self {
             tolerance: fraction(&root, "tolerance")?,
             stale_below: fraction(&root, "stale_below")?,
+            min_slack: root
+                .get("min_slack")
+                .and_then(|v| v.as_integer().map(|i| i as f64).or_else(|| v.as_float()))
+                .filter(|s| s.is_finite() && *s >= 0.0)
+                .ok_or_else(|| format!("{FILE}: `min_slack` must be a number ≥ 0"))?,
             instructions: table(&root, "instructions")?,
             stack_bytes: table(&root, "stack_bytes")?,
             flash_bytes: table(&root, "flash_bytes")?,
@@ -120,7 +129,7 @@ impl Budgets {
             what,
             figure,
             budget,
-            over: figure > budget * (1.0 + self.tolerance),
+            over: figure > budget + (budget * self.tolerance).max(self.min_slack),
             stale: figure < budget * (1.0 - self.stale_below),
         }
     }
@@ -219,7 +228,7 @@ pub fn report(verdicts: &[Verdict], tolerance: f64) -> (String, crate::Result) {
 mod tests {
     use super::*;
 
-    const TEXT: &str = "tolerance = 0.02\nstale_below = 0.1\n[instructions]\na = 100\nb = 200\n\
+    const TEXT: &str = "tolerance = 0.02\nstale_below = 0.1\nmin_slack = 1\n[instructions]\na = 100\nb = 200\n\
                         [targets]\n\"a+b\" = 250\n";
 
     #[test]
@@ -261,19 +270,21 @@ mod tests {
     #[test]
     fn malformed_files_name_the_key() {
         assert!(
-            Budgets::parse("tolerance = 0.02\nstale_below = 0.1\nbudget = 1\n")
+            Budgets::parse("tolerance = 0.02\nstale_below = 0.1\nmin_slack = 1\nbudget = 1\n")
                 .unwrap_err()
                 .contains("`budget`")
         );
         assert!(
-            Budgets::parse("tolerance = 2.0\nstale_below = 0.1\n")
+            Budgets::parse("tolerance = 2.0\nstale_below = 0.1\nmin_slack = 1\n")
                 .unwrap_err()
                 .contains("`tolerance`")
         );
         assert!(
-            Budgets::parse("tolerance = 0.02\nstale_below = 0.1\n[instructions]\na = -1\n")
-                .unwrap_err()
-                .contains("instructions.a")
+            Budgets::parse(
+                "tolerance = 0.02\nstale_below = 0.1\nmin_slack = 1\n[instructions]\na = -1\n"
+            )
+            .unwrap_err()
+            .contains("instructions.a")
         );
     }
 }

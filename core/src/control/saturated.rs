@@ -29,6 +29,18 @@
 //!   observer's `ẑ3, ẑ4` and `θ̂ = atan2(ẑ4, ẑ3)`; the printed `k3·ẑ3`
 //!   means `k3·(θ̂ − θ*)` (slip 4).
 //!
+//! # Computed with one `atan2` for `e`
+//! `e = wrap(θ − θ*)` is the angle from the unit vector `d* = u/v` to the
+//! heading vector `z = (cos θ, sin θ)` (or `(ẑ3, ẑ4)`, whose length does
+//! not matter), so `e = atan2(d* × z, d* · z)` with `d* × z = d*_x z_y −
+//! d*_y z_x` and `d* · z = d*_x z_x + d*_y z_y`: one `atan2` already in
+//! (−π, π], instead of `atan2(ẑ4, ẑ3)`, `atan2(u_y, u_x)`, a subtraction
+//! and a wrap. At `z = (±0, ±0)` (the observer's "heading unknown") it
+//! takes `z = (±1, 0)` with the sign of `ẑ3`, which is what `θ̂ = atan2(±0,
+//! ±0)` gives. `θ* = atan2(u_y, u_x)` is still computed once, for its
+//! output and the held value; `(sin, cos)(θ* + e/2)` is one `sincos`, and
+//! `sinc(e/2)` a series for |e| ≤ 0.2 rad ([`math::sinc`]).
+//!
 //! # Gain bound (15)
 //! `k1² + k2² ≤ γ²·(4/π²)·v_rm²` with `0 < γ < 1` guarantees
 //! `v_m = (1 − γ)·v_rm ≤ v ≤ v_rM + γ·v_rm = v_M` (21)–(22). The paper's own
@@ -181,19 +193,18 @@ struct HeadingInput {
     cos_theta: f32,
     /// `sin θ` or `ẑ4`.
     sin_theta: f32,
-    /// `θ` or `θ̂`.
-    heading_rad: f32,
 }
 
 /// The tracking controller of paper 001.
 ///
-/// Holds the gains and one piece of state: the last well-defined `θ*`, used
-/// while `|u|` is below [`Self::SINGULAR_SPEED_M_S`].
+/// Holds the gains and one piece of state: the last well-defined `θ*` (and
+/// its unit vector), used while `|u|` is below [`Self::SINGULAR_SPEED_M_S`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TrackingController {
     gains: TrackingGains,
     held_desired_heading_rad: f32,
+    held_desired_direction: Vec2,
 }
 
 impl TrackingController {
@@ -206,6 +217,7 @@ impl TrackingController {
         Self {
             gains,
             held_desired_heading_rad: 0.0,
+            held_desired_direction: Vec2::new(1.0, 0.0),
         }
     }
 
@@ -226,7 +238,6 @@ impl TrackingController {
         let heading = HeadingInput {
             cos_theta,
             sin_theta,
-            heading_rad: pose.heading_rad,
         };
         self.law(reference, pose.position, heading)
     }
@@ -241,7 +252,6 @@ impl TrackingController {
         let heading = HeadingInput {
             cos_theta: estimate.cos_theta,
             sin_theta: estimate.sin_theta,
-            heading_rad: estimate.heading_rad(),
         };
         self.law(reference, position, heading)
     }
@@ -270,21 +280,37 @@ impl TrackingController {
             reference.acceleration.y - f2_rate,
         );
 
-        let (desired_heading_rad, desired_heading_rate_rad_s) =
+        let (desired_heading_rad, desired_heading_rate_rad_s, desired) =
             if v > Self::SINGULAR_SPEED_M_S && v.is_finite() {
                 // θ̇* = (u_x u̇_y − u_y u̇_x)/v², written as (cos θ*·u̇_y − sin θ*·u̇_x)/v
                 // so that no intermediate overflows before the division (slip 2).
                 let (cos_d, sin_d) = (u.x / v, u.y / v);
                 let rate = (cos_d * u_rate.y - sin_d * u_rate.x) / v;
                 let theta_d = math::atan2(u.y, u.x);
+                let direction = Vec2::new(cos_d, sin_d);
                 self.held_desired_heading_rad = theta_d;
-                (theta_d, rate)
+                self.held_desired_direction = direction;
+                (theta_d, rate, direction)
             } else {
-                (self.held_desired_heading_rad, 0.0)
+                (
+                    self.held_desired_heading_rad,
+                    0.0,
+                    self.held_desired_direction,
+                )
             };
 
-        // Slip 5: one wrapped difference feeds both the k3 term and g1, g2.
-        let e = math::wrap_angle(heading.heading_rad - desired_heading_rad);
+        // Slip 5: one wrapped difference feeds both the k3 term and g1, g2;
+        // e = atan2(d* × z, d* · z) (module docs), with atan2(±0, ±0)'s
+        // convention for an unknown heading.
+        let z = if heading.cos_theta == 0.0 && heading.sin_theta == 0.0 {
+            Vec2::new(1.0_f32.copysign(heading.cos_theta), 0.0)
+        } else {
+            Vec2::new(heading.cos_theta, heading.sin_theta)
+        };
+        let e = math::atan2(
+            desired.x * z.y - desired.y * z.x,
+            desired.x * z.x + desired.y * z.y,
+        );
         let half = 0.5 * e;
         let sc = math::sinc(half);
         let mid = desired_heading_rad + half;
