@@ -439,11 +439,22 @@ pub struct ErrorStats {
 /// Proposition 7 `a = 100 s/m², c2 = 0.5, γ = 0.9`.
 #[must_use]
 pub fn figure_eight_comparison(pairing: Pairing) -> (ErrorStats, Series) {
+    figure_eight_comparison_from(pairing, 0.0)
+}
+
+/// [`figure_eight_comparison`] from a start moved `start_offset_m` along x
+/// (the ensembles of [`crate::ENSEMBLE_OFFSETS_M`]).
+///
+/// # Panics
+/// Never (constant, valid parameters).
+#[must_use]
+pub fn figure_eight_comparison_from(pairing: Pairing, start_offset_m: f64) -> (ErrorStats, Series) {
     let h = 0.01_f64;
     let hf = h as f32;
     let trajectory: Trajectory = FigureEight::paper_001().into();
     let tag = |p: Pose64| nearest_tag(&p);
     let mut robot = PAPER_001_START;
+    robot.x += start_offset_m;
     let gains = TrackingGains::new(0.11, 0.11, 0.1).expect("paper gains");
     let observer_cfg = HeadingObserverConfig::new(0.6, hf).expect("paper gain");
     let tracker_cfg = TrackerConfig::new(observer_cfg, gains, trajectory, 100).expect("tracker");
