@@ -89,6 +89,49 @@ pub fn spread(values: &[f64]) -> String {
     format!("{min:.4} / {:.4} / {max:.4}", median(values))
 }
 
+/// The largest and mean tracking errors of each run of an ensemble, m.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnsembleErrors {
+    /// Each run's largest error.
+    pub maxima: Vec<f64>,
+    /// Each run's mean error.
+    pub means: Vec<f64>,
+}
+
+impl EnsembleErrors {
+    /// From each run's `(max, mean)`, printing `label: max …, mean …` with
+    /// the spreads ([`spread`]).
+    #[must_use]
+    pub fn new(label: &str, runs: impl IntoIterator<Item = (f64, f64)>) -> Self {
+        let (maxima, means) = runs.into_iter().unzip();
+        let errors = Self { maxima, means };
+        println!(
+            "{label}: max {} m, mean {} m (min / median / max)",
+            spread(&errors.maxima),
+            spread(&errors.means)
+        );
+        errors
+    }
+
+    /// The median run's largest error.
+    #[must_use]
+    pub fn median_max(&self) -> f64 {
+        median(&self.maxima)
+    }
+
+    /// The median run's mean error.
+    #[must_use]
+    pub fn median_mean(&self) -> f64 {
+        median(&self.means)
+    }
+
+    /// The worst run's largest error.
+    #[must_use]
+    pub fn worst_max(&self) -> f64 {
+        self.maxima.iter().copied().fold(0.0, f64::max)
+    }
+}
+
 /// [`run_scenario_variant`] from each start of [`ENSEMBLE_OFFSETS_M`],
 /// the `k`-th also turned by `k · 10 µrad`.
 ///

@@ -202,14 +202,11 @@ fn figure_eight_position_only_pairings() {
         .iter()
         .map(|&offset| figure_eight_comparison_from(Pairing::PoseObserverWithProp7, offset).0)
         .collect();
-    let maxima: Vec<f64> = prop7.iter().map(|s| s.max_m).collect();
-    let means: Vec<f64> = prop7.iter().map(|s| s.mean_m).collect();
-    println!(
-        "Prop. 7 ensemble: max {} m, mean {} m (min / median / max)",
-        host_tests::spread(&maxima),
-        host_tests::spread(&means)
+    let errors = host_tests::EnsembleErrors::new(
+        "Prop. 7 ensemble",
+        prop7.iter().map(|s| (s.max_m, s.mean_m)),
     );
-    let (max, mean) = (host_tests::median(&maxima), host_tests::median(&means));
+    let (max, mean) = (errors.median_max(), errors.median_mean());
     assert!(max < 0.55 && mean < 0.22, "median {max} / {mean}");
 }
 
@@ -264,15 +261,12 @@ fn pairings_selected_in_a_scenario_file_run_in_the_simulator_and_the_pilot() {
                     scenario.estimator = estimator;
                     scenario.controller.law = law;
                 });
-                let maxima: Vec<f64> = ensemble.iter().map(|s| s.max_error_m).collect();
-                let means: Vec<f64> = ensemble.iter().map(|s| s.mean_error_m).collect();
-                println!(
-                    "{name}, Prop. 7 ensemble: max {} m, mean {} m (min / median / max)",
-                    host_tests::spread(&maxima),
-                    host_tests::spread(&means)
+                let errors = host_tests::EnsembleErrors::new(
+                    &format!("{name}, Prop. 7 ensemble"),
+                    ensemble.iter().map(|s| (s.max_error_m, s.mean_error_m)),
                 );
                 assert!(ensemble.iter().all(|s| s.non_finite_ticks == 0));
-                let (max, mean) = (host_tests::median(&maxima), host_tests::median(&means));
+                let (max, mean) = (errors.median_max(), errors.median_mean());
                 // The full stack adds encoder and reader quantization.
                 let (max_bound, mean_bound) = if name.ends_with("full_stack") {
                     (3.0, 1.1)
