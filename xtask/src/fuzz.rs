@@ -125,9 +125,7 @@ fn run_target(root: &Path, target_dir: &str, name: &str, seconds: u64) -> Result
             "--",
             &max_total_time,
             &artifact_prefix,
-            // One process, one job: the machine has two cores.
-            "-jobs=1",
-            "-workers=1",
+            // One process (no -jobs, no -fork): the machine has two cores.
             "-print_final_stats=1",
         ],
     )
