@@ -3,7 +3,9 @@
 //!
 //! * `ci` — installs what is missing (rust targets and components via
 //!   rustup, `qemu-system-arm` via apt-get, the firmware's linker
-//!   flip-link via `cargo install`), then runs every check:
+//!   flip-link and cargo-fuzz via `cargo install`; the nightly toolchain
+//!   of the fuzz targets must be there already, and CI fails at once,
+//!   saying so, without it), then runs every check:
 //!   rustfmt, clippy `-D warnings` on the host and on the microcontroller
 //!   targets (the feature matrix of `features`, and the link), the cross
 //!   builds, all tests (the hardware-in-the-loop tests run the QEMU-board
@@ -11,8 +13,8 @@
 //!   rustdoc with `-D warnings`, the default simulator scenario end to end,
 //!   and the on-target gates `size` and `bench-target`, which fail on a
 //!   figure over its budget in `firmware/budgets.toml` (or a software
-//!   `f64` routine in the firmware). It never writes a tracked file: its
-//!   reports go to `target/`.
+//!   `f64` routine in the firmware), and every fuzz target for a short time
+//!   (`fuzz`). It never writes a tracked file: its reports go to `target/`.
 //! * `features` — clippy `-D warnings` on the feature matrix alone: the
 //!   core on both microcontroller targets and the firmware with each
 //!   board, for a covering set of the feature combinations a user can
@@ -30,6 +32,11 @@
 //! * `size` — flash and static RAM of the release firmware (each board
 //!   that builds) and its biggest symbols; writes `target/size.md`; fails
 //!   on a flash budget or limit exceeded, or a software `f64` routine.
+//! * `fuzz [--seconds N]` — every fuzz target of `fuzz/` (cargo-fuzz, on the
+//!   nightly toolchain, which must be installed: it fails saying so if
+//!   not) for N seconds each (default 15) on its committed corpus; installs
+//!   cargo-fuzz with cargo when missing; fails on any crash
+//!   (`xtask/src/fuzz.rs`).
 //! * `opt-levels` — firmware size and tick instructions for each release
 //!   opt-level (3, 2, s, z); writes `target/opt-levels.md`. Slow: every
 //!   level rebuilds all dependencies.
@@ -37,6 +44,7 @@
 mod bench_target;
 mod budgets;
 mod features;
+mod fuzz;
 mod opt_levels;
 mod size;
 mod target;
@@ -48,21 +56,29 @@ use std::time::Instant;
 const TARGETS: [&str; 2] = ["thumbv7em-none-eabihf", "thumbv6m-none-eabi"];
 
 /// The command line's synopsis.
-const USAGE: &str =
-    "usage: cargo xtask <ci|features|firmware|bench|bench-target [--write]|size|opt-levels>";
+const USAGE: &str = "usage: cargo xtask <ci|features|firmware|bench|bench-target [--write]|size|opt-levels|fuzz [--seconds N]>";
 
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
     let task = args.next().unwrap_or_default();
     let options: Vec<String> = args.collect();
-    let write = match (task.as_str(), options.as_slice()) {
-        ("bench-target", [flag]) if flag == "--write" => true,
-        (_, []) => false,
+    let mut write = false;
+    let mut fuzz_seconds = fuzz::CI_SECONDS;
+    match (task.as_str(), options.as_slice()) {
+        ("bench-target", [flag]) if flag == "--write" => write = true,
+        ("fuzz", [flag, n]) if flag == "--seconds" => match n.parse() {
+            Ok(n) if n > 0 => fuzz_seconds = n,
+            _ => {
+                eprintln!("{USAGE}");
+                return ExitCode::from(2);
+            }
+        },
+        (_, []) => {}
         _ => {
             eprintln!("{USAGE}");
             return ExitCode::from(2);
         }
-    };
+    }
     let result = match task.as_str() {
         "ci" => ci(),
         "features" => features::clippy_matrix(),
@@ -75,6 +91,7 @@ fn main() -> ExitCode {
         "bench-target" => bench_target::bench_target(write),
         "size" => size::size(),
         "opt-levels" => opt_levels::opt_levels(),
+        "fuzz" => fuzz::fuzz(fuzz_seconds),
         _ => {
             eprintln!("{USAGE}");
             return ExitCode::from(2);
@@ -205,6 +222,9 @@ fn ci() -> Result {
     step("bench-target (budgets)", || {
         bench_target::bench_target(false)
     })?;
+    // Each fuzz target for a short time on its committed corpus (the long
+    // runs are done by hand: fuzz/README.md).
+    fuzz::fuzz(fuzz::CI_SECONDS)?;
     eprintln!(
         "\nxtask ci: every check passed in {:.0} s",
         started.elapsed().as_secs_f64()
@@ -311,8 +331,13 @@ fn install_qemu() -> Result {
     output("qemu-system-arm", &["--version"]).map(|_| ())
 }
 
-/// Rust targets and components the checks need, installed when missing.
+/// Rust targets and components the checks need, installed when missing;
+/// the nightly toolchain of the fuzz targets, checked (not installed: CI
+/// fails, saying so, without it); cargo-fuzz, installed when missing.
 fn install_prerequisites() -> Result {
+    // First, so that a machine without nightly fails at once, not after
+    // every other check.
+    fuzz::prerequisites()?;
     install_qemu()?;
     install_flip_link()?;
     let installed = output("rustup", &["target", "list", "--installed"])?;

@@ -1,0 +1,166 @@
+//! Writes the structured seeds of the committed corpus (`fuzz/corpus/`):
+//! valid RFID streams and link frames of both sides. Run from `fuzz/`:
+//! `cargo run --example make_seeds`. The scenario seeds are the
+//! simulator's embedded scenarios, copied; the seeds of the targets that
+//! draw their input with `arbitrary` are random bytes.
+
+use std::fs;
+use std::path::Path;
+
+use wmr_core::devices::{TagGrid, TagId, encode_frame};
+use wmr_core::pilot::spec::{
+    DriveSpec, EstimatorSpec, LawSpec, PilotSpec, SensorSpec, TagGridSpec, TrackerSpec,
+    TrajectorySpec,
+};
+use wmr_link::{
+    Configure, Diagnostics, Finished, HostMessage, MAX_FRAME_BYTES, MotorOutput, PROTOCOL_VERSION,
+    Refusal, Sender, TargetMessage, TickInput, TickOutput,
+};
+
+fn write(dir: &str, name: &str, bytes: &[u8]) {
+    let dir = Path::new("corpus").join(dir);
+    fs::create_dir_all(&dir).expect("corpus directory");
+    fs::write(dir.join(name), bytes).expect("seed written");
+}
+
+fn frame<M: serde::Serialize>(tx: &mut Sender, m: M) -> Vec<u8> {
+    let mut out = [0; MAX_FRAME_BYTES];
+    tx.frame(m, &mut out).expect("fits").to_vec()
+}
+
+fn main() {
+    // RFID: two control bytes (chunk sizes, failures), then the stream.
+    let a = encode_frame(TagId(0x0F_00A1_B2C3));
+    let b = encode_frame(TagGrid::id(10, 12));
+    let mut lower = encode_frame(TagId(0xAB_CDEF_0123));
+    lower.make_ascii_lowercase();
+    let mut bad = encode_frame(TagId(42));
+    bad[12] = b'B';
+    let mut stream = vec![7, 0];
+    stream.extend_from_slice(&a);
+    write("rfid_frames", "one_frame", &stream);
+    let mut stream = vec![3, 4];
+    stream.extend_from_slice(b"xy\r\n");
+    stream.extend_from_slice(&a[..7]);
+    stream.extend_from_slice(&a);
+    stream.extend_from_slice(b"\r\n\x0212G45");
+    stream.extend_from_slice(&bad);
+    stream.extend_from_slice(&lower);
+    stream.extend_from_slice(&a[..13]);
+    stream.push(b'!');
+    stream.extend_from_slice(&b);
+    write("rfid_frames", "mixed", &stream);
+    let mut stream = vec![200, 9];
+    for i in 0..10 {
+        stream.extend_from_slice(&encode_frame(TagId(1000 + i)));
+    }
+    write("rfid_frames", "ten_frames", &stream);
+
+    // Link: host and target messages, each framed.
+    let pilot = PilotSpec {
+        tracker: TrackerSpec {
+            period_s: 0.01,
+            trajectory: TrajectorySpec::Line {
+                start_m: [0.0, 0.0],
+                heading_rad: 0.0,
+                speed_m_s: 0.2,
+            },
+            gains: [0.5, 0.5, 1.0],
+            observer_gain_per_m: 10.0,
+            observer_min_speed_m_s: 1e-3,
+            fix_timeout_ticks: 50,
+            failsafe_decel_m_s2: 0.5,
+            max_fix_age_ticks: 2,
+            estimator: EstimatorSpec::HeadingObserver,
+            law: LawSpec::Saturated,
+            sensors: SensorSpec {
+                track_width_m: 0.3,
+                wheel_variance_floor_m2: 1.96e-9,
+                tag_spacing_m: 0.1,
+                read_radius_m: 0.0,
+            },
+        },
+        drive: DriveSpec {
+            wheel_radius_m: 0.05,
+            track_width_m: 0.3,
+            encoder_counts_per_rev: 2048,
+            max_wheel_speed_rad_s: 20.0,
+            max_wheel_accel_rad_s2: 40.0,
+            feedforward_duty_per_rad_s: 0.05,
+            kp_duty_per_rad_s: 0.05,
+            ki_duty_per_rad: 0.5,
+        },
+        encoder_bits: 16,
+        max_encoder_fault_ticks: 5,
+    };
+    let configure = HostMessage::Configure(Configure {
+        protocol: PROTOCOL_VERSION,
+        pilot,
+        grid: TagGridSpec {
+            origin_m: [-1.0, -1.0],
+            spacing_m: 0.1,
+            rows: 21,
+            columns: 21,
+        },
+        pwm_max_duty: 1000,
+    });
+    let tick = HostMessage::Tick(TickInput {
+        tick: 3,
+        left_count: Some(100),
+        right_count: None,
+        uart: heapless::Vec::from_slice(&b).expect("fits"),
+    });
+    let mut tx = Sender::default();
+    let host = [
+        ("configure", frame(&mut tx, configure)),
+        ("tick", frame(&mut tx, tick)),
+        ("finish", frame(&mut tx, HostMessage::Finish)),
+    ];
+    let ticked = TargetMessage::Ticked(TickOutput {
+        tick: 3,
+        left: MotorOutput {
+            duty: 120,
+            direction_high: true,
+        },
+        right: MotorOutput::default(),
+        mode: wmr_core::pilot::tracker::TrackerMode::Tracking,
+        reference_m: [0.1, 0.0],
+        position_m: [0.2, 0.0],
+        heading: [1.0, 0.0],
+        command: [0.2, 0.01],
+        fix: true,
+        speed_limited: false,
+        accel_limited: true,
+    });
+    let finished = TargetMessage::Finished(Finished {
+        ticks: 3,
+        peak_stack_bytes: 4096,
+        motors: [MotorOutput::default(); 2],
+        counters: Diagnostics::default(),
+    });
+    let mut tx = Sender::default();
+    let target = [
+        (
+            "hello",
+            frame(
+                &mut tx,
+                TargetMessage::Hello {
+                    protocol: PROTOCOL_VERSION,
+                },
+            ),
+        ),
+        (
+            "refused",
+            frame(&mut tx, TargetMessage::Refused(Refusal::NotConfigured)),
+        ),
+        ("ticked", frame(&mut tx, ticked)),
+        ("finished", frame(&mut tx, finished)),
+    ];
+    let mut stream = Vec::new();
+    for (name, bytes) in host.iter().chain(&target) {
+        // One frame's COBS bytes, as `decode` takes them (no terminator).
+        write("link_decode", name, &bytes[..bytes.len() - 1]);
+        stream.extend_from_slice(bytes);
+    }
+    write("link_decode", "stream", &stream);
+}

@@ -1,0 +1,261 @@
+//! The firmware's side of a HIL run, fed from the fuzzer: byte streams into
+//! its `Receiver`, each message it decodes into `Session::handle`, each
+//! answer through the firmware's `Sender` and back through `decode`.
+//!
+//! The bytes come as a sequence of operations: well-formed messages
+//! (configurations from arbitrary specs, ticks with arbitrary encoder
+//! counters and UART bytes, finish), the same with bytes corrupted,
+//! arbitrary payloads framed correctly (so that they reach postcard), raw
+//! garbage, and link silences.
+//!
+//! Every answer: encodes into one frame of at most `MAX_FRAME_BYTES` that
+//! the host decodes to the same message; a tick's PWM duties are within the
+//! configured full scale and its command finite; a configuration is
+//! accepted exactly when the core builds it; a tick before any accepted
+//! configuration is refused; a silent link stops the motors.
+
+#![no_main]
+
+use arbitrary::{Result, Unstructured};
+use libfuzzer_sys::fuzz_target;
+use wmr_core::devices::TagGrid;
+use wmr_core::devices::encode_frame;
+use wmr_fuzz::{encoder_count, light_pilot_spec, tag_grid_spec};
+use wmr_link::proxy::{ProxyBus, Side};
+use wmr_link::session::Session;
+use wmr_link::{
+    Configure, Frame, HostMessage, MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, PROTOCOL_VERSION,
+    Receiver, Refusal, Sender, TargetMessage, TickInput, decode, encode,
+};
+
+/// Operations per input at most.
+const MAX_OPS: usize = 64;
+
+struct Harness<'a> {
+    session: Session<'a>,
+    bus: &'a ProxyBus,
+    /// The firmware's receiver (host to firmware).
+    rx: Receiver,
+    /// The host's side.
+    host_tx: Sender,
+    firmware_tx: Sender,
+    /// Full scale of the last accepted configuration.
+    pwm_max_duty: Option<u16>,
+    counts: (u32, u32),
+    tick: u32,
+}
+
+impl Harness<'_> {
+    /// Bytes into the firmware's receiver; each message decoded is handled.
+    fn feed(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            if let Some(Ok(message)) = self.rx.push::<HostMessage>(b) {
+                self.handle(&message);
+            }
+        }
+    }
+
+    fn send(&mut self, message: HostMessage, corrupt: Option<(usize, u8)>) {
+        let mut out = [0; MAX_FRAME_BYTES];
+        let mut bytes = self
+            .host_tx
+            .frame(message, &mut out)
+            .expect("every host message fits a frame")
+            .to_vec();
+        if let Some((at, flip)) = corrupt {
+            let at = at % bytes.len();
+            bytes[at] ^= flip;
+        }
+        self.feed(&bytes);
+    }
+
+    fn handle(&mut self, message: &HostMessage) {
+        let link = self.rx.counters();
+        let (answer, _done) = self.session.handle(message, link, || 1234);
+
+        // The answer goes out in one frame, and the host reads it back (the
+        // host's receiver is tested by `link_decode`: `decode` here).
+        let mut out = [0; MAX_FRAME_BYTES];
+        let bytes = self
+            .firmware_tx
+            .frame(answer, &mut out)
+            .expect("every answer fits a frame");
+        assert!(bytes.len() <= MAX_FRAME_BYTES);
+        let (terminator, body) = bytes.split_last().expect("a frame is never empty");
+        assert_eq!(*terminator, 0);
+        let mut body = body.to_vec();
+        let read_back = decode::<TargetMessage>(&mut body)
+            .expect("the host decodes every answer")
+            .body;
+        if read_back != answer {
+            // Only NaN (!= itself) may tell them apart: same bytes.
+            let (mut a, mut b) = ([0; MAX_FRAME_BYTES], [0; MAX_FRAME_BYTES]);
+            let reencode = |m, out| encode(&Frame { seq: 0, body: m }, out).map(<[u8]>::to_vec);
+            assert_eq!(reencode(read_back, &mut a), reencode(answer, &mut b));
+        }
+
+        let max = |m: Option<u16>| m.map_or(1, |d| d.max(1));
+        match (message, answer) {
+            (HostMessage::Configure(c), _) if c.protocol != PROTOCOL_VERSION => {
+                assert_eq!(
+                    answer,
+                    TargetMessage::Refused(Refusal::Protocol(PROTOCOL_VERSION))
+                );
+            }
+            (HostMessage::Configure(c), _) => {
+                let builds = c.pilot.build().is_ok() && c.grid.build().is_ok();
+                assert_eq!(
+                    answer == TargetMessage::Configured,
+                    builds,
+                    "{c:?}: {answer:?}"
+                );
+                if builds {
+                    self.pwm_max_duty = Some(c.pwm_max_duty);
+                } else {
+                    assert!(matches!(answer, TargetMessage::Refused(Refusal::Spec(_))));
+                }
+            }
+            (HostMessage::Tick(_), TargetMessage::Refused(Refusal::NotConfigured)) => {
+                assert!(self.pwm_max_duty.is_none());
+            }
+            (HostMessage::Tick(input), TargetMessage::Ticked(t)) => {
+                assert!(self.pwm_max_duty.is_some());
+                assert_eq!(t.tick, input.tick);
+                let full = max(self.pwm_max_duty);
+                assert!(
+                    t.left.duty <= full && t.right.duty <= full,
+                    "{t:?} over {full}"
+                );
+                assert!(t.command.iter().all(|c| c.is_finite()), "{t:?}");
+            }
+            (HostMessage::Finish, TargetMessage::Finished(f)) => {
+                let full = max(self.pwm_max_duty);
+                assert!(f.motors.iter().all(|m| m.duty <= full), "{f:?}");
+                assert_eq!(f.peak_stack_bytes, 1234);
+            }
+            _ => panic!("{message:?} answered with {answer:?}"),
+        }
+        let full = max(self.pwm_max_duty);
+        for side in [Side::Left, Side::Right] {
+            assert!(self.bus.motor(side).duty <= full);
+        }
+    }
+
+    fn configure(&mut self, u: &mut Unstructured) -> Result<HostMessage> {
+        Ok(HostMessage::Configure(Configure {
+            protocol: if u.ratio(1, 16)? {
+                u.arbitrary()?
+            } else {
+                PROTOCOL_VERSION
+            },
+            pilot: light_pilot_spec(u)?,
+            grid: tag_grid_spec(u)?,
+            pwm_max_duty: match u.int_in_range(0_u8..=3)? {
+                0 => u.arbitrary()?,
+                _ => 1000,
+            },
+        }))
+    }
+
+    fn tick(&mut self, u: &mut Unstructured) -> Result<HostMessage> {
+        let left = encoder_count(u, self.counts.0)?;
+        let right = encoder_count(u, self.counts.1)?;
+        self.counts = (
+            left.unwrap_or(self.counts.0),
+            right.unwrap_or(self.counts.1),
+        );
+        let mut uart = heapless::Vec::new();
+        match u.int_in_range(0_u8..=3)? {
+            // A tag of the typical grid (21 × 21 from (-1, -1)), or any tag.
+            0 => {
+                let id = if u.arbitrary()? {
+                    TagGrid::id(u.int_in_range(0..=20)?, u.int_in_range(0..=20)?)
+                } else {
+                    wmr_core::devices::TagId(u.arbitrary()?)
+                };
+                let _ = uart.extend_from_slice(&encode_frame(id));
+            }
+            1 => {
+                let len = u.int_in_range(0..=MAX_UART_BYTES_PER_TICK)?;
+                for _ in 0..len {
+                    let _ = uart.push(u.arbitrary()?);
+                }
+            }
+            _ => {}
+        }
+        self.tick = if u.ratio(1, 16)? {
+            u.arbitrary()?
+        } else {
+            self.tick.wrapping_add(1)
+        };
+        Ok(HostMessage::Tick(TickInput {
+            tick: self.tick,
+            left_count: left,
+            right_count: right,
+            uart,
+        }))
+    }
+}
+
+fn run(u: &mut Unstructured, bus: &ProxyBus) -> Result<()> {
+    let mut h = Harness {
+        session: Session::new(bus),
+        bus,
+        rx: Receiver::new(),
+        host_tx: Sender::default(),
+        firmware_tx: Sender::default(),
+        pwm_max_duty: None,
+        counts: (0, 0),
+        tick: 0,
+    };
+    for _ in 0..MAX_OPS {
+        if u.is_empty() {
+            break;
+        }
+        let corrupt = if u.ratio(1, 16)? {
+            Some((u.arbitrary()?, u.int_in_range(1..=255)?))
+        } else {
+            None
+        };
+        match u.int_in_range(0_u8..=15)? {
+            0..=1 => {
+                let m = h.configure(u)?;
+                h.send(m, corrupt);
+            }
+            2..=11 => {
+                let m = h.tick(u)?;
+                h.send(m, corrupt);
+            }
+            12 => h.send(HostMessage::Finish, corrupt),
+            13 => {
+                // An arbitrary payload, framed correctly.
+                const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+                let len = u.int_in_range(0..=400)?;
+                let mut raw: Vec<u8> = u.bytes(len)?.to_vec();
+                raw.extend_from_slice(&CRC.checksum(&raw.clone()).to_le_bytes());
+                let mut framed = vec![0; cobs::max_encoding_length(raw.len()) + 1];
+                let n = cobs::encode(&raw, &mut framed);
+                framed.truncate(n);
+                framed.push(0);
+                h.feed(&framed);
+            }
+            14 => {
+                let len = u.int_in_range(0..=64)?;
+                let garbage = u.bytes(len)?.to_vec();
+                h.feed(&garbage);
+            }
+            _ => {
+                h.session.link_silent();
+                for side in [Side::Left, Side::Right] {
+                    assert_eq!(bus.motor(side).duty, 0);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fuzz_target!(|data: &[u8]| {
+    let bus = ProxyBus::new();
+    let _ = run(&mut Unstructured::new(data), &bus);
+});

@@ -1,0 +1,225 @@
+//! Arbitrary bytes into the RFID frame parser and into `RfidReader` (over a
+//! fake UART that serves them in arbitrary chunks and fails on demand),
+//! judged by an oracle written here from the frame format of the module's
+//! docs, not from the parser: a frame is `0x02`, 12 ASCII hex characters
+//! (either case: 10 for the 40-bit id, most significant first, 2 for the
+//! XOR of its 5 bytes), `0x03`; any `0x02` starts a new frame.
+//!
+//! Input: byte 0 drives the UART's chunk sizes, byte 1 its failures; the
+//! rest is the stream.
+
+#![no_main]
+
+use std::cell::Cell;
+
+use embedded_io::{ErrorKind, ErrorType, Read, ReadReady};
+use libfuzzer_sys::fuzz_target;
+use wmr_core::devices::{FrameParser, RfidCounters, RfidReader, TagId};
+
+const STX: u8 = 0x02;
+const ETX: u8 = 0x03;
+
+fn hex(c: u8) -> Option<u8> {
+    (c as char).to_digit(16).map(|d| d as u8)
+}
+
+/// What the oracle reads in a stream.
+#[derive(Debug, Default)]
+struct Oracle {
+    /// Valid frames: (index of their ETX, tag id).
+    valid: Vec<(usize, u64)>,
+    /// Well-formed frames with a wrong checksum.
+    bad_checksum: u32,
+    /// Frames begun and aborted.
+    malformed: u32,
+    /// Bytes outside any frame.
+    outside: u32,
+    /// A frame is still open at the end.
+    open: bool,
+}
+
+/// Window by window: from each STX, the frame takes up to 13 more bytes;
+/// it is well-formed if those are 12 hex characters and an ETX. Otherwise
+/// it ends at the first byte that does not fit (consumed, unless it is an
+/// STX, which opens the next frame) or, if the stream ends first, is open.
+fn oracle(s: &[u8]) -> Oracle {
+    let mut o = Oracle::default();
+    let mut i = 0;
+    while i < s.len() {
+        if s[i] != STX {
+            o.outside += 1;
+            i += 1;
+            continue;
+        }
+        // A frame starts at i.
+        let body = &s[i + 1..];
+        let hex_run = body
+            .iter()
+            .take(12)
+            .take_while(|&&c| hex(c).is_some())
+            .count();
+        if hex_run == body.len() {
+            // The stream ended inside the frame (at most 12 hex characters).
+            o.open = true;
+            break;
+        }
+        let next = body[hex_run];
+        if hex_run == 12 && next == ETX {
+            let digits: Vec<u8> = body[..12].iter().map(|&c| hex(c).unwrap_or(0)).collect();
+            let bytes: Vec<u8> = digits.chunks(2).map(|p| p[0] << 4 | p[1]).collect();
+            let xor = bytes[..5].iter().fold(0, |a, b| a ^ b);
+            if xor == bytes[5] {
+                let id = bytes[..5].iter().fold(0_u64, |a, &b| a << 8 | u64::from(b));
+                o.valid.push((i + 13, id));
+            } else {
+                o.bad_checksum += 1;
+            }
+            i += 14;
+        } else {
+            o.malformed += 1;
+            // The byte that did not fit: an STX opens the next frame,
+            // anything else is consumed by the aborted one.
+            i += 1 + hex_run + usize::from(next != STX);
+        }
+    }
+    o
+}
+
+/// A UART over the stream: ready while bytes remain; each read returns a
+/// chunk of 1..=16 bytes (sizes from a generator seeded by the input); a
+/// ready check or a read fails on the schedule `failures` sets. Its
+/// position and failure count are shared with the harness, which watches
+/// them while the reader owns the UART.
+struct FakeUart<'a> {
+    data: &'a [u8],
+    pos: &'a Cell<usize>,
+    injected: &'a Cell<u32>,
+    rng: u32,
+    failures: u8,
+}
+
+impl FakeUart<'_> {
+    fn next(&mut self) -> u32 {
+        // xorshift32
+        self.rng ^= self.rng << 13;
+        self.rng ^= self.rng >> 17;
+        self.rng ^= self.rng << 5;
+        self.rng
+    }
+
+    /// Whether this call fails: never if `failures` is 0, else about one
+    /// call in `failures + 1`.
+    fn fail(&mut self) -> bool {
+        let f = u32::from(self.failures);
+        let fails = f != 0 && self.next().is_multiple_of(f + 1);
+        self.injected.set(self.injected.get() + u32::from(fails));
+        fails
+    }
+}
+
+impl ErrorType for FakeUart<'_> {
+    type Error = ErrorKind;
+}
+
+impl ReadReady for FakeUart<'_> {
+    fn read_ready(&mut self) -> Result<bool, ErrorKind> {
+        if self.fail() {
+            return Err(ErrorKind::Other);
+        }
+        Ok(self.pos.get() < self.data.len())
+    }
+}
+
+impl Read for FakeUart<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, ErrorKind> {
+        if self.fail() {
+            return Err(ErrorKind::Other);
+        }
+        let chunk = 1 + (self.next() % 16) as usize;
+        let pos = self.pos.get();
+        let rest = &self.data[pos..];
+        let n = rest.len().min(buf.len()).min(chunk);
+        buf[..n].copy_from_slice(&rest[..n]);
+        self.pos.set(pos + n);
+        Ok(n)
+    }
+}
+
+fuzz_target!(|data: &[u8]| {
+    let [seed, failures, stream @ ..] = data else {
+        return;
+    };
+    let want = oracle(stream);
+
+    // The parser, byte by byte.
+    let mut parser = FrameParser::new();
+    let mut tags = Vec::new();
+    for (i, &b) in stream.iter().enumerate() {
+        if let Some(tag) = parser.push(b) {
+            tags.push((i, tag.0));
+        }
+    }
+    assert_eq!(tags, want.valid, "tags (index of ETX, id)");
+    assert!(tags.iter().all(|&(_, id)| id <= TagId::MASK));
+    let c = parser.counters();
+    assert_eq!(c.frames_ok as usize, want.valid.len());
+    assert_eq!(c.bad_checksum, want.bad_checksum);
+    assert_eq!(c.malformed, want.malformed);
+    assert_eq!(c.bytes_outside_frames, want.outside);
+    assert_eq!((c.read_errors, c.superseded), (0, 0));
+    assert_eq!(parser.in_frame(), want.open);
+
+    // The reader, poll by poll: each poll returns the last valid frame
+    // whose ETX it read, and counts the earlier ones as superseded.
+    let (pos, injected) = (Cell::new(0), Cell::new(0));
+    let mut reader = RfidReader::new(FakeUart {
+        data: stream,
+        pos: &pos,
+        injected: &injected,
+        rng: (u32::from(*seed) * 0x0101_0101) | 1,
+        failures: *failures,
+    });
+    let max = RfidReader::<FakeUart>::MAX_BYTES_PER_POLL;
+    let mut superseded = 0;
+    let mut polls = 0;
+    while pos.get() < stream.len() {
+        polls += 1;
+        // Each poll reads at least one byte unless the UART fails, which
+        // it does for about one call in `failures + 1`.
+        assert!(
+            polls <= 64 * (stream.len() + 1),
+            "the reader does not progress"
+        );
+        let before = pos.get();
+        let got = reader.poll();
+        let after = pos.get();
+        assert!(
+            after - before <= max,
+            "one poll read {} > {max} bytes",
+            after - before
+        );
+        let completed: Vec<u64> = want
+            .valid
+            .iter()
+            .filter(|(etx, _)| (before..after).contains(etx))
+            .map(|&(_, id)| id)
+            .collect();
+        assert_eq!(
+            got.map(|t| t.0),
+            completed.last().copied(),
+            "poll of bytes {before}..{after}"
+        );
+        superseded += completed.len().saturating_sub(1);
+    }
+    // The same bytes through the reader: the same counts as the parser's,
+    // plus the UART's failures and the superseded tags.
+    let r = reader.counters();
+    assert_eq!(
+        r,
+        RfidCounters {
+            read_errors: injected.get(),
+            superseded: superseded as u32,
+            ..c
+        }
+    );
+});
