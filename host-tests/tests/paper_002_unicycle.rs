@@ -240,9 +240,10 @@ fn pairings_selected_in_a_scenario_file_run_in_the_simulator_and_the_pilot() {
         // depends on the noise's path. Over 32 starts, median max / mean
         // (spread of the max), with the f32 kernels [libm's sinf/cosf]:
         // unicycle 0.455 [0.667] / 0.200 [0.250] (0.10–27.8 m [0.11–26.9]:
-        // some starts lose the reference), full stack 2.39 [2.71] / 0.93
-        // [0.98] (1.0–3.6 m [1.3–4.8]). The bounds, 0.75 / 0.3 and 3.0 /
-        // 1.1 m, sit just above libm's medians; before the ensembles they
+        // some starts lose the reference), full stack 2.19 [2.35] / 0.77
+        // [1.03] (1.0–4.7 m [1.2–7.4]; since a09b049's drive limits). The
+        // bounds, 0.75 / 0.3 and 3.0 / 1.1 m, sit just above libm's
+        // medians; before the ensembles they
         // were 1.6 / 0.75 m on one lucky run (1.434 / 0.668 m).
         (
             EstimatorSpec::POSE_OBSERVER,
