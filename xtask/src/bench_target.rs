@@ -12,7 +12,8 @@ use std::fmt::Write as _;
 use std::time::Duration;
 
 use crate::target::{
-    Build, grouped, marked_section, qemu, qemu_version, rustc_version, update_marked, write_report,
+    Build, grouped, marked_section, qemu, qemu_on, qemu_version, rustc_version, update_marked,
+    write_report,
 };
 
 /// The math backends: name and the firmware features that select it.
@@ -126,6 +127,9 @@ pub struct FilterRun {
 pub struct Report {
     /// Math backend the binary was built with.
     pub backend: String,
+    /// The QEMU machine it ran on (`netduinoplus2` when the output does not
+    /// say).
+    pub machine: String,
     /// Samples per stage.
     pub samples: u32,
     /// SysTick counts per instruction found by the calibration.
@@ -176,6 +180,7 @@ fn field<T: std::str::FromStr>(line: &str, key: &str) -> Result<T, String> {
 pub fn parse(output: &str) -> Result<Report, String> {
     let mut report = Report {
         backend: String::new(),
+        machine: "netduinoplus2".into(),
         samples: 0,
         counts_per_instruction: 0.0,
         overhead_instructions: 0.0,
@@ -192,6 +197,9 @@ pub fn parse(output: &str) -> Result<Report, String> {
             Some("wmr-bench") => {
                 report.backend = field(line, "backend")?;
                 report.samples = field(line, "samples")?;
+                if let Ok(machine) = field::<String>(line, "machine") {
+                    report.machine = machine;
+                }
                 header = true;
             }
             Some("calibration") => {
@@ -271,6 +279,59 @@ pub fn run_backend(
     Ok(report)
 }
 
+/// The Cortex-M0 target of `wmr-bench-m0`.
+pub const M0_TARGET: &str = "thumbv6m-none-eabi";
+/// QEMU's Cortex-M0 machine (nRF51822, 16 MHz).
+const M0_MACHINE: &str = "microbit";
+/// `-icount shift` on the M0: 64 ns per instruction, 1.024 SysTick counts at
+/// 16 MHz (shift 0 would make one count 62 instructions).
+const M0_ICOUNT_SHIFT: u32 = 6;
+/// Budget and target names of the M0 run carry this prefix
+/// (`m0.robot_tick`).
+const M0_PREFIX: &str = "m0.";
+
+/// Builds `wmr-bench-m0` (the same bench source, default backend) for the
+/// Cortex-M0 and runs it on QEMU's `microbit`.
+pub fn run_m0() -> Result<Report, String> {
+    let dir = crate::target::target_dir();
+    let dir_arg = dir.to_string_lossy().into_owned();
+    crate::cargo(
+        &[
+            "build",
+            "-p",
+            "wmr-bench-m0",
+            "--release",
+            "--target",
+            M0_TARGET,
+            "--target-dir",
+            &dir_arg,
+        ],
+        &[],
+    )?;
+    let built = dir.join(M0_TARGET).join("release").join("wmr-bench-m0");
+    let out = dir.join("elf").join("bench-m0");
+    std::fs::create_dir_all(&out).map_err(|e| format!("create {}: {e}", out.display()))?;
+    let elf = out.join("wmr-bench-m0");
+    std::fs::copy(&built, &elf)
+        .map_err(|e| format!("copy {} to {}: {e}", built.display(), elf.display()))?;
+    eprintln!(
+        "    running {} under QEMU {M0_MACHINE} (-icount shift={M0_ICOUNT_SHIFT})",
+        elf.display()
+    );
+    let sizes = crate::size::analyse(&elf)?;
+    let output = qemu_on(&elf, M0_MACHINE, M0_ICOUNT_SHIFT, QEMU_TIMEOUT)?;
+    let mut report = parse(&output).map_err(|e| format!("{}: {e}", elf.display()))?;
+    report.elf_flash_ram = Some((sizes.flash, sizes.ram));
+    if report.machine != M0_MACHINE {
+        return Err(format!(
+            "{} says machine {}, expected {M0_MACHINE}",
+            elf.display(),
+            report.machine
+        ));
+    }
+    Ok(report)
+}
+
 /// The task. `write_docs` (`--write`) also updates the generated section of
 /// [`DOCS_PAGE`]; without it nothing tracked is written.
 pub fn bench_target(write_docs: bool) -> crate::Result {
@@ -284,9 +345,11 @@ pub fn bench_target(write_docs: bool) -> crate::Result {
             &format!("bench-{backend}"),
         )?);
     }
-    let table = markdown(&reports);
+    eprintln!("\n==> wmr-bench-m0, f32 (Cortex-M0)");
+    let m0 = run_m0()?;
+    let table = format!("{}\n{}", markdown(&reports), m0_markdown(&m0));
     print!("\n{table}");
-    let (budget_table, verdict) = check_budgets(&reports)?;
+    let (budget_table, verdict) = check_budgets(&reports, &m0)?;
     print!("\n{budget_table}");
     let path = write_report(REPORT, &format!("{table}\n{budget_table}"))?;
     eprintln!("\nwritten to {}", path.display());
@@ -307,19 +370,28 @@ pub fn bench_target(write_docs: bool) -> crate::Result {
 
 /// The default backend's figures against `firmware/budgets.toml`: the
 /// table (budgets, then issue 15's targets) and the verdict.
-fn check_budgets(reports: &[Report]) -> Result<(String, crate::Result), String> {
+/// A name prefixed `m0.` is the M0 run's figure.
+fn check_budgets(reports: &[Report], m0: &Report) -> Result<(String, crate::Result), String> {
     let budgets = crate::budgets::Budgets::load()?;
     let default = reports
         .iter()
         .find(|r| r.backend == BACKENDS[0].0)
         .ok_or("no run of the default backend")?;
-    let mean = |name: &str| default.stat(name).map(|s| s.mean);
+    let run = |name: &str| match name.strip_prefix(M0_PREFIX) {
+        Some(name) => (m0, name.to_owned()),
+        None => (default, name.to_owned()),
+    };
+    let mean = |name: &str| {
+        let (report, name) = run(name);
+        report.stat(&name).map(|s| s.mean)
+    };
     let mut verdicts = budgets.check("instructions", &budgets.instructions, mean)?;
     verdicts.extend(budgets.check("stack_bytes", &budgets.stack_bytes, |name| {
+        let (report, name) = run(name);
         if name == "robot_tick" {
-            Some(default.tick_stack_bytes as f64)
+            Some(report.tick_stack_bytes as f64)
         } else {
-            default.stack(name).map(|b| b as f64)
+            report.stack(&name).map(|b| b as f64)
         }
     })?);
     let (md, verdict) = crate::budgets::report(&verdicts, budgets.tolerance);
@@ -418,6 +490,45 @@ pub fn markdown(reports: &[Report]) -> String {
     }
     md.pop();
     md.push_str(".\n");
+    md
+}
+
+/// The Cortex-M0 run's tables: the tick's stages, the tick's stack, the
+/// math, the bench's own size.
+pub fn m0_markdown(m0: &Report) -> String {
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "On a Cortex-M0 (no FPU: every `f32` operation is a call into \
+         compiler-builtins' soft float): `wmr-bench-m0` (the same source, \
+         {M0_TARGET}, backend {}) under QEMU `{M0_MACHINE}` (nRF51822, 16 MHz) \
+         with `-icount shift={M0_ICOUNT_SHIFT}` ({:.5} SysTick counts per \
+         instruction, expected 1.024). Mean (min–max) over {} calls; the \
+         filters are not run (their states and stacks do not fit beside the \
+         bench in 16 KiB of RAM).\n",
+        m0.backend, m0.counts_per_instruction, m0.samples
+    );
+    md.push_str("| stage or function | Cortex-M0 |\n| --- | ---: |\n");
+    for (name, label) in STAGES.iter().chain(MATH.iter()) {
+        if let Some(stat) = m0.stat(name) {
+            let _ = writeln!(md, "| {label} | {} |", cell(Some(stat)));
+        }
+    }
+    let _ = writeln!(
+        md,
+        "| tick peak stack (below the caller's SP) | {} B |",
+        grouped(m0.tick_stack_bytes)
+    );
+    if let Some((flash, ram)) = m0.elf_flash_ram {
+        let _ = writeln!(
+            md,
+            "\n`wmr-bench-m0` itself: {} B flash, {} B static RAM (the core's tick, \
+             the HIL link's proxies and the math benches; no firmware is built for \
+             the M0).",
+            grouped(flash),
+            grouped(ram)
+        );
+    }
     md
 }
 

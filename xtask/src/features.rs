@@ -73,6 +73,11 @@ pub const FIRMWARE: [&[&str]; 4] = [
     &["micromath", "fusion-particle-filter"],
 ];
 
+/// The rows of `wmr-bench-m0` (the on-target bench for the Cortex-M0,
+/// linted on `thumbv6m-none-eabi` only): its default backend, and both
+/// other backends at once.
+pub const BENCH_M0: [&[&str]; 2] = [&[], &["libm", "micromath"]];
+
 /// Clippy `-D warnings` on every row of the matrix.
 pub fn clippy_matrix() -> crate::Result {
     let libraries: [(&str, &[&[&str]]); 2] = [("core", &CORE), ("papers", &PAPERS)];
@@ -129,6 +134,29 @@ pub fn clippy_matrix() -> crate::Result {
                 )
             })?;
         }
+    }
+    for row in BENCH_M0 {
+        let features = row.join(",");
+        let target = crate::bench_target::M0_TARGET;
+        crate::step(&format!("clippy bench-m0 {target} [{features}]"), || {
+            crate::cargo(
+                &[
+                    "clippy",
+                    "-p",
+                    "wmr-bench-m0",
+                    "--release",
+                    "--target",
+                    target,
+                    "--all-targets",
+                    "--features",
+                    &features,
+                    "--",
+                    "-D",
+                    "warnings",
+                ],
+                &[],
+            )
+        })?;
     }
     Ok(())
 }

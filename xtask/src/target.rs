@@ -88,12 +88,24 @@ impl Build<'_> {
 /// output. Fails if QEMU is missing, the program exits non-zero, or it
 /// runs longer than `timeout`.
 pub fn qemu(elf: &Path, timeout: Duration) -> Result<String, String> {
+    qemu_on(elf, "netduinoplus2", 0, timeout)
+}
+
+/// [`qemu`] on another `machine` (`microbit`: the Cortex-M0), with
+/// `-icount shift=<icount_shift>` (2^shift virtual ns per instruction).
+pub fn qemu_on(
+    elf: &Path,
+    machine: &str,
+    icount_shift: u32,
+    timeout: Duration,
+) -> Result<String, String> {
+    let shift = format!("shift={icount_shift}");
     let mut child = Command::new(QEMU)
         .args([
             "-M",
-            "netduinoplus2",
+            machine,
             "-icount",
-            "shift=0",
+            &shift,
             "-nographic",
             "-monitor",
             "none",
