@@ -139,13 +139,14 @@ pub fn format_summary(s: &Summary) -> String {
     if let Some(r) = &s.rfid {
         let _ = writeln!(
             o,
-            "rfid          frames ok {}  bad checksum {}  malformed {}  outside {}  read errors {}  superseded {}  unknown tags {}",
+            "rfid          frames ok {}  bad checksum {}  malformed {}  outside {}  read errors {}  superseded {}  backlogged polls {}  unknown tags {}",
             r.frames_ok,
             r.bad_checksum,
             r.malformed,
             r.bytes_outside_frames,
             r.read_errors,
             r.superseded,
+            r.backlogged_polls,
             r.unknown_tags
         );
         let _ = writeln!(

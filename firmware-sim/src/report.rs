@@ -240,6 +240,9 @@ pub struct RfidReport {
     pub read_errors: u32,
     /// Valid tags replaced by a later one in the same poll.
     pub superseded: u32,
+    /// Polls that stopped at the reader's byte bound with bytes still
+    /// waiting (the next poll's tag is aged accordingly).
+    pub backlogged_polls: u32,
     /// Valid frames whose tag the locator did not know.
     pub unknown_tags: u32,
     /// What the virtual reader sent, skipped and damaged.

@@ -166,7 +166,7 @@ fuzz_target!(|data: &[u8]| {
     assert_eq!(c.bad_checksum, want.bad_checksum);
     assert_eq!(c.malformed, want.malformed);
     assert_eq!(c.bytes_outside_frames, want.outside);
-    assert_eq!((c.read_errors, c.superseded), (0, 0));
+    assert_eq!((c.read_errors, c.superseded, c.backlogged_polls), (0, 0, 0));
     assert_eq!(parser.in_frame(), want.open);
 
     // The reader, poll by poll: each poll returns the last valid frame
@@ -181,6 +181,7 @@ fuzz_target!(|data: &[u8]| {
     });
     let max = RfidReader::<FakeUart>::MAX_BYTES_PER_POLL;
     let mut superseded = 0;
+    let mut backlogged_polls = 0;
     let mut polls = 0;
     while pos.get() < stream.len() {
         polls += 1;
@@ -191,13 +192,26 @@ fuzz_target!(|data: &[u8]| {
             "the reader does not progress"
         );
         let before = pos.get();
-        let got = reader.poll();
+        let backlogged_before = reader.counters().backlogged_polls;
+        let got = reader.poll_read();
         let after = pos.get();
         assert!(
             after - before <= max,
             "one poll read {} > {max} bytes",
             after - before
         );
+        // A backlogged poll read the whole bound and left bytes waiting; a
+        // tag's age is at most the backlogged polls so far (0 without any).
+        let backlogged = reader.counters().backlogged_polls - backlogged_before;
+        assert!(backlogged <= 1);
+        if backlogged == 1 {
+            assert!(after - before == max && after < stream.len());
+            backlogged_polls += 1;
+        }
+        if let Some(read) = got {
+            assert!(read.age_ticks <= backlogged_polls, "{read:?}");
+        }
+        let got = got.map(|read| read.id);
         let completed: Vec<u64> = want
             .valid
             .iter()
@@ -219,6 +233,7 @@ fuzz_target!(|data: &[u8]| {
         RfidCounters {
             read_errors: injected.get(),
             superseded: superseded as u32,
+            backlogged_polls,
             ..c
         }
     );

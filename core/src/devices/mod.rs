@@ -32,6 +32,6 @@ pub mod tag_map;
 
 pub use encoder::QuadratureCounter;
 pub use motor::{Direction, MotorCommand, MotorDriver, MotorFault, MotorWiring};
-pub use rfid::{FrameParser, RfidCounters, RfidReader, TagId, encode_frame};
+pub use rfid::{FrameParser, RfidCounters, RfidReader, TagId, TagRead, encode_frame};
 pub use tag_grid::{TagGrid, TagGridError, TagLocator};
 pub use tag_map::{TagMap, TagMapError};

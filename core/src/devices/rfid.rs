@@ -118,6 +118,11 @@ pub struct RfidCounters {
     /// Valid tags that a later valid tag in the same poll replaced
     /// ([`RfidReader`] only).
     pub superseded: u32,
+    /// Polls that stopped at [`RfidReader::MAX_BYTES_PER_POLL`] with bytes
+    /// still waiting: the reader fell behind the line ([`RfidReader`] only;
+    /// the next poll's tags carry the age that implies, see
+    /// [`RfidReader::poll_read`]).
+    pub backlogged_polls: u32,
 }
 
 /// Parser state.
@@ -158,6 +163,7 @@ impl FrameParser {
                 bytes_outside_frames: 0,
                 read_errors: 0,
                 superseded: 0,
+                backlogged_polls: 0,
             },
         }
     }
@@ -235,23 +241,53 @@ impl Default for FrameParser {
     }
 }
 
+/// A tag read by [`RfidReader::poll_read`], with how old it may be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TagRead {
+    /// The tag.
+    pub id: TagId,
+    /// Upper bound on the polls (control ticks) since the frame's last
+    /// byte arrived: 0 when the previous poll emptied the UART (so the frame
+    /// arrived since), `k` after `k` polls in a row that stopped at
+    /// [`RfidReader::MAX_BYTES_PER_POLL`] with bytes still waiting (a poll
+    /// ended by a read error or a 0-byte read leaves the bound as it was).
+    pub age_ticks: u32,
+}
+
 /// A non-blocking RFID reader on a UART.
 ///
-/// [`Self::poll`] is meant to be called once per control tick: it reads only
-/// what the UART already holds, and at most [`Self::MAX_BYTES_PER_POLL`]
-/// bytes of it.
+/// [`Self::poll_read`] is meant to be called once per control tick: it
+/// reads only what the UART already holds, and at most
+/// [`Self::MAX_BYTES_PER_POLL`] bytes of it.
+///
+/// # Backlog and age
+/// A poll reads until the UART is empty, so that a tag it returns arrived
+/// since the previous poll (age 0), and the bound is large enough to empty
+/// any UART buffer this project feeds it (the HIL link's 512-byte ring,
+/// the Black Pill's ring) in one poll. Should a poll still stop at the
+/// bound with bytes waiting, it counts [`RfidCounters::backlogged_polls`],
+/// and the next poll's tag carries the age that implies
+/// ([`TagRead::age_ticks`]): the tracker rejects a fix older than its
+/// `max_fix_age_ticks`, so a backlog is never replayed as fresh. Older tags
+/// of one poll are counted in [`RfidCounters::superseded`]: only the latest
+/// is returned.
 #[derive(Debug)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RfidReader<R: Read + ReadReady> {
     uart: R,
     parser: FrameParser,
+    /// Polls in a row that stopped at the bound with bytes waiting.
+    backlog_polls_in_a_row: u32,
 }
 
 impl<R: Read + ReadReady> RfidReader<R> {
-    /// Most bytes one [`Self::poll`] reads. Bounds the control tick's work;
-    /// the rest stays in the UART's buffer for the next tick. 64 bytes is
-    /// 4.5 frames, more than a 9600 Bd reader sends in a 10 ms tick.
-    pub const MAX_BYTES_PER_POLL: usize = 64;
+    /// Most bytes one poll reads: bounds the control tick's work (the
+    /// parser takes a few tens of instructions a byte) and is the size of
+    /// the largest UART buffer in the project (the HIL link's ring), so that
+    /// one poll drains it. A 9600 Bd reader sends under 10 bytes per 10 ms
+    /// tick; the HIL link delivers at most 160.
+    pub const MAX_BYTES_PER_POLL: usize = 512;
 
     /// Takes the UART (configured by the caller, typically 9600 8N1).
     #[must_use]
@@ -259,29 +295,51 @@ impl<R: Read + ReadReady> RfidReader<R> {
         Self {
             uart,
             parser: FrameParser::new(),
+            backlog_polls_in_a_row: 0,
         }
     }
 
+    /// [`Self::poll_read`] without the age (for callers that poll often
+    /// enough to drain the UART every time).
+    pub fn poll(&mut self) -> Option<TagId> {
+        self.poll_read().map(|read| read.id)
+    }
+
     /// Reads what the UART holds, without blocking, and returns the most
-    /// recent valid tag completed during this poll.
+    /// recent valid tag completed during this poll, with its age bound
+    /// (type docs, "Backlog and age").
     ///
     /// Reads while `read_ready()` says so, until [`Self::MAX_BYTES_PER_POLL`]
     /// bytes. Earlier valid tags of the same poll are counted in
     /// [`RfidCounters::superseded`]; a read or ready error is counted in
     /// [`RfidCounters::read_errors`] and ends the poll, as does a read of 0
     /// bytes. A frame split across polls is completed by a later poll.
-    pub fn poll(&mut self) -> Option<TagId> {
+    pub fn poll_read(&mut self) -> Option<TagRead> {
+        let age_ticks = self.backlog_polls_in_a_row;
         let mut latest = None;
         let mut budget = Self::MAX_BYTES_PER_POLL;
         let mut buf = [0_u8; READ_CHUNK];
-        while budget > 0 {
+        loop {
             match self.uart.read_ready() {
                 Ok(true) => {}
-                Ok(false) => break,
+                Ok(false) => {
+                    // Emptied: the next poll's bytes all arrive after this.
+                    self.backlog_polls_in_a_row = 0;
+                    break;
+                }
                 Err(_) => {
+                    // Ends the poll without saying whether bytes wait: the
+                    // age bound stays as it was.
                     self.count_read_error();
                     break;
                 }
+            }
+            if budget == 0 {
+                // Bytes waiting beyond the bound: behind the line.
+                self.backlog_polls_in_a_row = self.backlog_polls_in_a_row.saturating_add(1);
+                let c = &mut self.parser.counters;
+                c.backlogged_polls = c.backlogged_polls.saturating_add(1);
+                return latest.map(|id| TagRead { id, age_ticks });
             }
             let want = budget.min(buf.len());
             let Some(chunk) = buf.get_mut(..want) else {
@@ -306,7 +364,7 @@ impl<R: Read + ReadReady> RfidReader<R> {
                 }
             }
         }
-        latest
+        latest.map(|id| TagRead { id, age_ticks })
     }
 
     /// What the reader has seen so far.
@@ -441,6 +499,7 @@ mod tests {
                 bytes_outside_frames: 8,
                 read_errors: 0,
                 superseded: 0,
+                backlogged_polls: 0,
             }
         );
         assert!(!p.in_frame());
@@ -477,8 +536,51 @@ mod tests {
         let mut r = RfidReader {
             uart: FakeUart::new(&frame[5..]),
             parser,
+            backlog_polls_in_a_row: 0,
         };
         assert_eq!(r.poll(), Some(TagId(0x99_8877_6655)));
+    }
+
+    /// A backlog beyond one poll's bound is read on the next poll, and its
+    /// tag says it may be a tick old; an emptied UART resets the age.
+    #[test]
+    fn backlog_is_drained_and_aged() {
+        // 50 frames = 700 bytes: 512 on the first poll (36 whole frames),
+        // the rest on the second.
+        let stream: Vec<u8> = (0..50_u64)
+            .flat_map(|i| encode_frame(TagId(1000 + i)))
+            .collect();
+        let seven = encode_frame(TagId(7));
+        let mut r = RfidReader::new(FakeUart::new(&stream));
+        let first = r.poll_read();
+        assert_eq!(
+            first,
+            Some(TagRead {
+                id: TagId(1035),
+                age_ticks: 0
+            })
+        );
+        assert_eq!(r.counters().backlogged_polls, 1);
+        assert_eq!(
+            r.poll_read(),
+            Some(TagRead {
+                id: TagId(1049),
+                age_ticks: 1
+            })
+        );
+        assert_eq!(r.uart.pos, stream.len());
+        assert_eq!(r.counters().backlogged_polls, 1);
+        assert_eq!(r.counters().superseded, 48);
+        assert_eq!(r.poll_read(), None);
+        // Emptied: fresh again.
+        r.uart = FakeUart::new(&seven);
+        assert_eq!(
+            r.poll_read(),
+            Some(TagRead {
+                id: TagId(7),
+                age_ticks: 0
+            })
+        );
     }
 
     #[test]

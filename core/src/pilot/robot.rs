@@ -141,16 +141,21 @@ where
             self.counters.right_encoder_errors =
                 self.counters.right_encoder_errors.saturating_add(1);
         }
-        let fix = self.rfid.poll().and_then(|id| match self.tags.locate(id) {
-            Some(position) => Some(TagFix {
-                position,
-                age_ticks: 0,
-            }),
-            None => {
-                self.counters.unknown_tags = self.counters.unknown_tags.saturating_add(1);
-                None
-            }
-        });
+        // The reader's age bound goes to the tracker, which rejects (and
+        // counts) a fix older than its `max_fix_age_ticks`.
+        let fix = self
+            .rfid
+            .poll_read()
+            .and_then(|read| match self.tags.locate(read.id) {
+                Some(position) => Some(TagFix {
+                    position,
+                    age_ticks: read.age_ticks,
+                }),
+                None => {
+                    self.counters.unknown_tags = self.counters.unknown_tags.saturating_add(1);
+                    None
+                }
+            });
         let pilot = self.pilot.step(&Measurement {
             left_count,
             right_count,

@@ -178,6 +178,7 @@ pub(super) fn rfid_report(
         bytes_outside_frames: c.bytes_outside_frames,
         read_errors: c.read_errors,
         superseded: c.superseded,
+        backlogged_polls: c.backlogged_polls,
         unknown_tags,
         reader,
     }

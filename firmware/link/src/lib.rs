@@ -57,8 +57,9 @@ use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 
 /// Bump when a message changes shape; both sides refuse a mismatch (6:
 /// the estimator's sensor facts left `EstimatorSpec::Fusion` for
-/// `TrackerSpec::sensors`).
-pub const PROTOCOL_VERSION: u16 = 6;
+/// `TrackerSpec::sensors`; 7: `RfidCounters::backlogged_polls` in the
+/// diagnostics).
+pub const PROTOCOL_VERSION: u16 = 7;
 
 /// Largest encoded frame, bytes, including COBS overhead and the `0x00`.
 pub const MAX_FRAME_BYTES: usize = 512;
