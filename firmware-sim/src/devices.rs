@@ -342,6 +342,12 @@ pub struct ReaderConfig {
     pub baud: u32,
     /// Link faults (off by default).
     pub faults: LinkFaults,
+    /// Time between two [`VirtualRfidReader::update`]s (the control
+    /// period), s, when known: a range-mode reader whose repeat interval is
+    /// shorter repeats between updates too (each repeat at its time, the
+    /// line permitting), up to the line's capacity. `None`: one report per
+    /// update at most.
+    pub update_period_s: Option<f64>,
 }
 
 impl Default for ReaderConfig {
@@ -351,6 +357,7 @@ impl Default for ReaderConfig {
             antenna_offset_m: 0.0,
             baud: 115_200,
             faults: LinkFaults::default(),
+            update_period_s: None,
         }
     }
 }
@@ -454,6 +461,39 @@ impl VirtualRfidReader {
         if report {
             self.send(t_s, tag.id);
         }
+        // A reader repeating faster than it is updated: the repeats until the
+        // next update, each when due (or when the line frees up). Repeat
+        // intervals of an update period or more never get here, so their
+        // timing is that of one report per update.
+        if let (
+            ReaderMode::Range {
+                repeat_interval_s, ..
+            },
+            Some(period_s),
+            Some((id, _)),
+        ) = (
+            self.config.mode,
+            self.config.update_period_s,
+            self.last_report,
+        ) && repeat_interval_s < period_s
+            && id == tag.id
+        {
+            let next_update_s = t_s + period_s;
+            // Bounded by what the line can carry in a period (a dropped
+            // frame does not occupy the line, so a tiny interval alone
+            // would not bound it).
+            let most = (period_s / self.byte_time_s()).ceil().min(1e6) as usize + 1;
+            for _ in 0..most {
+                let Some((_, at)) = self.last_report else {
+                    break;
+                };
+                let due = (at + repeat_interval_s).max(self.busy_until_s);
+                if due >= next_update_s - TIME_EPS_S {
+                    break;
+                }
+                self.send(due, id);
+            }
+        }
     }
 
     /// Sends one frame for `id` starting at `t_s`, unless the line is busy.
@@ -548,6 +588,41 @@ mod tests {
         pin.set_low().unwrap(); // under drive: counted
         assert_eq!(s.signed_duty(), -0.25);
         assert_eq!(s.line().reversals_under_drive, 1);
+    }
+
+    /// A range-mode reader repeating faster than its updates fills the
+    /// line between them: 160,000 Bd is 160 bytes, 11.4 frames, per 10 ms.
+    #[test]
+    fn fast_repeats_fill_the_line_between_updates() {
+        let config = ReaderConfig {
+            mode: ReaderMode::Range {
+                read_radius_m: 0.08,
+                repeat_interval_s: 1e-4,
+            },
+            baud: 160_000,
+            update_period_s: Some(0.01),
+            ..ReaderConfig::default()
+        };
+        let (mut reader, _uart) = VirtualRfidReader::new(config, floor());
+        let pose = PlantPose::new(0.31, -0.2, 0.0);
+        reader.update(0.0, &pose);
+        // Frames start at 0, 0.875 ms, ... 9.625 ms: 12 begin before 10 ms.
+        assert_eq!(reader.counters().frames_sent, 12);
+        reader.update(0.01, &pose);
+        // The 12th frame still holds the line at 10 ms: the update's own
+        // report is skipped, the repeats go on from where it ends.
+        assert_eq!(reader.counters().skipped_line_busy, 1);
+        assert_eq!(reader.counters().frames_sent, 23);
+        // Without the period: one report per update, as before.
+        let (mut reader, _uart) = VirtualRfidReader::new(
+            ReaderConfig {
+                update_period_s: None,
+                ..config
+            },
+            floor(),
+        );
+        reader.update(0.0, &pose);
+        assert_eq!(reader.counters().frames_sent, 1);
     }
 
     #[test]

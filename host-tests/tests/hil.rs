@@ -160,6 +160,66 @@ fn firmware_under_qemu_tracks_the_figure_eight_exactly_as_the_host_run() {
     assert!(report.peak_stack_bytes > 0);
 }
 
+/// The RFID line at the most the link carries: 160,000 Bd (160 bytes per
+/// 10 ms tick, the link's `MAX_UART_BYTES_PER_TICK`), a range-mode reader
+/// repeating its tag back to back (11 frames a tick). The firmware's reader
+/// empties the UART ring every tick, so every fix it uses arrived that tick
+/// (no poll stopped at its bound, no stale fix), nothing overran, and the
+/// frames a later one replaced are counted.
+#[test]
+fn reader_traffic_at_the_links_maximum_is_drained_every_tick() {
+    let source = firmware_sim::scenario::embedded_source("figure_eight_rfid_full_stack").unwrap();
+    let start = source.find("[position]").unwrap();
+    let end = start + source[start..].find("\n\n").unwrap();
+    let flood = "[position]\nkind = \"reader\"\nmode = \"range\"\nspacing_m = 0.1\n\
+                 offset_m = [0.0, 0.0]\nread_radius_m = 0.08\nrepeat_interval_s = 0.0001\n\
+                 baud = 160000";
+    let mut scenario =
+        Scenario::from_toml_str(&format!("{}{flood}{}", &source[..start], &source[end..])).unwrap();
+    // 10 s: a flooded tick costs the lock-step link about 30 times a normal
+    // one (the proxy UART takes its bytes one at a time).
+    scenario.duration_s = 10.0;
+    scenario.transient_s = 5.0;
+    let host = run(&scenario, |_, _| {}).unwrap();
+    let hil = run_hil(&scenario, &options(), |_, _| {}).unwrap();
+    let (h, f) = (&host.records, &hil.result.records);
+    let first_difference = h
+        .iter()
+        .zip(f)
+        .find(|(a, b)| format!("{a:?}") != format!("{b:?}"))
+        .map(|(a, _)| a.tick);
+    let s = &hil.result.summary;
+    let report = s.hil.expect("hil report");
+    let rfid = s.rfid.expect("rfid counters");
+    let tracker = s.tracker.expect("tracker counters");
+    println!(
+        "flooded line, {} ticks: rfid {rfid:?}; tracker {tracker:?}; uart overruns {}; \
+         error after {} s: max {:.4} mean {:.4} m",
+        f.len(),
+        report.uart_overruns,
+        s.transient_s,
+        s.max_error_m,
+        s.mean_error_m
+    );
+    assert_eq!(first_difference, None, "records differ");
+    assert_eq!(h.len(), f.len());
+    let ticks = scenario_ticks(&scenario);
+    // The line was full: more than 10 frames a tick, every one read but
+    // those still on the line or in the ring when the run ended (at most a
+    // tick's: 160 bytes, 12 frames).
+    assert!(rfid.reader.frames_sent > 10 * u64::from(ticks), "{rfid:?}");
+    assert!(rfid.reader.frames_sent - u64::from(rfid.frames_ok) <= 12);
+    // Every poll emptied the ring: nothing overran and no poll stopped at
+    // its bound, so every tag was read in the tick it arrived (age 0) ...
+    assert_eq!(report.uart_overruns, 0);
+    assert_eq!(rfid.backlogged_polls, 0);
+    assert_eq!(tracker.stale_fixes, 0);
+    // ... one a tick was used (from the second: the first tick's frame is
+    // still on the line), the others replaced and counted.
+    assert_eq!(tracker.fixes_used, ticks - 1);
+    assert_eq!(rfid.superseded + tracker.fixes_used, rfid.frames_ok);
+}
+
 fn scenario_ticks(s: &Scenario) -> u32 {
     (s.duration_s / s.period_s).round() as u32
 }

@@ -487,6 +487,8 @@ pub enum PositionSpec {
         #[serde(default = "defaults::baud")]
         baud: u32,
         /// Repeat interval while a tag stays in range (`range` mode), s.
+        /// Shorter than the control period, the reader repeats between ticks
+        /// too, as fast as the line carries frames.
         #[serde(default = "defaults::repeat_interval_s")]
         repeat_interval_s: f64,
         /// Probability that a byte arrives with a flipped bit.

@@ -604,6 +604,7 @@ impl Scenario {
                             )?,
                             seed,
                         },
+                        update_period_s: Some(period_s),
                     },
                 ))
             }
