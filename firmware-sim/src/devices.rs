@@ -189,16 +189,38 @@ impl WheelShaft {
     }
 }
 
+/// Spurious edges on an encoder's lines (a noisy motor without an input
+/// filter): on a read, with `probability_per_read`, a burst of `min_counts`
+/// to `max_counts` extra counts, up or down, lands in the counter and stays
+/// there, as it would in a timer's counter.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct EncoderGlitches {
+    /// Probability that a read finds a new burst, per read.
+    pub probability_per_read: f64,
+    /// Smallest burst, counts (≥ 1).
+    pub min_counts: u32,
+    /// Largest burst, counts (≥ `min_counts`).
+    pub max_counts: u32,
+    /// RNG seed (the right encoder uses `seed + 1`).
+    pub seed: u64,
+}
+
 /// A quadrature counter ([`QuadratureCounter`]) on a virtual wheel.
 ///
 /// `count = floor(angle / (2π / counts_per_rev))`, reported modulo
 /// `2^bits`: quantized to whole counts and wrapping, as a hardware timer in
-/// encoder mode.
+/// encoder mode; plus, optionally, the bursts of [`EncoderGlitches`].
 #[derive(Debug, Clone)]
 pub struct VirtualEncoder {
     shaft: WheelShaft,
     counts_per_rev: u32,
     mask: u64,
+    glitches: EncoderGlitches,
+    rng: fastrand::Rng,
+    /// Counts the bursts put into the counter so far.
+    extra_counts: i64,
+    /// Bursts so far (shared with whoever reports them).
+    bursts: Rc<Cell<u64>>,
 }
 
 impl VirtualEncoder {
@@ -214,7 +236,21 @@ impl VirtualEncoder {
             shaft,
             counts_per_rev,
             mask: (1_u64 << bits) - 1,
+            glitches: EncoderGlitches::default(),
+            rng: fastrand::Rng::with_seed(0),
+            extra_counts: 0,
+            bursts: Rc::new(Cell::new(0)),
         }
+    }
+
+    /// The same encoder with `glitches`, seeded with `seed`; returns the
+    /// shared count of bursts injected.
+    #[must_use]
+    pub fn with_glitches(mut self, glitches: EncoderGlitches, seed: u64) -> (Self, Rc<Cell<u64>>) {
+        self.glitches = glitches;
+        self.rng = fastrand::Rng::with_seed(seed);
+        let bursts = Rc::clone(&self.bursts);
+        (self, bursts)
     }
 
     /// The unwrapped count the wheel angle corresponds to.
@@ -228,9 +264,16 @@ impl QuadratureCounter for VirtualEncoder {
     type Error = Infallible;
 
     fn raw_count(&mut self) -> Result<u32, Infallible> {
+        let g = self.glitches;
+        if g.probability_per_read > 0.0 && self.rng.f64() < g.probability_per_read {
+            let min = g.min_counts.max(1);
+            let size = i64::from(self.rng.u32(min..=g.max_counts.max(min)));
+            self.extra_counts += if self.rng.bool() { size } else { -size };
+            self.bursts.set(self.bursts.get() + 1);
+        }
         // Two's complement, then the low `bits` bits: a down-counting timer
         // wraps from 0 to 2^bits − 1.
-        Ok((self.absolute_count() as u64 & self.mask) as u32)
+        Ok(((self.absolute_count() + self.extra_counts) as u64 & self.mask) as u32)
     }
 }
 

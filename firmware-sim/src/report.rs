@@ -256,6 +256,9 @@ pub struct PilotReport {
     pub encoder_fault_ticks: u32,
     /// Encoder reads rejected as implausible.
     pub implausible_encoder_reads: u32,
+    /// Encoder glitch bursts the simulation injected (both encoders;
+    /// `[plant.encoder_glitches]`).
+    pub encoder_glitch_bursts: u64,
     /// Ticks with the motors stopped for encoder faults.
     pub encoder_halt_ticks: u32,
     /// Failed motor writes.

@@ -111,3 +111,79 @@ proptest! {
         prop_assert_eq!(p.counters().implausible_encoder_reads, 0);
     }
 }
+
+/// Paper 001's RFID figure-eight (480 s) through the full device stack with
+/// glitching encoders (`[plant.encoder_glitches]`, `seed`): bursts of
+/// spurious counts on 1 % of the reads of each encoder, which stay in the
+/// counter (a noisy motor without an input filter).
+fn glitching_run(min_counts: u32, max_counts: u32) -> firmware_sim::Summary {
+    let source = firmware_sim::scenario::embedded_source("figure_eight_rfid_full_stack").unwrap();
+    let text = format!(
+        "{source}\n[plant.encoder_glitches]\nprobability_per_read = 0.01\n\
+         min_counts = {min_counts}\nmax_counts = {max_counts}\nseed = 7\n"
+    );
+    let run = firmware_sim::run(
+        &firmware_sim::Scenario::from_toml_str(&text).unwrap(),
+        |_, _| {},
+    )
+    .unwrap();
+    let s = run.summary;
+    println!(
+        "glitches of {min_counts}–{max_counts} counts: {:?}; error after {} s: max {:.4} / \
+         mean {:.4} m",
+        s.pilot, s.transient_s, s.max_error_m, s.mean_error_m
+    );
+    s
+}
+
+/// Every burst larger than twice the top wheel speed allows in a tick (≈ 118
+/// counts here, plus the tick's own motion, up to ≈ 60) is rejected as an
+/// implausible jump (issue 16, item 6): the pilot takes the counter's new
+/// value as its origin and loses only that tick's motion (the tracker sees
+/// none), and the motors never halt. With bursts of 200–2,000 counts every
+/// burst is caught: 978 rejected ticks for 982 bursts, the difference being
+/// ticks on which both encoders glitched (one rejected tick each; expected
+/// 480 s · 100 /s · 0.01² ≈ 5). The lost ticks cost accuracy: 0.0376 /
+/// 0.0159 m max / mean after 100 s against the clean run's 0.0266 /
+/// 0.0042 m; paper 001's max bound (0.05 m) holds, its mean bound (0.01 m)
+/// does not. (Dead-reckoning a rejected wheel with its previous tick's
+/// motion, instead of none, would recover most of it; not done.)
+#[test]
+fn glitching_encoders_are_rejected_as_implausible_jumps() {
+    let s = glitching_run(200, 2_000);
+    let pilot = s.pilot.expect("pilot counters");
+    // 480 s, 100 reads a second, two encoders, 1 %: about 960 bursts.
+    assert!(
+        (800..1_100).contains(&pilot.encoder_glitch_bursts),
+        "{pilot:?}"
+    );
+    let rejected = u64::from(pilot.implausible_encoder_reads);
+    assert!(rejected <= pilot.encoder_glitch_bursts);
+    // Both encoders in one tick: about 5 expected; 15 is 4 standard
+    // deviations of a Poisson count above that.
+    assert!(pilot.encoder_glitch_bursts - rejected <= 15, "{pilot:?}");
+    assert_eq!(pilot.encoder_fault_ticks, pilot.implausible_encoder_reads);
+    assert_eq!(pilot.encoder_halt_ticks, 0);
+    assert!(s.max_error_m <= 0.05, "{s:?}");
+}
+
+/// Bursts below the rejection threshold cannot be told from motion: they
+/// pass as odometry error (a heading error the tag fixes must then
+/// correct), which is what a timer's input filter is for. With bursts of
+/// 1–2,000 counts, 93 % are rejected (914 of 982) and the rest degrade
+/// tracking to 0.053 / 0.020 m max / mean (paper 001's bounds: 0.05 /
+/// 0.01 m) without halting the motors.
+#[test]
+fn small_encoder_glitches_pass_as_odometry_error() {
+    let s = glitching_run(1, 2_000);
+    let pilot = s.pilot.expect("pilot counters");
+    let rejected = u64::from(pilot.implausible_encoder_reads);
+    // Uniform in 1..=2000: about 94 % exceed the threshold.
+    assert!(rejected < pilot.encoder_glitch_bursts, "{pilot:?}");
+    assert!(
+        rejected * 100 >= pilot.encoder_glitch_bursts * 90,
+        "{pilot:?}"
+    );
+    assert_eq!(pilot.encoder_halt_ticks, 0);
+    assert!(s.max_error_m.is_finite() && s.max_error_m < 0.1, "{s:?}");
+}

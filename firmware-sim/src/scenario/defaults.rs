@@ -90,6 +90,9 @@ pub fn repeat_interval_s() -> f64 {
 pub fn seed() -> u64 {
     1
 }
+pub fn glitch_min_counts() -> u32 {
+    1
+}
 pub fn fix_timeout_s() -> f64 {
     0.5
 }

@@ -296,7 +296,33 @@ pub enum PlantSpec {
         /// wheel is the first-order system of `motor_time_constant_s`.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         dynamics: Option<DynamicsSpec>,
+        /// Spurious encoder edges (`[plant.encoder_glitches]`); absent:
+        /// clean encoder lines.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        encoder_glitches: Option<EncoderGlitchSpec>,
     },
+}
+
+/// Spurious edges on the encoder lines, the `[plant.encoder_glitches]`
+/// table: on a read, with `probability_per_read`, a burst of `min_counts`
+/// to `max_counts` extra counts (up or down, uniformly) lands in that
+/// encoder's counter and stays there. The core rejects a burst larger than
+/// twice the drive's top wheel speed allows in a tick (counted in
+/// `pilot.implausible_encoder_reads`); a smaller one is odometry error (what
+/// a timer's input filter is for).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EncoderGlitchSpec {
+    /// Probability of a burst, per read of one encoder (one read a tick).
+    pub probability_per_read: f64,
+    /// Smallest burst, counts (default 1).
+    #[serde(default = "defaults::glitch_min_counts")]
+    pub min_counts: u32,
+    /// Largest burst, counts.
+    pub max_counts: u32,
+    /// RNG seed (left encoder; the right uses `seed + 1`).
+    #[serde(default = "defaults::seed")]
+    pub seed: u64,
 }
 
 impl Serialize for PlantSpec {

@@ -17,7 +17,7 @@ use wmr_core::pilot::tracker::TrackerConfig;
 use wmr_core::pilot::tracker::TrackerConfigError;
 use wmr_core::reference::Trajectory;
 
-use crate::devices::{LinkFaults, ReaderConfig, ReaderMode};
+use crate::devices::{EncoderGlitches, LinkFaults, ReaderConfig, ReaderMode};
 use crate::plant::{DiffDriveParams, LoadTorque, PlantPose, WheelDynamics};
 use crate::tags::FloorTags;
 
@@ -50,6 +50,8 @@ pub enum PlantSetup {
         encoder_bits: u32,
         /// PWM full scale, steps.
         pwm_max_duty: u16,
+        /// Spurious encoder edges (none by default).
+        encoder_glitches: EncoderGlitches,
         /// The core's pilot configuration (tracker + drive + encoder width).
         pilot: PilotConfig,
         /// The spec it was built from (what the HIL link sends the firmware).
@@ -447,7 +449,34 @@ impl Scenario {
                 pwm_max_duty,
                 substeps,
                 dynamics,
+                encoder_glitches,
             } => {
+                let encoder_glitches = match encoder_glitches {
+                    None => EncoderGlitches::default(),
+                    Some(g) => {
+                        if g.min_counts == 0 {
+                            return Err(ScenarioError::invalid(
+                                "plant.encoder_glitches.min_counts",
+                                "must be ≥ 1",
+                            ));
+                        }
+                        if g.max_counts < g.min_counts {
+                            return Err(ScenarioError::invalid(
+                                "plant.encoder_glitches.max_counts",
+                                format!("must be ≥ min_counts ({})", g.min_counts),
+                            ));
+                        }
+                        EncoderGlitches {
+                            probability_per_read: probability(
+                                "plant.encoder_glitches.probability_per_read",
+                                g.probability_per_read,
+                            )?,
+                            min_counts: g.min_counts,
+                            max_counts: g.max_counts,
+                            seed: g.seed,
+                        }
+                    }
+                };
                 let params = DiffDriveParams {
                     wheel_radius_m: positive("plant.wheel_radius_m", wheel_radius_m)?,
                     track_width_m: positive("plant.track_width_m", track_width_m)?,
@@ -510,6 +539,7 @@ impl Scenario {
                     encoder_counts_per_rev,
                     encoder_bits,
                     pwm_max_duty,
+                    encoder_glitches,
                     pilot,
                     pilot_spec,
                 })

@@ -5,8 +5,12 @@ use wmr_core::devices::{MotorDriver, MotorWiring};
 use wmr_core::pilot::PilotCounters;
 use wmr_core::pilot::robot::Robot;
 
+use std::cell::Cell;
+use std::rc::Rc;
+
 use crate::devices::{
-    MotorSignals, VirtualDirectionPin, VirtualEncoder, VirtualPwm, VirtualUart, WheelShaft,
+    EncoderGlitches, MotorSignals, VirtualDirectionPin, VirtualEncoder, VirtualPwm, VirtualUart,
+    WheelShaft,
 };
 use crate::plant::{DiffDriveParams, DiffDrivePlant, PlantPose};
 use crate::report::PilotReport;
@@ -29,6 +33,8 @@ pub(super) struct Hardware {
     shafts: (WheelShaft, WheelShaft),
     limits: (u64, u64),
     max_abs_duty: f64,
+    /// Encoder glitch bursts injected, left and right.
+    glitch_bursts: (Rc<Cell<u64>>, Rc<Cell<u64>>),
 }
 
 /// The devices the core drives.
@@ -44,6 +50,7 @@ impl Hardware {
         counts_per_rev: u32,
         bits: u32,
         pwm_max: u16,
+        glitches: EncoderGlitches,
     ) -> (Self, Devices) {
         let signals = (MotorSignals::new(pwm_max), MotorSignals::new(pwm_max));
         let shafts = (WheelShaft::new(), WheelShaft::new());
@@ -54,11 +61,12 @@ impl Hardware {
                 MotorWiring::default(),
             )
         };
+        let (left, left_bursts) = VirtualEncoder::new(shafts.0.clone(), counts_per_rev, bits)
+            .with_glitches(glitches, glitches.seed);
+        let (right, right_bursts) = VirtualEncoder::new(shafts.1.clone(), counts_per_rev, bits)
+            .with_glitches(glitches, glitches.seed.wrapping_add(1));
         let devices = Devices {
-            encoders: (
-                VirtualEncoder::new(shafts.0.clone(), counts_per_rev, bits),
-                VirtualEncoder::new(shafts.1.clone(), counts_per_rev, bits),
-            ),
+            encoders: (left, right),
             motors: (motor(&signals.0), motor(&signals.1)),
         };
         (
@@ -68,6 +76,7 @@ impl Hardware {
                 shafts,
                 limits: (0, 0),
                 max_abs_duty: 0.0,
+                glitch_bursts: (left_bursts, right_bursts),
             },
             devices,
         )
@@ -97,6 +106,7 @@ impl Hardware {
         PilotReport {
             encoder_fault_ticks: c.encoder_fault_ticks,
             implausible_encoder_reads: c.implausible_encoder_reads,
+            encoder_glitch_bursts: self.glitch_bursts.0.get() + self.glitch_bursts.1.get(),
             encoder_halt_ticks: c.encoder_halt_ticks,
             motor_faults,
             speed_limited_ticks: self.limits.0,

@@ -110,6 +110,7 @@ impl<'t> Rig<'t> {
                 encoder_counts_per_rev,
                 encoder_bits,
                 pwm_max_duty,
+                encoder_glitches,
                 ..
             },
             PositionSetup::Reader(floor, config),
@@ -123,6 +124,7 @@ impl<'t> Rig<'t> {
             encoder_counts_per_rev,
             encoder_bits,
             pwm_max_duty,
+            encoder_glitches,
         );
         let driver = |s: &MotorSignals| {
             (
@@ -176,6 +178,7 @@ impl<'t> Rig<'t> {
                     encoder_counts_per_rev,
                     encoder_bits,
                     pwm_max_duty,
+                    encoder_glitches,
                     pilot,
                     ..
                 },
@@ -187,6 +190,7 @@ impl<'t> Rig<'t> {
                     encoder_counts_per_rev,
                     encoder_bits,
                     pwm_max_duty,
+                    encoder_glitches,
                 );
                 let pilot = new_pilot(pilot);
                 match setup.position {
