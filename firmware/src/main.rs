@@ -15,6 +15,8 @@
 #[cfg(target_os = "none")]
 mod board;
 #[cfg(target_os = "none")]
+mod logger;
+#[cfg(target_os = "none")]
 mod stack;
 
 #[cfg(all(

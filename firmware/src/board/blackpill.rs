@@ -115,7 +115,6 @@ mod tags;
 use core::cell::Cell;
 
 use cortex_m::peripheral::DWT;
-use defmt_rtt as _;
 use heapless::spsc::Queue;
 use panic_probe as _;
 use stm32f4xx_hal::gpio::{Output, PB12, PB13, PC13, PinState, PushPull};
