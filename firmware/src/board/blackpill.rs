@@ -122,6 +122,7 @@ use core::cell::Cell;
 
 use cortex_m::peripheral::DWT;
 use heapless::spsc::Queue;
+#[cfg(not(feature = "panic-never"))]
 use panic_probe as _;
 use stm32f4xx_hal::gpio::{Output, PB12, PB13, PC13, PinState, PushPull};
 use stm32f4xx_hal::pac;
