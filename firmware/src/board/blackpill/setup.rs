@@ -58,7 +58,7 @@ const _: () = {
     assert!(vco_in * PLL_M == super::HSE_HZ && vco_in >= 1_000_000 && vco_in <= 2_000_000);
     let vco_out = vco_in * PLL_N;
     assert!(PLL_N >= 50 && PLL_N <= 432 && vco_out >= 100_000_000 && vco_out <= 432_000_000);
-    assert!(vco_out / PLL_P == super::SYSCLK_HZ && vco_out % PLL_P == 0);
+    assert!(vco_out / PLL_P == super::SYSCLK_HZ && vco_out.is_multiple_of(PLL_P));
     assert!(PLL_P == 2 || PLL_P == 4 || PLL_P == 6 || PLL_P == 8);
     assert!(PLL_Q >= 2 && PLL_Q <= 15 && vco_out / PLL_Q <= 48_000_000);
     // The STM32F411's limits: SYSCLK and HCLK 100 MHz, APB1 50 MHz.
@@ -214,7 +214,7 @@ impl TickTimer {
         rcc.apb1rstr().modify(|_, w| w.tim5rst().clear_bit());
         let psc = u16::try_from((TIMCLK1_HZ / 1_000_000).wrapping_sub(1))
             .ok()
-            .filter(|_| TIMCLK1_HZ % 1_000_000 == 0 && TIMCLK1_HZ >= 1_000_000)
+            .filter(|_| TIMCLK1_HZ.is_multiple_of(1_000_000) && TIMCLK1_HZ >= 1_000_000)
             .ok_or(SetupError::TickPeriod)?;
         let arr = period_us
             .checked_sub(1)
