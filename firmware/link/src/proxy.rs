@@ -6,11 +6,14 @@
 //! [`wmr_core::pilot::robot::Robot`] runs unchanged on top of them. They share one
 //! [`ProxyBus`] through `Cell`s: the session writes a tick's readings into
 //! the bus, the robot reads and writes the proxies, the session reads the
-//! motor outputs back. Single-threaded (one control loop), no `unsafe`, and
-//! no `RefCell`: every access is a `Cell` get or set, so no borrow check
-//! (and no panic path) sits in the control loop (`cargo xtask panic-free`).
+//! motor outputs back. Single-threaded (one control loop), no `unsafe`.
+//! The UART ring is the one `RefCell`: it is borrowed with `try_borrow` /
+//! `try_borrow_mut` only, never held across a call into another proxy, so
+//! a borrow cannot fail, and if it ever did the access would see an empty
+//! or full buffer instead of panicking (no panic path in the control loop:
+//! `cargo xtask panic-free`).
 
-use core::cell::Cell;
+use core::cell::{Cell, RefCell};
 use core::convert::Infallible;
 
 use embedded_hal::digital::{self, OutputPin};
@@ -26,7 +29,7 @@ pub const UART_BUFFER_BYTES: usize = 512;
 #[derive(Debug)]
 pub struct ProxyBus {
     counts: [Cell<Option<u32>>; 2],
-    uart: UartRing,
+    uart: RefCell<heapless::Deque<u8, UART_BUFFER_BYTES>>,
     uart_overruns: Cell<u32>,
     motors: [Cell<MotorOutput>; 2],
     pwm_max_duty: Cell<u16>,
@@ -35,74 +38,6 @@ pub struct ProxyBus {
 impl Default for ProxyBus {
     fn default() -> Self {
         Self::new()
-    }
-}
-
-/// The proxy UART's receive ring, [`UART_BUFFER_BYTES`] bytes, first in
-/// first out: a byte array of `Cell`s with a head and a length, so that it
-/// is shared by `&` without a `RefCell` (whose borrow checks can panic).
-struct UartRing {
-    bytes: [Cell<u8>; UART_BUFFER_BYTES],
-    /// Index of the oldest byte, `< UART_BUFFER_BYTES`.
-    head: Cell<usize>,
-    /// Bytes held, `<= UART_BUFFER_BYTES`.
-    len: Cell<usize>,
-}
-
-impl UartRing {
-    const fn new() -> Self {
-        Self {
-            bytes: [const { Cell::new(0) }; UART_BUFFER_BYTES],
-            head: Cell::new(0),
-            len: Cell::new(0),
-        }
-    }
-
-    fn clear(&self) {
-        self.head.set(0);
-        self.len.set(0);
-    }
-
-    fn is_empty(&self) -> bool {
-        self.len.get() == 0
-    }
-
-    /// Appends `byte`; `false` (and nothing stored) when the ring is full.
-    fn push_back(&self, byte: u8) -> bool {
-        let len = self.len.get();
-        if len >= UART_BUFFER_BYTES {
-            return false;
-        }
-        match self.bytes.get((self.head.get() + len) % UART_BUFFER_BYTES) {
-            Some(slot) => {
-                slot.set(byte);
-                self.len.set(len + 1);
-                true
-            }
-            // Unreachable: the index is reduced modulo the array's length.
-            None => false,
-        }
-    }
-
-    /// Takes the oldest byte.
-    fn pop_front(&self) -> Option<u8> {
-        let len = self.len.get();
-        if len == 0 {
-            return None;
-        }
-        let head = self.head.get();
-        let byte = self.bytes.get(head)?.get();
-        self.head.set((head + 1) % UART_BUFFER_BYTES);
-        self.len.set(len - 1);
-        Some(byte)
-    }
-}
-
-impl core::fmt::Debug for UartRing {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("UartRing")
-            .field("len", &self.len.get())
-            .finish_non_exhaustive()
     }
 }
 
@@ -121,7 +56,7 @@ impl ProxyBus {
     pub const fn new() -> Self {
         Self {
             counts: [Cell::new(None), Cell::new(None)],
-            uart: UartRing::new(),
+            uart: RefCell::new(heapless::Deque::new()),
             uart_overruns: Cell::new(0),
             motors: [
                 Cell::new(MotorOutput {
@@ -144,7 +79,9 @@ impl ProxyBus {
         for c in &self.counts {
             c.set(None);
         }
-        self.uart.clear();
+        if let Ok(mut fifo) = self.uart.try_borrow_mut() {
+            fifo.clear();
+        }
     }
 
     /// Loads one tick's readings: encoder counters, and the UART bytes
@@ -154,8 +91,11 @@ impl ProxyBus {
         let [left, right] = &self.counts;
         left.set(input.left_count);
         right.set(input.right_count);
+        let mut fifo = self.uart.try_borrow_mut();
         for &byte in &input.uart {
-            if !self.uart.push_back(byte) {
+            // A byte the ring cannot take (full, or, impossibly, borrowed)
+            // is lost and counted, as a UART overrun.
+            if !fifo.as_mut().is_ok_and(|f| f.push_back(byte).is_ok()) {
                 self.uart_overruns
                     .set(self.uart_overruns.get().saturating_add(1));
             }
@@ -311,7 +251,7 @@ impl embedded_io::ErrorType for ProxyUart<'_> {
 
 impl embedded_io::ReadReady for ProxyUart<'_> {
     fn read_ready(&mut self) -> Result<bool, Infallible> {
-        Ok(!self.bus.uart.is_empty())
+        Ok(self.bus.uart.try_borrow().is_ok_and(|f| !f.is_empty()))
     }
 }
 
@@ -319,9 +259,12 @@ impl embedded_io::Read for ProxyUart<'_> {
     /// Never blocks: `Ok(0)` when nothing is buffered (the core reads only
     /// after `read_ready`).
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, Infallible> {
+        let Ok(mut fifo) = self.bus.uart.try_borrow_mut() else {
+            return Ok(0);
+        };
         let mut n = 0;
         for slot in buf.iter_mut() {
-            match self.bus.uart.pop_front() {
+            match fifo.pop_front() {
                 Some(byte) => {
                     *slot = byte;
                     n += 1;
