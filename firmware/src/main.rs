@@ -15,6 +15,8 @@
 #[cfg(target_os = "none")]
 mod board;
 #[cfg(target_os = "none")]
+mod logger;
+#[cfg(target_os = "none")]
 mod stack;
 
 #[cfg(all(
@@ -29,6 +31,27 @@ compile_error!("choose one board: `board-qemu` or `board-blackpill`");
     not(feature = "board-blackpill")
 ))]
 compile_error!("choose a board feature: `board-qemu` or `board-blackpill`");
+
+/// The link-time proof of panic freedom (`cargo xtask panic-free`): this
+/// panic handler calls a function that no object file defines. LTO and the
+/// linker's section garbage collection drop the handler unless some code
+/// path can still reach it, so the release build links if, and only if, no
+/// panic path is left; otherwise the link fails with an undefined
+/// reference to `wmr_firmware_has_a_panic_path`. The usual handlers (the
+/// QEMU board's semihosting exit, the Black Pill's `panic-probe`) are left
+/// out of this build.
+#[cfg(all(target_os = "none", feature = "panic-never"))]
+mod panic_never {
+    #[panic_handler]
+    fn panic(_info: &core::panic::PanicInfo) -> ! {
+        // Defined nowhere, on purpose: see the module's documentation.
+        #[allow(unsafe_code)]
+        unsafe extern "Rust" {
+            safe fn wmr_firmware_has_a_panic_path() -> !;
+        }
+        wmr_firmware_has_a_panic_path()
+    }
+}
 
 #[cfg(target_os = "none")]
 #[cortex_m_rt::entry]

@@ -13,7 +13,8 @@
 //!   rustdoc with `-D warnings`, the default simulator scenario end to end,
 //!   and the on-target gates `size` and `bench-target`, which fail on a
 //!   figure over its budget in `firmware/budgets.toml` (or a software
-//!   `f64` routine in the firmware), and every fuzz target for a short time
+//!   `f64` routine in the firmware), the link-time proof that the firmware
+//!   cannot panic (`panic-free`), and every fuzz target for a short time
 //!   (`fuzz`). It never writes a tracked file: its reports go to `target/`.
 //! * `features` — clippy `-D warnings` on the feature matrix alone: the
 //!   core on both microcontroller targets and the firmware with each
@@ -21,6 +22,10 @@
 //!   pick (the table and why these rows: `xtask/src/features.rs`).
 //! * `firmware` — release ELFs of both boards, copied to
 //!   `target/firmware/wmr-firmware-<board>.elf`.
+//! * `panic-free` — the link-time proof that the release firmware cannot
+//!   panic: each board, in its default configuration and with each
+//!   estimator feature, built with a panic handler that cannot link while
+//!   any panic path remains (`xtask/src/panic_free.rs`, docs/firmware.md).
 //! * `bench` — criterion benchmark of one control tick (host).
 //! * `bench-target [--write]` — instructions per call of the tick and its
 //!   stages on the target (QEMU `netduinoplus2`, `-icount shift=0`), for
@@ -46,6 +51,7 @@ mod budgets;
 mod features;
 mod fuzz;
 mod opt_levels;
+mod panic_free;
 mod size;
 mod target;
 
@@ -56,7 +62,7 @@ use std::time::Instant;
 const TARGETS: [&str; 2] = ["thumbv7em-none-eabihf", "thumbv6m-none-eabi"];
 
 /// The command line's synopsis.
-const USAGE: &str = "usage: cargo xtask <ci|features|firmware|bench|bench-target [--write]|size|opt-levels|fuzz [--seconds N]>";
+const USAGE: &str = "usage: cargo xtask <ci|features|firmware|panic-free|bench|bench-target [--write]|size|opt-levels|fuzz [--seconds N]>";
 
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
@@ -87,6 +93,7 @@ fn main() -> ExitCode {
                 println!("{board:<10} {}", elf.display());
             }
         }),
+        "panic-free" => panic_free::panic_free(),
         "bench" => cargo(&["bench", "-p", "host-tests", "--bench", "tick"], &[]),
         "bench-target" => bench_target::bench_target(write),
         "size" => size::size(),
@@ -222,6 +229,9 @@ fn ci() -> Result {
     step("bench-target (budgets)", || {
         bench_target::bench_target(false)
     })?;
+    // The firmware cannot panic: every board and estimator feature links
+    // with a panic handler that cannot link while a panic path remains.
+    step("panic-free (link-time proof)", panic_free::panic_free)?;
     // Each fuzz target for a short time on its committed corpus (the long
     // runs are done by hand: fuzz/README.md).
     fuzz::fuzz(fuzz::CI_SECONDS)?;

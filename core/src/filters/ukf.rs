@@ -408,15 +408,22 @@ pub fn unscented_mean<const R: usize, const S: usize>(
     sigmas: &SMatrix<f32, R, S>,
     weights: &SVector<f32, S>,
 ) -> SVector<f32, R> {
-    let mut columns = sigmas.column_iter();
-    let Some(centre) = columns.next() else {
+    // The columns as the arrays they are stored in (column-major), not
+    // through nalgebra's column views: `column_iter` checks each index
+    // against the width at run time (`assert_view_index`) and builds each
+    // difference from an iterator (`allocate_from_iterator`), two panic
+    // paths that LTO keeps (`cargo xtask panic-free`). The arithmetic is
+    // the same, element by element and in the same order.
+    let Some((centre, columns)) = sigmas.data.0.split_first() else {
         return SVector::zeros();
     };
     let mut offset = SVector::<f32, R>::zeros();
-    for (column, &w) in columns.zip(weights.iter().skip(1)) {
-        offset += (column - centre) * w;
+    for (column, &w) in columns.iter().zip(weights.iter().skip(1)) {
+        for ((o, &x), &c) in offset.iter_mut().zip(column).zip(centre) {
+            *o += (x - c) * w;
+        }
     }
-    centre + offset
+    SVector::from(*centre) + offset
 }
 
 /// [`unscented_mean`], except that the components listed in `angles`
@@ -1524,6 +1531,29 @@ mod tests {
     }
 
     proptest! {
+        /// The array-based `unscented_mean` gives, bit for bit, what the
+        /// column-view version it replaced gave (`σ₀ + Σ Wᵢ(σᵢ − σ₀)`
+        /// through `column_iter`), for any finite points and weights.
+        #[test]
+        fn unscented_mean_is_bitwise_the_column_view_formula(
+            points in proptest::collection::vec(-1e3_f32..1e3, 3 * 7),
+            weights in proptest::collection::vec(-1e4_f32..1e4, 7),
+        ) {
+            let sigmas = SMatrix::<f32, 3, 7>::from_column_slice(&points);
+            let weights = SVector::<f32, 7>::from_column_slice(&weights);
+            let mut columns = sigmas.column_iter();
+            let centre = columns.next().unwrap();
+            let mut offset = SVector::<f32, 3>::zeros();
+            for (column, &w) in columns.zip(weights.iter().skip(1)) {
+                offset += (column - centre) * w;
+            }
+            let before = centre + offset;
+            let now = unscented_mean(&sigmas, &weights);
+            for (a, b) in now.iter().zip(before.iter()) {
+                prop_assert_eq!(a.to_bits(), b.to_bits());
+            }
+        }
+
         /// Finite inputs and measurements never give a non-finite estimate.
         #[test]
         fn finite_in_finite_out(

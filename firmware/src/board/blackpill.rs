@@ -75,15 +75,20 @@
 //!   counts them and the pilot reacts: missing encoder reads bridged then
 //!   motors stopped, unknown tags ignored, lost fixes → failsafe
 //!   deceleration). The counters are logged every second.
-//! - **Configuration refused** (the compiled-in [`PILOT`] spec, the USART2
-//!   or the TIM5 setup): the motors are held at duty 0, the error is logged
-//!   every 5 s, the LED blinks fast (5 Hz) and the watchdog keeps being fed,
-//!   until the board is reflashed. Never a panic.
+//! - **Configuration refused** (the compiled-in [`PILOT`] spec, or the
+//!   TIM1, USART2 or TIM5 set-up): the motors are held at duty 0 (unpowered
+//!   if TIM1 itself was refused), the error is logged every 5 s, the LED
+//!   blinks fast (5 Hz) and the watchdog keeps being fed, until the board
+//!   is reflashed. Never a panic.
 //! - **Peripherals already taken** (impossible after a reset): an error is
 //!   logged and the core sleeps; nothing is configured, so the motor lines
 //!   float (external pull-downs).
-//! - **Panic** (a bug: the loop has no panicking path): `panic-probe` prints
-//!   the message over defmt and faults the core; the watchdog then resets
+//! - **Panic**: none can happen. `cargo xtask panic-free` proves at link
+//!   time that the release firmware has no panic path (docs/firmware.md,
+//!   "Panic freedom"); the clocks, TIM1, TIM5 and USART2 are set up by
+//!   register for that (`blackpill::setup`). Were one to appear (a debug
+//!   build, say), `panic-probe` prints the message over defmt and faults
+//!   the core; the watchdog then resets
 //!   the MCU within 50 ms, during which the PWM keeps its last duty. Under a
 //!   debugger, a halted core (breakpoint, panic) freezes the IWDG and TIM5
 //!   and **disables the TIM1 PWM outputs** (DBGMCU freeze bits), so the
@@ -110,22 +115,18 @@
 //! fix (tracker `AwaitingFix`), then tracks the reference.
 
 mod devices;
+mod setup;
 mod tags;
 
 use core::cell::Cell;
 
 use cortex_m::peripheral::DWT;
-use defmt_rtt as _;
 use heapless::spsc::Queue;
+#[cfg(not(feature = "panic-never"))]
 use panic_probe as _;
 use stm32f4xx_hal::gpio::{Output, PB12, PB13, PC13, PinState, PushPull};
-use stm32f4xx_hal::nb;
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
-use stm32f4xx_hal::rcc::Config as ClockConfig;
-use stm32f4xx_hal::serial::Config as SerialConfig;
-use stm32f4xx_hal::serial::config::StopBits;
-use stm32f4xx_hal::timer::{self, CounterUs, PwmChannel};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 use wmr_core::devices::{MotorDriver, MotorWiring, RfidReader};
 use wmr_core::estimation::heading_observer::HeadingObserverConfig;
@@ -135,6 +136,8 @@ use wmr_core::pilot::tracker::{TrackerConfig, TrackerMode};
 use wmr_core::pilot::{Pilot, PilotConfig};
 
 use devices::{Encoder, LineErrors, RfidPump, RfidUart};
+use embedded_hal::pwm::SetDutyCycle;
+use setup::{MotorPwm, PwmChannel, RfidRx, SetupError, TickTimer};
 use tags::{FlashTagTable, SITE_TAGS};
 
 /// The pilot, compiled in: paper 001's figure-eight (`h1` 5 m, `h2`
@@ -240,17 +243,17 @@ const RFID_BAUD: u32 = 9_600;
 const RFID_RING_BYTES: usize = 128;
 
 /// Left motor: TIM1_CH1 (PA8) + DIR on PB12.
-type LeftMotor = MotorDriver<PwmChannel<pac::TIM1, 0>, PB12<Output<PushPull>>>;
+type LeftMotor<'a> = MotorDriver<PwmChannel<'a, 1>, PB12<Output<PushPull>>>;
 /// Right motor: TIM1_CH2 (PA9) + DIR on PB13.
-type RightMotor = MotorDriver<PwmChannel<pac::TIM1, 1>, PB13<Output<PushPull>>>;
+type RightMotor<'a> = MotorDriver<PwmChannel<'a, 2>, PB13<Output<PushPull>>>;
 /// The on-board LED (active low).
 type Led = PC13<Output<PushPull>>;
 /// The robot on this board's devices.
 type BoardRobot<'a> = Robot<
     Encoder<pac::TIM3>,
     Encoder<pac::TIM4>,
-    LeftMotor,
-    RightMotor,
+    LeftMotor<'a>,
+    RightMotor<'a>,
     RfidUart<'a>,
     FlashTagTable,
 >;
@@ -260,10 +263,9 @@ type BoardRobot<'a> = Robot<
 enum Fault {
     /// The compiled-in pilot spec was refused.
     Pilot(SpecError),
-    /// USART2 refused its configuration.
-    RfidUart,
-    /// TIM5 refused the control period.
-    TickTimer(timer::Error),
+    /// TIM1 (motor PWM), USART2 (RFID) or TIM5 (tick) refused its
+    /// configuration.
+    Peripheral(SetupError),
 }
 
 /// The firmware: set the board up, then run the control loop forever.
@@ -288,13 +290,12 @@ pub fn run() -> ! {
     let mut watchdog = IndependentWatchdog::new(dp.IWDG);
     watchdog.start(WATCHDOG_MS.millis());
 
-    let mut rcc = dp.RCC.freeze(
-        ClockConfig::hse(HSE_HZ.Hz())
-            .sysclk(SYSCLK_HZ.Hz())
-            .pclk1(PCLK1_HZ.Hz())
-            .pclk2(PCLK2_HZ.Hz()),
-    );
-    let sysclk_hz = rcc.clocks.sysclk().raw();
+    // The clock tree by register (`setup`: the HAL's `freeze` has panic
+    // paths); the HAL's `Rcc` then only enables the GPIO ports and the
+    // encoder timers, which need no clock figures.
+    setup::clocks(&dp.RCC, &dp.FLASH);
+    let sysclk_hz = SYSCLK_HZ;
+    let mut rcc = dp.RCC.constrain();
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();
 
@@ -305,19 +306,24 @@ pub fn run() -> ! {
 
     // Motors first, at duty 0: everything after this can fail, and the
     // fault path holds them stopped.
-    let (_pwm_timer, (left_pwm, right_pwm, ..)) = dp.TIM1.pwm_hz(PWM_HZ.Hz(), &mut rcc);
-    let mut left_pwm = left_pwm.with(gpioa.pa8);
-    let mut right_pwm = right_pwm.with(gpioa.pa9);
-    left_pwm.set_duty(0);
-    right_pwm.set_duty(0);
+    let pwm = match MotorPwm::new(dp.TIM1, &rcc, PWM_HZ) {
+        Ok(pwm) => pwm,
+        // TIM1 never started: its outputs stay off, the motors unpowered.
+        Err(e) => halt(Fault::Peripheral(e), watchdog, None, led, sysclk_hz),
+    };
+    let _left_pwm_pin = gpioa.pa8.into_alternate::<1>();
+    let _right_pwm_pin = gpioa.pa9.into_alternate::<1>();
+    let (mut left_pwm, mut right_pwm) = pwm.channels();
+    let _ = left_pwm.set_duty_cycle(0);
+    let _ = right_pwm.set_duty_cycle(0);
     left_pwm.enable();
     right_pwm.enable();
-    let mut left_motor: LeftMotor = MotorDriver::new(
+    let mut left_motor: LeftMotor<'_> = MotorDriver::new(
         left_pwm,
         gpiob.pb12.into_push_pull_output_in_state(PinState::Low),
         MotorWiring { reversed: false },
     );
-    let mut right_motor: RightMotor = MotorDriver::new(
+    let mut right_motor: RightMotor<'_> = MotorDriver::new(
         right_pwm,
         gpiob.pb13.into_push_pull_output_in_state(PinState::Low),
         MotorWiring { reversed: true },
@@ -345,26 +351,19 @@ pub fn run() -> ! {
         true,
     );
 
-    let serial_config = SerialConfig::default()
-        .baudrate(RFID_BAUD.bps())
-        .wordlength_8()
-        .parity_none()
-        .stopbits(StopBits::STOP1);
-    let Ok(serial) = dp
-        .USART2
-        .serial::<u8>((gpioa.pa2, gpioa.pa3), serial_config, &mut rcc)
-    else {
-        halt(
-            Fault::RfidUart,
+    // The reader only talks; its TX pin stays configured, idle high.
+    let _rfid_tx_pin = gpioa.pa2.into_alternate::<7>();
+    let _rfid_rx_pin = gpioa.pa3.into_alternate::<7>();
+    let rfid_rx = match RfidRx::new(dp.USART2, &rcc, RFID_BAUD) {
+        Ok(rx) => rx,
+        Err(e) => halt(
+            Fault::Peripheral(e),
             watchdog,
-            left_motor,
-            right_motor,
+            Some((left_motor, right_motor)),
             led,
             sysclk_hz,
-        )
+        ),
     };
-    // The reader only talks; its TX pin stays configured, idle high.
-    let (_rfid_tx, rfid_rx) = serial.split();
     let line_errors = Cell::new(LineErrors::default());
     let mut ring: Queue<u8, RFID_RING_BYTES> = Queue::new();
     let (ring_in, ring_out) = ring.split();
@@ -379,23 +378,21 @@ pub fn run() -> ! {
         Err(e) => halt(
             Fault::Pilot(e),
             watchdog,
-            left_motor,
-            right_motor,
+            Some((left_motor, right_motor)),
             led,
             sysclk_hz,
         ),
     };
-    let mut tick_timer = dp.TIM5.counter_us(&mut rcc);
-    if let Err(e) = tick_timer.start(TICK_US.micros()) {
-        halt(
-            Fault::TickTimer(e),
+    let mut tick_timer = match TickTimer::start(dp.TIM5, &rcc, TICK_US) {
+        Ok(timer) => timer,
+        Err(e) => halt(
+            Fault::Peripheral(e),
             watchdog,
-            left_motor,
-            right_motor,
+            Some((left_motor, right_motor)),
             led,
             sysclk_hz,
-        );
-    }
+        ),
+    };
     let mut robot: BoardRobot<'_> = Robot::new(
         pilot,
         (left_encoder, right_encoder),
@@ -451,47 +448,42 @@ pub fn run() -> ! {
 
 /// Waits for the next control tick, pumping the RFID UART meanwhile.
 /// Returns whether the tick was already due on arrival (an overrun).
-fn wait_for_tick(timer: &mut CounterUs<pac::TIM5>, rfid: &mut RfidPump<'_>) -> bool {
-    if tick_due(timer) {
+fn wait_for_tick(timer: &mut TickTimer, rfid: &mut RfidPump<'_>) -> bool {
+    if timer.due() {
         return true;
     }
     loop {
         rfid.pump();
-        if tick_due(timer) {
+        if timer.due() {
             return false;
         }
     }
 }
 
-/// Whether the tick timer's update flag was set (and clears it). The HAL's
-/// `wait` has no other error than `WouldBlock` once started; any other is
-/// taken as due, so the loop can never stall on it.
-fn tick_due(timer: &mut CounterUs<pac::TIM5>) -> bool {
-    !matches!(timer.wait(), Err(nb::Error::WouldBlock))
-}
-
-/// Sets both motors' duty to 0. The HAL's PWM and GPIO writes cannot fail
+/// Sets both motors' duty to 0. The PWM and GPIO writes cannot fail
 /// (`Infallible`), so there is no error to handle.
-fn stop_motors(left: &mut LeftMotor, right: &mut RightMotor) {
+fn stop_motors(left: &mut LeftMotor<'_>, right: &mut RightMotor<'_>) {
     let _ = left.stop();
     let _ = right.stop();
 }
 
-/// The fault path: motors held stopped, error logged every 5 s, LED
-/// blinking fast, watchdog fed, forever. Timed by busy-waiting one control
-/// period, so that it does not depend on the tick timer.
+/// The fault path: motors held stopped (`None`: never powered, TIM1 was
+/// refused), error logged every 5 s, LED blinking fast, watchdog fed,
+/// forever. Timed by busy-waiting one control period, so that it does not
+/// depend on the tick timer.
 fn halt(
     fault: Fault,
     mut watchdog: IndependentWatchdog,
-    mut left: LeftMotor,
-    mut right: RightMotor,
+    mut motors: Option<(LeftMotor<'_>, RightMotor<'_>)>,
     mut led: Led,
     sysclk_hz: u32,
 ) -> ! {
     let period_cycles = sysclk_hz / 1_000_000 * TICK_US;
     let mut periods: u32 = 0;
     loop {
-        stop_motors(&mut left, &mut right);
+        if let Some((left, right)) = &mut motors {
+            stop_motors(left, right);
+        }
         watchdog.feed();
         if periods.is_multiple_of(FAULT_LOG_PERIODS) {
             defmt::error!("halted, motors stopped: {}", fault);

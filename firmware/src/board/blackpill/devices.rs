@@ -7,15 +7,16 @@
 //!   for the core's `RfidReader`.
 //!
 //! # Why the UART needs a pump
-//! stm32f4xx-hal 0.23 implements embedded-io **0.6** (and only `Write`), not
-//! the 0.7 `Read + ReadReady` the core uses, so an adapter is needed anyway.
-//! More importantly, the F411's USART has no receive FIFO: its data register
+//! The receiver is USART2 by register (`setup::RfidRx`: the HAL's serial
+//! set-up needs the HAL's clock set-up, which has panic paths), and the
+//! core reads embedded-io 0.7 `Read + ReadReady`, so an adapter is needed
+//! anyway. More importantly, the F411's USART has no receive FIFO: its data register
 //! holds one byte, and at 9600 Bd the next byte arrives 1.04 ms later. A
 //! reader polled once per 10 ms control tick would keep one byte in ten and
 //! count the rest as overruns. So the receiver is split in two halves over
 //! a lock-free single-producer single-consumer ring ([`heapless::spsc`]):
 //!
-//! - [`RfidPump`] owns the HAL's `Rx` and moves each received byte into the
+//! - [`RfidPump`] owns the receiver and moves each received byte into the
 //!   ring. The control loop calls [`RfidPump::pump`] continuously while it
 //!   waits for the next tick, i.e. for the whole idle part of every period.
 //! - [`RfidUart`] owns the ring's consumer and is what the core's
@@ -34,12 +35,10 @@ use core::convert::Infallible;
 use embedded_io::{ErrorKind, ErrorType, Read, ReadReady};
 use heapless::spsc::{Consumer, Producer};
 use stm32f4xx_hal::hal_02;
-use stm32f4xx_hal::nb;
-use stm32f4xx_hal::pac;
-use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::{self, Qei};
-use stm32f4xx_hal::serial::{self, Rx};
 use wmr_core::devices::QuadratureCounter;
+
+use super::setup::{LineError, RfidRx};
 
 /// A wheel encoder: a timer in quadrature encoder mode (both edges of both
 /// channels, x4), read as the core's [`QuadratureCounter`].
@@ -88,8 +87,6 @@ pub struct LineErrors {
     pub noise: u32,
     /// Parity error (PE; not expected at 8N1).
     pub parity: u32,
-    /// Any other error the HAL reports.
-    pub other: u32,
     /// Bytes received while the ring was full (the reader fell behind).
     pub ring_full: u32,
 }
@@ -101,7 +98,6 @@ impl LineErrors {
             .saturating_add(self.framing)
             .saturating_add(self.noise)
             .saturating_add(self.parity)
-            .saturating_add(self.other)
             .saturating_add(self.ring_full)
     }
 }
@@ -117,14 +113,14 @@ fn count(errors: &Cell<LineErrors>, which: impl FnOnce(&mut LineErrors) -> &mut 
 /// The hardware half of the RFID UART: moves received bytes from USART2
 /// into the ring. See the module documentation.
 pub struct RfidPump<'a> {
-    rx: Rx<pac::USART2>,
+    rx: RfidRx,
     ring: Producer<'a, u8>,
     errors: &'a Cell<LineErrors>,
 }
 
 impl<'a> RfidPump<'a> {
     /// Takes the receiver, the ring's producer and the shared error counters.
-    pub fn new(rx: Rx<pac::USART2>, ring: Producer<'a, u8>, errors: &'a Cell<LineErrors>) -> Self {
+    pub fn new(rx: RfidRx, ring: Producer<'a, u8>, errors: &'a Cell<LineErrors>) -> Self {
         Self { rx, ring, errors }
     }
 
@@ -134,18 +130,17 @@ impl<'a> RfidPump<'a> {
     /// also what clears the error flags).
     pub fn pump(&mut self) {
         match self.rx.read() {
-            Ok(byte) => {
+            Ok(Some(byte)) => {
                 if self.ring.enqueue(byte).is_err() {
                     count(self.errors, |e| &mut e.ring_full);
                 }
             }
-            Err(nb::Error::WouldBlock) => {}
-            Err(nb::Error::Other(error)) => count(self.errors, |e| match error {
-                serial::Error::Overrun => &mut e.overrun,
-                serial::Error::FrameFormat => &mut e.framing,
-                serial::Error::Noise => &mut e.noise,
-                serial::Error::Parity => &mut e.parity,
-                _ => &mut e.other,
+            Ok(None) => {}
+            Err(error) => count(self.errors, |e| match error {
+                LineError::Overrun => &mut e.overrun,
+                LineError::Framing => &mut e.framing,
+                LineError::Noise => &mut e.noise,
+                LineError::Parity => &mut e.parity,
             }),
         }
     }

@@ -1,0 +1,108 @@
+//! `cargo xtask panic-free`: the link-time proof that the release firmware
+//! cannot panic.
+//!
+//! Each build is the release firmware (`--bin wmr-firmware`, LTO, the
+//! release profile as shipped) with the feature `panic-never`, whose panic
+//! handler calls a function that nothing defines
+//! (`firmware/src/main.rs`). The linker keeps the handler only if a code
+//! path still reaches it, and then fails on the undefined symbol
+//! `wmr_firmware_has_a_panic_path`; a build that links has no panic path.
+//! With the usual handler in its place (semihosting exit, `panic-probe`),
+//! nothing references it either, so the shipped ELF is the proved code.
+//!
+//! The matrix: each board in its default configuration, and each board
+//! with each estimator feature of `firmware/Cargo.toml` alone (the rows
+//! of [`ROWS`]; a test checks them against the manifest). Each row is one
+//! release build of the firmware crate and the core with that feature set,
+//! in xtask's own target directory.
+
+use std::time::Instant;
+
+/// The feature sets proved for each board, besides the board's own
+/// feature: the default (none), then each estimator feature alone.
+pub const ROWS: [&[&str]; 5] = [
+    &[],
+    &["fusion-ekf"],
+    &["fusion-ukf"],
+    &["fusion-particle-filter"],
+    &["wheel-speed-observer"],
+];
+
+/// The undefined symbol the `panic-never` handler calls.
+const SENTINEL: &str = "wmr_firmware_has_a_panic_path";
+
+/// Builds every row for every board; fails on the first that does not link,
+/// and says what that means.
+pub fn panic_free() -> crate::Result {
+    let started = Instant::now();
+    let mut proved = Vec::new();
+    for (board, board_feature) in crate::BOARDS {
+        for row in ROWS {
+            let features: Vec<&str> = std::iter::once(board_feature)
+                .chain(row.iter().copied())
+                .chain(std::iter::once("panic-never"))
+                .collect();
+            let name = if row.is_empty() {
+                "default".to_string()
+            } else {
+                row.join("+")
+            };
+            crate::step(&format!("panic-free {board} [{name}]"), || {
+                crate::target::Build {
+                    bins: &["wmr-firmware"],
+                    no_default_features: true,
+                    features: &features,
+                    env: &[],
+                }
+                .run(&format!("panic-free-{board}-{name}"))
+                .map(|_| ())
+                .map_err(|e| {
+                    format!(
+                        "{e}\n\nThe release firmware for {board} [{name}] has a panic path: \
+                         the link failed if it names `{SENTINEL}`. Find the call: build \
+                         the same features without `panic-never` and list the calls \
+                         into `core::panicking`, `core::cell::panic_*`, `*unwrap_failed` \
+                         or `*expect_failed` (`llvm-objdump -d -C ELF`); remove the path \
+                         (docs/firmware.md, \"Panic freedom\")"
+                    )
+                })
+            })?;
+            proved.push(format!("{board} [{name}]"));
+        }
+    }
+    eprintln!(
+        "\npanic-free: {} release builds link with the never-linking panic handler \
+         ({:.0} s): {}",
+        proved.len(),
+        started.elapsed().as_secs_f64(),
+        proved.join(", ")
+    );
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ROWS;
+
+    /// Every estimator feature of the firmware (a `fusion-*` feature or
+    /// `wheel-speed-observer`) is proved alone, and the default is proved.
+    #[test]
+    fn rows_cover_every_estimator_feature() {
+        let manifest =
+            std::fs::read_to_string(crate::target::workspace_root().join("firmware/Cargo.toml"))
+                .unwrap();
+        let table: toml::Table = manifest.parse().unwrap();
+        let features = table["features"].as_table().unwrap();
+        let estimators: Vec<&str> = features
+            .keys()
+            .map(String::as_str)
+            .filter(|f| f.starts_with("fusion-") || *f == "wheel-speed-observer")
+            .collect();
+        assert!(!estimators.is_empty());
+        for f in &estimators {
+            assert!(ROWS.iter().any(|r| r == &[*f]), "`{f}` is not proved alone");
+        }
+        assert!(ROWS.iter().any(|r| r.is_empty()), "no default row");
+        assert_eq!(ROWS.len(), estimators.len() + 1);
+    }
+}
