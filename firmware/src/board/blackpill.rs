@@ -191,6 +191,25 @@ pub const PILOT: PilotSpec = PilotSpec {
 /// Control period, µs: the pilot's `period_s`, rounded.
 pub const TICK_US: u32 = (PILOT.tracker.period_s * 1.0e6 + 0.5) as u32;
 
+/// Digital input filter of both encoder timers' inputs (TIM3/TIM4 `CCMR1`
+/// `IC1F`/`IC2F`, RM0383 §13.4.7): an edge counts only after its new level
+/// was sampled `N` times in a row at `f_SAMPLING`, so a noise spike shorter
+/// than `N / f_SAMPLING` (a motor's commutation and PWM noise on the encoder
+/// lines) is no edge. The timers run at 96 MHz with `CKD = 00` (`f_DTS` =
+/// 96 MHz). The choices (the PAC's names): `NoFilter`; `FckIntN2`, `N4`,
+/// `N8` (`f_CK_INT`); `FdtsDiv2N6`, `N8`; `FdtsDiv4N6`, `N8`; `FdtsDiv8N6`,
+/// `N8`; `FdtsDiv16N5`, `N6`, `N8`; `FdtsDiv32N5`, `N6`, `N8`.
+///
+/// Default `FdtsDiv16N8`: spikes under 1.33 µs are rejected, and
+/// edges up to about 750 kHz pass, against 5.9 kHz at the drive's top
+/// wheel speed (18 rad/s, 2048 counts a turn). Lower it for a faster
+/// encoder (the edge period must stay above the filter's `N / f_SAMPLING`);
+/// raise it for a noisier motor. Glitches that still get through and
+/// exceed what the wheel can turn in a tick are rejected by the pilot as
+/// implausible jumps (`PilotCounters::implausible_encoder_reads`).
+pub const ENCODER_INPUT_FILTER: pac::tim3::ccmr1_input::ICFILTER =
+    pac::tim3::ccmr1_input::ICFILTER::FdtsDiv16N8;
+
 /// Watchdog timeout, ms (nominal: the LSI runs at 17–47 kHz).
 pub const WATCHDOG_MS: u32 = 50;
 
@@ -339,6 +358,7 @@ pub fn run() -> ! {
             &mut rcc,
         ),
         false,
+        ENCODER_INPUT_FILTER,
     );
     let right_encoder = Encoder::new(
         dp.TIM4.qei(
@@ -349,6 +369,7 @@ pub fn run() -> ! {
             &mut rcc,
         ),
         true,
+        ENCODER_INPUT_FILTER,
     );
 
     // The reader only talks; its TX pin stays configured, idle high.

@@ -32,9 +32,11 @@
 use core::cell::Cell;
 use core::convert::Infallible;
 
+use core::ops::Deref;
 use embedded_io::{ErrorKind, ErrorType, Read, ReadReady};
 use heapless::spsc::{Consumer, Producer};
-use stm32f4xx_hal::hal_02;
+use stm32f4xx_hal::pac;
+use stm32f4xx_hal::pac::tim3::ccmr1_input::ICFILTER;
 use stm32f4xx_hal::qei::{self, Qei};
 use wmr_core::devices::QuadratureCounter;
 
@@ -49,28 +51,42 @@ use super::setup::{LineError, RfidRx};
 /// encoder is built with `reversed: true` and its count is complemented
 /// (`!count`, which wraps like the counter itself), so that forward is
 /// counting up on both wheels. Swapping its A and B wires does the same.
+///
+/// The HAL sets the timer up in encoder mode ([`Qei`]); [`Encoder::new`]
+/// then takes the timer back and sets its inputs' digital filter
+/// (`CCMR1.IC1F/IC2F`, which the HAL leaves at "none";
+/// [`super::ENCODER_INPUT_FILTER`]), and reads the counter register itself.
 pub struct Encoder<TIM: qei::Instance> {
-    qei: Qei<TIM>,
+    tim: TIM,
     reversed: bool,
 }
 
-impl<TIM: qei::Instance> Encoder<TIM> {
-    /// Wraps a timer already configured in encoder mode.
-    pub fn new(qei: Qei<TIM>, reversed: bool) -> Self {
-        Self { qei, reversed }
+impl<TIM> Encoder<TIM>
+where
+    TIM: qei::Instance + Deref<Target = pac::tim3::RegisterBlock>,
+{
+    /// Takes a timer configured in encoder mode by the HAL and sets both
+    /// inputs' filter to `input_filter` (see
+    /// [`super::ENCODER_INPUT_FILTER`]). The counter keeps running; the A
+    /// and B pins stay in their timer alternate function (their type
+    /// tokens are dropped, their configuration is in the GPIO registers).
+    pub fn new(qei: Qei<TIM>, reversed: bool, input_filter: ICFILTER) -> Self {
+        let (tim, _pins) = qei.release();
+        tim.ccmr1_input()
+            .modify(|_, w| w.ic1f().variant(input_filter).ic2f().variant(input_filter));
+        Self { tim, reversed }
     }
 }
 
 impl<TIM> QuadratureCounter for Encoder<TIM>
 where
-    TIM: qei::Instance,
-    Qei<TIM>: hal_02::Qei<Count = u16>,
+    TIM: qei::Instance + Deref<Target = pac::tim3::RegisterBlock>,
 {
     /// Reading a timer's counter register cannot fail.
     type Error = Infallible;
 
     fn raw_count(&mut self) -> Result<u32, Infallible> {
-        let count = hal_02::Qei::count(&self.qei);
+        let count = self.tim.cnt().read().cnt().bits();
         Ok(u32::from(if self.reversed { !count } else { count }))
     }
 }
