@@ -138,9 +138,59 @@ enum Command {
     },
 }
 
+/// Standard output was closed by its reader (`firmware-sim … | head`):
+/// not an error, the program ends quietly, as Unix filters do.
+#[derive(Debug)]
+struct OutputClosed;
+
+impl std::fmt::Display for OutputClosed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("standard output closed")
+    }
+}
+
+impl std::error::Error for OutputClosed {}
+
+/// Writes to standard output; a closed pipe becomes [`OutputClosed`], any
+/// other write error an error of its own.
+fn write_stdout(args: std::fmt::Arguments<'_>, newline: bool) -> anyhow::Result<()> {
+    use std::io::Write as _;
+    let mut stdout = std::io::stdout().lock();
+    let written = stdout
+        .write_fmt(args)
+        .and_then(|()| {
+            if newline {
+                stdout.write_all(b"\n")
+            } else {
+                Ok(())
+            }
+        })
+        .and_then(|()| stdout.flush());
+    match written {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(OutputClosed.into()),
+        Err(e) => Err(anyhow::Error::new(e).context("writing to standard output")),
+    }
+}
+
+/// `print!` that returns [`OutputClosed`] instead of panicking.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        write_stdout(format_args!($($arg)*), false)?
+    };
+}
+
+/// `println!` that returns [`OutputClosed`] instead of panicking.
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        write_stdout(format_args!($($arg)*), true)?
+    };
+}
+
 fn main() -> ExitCode {
     match real_main() {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is::<OutputClosed>() => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
@@ -153,13 +203,13 @@ fn real_main() -> anyhow::Result<()> {
         Command::Scenarios => {
             for (name, text) in EMBEDDED {
                 let s = Scenario::from_toml_str(text)?;
-                println!("{name:<30} {:>6} s  {}", s.duration_s, s.description);
+                outln!("{name:<30} {:>6} s  {}", s.duration_s, s.description);
             }
-            println!("\n(first = default; `firmware-sim show NAME` prints one)");
-            println!("\nslip scenarios (paper 004; `firmware-sim slip NAME`):");
+            outln!("\n(first = default; `firmware-sim show NAME` prints one)");
+            outln!("\nslip scenarios (paper 004; `firmware-sim slip NAME`):");
             for (name, text) in slip::EMBEDDED_SLIP {
                 let s = SlipScenario::from_toml_str(text)?;
-                println!("{name:<30} {:>6} s  {}", s.duration_s, s.description);
+                outln!("{name:<30} {:>6} s  {}", s.duration_s, s.description);
             }
             Ok(())
         }
@@ -174,7 +224,7 @@ fn real_main() -> anyhow::Result<()> {
                         .collect();
                     anyhow::anyhow!("no embedded scenario `{name}` (have: {})", names.join(", "))
                 })?;
-            print!("{text}");
+            out!("{text}");
             Ok(())
         }
         Command::Hil {
@@ -212,13 +262,13 @@ fn real_main() -> anyhow::Result<()> {
             bar.finish_and_clear();
             let run = run?;
             let files = write_all(&out, &run.result, !no_plot)?;
-            print!("{}", format_summary(&run.result.summary));
-            println!(
+            out!("{}", format_summary(&run.result.summary));
+            outln!(
                 "firmware      {} (log: {})",
                 run.firmware.display(),
                 out.join("firmware.log").display()
             );
-            println!(
+            outln!(
                 "wrote         {}, {}{}",
                 files.csv.display(),
                 files.summary.display(),
@@ -303,10 +353,10 @@ fn real_main() -> anyhow::Result<()> {
             let result = slip::run(&scenario)?;
             let files = slip::write_outputs(&out, &scenario, &result, !no_plot)?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&result.summary)?);
+                outln!("{}", serde_json::to_string_pretty(&result.summary)?);
             } else {
-                print!("{}", slip::format_slip_summary(&result.summary));
-                println!(
+                out!("{}", slip::format_slip_summary(&result.summary));
+                outln!(
                     "wrote         {}, {}, {}{}",
                     files.csv.display(),
                     files.summary.display(),
@@ -350,10 +400,10 @@ fn real_main() -> anyhow::Result<()> {
             let result = run_with_progress(&scenario)?;
             let files = write_all(&out, &result, !no_plot)?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&result.summary)?);
+                outln!("{}", serde_json::to_string_pretty(&result.summary)?);
             } else {
-                print!("{}", format_summary(&result.summary));
-                println!(
+                out!("{}", format_summary(&result.summary));
+                outln!(
                     "wrote         {}, {}{}",
                     files.csv.display(),
                     files.summary.display(),
@@ -422,12 +472,12 @@ fn sweep_all(
         let result = result?;
         let wall_s = wall.elapsed().as_secs_f64();
         let files = write_sweep(&dir, &result, plot)?;
-        print!("{}", format_sweep_summary(&result.summary));
-        println!(
+        out!("{}", format_sweep_summary(&result.summary));
+        outln!(
             "wall time     {wall_s:.2} s ({:.3} s per run)",
             wall_s / options.runs.max(1) as f64
         );
-        println!(
+        outln!(
             "wrote         {}, {}, {}{}\n",
             files.runs_csv.display(),
             files.summary.display(),
@@ -446,7 +496,7 @@ fn sweep_all(
         std::fs::create_dir_all(&root)?;
         std::fs::write(root.join("table.md"), &table)?;
     }
-    print!("{table}");
+    out!("{table}");
     Ok(())
 }
 
@@ -463,8 +513,8 @@ fn rerun_one(
     let files = write_all(out, &result, plot)?;
     let toml_path = out.join("scenario.toml");
     std::fs::write(&toml_path, concrete.to_toml_string()?)?;
-    print!("{}", format_summary(&result.summary));
-    println!(
+    out!("{}", format_summary(&result.summary));
+    outln!(
         "sweep run     index {index}, seed {seed}: start ({:.3}, {:.3}) m, heading {:.4} rad, \
          {:.3} m from the reference; {}",
         row.start_x_m,
@@ -479,7 +529,7 @@ fn rerun_one(
             ),
         }
     );
-    println!(
+    outln!(
         "wrote         {}, {}, {}{}",
         files.csv.display(),
         files.summary.display(),

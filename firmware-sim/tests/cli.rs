@@ -75,3 +75,42 @@ fn scenarios_are_listed_and_shown() {
     let out = sim().args(["scenario-template", "nope"]).output().unwrap();
     assert!(!out.status.success());
 }
+
+/// `firmware-sim … | head`: a reader that closes the pipe early ends the
+/// program quietly and successfully, for every subcommand that prints.
+#[test]
+fn a_closed_output_pipe_ends_quietly() {
+    use std::process::Stdio;
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().to_string_lossy().into_owned();
+    let cases: [&[&str]; 3] = [
+        &["scenarios"],
+        &["show", "figure_eight_rfid"],
+        &[
+            "run",
+            "figure_eight_exact",
+            "--duration-s",
+            "1",
+            "--no-plot",
+            "--out",
+            &out_dir,
+        ],
+    ];
+    for args in cases {
+        let mut child = sim()
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Closed before the program writes: its first write meets EPIPE.
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{args:?}: {:?} {err}", out.status);
+        assert!(
+            !err.contains("panicked") && !err.contains("Broken pipe"),
+            "{args:?}: {err}"
+        );
+    }
+}
