@@ -88,14 +88,10 @@ impl PoseFilterCore for EkfCore {
         }
         c3[3] += step.scale_walk[0];
         c4[4] += step.scale_walk[1];
-        let covariance = symmetric(PoseCovariance::from_data(ArrayStorage(predicted)));
-        let finite =
-            step.state.iter().all(|x| x.is_finite()) && covariance.iter().all(|x| x.is_finite());
-        if finite {
-            self.state = step.state;
-            self.covariance = covariance;
-        }
-        finite
+        self.commit(
+            step.state,
+            PoseCovariance::from_data(ArrayStorage(predicted)),
+        )
     }
 
     fn mean(&self) -> PoseState {
@@ -125,13 +121,9 @@ impl PoseFilterCore for EkfCore {
     }
 
     fn reset(&mut self, mean: &PoseState, covariance: &PoseCovariance) -> bool {
-        let finite = mean.iter().all(|x| x.is_finite()) && covariance.iter().all(|x| x.is_finite());
-        if finite {
-            self.state = *mean;
-            self.state.z = math::wrap_angle(mean.z);
-            self.covariance = symmetric(*covariance);
-        }
-        finite
+        let mut state = *mean;
+        state.z = math::wrap_angle(mean.z);
+        self.commit(state, *covariance)
     }
 }
 
@@ -203,15 +195,31 @@ impl EkfCore {
         // (I − KH) P (I − KH)ᵀ: nalgebra's storage of it.
         let kept = keep_times(keep, &self.covariance.data.0);
         let kept = keep_times(keep, &transpose(&kept));
-        let covariance = symmetric(PoseCovariance::from_data(ArrayStorage(kept)) + gain_r_gain);
-        let finite =
-            state.iter().all(|x| x.is_finite()) && covariance.iter().all(|x| x.is_finite());
+        self.commit(
+            state,
+            PoseCovariance::from_data(ArrayStorage(kept)) + gain_r_gain,
+        )
+    }
+
+    /// The end of every step: `state` and `(M + Mᵀ)/2` of `covariance`
+    /// become the filter's if all of them are finite; otherwise nothing
+    /// changes. (One copy for predict, update and reset.)
+    #[inline(never)]
+    fn commit(&mut self, state: PoseState, covariance: PoseCovariance) -> bool {
+        let covariance = symmetric(covariance);
+        let finite = all_finite(state.as_slice()) && all_finite(covariance.as_slice());
         if finite {
             self.state = state;
             self.covariance = covariance;
         }
         finite
     }
+}
+
+/// Whether every value is finite: `v − v` is 0 for a finite `v` and NaN
+/// for an infinite or NaN one, and a NaN stays in the sum.
+fn all_finite(values: &[f32]) -> bool {
+    values.iter().fold(0.0, |sum, v| sum + (v - v)) == 0.0
 }
 
 /// `(M + Mᵀ)/2`.
@@ -270,6 +278,8 @@ fn transpose(m: &Lines) -> Lines {
 /// `(F X)_i = X_i + F_i2 X_2 + F_i3 X_3 + F_i4 X_4` for the pose rows
 /// `i = x, y` (`F_22 = 1`: row θ is `X_2 + F_23 X_3 + F_24 X_4`); the scale
 /// rows are `X_3, X_4`.
+// Not inlined: `predict` calls it twice.
+#[inline(never)]
 fn jacobian_times(f: &OdometryJacobian, x: &Lines) -> Lines {
     let [x0, x1, x2, x3, x4] = x;
     let [[fx3, fx4], [fy3, fy4], [ft3, ft4]] = f.scale;

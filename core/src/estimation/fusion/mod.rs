@@ -281,6 +281,8 @@ impl FusionEstimator {
     /// with this tick's fix (`after_gap`: fixes were missing before it, so
     /// a change of tag is no single boundary crossing). Returns the
     /// estimated pose, `None` before the first fix.
+    // Not inlined: one copy, out of the caller's tick.
+    #[inline(never)]
     pub fn step(
         &mut self,
         odometry: &OdometryStep,
