@@ -22,11 +22,11 @@
 //! against a dense reference), as its chaotic worst-case errors need
 //! (docs/fusion.md, "One run is one sample").
 //!
-//! The covariance this core holds is always the output of [`symmetric`],
+//! The covariance this core holds is always the output of `commit`,
 //! `(M + Mᵀ)/2`, whose entries `ij` and `ji` are the same float (`+`
 //! commutes): its columns are its rows, which the products below use.
 
-use nalgebra::{ArrayStorage, Matrix2, SMatrix};
+use nalgebra::{ArrayStorage, Matrix2};
 
 use crate::estimation::fusion::config::PoseFilterConfig;
 use crate::estimation::fusion::gate::{
@@ -88,10 +88,7 @@ impl PoseFilterCore for EkfCore {
         }
         c3[3] += step.scale_walk[0];
         c4[4] += step.scale_walk[1];
-        self.commit(
-            step.state,
-            PoseCovariance::from_data(ArrayStorage(predicted)),
-        )
+        self.commit(step.state, &predicted)
     }
 
     fn mean(&self) -> PoseState {
@@ -123,7 +120,7 @@ impl PoseFilterCore for EkfCore {
     fn reset(&mut self, mean: &PoseState, covariance: &PoseCovariance) -> bool {
         let mut state = *mean;
         state.z = math::wrap_angle(mean.z);
-        self.commit(state, *covariance)
+        self.commit(state, &covariance.data.0)
     }
 }
 
@@ -155,8 +152,15 @@ impl EkfCore {
         let correction = axpy(scaled(&k0, innovation[0]), innovation[1], &k1);
         // I − K H: the identity but for columns 0 and 1, `e_j − K_j`.
         let keep = [minus(&E0, &k0), minus(&E1, &k1)];
-        let gain = SMatrix::<f32, STATES, 2>::from_data(ArrayStorage([k0, k1]));
-        self.apply(correction, &keep, gain * r * gain.transpose())
+        // K R Kᵀ: the columns of K R, then column j of (K R) Kᵀ is
+        // `(KR)_·0 K_j0 + (KR)_·1 K_j1`.
+        let kr0 = axpy(scaled(&k0, r.m11), r.m21, &k1);
+        let kr1 = axpy(scaled(&k0, r.m12), r.m22, &k1);
+        let mut gain_r_gain = [[0.0; STATES]; STATES];
+        for ((column, kj0), kj1) in gain_r_gain.iter_mut().zip(k0).zip(k1) {
+            *column = axpy(scaled(&kr0, kj0), kj1, &kr1);
+        }
+        self.apply(correction, &keep, &gain_r_gain)
     }
 
     /// A 1-D fix on `axis`: `H = e_axisᵀ`, `ỹ = z − x̂_axis`, the scalar
@@ -179,34 +183,43 @@ impl EkfCore {
             Axis::X => [minus(&E0, &gain), E1],
             Axis::Y => [E0, minus(&E1, &gain)],
         };
-        let gain = PoseState::from(gain);
-        self.apply(correction, &keep, gain * gain.transpose() * variance)
+        // K σ² Kᵀ, column j `(K K_j) σ²`.
+        let gain_r_gain = gain.map(|kj| scaled(&scaled(&gain, kj), variance));
+        self.apply(correction, &keep, &gain_r_gain)
     }
 
     /// `x̂ += K ỹ` and the Joseph form `P = (I − KH) P (I − KH)ᵀ + K R Kᵀ`
     /// (paper 004's update; [`crate::estimation::fusion::gate`]), with
     /// `keep` the first two columns of `I − KH` (the rest are the
     /// identity's).
-    fn apply(&mut self, correction: Line, keep: &[Line; 2], gain_r_gain: PoseCovariance) -> bool {
+    /// (`gain_r_gain` as columns.)
+    fn apply(&mut self, correction: Line, keep: &[Line; 2], gain_r_gain: &Lines) -> bool {
         let mut state = self.state + PoseState::from(correction);
         state.z = math::wrap_angle(state.z);
         // Rows of (I − KH) P (P symmetric: its columns are its rows), then
         // the rows of (I − KH) ((I − KH) P)ᵀ, which are the columns of
         // (I − KH) P (I − KH)ᵀ: nalgebra's storage of it.
         let kept = keep_times(keep, &self.covariance.data.0);
-        let kept = keep_times(keep, &transpose(&kept));
-        self.commit(
-            state,
-            PoseCovariance::from_data(ArrayStorage(kept)) + gain_r_gain,
-        )
+        let mut kept = keep_times(keep, &transpose(&kept));
+        for (column, krk) in kept.iter_mut().zip(gain_r_gain) {
+            *column = plus(*column, krk);
+        }
+        self.commit(state, &kept)
     }
 
-    /// The end of every step: `state` and `(M + Mᵀ)/2` of `covariance`
-    /// become the filter's if all of them are finite; otherwise nothing
-    /// changes. (One copy for predict, update and reset.)
+    /// The end of every step: `state` and `(M + Mᵀ)/2` of the matrix `M`
+    /// of columns `columns` become the filter's if all of them are finite;
+    /// otherwise nothing changes. (One copy for predict, update and reset.)
     #[inline(never)]
-    fn commit(&mut self, state: PoseState, covariance: PoseCovariance) -> bool {
-        let covariance = symmetric(covariance);
+    fn commit(&mut self, state: PoseState, columns: &Lines) -> bool {
+        // (M + Mᵀ)/2 entry by entry, as nalgebra's `(m + m.transpose()) * 0.5`.
+        let mut symmetric = *columns;
+        for (column, row) in symmetric.iter_mut().zip(transpose(columns)) {
+            for (m, t) in column.iter_mut().zip(row) {
+                *m = (*m + t) * 0.5;
+            }
+        }
+        let covariance = PoseCovariance::from_data(ArrayStorage(symmetric));
         let finite = all_finite(state.as_slice()) && all_finite(covariance.as_slice());
         if finite {
             self.state = state;
@@ -220,11 +233,6 @@ impl EkfCore {
 /// for an infinite or NaN one, and a NaN stays in the sum.
 fn all_finite(values: &[f32]) -> bool {
     values.iter().fold(0.0, |sum, v| sum + (v - v)) == 0.0
-}
-
-/// `(M + Mᵀ)/2`.
-pub(crate) fn symmetric(m: PoseCovariance) -> PoseCovariance {
-    (m + m.transpose()) * 0.5
 }
 
 /// The first two unit vectors.
@@ -317,10 +325,14 @@ mod tests {
     use crate::estimation::fusion::odometry_noise::{
         scale_walk_variance, wheel_travels, wheel_variance,
     };
-    use nalgebra::{Matrix3x2, Vector2};
+    use nalgebra::{Matrix3x2, SMatrix, Vector2};
     use proptest::prelude::*;
 
     type Row = SMatrix<f32, 1, STATES>;
+
+    fn symmetric(m: PoseCovariance) -> PoseCovariance {
+        (m + m.transpose()) * 0.5
+    }
 
     /// The dense EKF as it was.
     #[derive(Clone, Copy)]
