@@ -146,19 +146,19 @@ impl EkfCore {
         };
         let [p0, p1, ..] = &p.data.0;
         // K's columns: P Hᵀ S⁻¹, `P_i0 S⁻¹_0j + P_i1 S⁻¹_1j`.
-        let k0 = axpy(scaled(p0, i00), i10, p1);
-        let k1 = axpy(scaled(p0, i01), i11, p1);
+        let k0 = combine(p0, i00, p1, i10);
+        let k1 = combine(p0, i01, p1, i11);
         // K ỹ.
-        let correction = axpy(scaled(&k0, innovation[0]), innovation[1], &k1);
+        let correction = combine(&k0, innovation[0], &k1, innovation[1]);
         // I − K H: the identity but for columns 0 and 1, `e_j − K_j`.
         let keep = [minus(&E0, &k0), minus(&E1, &k1)];
         // K R Kᵀ: the columns of K R, then column j of (K R) Kᵀ is
         // `(KR)_·0 K_j0 + (KR)_·1 K_j1`.
-        let kr0 = axpy(scaled(&k0, r.m11), r.m21, &k1);
-        let kr1 = axpy(scaled(&k0, r.m12), r.m22, &k1);
-        let mut gain_r_gain = [[0.0; STATES]; STATES];
+        let kr0 = combine(&k0, r.m11, &k1, r.m21);
+        let kr1 = combine(&k0, r.m12, &k1, r.m22);
+        let mut gain_r_gain = [k0; STATES];
         for ((column, kj0), kj1) in gain_r_gain.iter_mut().zip(k0).zip(k1) {
-            *column = axpy(scaled(&kr0, kj0), kj1, &kr1);
+            *column = combine(&kr0, kj0, &kr1, kj1);
         }
         self.apply(correction, &keep, &gain_r_gain)
     }
@@ -184,7 +184,10 @@ impl EkfCore {
             Axis::Y => [E0, minus(&E1, &gain)],
         };
         // K σ² Kᵀ, column j `(K K_j) σ²`.
-        let gain_r_gain = gain.map(|kj| scaled(&scaled(&gain, kj), variance));
+        let mut gain_r_gain = [gain; STATES];
+        for (column, kj) in gain_r_gain.iter_mut().zip(gain) {
+            scale_twice(column, kj, variance);
+        }
         self.apply(correction, &keep, &gain_r_gain)
     }
 
@@ -199,11 +202,9 @@ impl EkfCore {
         // Rows of (I − KH) P (P symmetric: its columns are its rows), then
         // the rows of (I − KH) ((I − KH) P)ᵀ, which are the columns of
         // (I − KH) P (I − KH)ᵀ: nalgebra's storage of it.
-        let kept = keep_times(keep, &self.covariance.data.0);
-        let mut kept = keep_times(keep, &transpose(&kept));
-        for (column, krk) in kept.iter_mut().zip(gain_r_gain) {
-            *column = plus(*column, krk);
-        }
+        // (+ K R Kᵀ in the second pass.)
+        let kept = keep_times(keep, &self.covariance.data.0, None);
+        let kept = keep_times(keep, &transpose(&kept), Some(gain_r_gain));
         self.commit(state, &kept)
     }
 
@@ -239,17 +240,38 @@ fn all_finite(values: &[f32]) -> bool {
 const E0: Line = [1.0, 0.0, 0.0, 0.0, 0.0];
 const E1: Line = [0.0, 1.0, 0.0, 0.0, 0.0];
 
-/// `a x`, entry by entry.
+// The products below are made of these few vector steps, each one
+// out-of-line copy (`#[inline(never)]`): inlined, every call was an
+// unrolled copy, several kilobytes of flash in all.
+
+/// `x a`, entry by entry.
+#[inline(never)]
 fn scaled(x: &Line, a: f32) -> Line {
     x.map(|v| v * a)
 }
 
-/// `y + a x`, entry by entry: the step `Σ_k … + A_ik B_kj` of a product.
-fn axpy(mut y: Line, a: f32, x: &Line) -> Line {
+/// `y += x a`, entry by entry: the step `Σ_k … + A_ik B_kj` of a product.
+#[inline(never)]
+fn add_scaled(y: &mut Line, x: &Line, a: f32) {
     for (y, x) in y.iter_mut().zip(x) {
         *y += x * a;
     }
-    y
+}
+
+/// `(x a) b`, entry by entry, in place.
+#[inline(never)]
+fn scale_twice(x: &mut Line, a: f32, b: f32) {
+    for x in x.iter_mut() {
+        *x = *x * a * b;
+    }
+}
+
+/// `x a + y b`, entry by entry: the first two terms of a product.
+#[inline(never)]
+fn combine(x: &Line, a: f32, y: &Line, b: f32) -> Line {
+    let mut out = scaled(x, a);
+    add_scaled(&mut out, y, b);
+    out
 }
 
 /// `x − y`, entry by entry.
@@ -289,32 +311,39 @@ fn transpose(m: &Lines) -> Lines {
 // Not inlined: `predict` calls it twice.
 #[inline(never)]
 fn jacobian_times(f: &OdometryJacobian, x: &Lines) -> Lines {
-    let [x0, x1, x2, x3, x4] = x;
+    let [_, _, x2, x3, x4] = x;
     let [[fx3, fx4], [fy3, fy4], [ft3, ft4]] = f.scale;
     let [fx2, fy2] = f.heading;
-    [
-        axpy(axpy(axpy(*x0, fx2, x2), fx3, x3), fx4, x4),
-        axpy(axpy(axpy(*x1, fy2, x2), fy3, x3), fy4, x4),
-        axpy(axpy(*x2, ft3, x3), ft4, x4),
-        *x3,
-        *x4,
-    ]
+    let mut out = *x;
+    let [o0, o1, o2, ..] = &mut out;
+    for (row, [f2, f3, f4]) in [o0, o1].into_iter().zip([[fx2, fx3, fx4], [fy2, fy3, fy4]]) {
+        add_scaled(row, x2, f2);
+        add_scaled(row, x3, f3);
+        add_scaled(row, x4, f4);
+    }
+    add_scaled(o2, x3, ft3);
+    add_scaled(o2, x4, ft4);
+    out
 }
 
 /// The rows of `(I − KH) X` from the rows of `X`, `keep` the first two
 /// columns of `I − KH`: `keep_i0 X_0 + keep_i1 X_1`, plus `X_i` for
-/// `i ≥ 2`.
-fn keep_times(keep: &[Line; 2], x: &Lines) -> Lines {
-    let [x0, x1, x2, x3, x4] = x;
-    let [[a0, a1, a2, a3, a4], [b0, b1, b2, b3, b4]] = *keep;
-    let row = |a: f32, b: f32| axpy(scaled(x0, a), b, x1);
-    [
-        row(a0, b0),
-        row(a1, b1),
-        plus(row(a2, b2), x2),
-        plus(row(a3, b3), x3),
-        plus(row(a4, b4), x4),
-    ]
+/// `i ≥ 2`; then `plus` row by row if given.
+#[inline(never)]
+fn keep_times(keep: &[Line; 2], x: &Lines, plus_rows: Option<&Lines>) -> Lines {
+    let [x0, x1, ..] = x;
+    let [keep0, keep1] = *keep;
+    let mut out = *x;
+    for (i, ((row, a), b)) in out.iter_mut().zip(keep0).zip(keep1).enumerate() {
+        let sum = combine(x0, a, x1, b);
+        *row = if i < 2 { sum } else { plus(sum, row) };
+    }
+    if let Some(rows) = plus_rows {
+        for (row, add) in out.iter_mut().zip(rows) {
+            *row = plus(*row, add);
+        }
+    }
+    out
 }
 
 #[cfg(test)]
