@@ -30,7 +30,8 @@ use nalgebra::{ArrayStorage, Matrix2};
 
 use crate::estimation::fusion::config::PoseFilterConfig;
 use crate::estimation::fusion::gate::{
-    PoseCovariance, PoseFilter, PoseFilterCore, PoseState, PositionMeasurement, STATES, inverse_2x2,
+    PoseCovariance, PoseFilter, PoseFilterCore, PoseState, PositionMeasurement, STATES, all_finite,
+    inverse_2x2,
 };
 use crate::estimation::fusion::odometry_noise::{OdometryJacobian, linearise_odometry};
 use crate::geometry::Vec2;
@@ -73,21 +74,20 @@ impl PoseFilterCore for EkfCore {
     #[inline(never)]
     fn predict(&mut self, config: &PoseFilterConfig, odometry: &OdometryStep) -> bool {
         let step = linearise_odometry(config, &self.state, odometry);
-        // Rows of F P (P symmetric: its columns are its rows) …
+        // Rows of F P (P symmetric: its columns are its rows), then the
+        // rows of (F P) Fᵀ, row by row.
         let f_p = jacobian_times(&step.jacobian, &self.covariance.data.0);
-        // … and F (F P)ᵀ = (F P Fᵀ)ᵀ: its rows are the columns of F P Fᵀ,
-        // nalgebra's storage of it.
-        let mut predicted = jacobian_times(&step.jacobian, &transpose(&f_p));
+        let mut predicted = times_jacobian_transpose(&step.jacobian, &f_p);
         // + Q: G Σ Gᵀ on the pose block (module docs of odometry_noise),
         // the scale errors' random walk on their diagonal.
-        let [c0, c1, c2, c3, c4] = &mut predicted;
-        for (column, noise) in [c0, c1, c2].into_iter().zip(step.pose_noise()) {
-            for (entry, q) in column.iter_mut().zip(noise) {
+        let [r0, r1, r2, r3, r4] = &mut predicted;
+        for (row, noise) in [r0, r1, r2].into_iter().zip(step.pose_noise()) {
+            for (entry, q) in row.iter_mut().zip(noise) {
                 *entry += q;
             }
         }
-        c3[3] += step.scale_walk[0];
-        c4[4] += step.scale_walk[1];
+        r3[3] += step.scale_walk[0];
+        r4[4] += step.scale_walk[1];
         self.commit(step.state, &predicted)
     }
 
@@ -152,13 +152,13 @@ impl EkfCore {
         let correction = combine(&k0, innovation[0], &k1, innovation[1]);
         // I − K H: the identity but for columns 0 and 1, `e_j − K_j`.
         let keep = [minus(&E0, &k0), minus(&E1, &k1)];
-        // K R Kᵀ: the columns of K R, then column j of (K R) Kᵀ is
-        // `(KR)_·0 K_j0 + (KR)_·1 K_j1`.
+        // K R Kᵀ: the columns of K R, then row i of (K R) Kᵀ is
+        // `(KR)_i0 K_·0 + (KR)_i1 K_·1`.
         let kr0 = combine(&k0, r.m11, &k1, r.m21);
         let kr1 = combine(&k0, r.m12, &k1, r.m22);
         let mut gain_r_gain = [k0; STATES];
-        for ((column, kj0), kj1) in gain_r_gain.iter_mut().zip(k0).zip(k1) {
-            *column = combine(&kr0, kj0, &kr1, kj1);
+        for ((row, kr_i0), kr_i1) in gain_r_gain.iter_mut().zip(kr0).zip(kr1) {
+            *row = combine(&k0, kr_i0, &k1, kr_i1);
         }
         self.apply(correction, &keep, &gain_r_gain)
     }
@@ -183,10 +183,10 @@ impl EkfCore {
             Axis::X => [minus(&E0, &gain), E1],
             Axis::Y => [E0, minus(&E1, &gain)],
         };
-        // K σ² Kᵀ, column j `(K K_j) σ²`.
+        // K σ² Kᵀ, row i `(K_i K) σ²`.
         let mut gain_r_gain = [gain; STATES];
-        for (column, kj) in gain_r_gain.iter_mut().zip(gain) {
-            scale_twice(column, kj, variance);
+        for (row, ki) in gain_r_gain.iter_mut().zip(gain) {
+            scale_twice(row, ki, variance);
         }
         self.apply(correction, &keep, &gain_r_gain)
     }
@@ -195,27 +195,32 @@ impl EkfCore {
     /// (paper 004's update; [`crate::estimation::fusion::gate`]), with
     /// `keep` the first two columns of `I − KH` (the rest are the
     /// identity's).
-    /// (`gain_r_gain` as columns.)
+    /// `gain_r_gain` is `K R Kᵀ` by its rows.
     fn apply(&mut self, correction: Line, keep: &[Line; 2], gain_r_gain: &Lines) -> bool {
         let mut state = self.state + PoseState::from(correction);
         state.z = math::wrap_angle(state.z);
-        // Rows of (I − KH) P (P symmetric: its columns are its rows), then
-        // the rows of (I − KH) ((I − KH) P)ᵀ, which are the columns of
-        // (I − KH) P (I − KH)ᵀ: nalgebra's storage of it.
-        // (+ K R Kᵀ in the second pass.)
-        let kept = keep_times(keep, &self.covariance.data.0, None);
-        let kept = keep_times(keep, &transpose(&kept), Some(gain_r_gain));
-        self.commit(state, &kept)
+        // Rows of A = (I − KH) P (P symmetric: its columns are its rows),
+        // then row i of A (I − KH)ᵀ + K R Kᵀ:
+        // `A_i0 keep_·0 + A_i1 keep_·1`, plus `A_ij` in columns j ≥ 2.
+        let kept = keep_times(keep, &self.covariance.data.0);
+        let [keep0, keep1] = keep;
+        let mut joseph = kept;
+        for ((row, a), krk) in joseph.iter_mut().zip(&kept).zip(gain_r_gain) {
+            *row = joseph_row(keep0, keep1, a, krk);
+        }
+        self.commit(state, &joseph)
     }
 
     /// The end of every step: `state` and `(M + Mᵀ)/2` of the matrix `M`
-    /// of columns `columns` become the filter's if all of them are finite;
-    /// otherwise nothing changes. (One copy for predict, update and reset.)
+    /// given by `lines`, its rows or its columns (`M_ij + M_ji` is the same
+    /// float as `M_ji + M_ij`, so either gives the same matrix), become the
+    /// filter's if all of them are finite; otherwise nothing changes. (One
+    /// copy for predict, update and reset.)
     #[inline(never)]
-    fn commit(&mut self, state: PoseState, columns: &Lines) -> bool {
+    fn commit(&mut self, state: PoseState, lines: &Lines) -> bool {
         // (M + Mᵀ)/2 entry by entry, as nalgebra's `(m + m.transpose()) * 0.5`.
-        let mut symmetric = *columns;
-        for (column, row) in symmetric.iter_mut().zip(transpose(columns)) {
+        let mut symmetric = *lines;
+        for (column, row) in symmetric.iter_mut().zip(transpose(lines)) {
             for (m, t) in column.iter_mut().zip(row) {
                 *m = (*m + t) * 0.5;
             }
@@ -228,12 +233,6 @@ impl EkfCore {
         }
         finite
     }
-}
-
-/// Whether every value is finite: `v − v` is 0 for a finite `v` and NaN
-/// for an infinite or NaN one, and a NaN stays in the sum.
-fn all_finite(values: &[f32]) -> bool {
-    values.iter().fold(0.0, |sum, v| sum + (v - v)) == 0.0
 }
 
 /// The first two unit vectors.
@@ -308,7 +307,6 @@ fn transpose(m: &Lines) -> Lines {
 /// `(F X)_i = X_i + F_i2 X_2 + F_i3 X_3 + F_i4 X_4` for the pose rows
 /// `i = x, y` (`F_22 = 1`: row θ is `X_2 + F_23 X_3 + F_24 X_4`); the scale
 /// rows are `X_3, X_4`.
-// Not inlined: `predict` calls it twice.
 #[inline(never)]
 fn jacobian_times(f: &OdometryJacobian, x: &Lines) -> Lines {
     let [_, _, x2, x3, x4] = x;
@@ -326,22 +324,53 @@ fn jacobian_times(f: &OdometryJacobian, x: &Lines) -> Lines {
     out
 }
 
+/// Row `i` of `A (I − KH)ᵀ + K R Kᵀ` from row `a` of `A` and row `krk` of
+/// `K R Kᵀ`: `a_0 keep_·0 + a_1 keep_·1`, plus `a_j` in columns `j ≥ 2`,
+/// plus `krk`.
+#[inline(never)]
+fn joseph_row(keep0: &Line, keep1: &Line, a: &Line, krk: &Line) -> Line {
+    let [a0, a1, a2, a3, a4] = *a;
+    let mut b = combine(keep0, a0, keep1, a1);
+    b[2] += a2;
+    b[3] += a3;
+    b[4] += a4;
+    plus(b, krk)
+}
+
+/// The rows of `M Fᵀ` from the rows of `M`, `F` as in [`jacobian_times`]:
+/// `(M Fᵀ)_ij = Σ_k M_ik F_jk`, so columns `j = x, y` are
+/// `M_ij + M_i2 F_j2 + M_i3 F_j3 + M_i4 F_j4`, column θ
+/// `M_i2 + M_i3 F_23 + M_i4 F_24`, and the scale columns `M_i3, M_i4`.
+fn times_jacobian_transpose(f: &OdometryJacobian, m: &Lines) -> Lines {
+    m.map(|row| jacobian_transpose_row(f, &row))
+}
+
+/// Row `m` of `M` times `Fᵀ` (see [`times_jacobian_transpose`]).
+#[inline(never)]
+fn jacobian_transpose_row(f: &OdometryJacobian, m: &Line) -> Line {
+    let [[fx3, fx4], [fy3, fy4], [ft3, ft4]] = f.scale;
+    let [fx2, fy2] = f.heading;
+    let [m0, m1, m2, m3, m4] = *m;
+    [
+        m0 + m2 * fx2 + m3 * fx3 + m4 * fx4,
+        m1 + m2 * fy2 + m3 * fy3 + m4 * fy4,
+        m2 + m3 * ft3 + m4 * ft4,
+        m3,
+        m4,
+    ]
+}
+
 /// The rows of `(I − KH) X` from the rows of `X`, `keep` the first two
 /// columns of `I − KH`: `keep_i0 X_0 + keep_i1 X_1`, plus `X_i` for
-/// `i ≥ 2`; then `plus` row by row if given.
+/// `i ≥ 2`.
 #[inline(never)]
-fn keep_times(keep: &[Line; 2], x: &Lines, plus_rows: Option<&Lines>) -> Lines {
+fn keep_times(keep: &[Line; 2], x: &Lines) -> Lines {
     let [x0, x1, ..] = x;
     let [keep0, keep1] = *keep;
     let mut out = *x;
     for (i, ((row, a), b)) in out.iter_mut().zip(keep0).zip(keep1).enumerate() {
         let sum = combine(x0, a, x1, b);
         *row = if i < 2 { sum } else { plus(sum, row) };
-    }
-    if let Some(rows) = plus_rows {
-        for (row, add) in out.iter_mut().zip(rows) {
-            *row = plus(*row, add);
-        }
     }
     out
 }

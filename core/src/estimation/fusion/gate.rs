@@ -86,22 +86,20 @@ impl PositionMeasurement {
         }
     }
 
+    /// Finite, with positive variances (and a positive definite ellipse).
     fn is_finite(&self) -> bool {
-        match *self {
+        let (values, positive) = match *self {
             Self::Ellipse {
                 position,
                 covariance_m2: [xx, xy, yy],
-            } => {
-                position.is_finite()
-                    && [xx, xy, yy].iter().all(|v| v.is_finite())
-                    && xx > 0.0
-                    && yy > 0.0
-                    && xx * yy - xy * xy > 0.0
-            }
+            } => (
+                [position.x, position.y, xx, xy, yy],
+                xx > 0.0 && yy > 0.0 && xx * yy - xy * xy > 0.0,
+            ),
             Self::Point {
                 position,
-                variance_m2,
-            } => position.is_finite() && variance_m2.iter().all(|v| v.is_finite() && *v > 0.0),
+                variance_m2: [vx, vy],
+            } => ([position.x, position.y, vx, vy, 0.0], vx > 0.0 && vy > 0.0),
             Self::X {
                 value_m,
                 variance_m2,
@@ -109,8 +107,9 @@ impl PositionMeasurement {
             | Self::Y {
                 value_m,
                 variance_m2,
-            } => value_m.is_finite() && variance_m2.is_finite() && variance_m2 > 0.0,
-        }
+            } => ([value_m, variance_m2, 0.0, 0.0, 0.0], variance_m2 > 0.0),
+        };
+        positive && all_finite(&values)
     }
 }
 
@@ -466,4 +465,13 @@ pub(crate) fn inverse_2x2(s: [[f32; 2]; 2]) -> Option<[[f32; 2]; 2]> {
             [-s10 / determinant, s00 / determinant],
         ]
     })
+}
+
+/// Whether every value is finite, by one float sum: `v − v` is 0 for a
+/// finite `v` and NaN for an infinite or NaN one, and a NaN stays in the
+/// sum (smaller code than a bit test per value).
+// `v − v` is the point here.
+#[allow(clippy::eq_op)]
+pub(crate) fn all_finite(values: &[f32]) -> bool {
+    values.iter().fold(0.0, |sum, v| sum + (v - v)) == 0.0
 }

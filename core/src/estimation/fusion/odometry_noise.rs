@@ -45,23 +45,22 @@ pub(crate) struct OdometryLinearisation {
 }
 
 impl OdometryLinearisation {
-    /// The 3×3 block `G Σ Gᵀ` of the process noise, as columns:
+    /// The 3×3 block `G Σ Gᵀ` of the process noise, as rows:
     /// `(G Σ Gᵀ)_ij = (G_i0 Σ_R) G_j0 + (G_i1 Σ_L) G_j1` (the order of the
     /// dense product it replaced, so that it rounds the same; so rounded
     /// it need not be symmetric to the bit).
     pub(crate) fn pose_noise(&self) -> [[f32; 3]; 3] {
         let [sigma_r, sigma_l] = self.wheel_variances;
         let weighted = self.by_wheels.map(|[r, l]| [r * sigma_r, l * sigma_l]);
-        self.by_wheels
-            .map(|[r, l]| weighted.map(|[wr, wl]| wr * r + wl * l))
+        weighted.map(|[wr, wl]| self.by_wheels.map(|[r, l]| wr * r + wl * l))
     }
 
     /// The process noise as a matrix: `G Σ Gᵀ` in the pose block, the
     /// scale errors' random walk on the diagonal of the last two states.
     pub(crate) fn process_noise(&self) -> PoseCovariance {
         let mut q = PoseCovariance::zeros();
-        for (column, values) in q.column_iter_mut().zip(self.pose_noise()) {
-            for (entry, value) in column.into_iter().zip(values) {
+        for (row, values) in q.row_iter_mut().zip(self.pose_noise()) {
+            for (entry, value) in row.into_iter().zip(values) {
                 *entry = value;
             }
         }
