@@ -239,18 +239,14 @@ impl EkfCore {
 const E0: Line = [1.0, 0.0, 0.0, 0.0, 0.0];
 const E1: Line = [0.0, 1.0, 0.0, 0.0, 0.0];
 
-// The products below are made of these few vector steps, each one
-// out-of-line copy (`#[inline(never)]`): inlined, every call was an
-// unrolled copy, several kilobytes of flash in all.
+// The products below are made of these few vector steps.
 
 /// `x a`, entry by entry.
-#[inline(never)]
 fn scaled(x: &Line, a: f32) -> Line {
     x.map(|v| v * a)
 }
 
 /// `y += x a`, entry by entry: the step `Σ_k … + A_ik B_kj` of a product.
-#[inline(never)]
 fn add_scaled(y: &mut Line, x: &Line, a: f32) {
     for (y, x) in y.iter_mut().zip(x) {
         *y += x * a;
@@ -258,7 +254,6 @@ fn add_scaled(y: &mut Line, x: &Line, a: f32) {
 }
 
 /// `(x a) b`, entry by entry, in place.
-#[inline(never)]
 fn scale_twice(x: &mut Line, a: f32, b: f32) {
     for x in x.iter_mut() {
         *x = *x * a * b;
@@ -266,7 +261,6 @@ fn scale_twice(x: &mut Line, a: f32, b: f32) {
 }
 
 /// `x a + y b`, entry by entry: the first two terms of a product.
-#[inline(never)]
 fn combine(x: &Line, a: f32, y: &Line, b: f32) -> Line {
     let mut out = scaled(x, a);
     add_scaled(&mut out, y, b);
@@ -307,7 +301,6 @@ fn transpose(m: &Lines) -> Lines {
 /// `(F X)_i = X_i + F_i2 X_2 + F_i3 X_3 + F_i4 X_4` for the pose rows
 /// `i = x, y` (`F_22 = 1`: row θ is `X_2 + F_23 X_3 + F_24 X_4`); the scale
 /// rows are `X_3, X_4`.
-#[inline(never)]
 fn jacobian_times(f: &OdometryJacobian, x: &Lines) -> Lines {
     let [_, _, x2, x3, x4] = x;
     let [[fx3, fx4], [fy3, fy4], [ft3, ft4]] = f.scale;
@@ -327,7 +320,6 @@ fn jacobian_times(f: &OdometryJacobian, x: &Lines) -> Lines {
 /// Row `i` of `A (I − KH)ᵀ + K R Kᵀ` from row `a` of `A` and row `krk` of
 /// `K R Kᵀ`: `a_0 keep_·0 + a_1 keep_·1`, plus `a_j` in columns `j ≥ 2`,
 /// plus `krk`.
-#[inline(never)]
 fn joseph_row(keep0: &Line, keep1: &Line, a: &Line, krk: &Line) -> Line {
     let [a0, a1, a2, a3, a4] = *a;
     let mut b = combine(keep0, a0, keep1, a1);
@@ -346,7 +338,6 @@ fn times_jacobian_transpose(f: &OdometryJacobian, m: &Lines) -> Lines {
 }
 
 /// Row `m` of `M` times `Fᵀ` (see [`times_jacobian_transpose`]).
-#[inline(never)]
 fn jacobian_transpose_row(f: &OdometryJacobian, m: &Line) -> Line {
     let [[fx3, fx4], [fy3, fy4], [ft3, ft4]] = f.scale;
     let [fx2, fy2] = f.heading;
@@ -363,7 +354,6 @@ fn jacobian_transpose_row(f: &OdometryJacobian, m: &Line) -> Line {
 /// The rows of `(I − KH) X` from the rows of `X`, `keep` the first two
 /// columns of `I − KH`: `keep_i0 X_0 + keep_i1 X_1`, plus `X_i` for
 /// `i ≥ 2`.
-#[inline(never)]
 fn keep_times(keep: &[Line; 2], x: &Lines) -> Lines {
     let [x0, x1, ..] = x;
     let [keep0, keep1] = *keep;
