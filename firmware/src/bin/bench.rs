@@ -1290,7 +1290,7 @@ mod on_target {
         // ticks only; whether it carries one.
         #[cfg(feature = "fusion-ekf")]
         let fusion_load = |r: &Reading| {
-            let frame = r.tick % 2 == 0;
+            let frame = r.tick.is_multiple_of(2);
             let uart = if frame {
                 let Ok(uart) = heapless::Vec::from_slice(&encode_frame(r.tag)) else {
                     fail("RFID frame does not fit a tick's UART bytes");
