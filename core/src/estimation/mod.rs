@@ -73,13 +73,6 @@ impl Estimator {
     /// estimate (paper 002's pose observer takes its `(ĉ, ŝ)`, the fusion
     /// estimator runs it beside the filter as its guide).
     #[must_use]
-    // Not inlined with the fusion estimator: runs once, at configuration,
-    // and inlined into the caller the fusion estimator's fields were
-    // stored one by one through every move of the pilot that holds them
-    // (with this and the same on `Pilot::new`, `TrackerSpec::build` and
-    // `PilotSpec::build`, the QEMU firmware with `fusion-ekf` is 1.5 KB
-    // smaller; without the fusion estimator, 0.9 KB larger).
-    #[cfg_attr(feature = "fusion-ekf", inline(never))]
     pub fn new(choice: EstimatorChoice, observer: HeadingObserver) -> Self {
         match choice {
             EstimatorChoice::HeadingObserver => Self::HeadingObserver(DeadReckoning::new(observer)),

@@ -184,8 +184,6 @@ impl Pilot {
     /// # Errors
     /// [`PilotConfigError::EncoderBits`] can not occur for a validated
     /// configuration; construction is fallible like every other stage's.
-    // Not inlined with the fusion estimator: see `Estimator::new`.
-    #[cfg_attr(feature = "fusion-ekf", inline(never))]
     pub fn new(config: PilotConfig) -> Result<Self, PilotConfigError> {
         let counter = WrappingCounter::new(config.encoder_bits)?;
         Ok(Self {

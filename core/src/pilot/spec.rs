@@ -526,8 +526,6 @@ impl TrackerSpec {
     ///
     /// # Errors
     /// The first part refused.
-    // Not inlined with the fusion estimator: see `Estimator::new`.
-    #[cfg_attr(feature = "fusion-ekf", inline(never))]
     pub fn build(&self) -> Result<TrackerConfig, SpecError> {
         let trajectory = self.trajectory.build().map_err(SpecError::Trajectory)?;
         let [k1, k2, k3] = self.gains;
@@ -643,8 +641,6 @@ impl PilotSpec {
     ///
     /// # Errors
     /// The first part refused.
-    // Not inlined with the fusion estimator: see `Estimator::new`.
-    #[cfg_attr(feature = "fusion-ekf", inline(never))]
     pub fn build(&self) -> Result<PilotConfig, SpecError> {
         let tracker = self.tracker.build()?;
         let drive = self.drive.build(self.tracker.period_s)?;
