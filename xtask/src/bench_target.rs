@@ -40,7 +40,7 @@ pub const REPORT: &str = "target/bench-target.md";
 const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// Stages of the main table: the bench's name and the row label.
-const STAGES: [(&str, &str); 6] = [
+const STAGES: [(&str, &str); 8] = [
     (
         "odometry",
         "odometry (2 counter deltas + `OdometryStep::from_counts`)",
@@ -62,7 +62,19 @@ const STAGES: [(&str, &str); 6] = [
         "robot_tick",
         "whole tick (`Robot::tick` over the HIL proxies, one RFID frame)",
     ),
+    (
+        "robot_tick_fusion_fix",
+        "whole tick, fusion EKF estimator, tick with a tag fix (one RFID frame; corrections included)",
+    ),
+    (
+        "robot_tick_fusion_dead_reckoned",
+        "whole tick, fusion EKF estimator, dead-reckoned tick (no frame)",
+    ),
 ];
+
+/// Features every `wmr-bench` build adds to its backend's: the fusion EKF
+/// estimator, for the whole-tick rows that run it.
+const BENCH_FEATURES: [&str; 1] = ["fusion-ekf"];
 
 /// Math backend calls, per call.
 const MATH: [(&str, &str); 7] = [
@@ -256,9 +268,10 @@ pub fn run_backend(
     env: &[(&str, &str)],
     label: &str,
 ) -> Result<Report, String> {
+    let features: Vec<&str> = features.iter().chain(&BENCH_FEATURES).copied().collect();
     let elf = Build {
         bins: &["wmr-bench"],
-        features,
+        features: &features,
         env,
         ..Build::default()
     }
@@ -452,6 +465,19 @@ pub fn markdown(reports: &[Report]) -> String {
     let _ = write!(md, "| tick peak stack (below the caller's SP) |");
     for r in reports {
         let _ = write!(md, " {} B |", grouped(r.tick_stack_bytes));
+    }
+    md.push('\n');
+    let _ = write!(
+        md,
+        "| tick peak stack, fusion EKF estimator (below the caller's SP) |"
+    );
+    for r in reports {
+        let stack = r.stack("robot_tick_fusion");
+        let _ = write!(
+            md,
+            " {} |",
+            stack.map_or("–".into(), |b| format!("{} B", grouped(b)))
+        );
     }
     md.push_str("\n\nThe math backend alone, per call:\n\n");
     header(&mut md, "function");

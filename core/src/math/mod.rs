@@ -181,13 +181,25 @@ pub fn hypot(x: f32, y: f32) -> f32 {
 ///
 /// Non-finite input gives NaN (never a "valid-looking" angle): callers that
 /// feed actuators check finiteness downstream.
+///
+/// An angle already in the interval (the common case, e.g. every
+/// per-tick heading update) returns at once and inline; the others (and
+/// NaN, which fails both comparisons) take one out-of-line copy of the
+/// reduction, instead of one inlined copy of it and of `floor` per caller.
+#[inline]
 #[must_use]
 pub fn wrap_angle(angle: f32) -> f32 {
-    if !angle.is_finite() {
-        return f32::NAN;
-    }
     if angle > -PI && angle <= PI {
         return angle;
+    }
+    wrap_angle_outside(angle)
+}
+
+/// [`wrap_angle`] of an angle outside (−π, π] or not finite.
+#[inline(never)]
+fn wrap_angle_outside(angle: f32) -> f32 {
+    if !angle.is_finite() {
+        return f32::NAN;
     }
     let turns = floor((angle + PI) / TAU);
     let mut wrapped = angle - turns * TAU; // in [-π, π) up to rounding

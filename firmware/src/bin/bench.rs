@@ -28,7 +28,13 @@
 //!    from_counts`), the heading observer update, the output-feedback law,
 //!    one wheel speed loop, `Pilot::step`, and the whole `Robot::tick` over
 //!    the HIL link's proxy devices (encoders, RFID frame parsing, tag
-//!    lookup, pilot, both motor drivers);
+//!    lookup, pilot, both motor drivers); with the cargo feature
+//!    `fusion-ekf`, the same whole tick of a second robot whose tracker
+//!    runs the fusion EKF estimator (`EstimatorSpec::Fusion`, default
+//!    settings) and reads a tag frame every other tick only, its ticks
+//!    with a tag fix and its dead-reckoned ticks reported apart
+//!    (`robot_tick_fusion_fix`, `robot_tick_fusion_dead_reckoned`; the fix
+//!    ticks include the filter's corrections, when the tag changed);
 //! 4. times paper 004's nonlinear filters, a predict then an update each
 //!    5 ms step, each call in its own `#[inline(never)]` function: the EKF,
 //!    the UKF (`MerweScaledSigmaPoints::paper()`) and the particle filter
@@ -58,6 +64,7 @@
 //! stack <filter step> bytes=<i>
 //! filter <name> state_bytes=<i> position_rms_error_m=<f> faults=<i> repairs=<i> resamplings=<i> steps=<i>
 //! stack robot_tick bytes=<i>
+//! stack robot_tick_fusion bytes=<i>      (feature `fusion-ekf`)
 //! done
 //! ```
 //! then the program exits through semihosting (status 0, or 1 on failure).
@@ -164,7 +171,7 @@ mod on_target {
 
     /// Paper 001's figure-eight and observer gain, on a small robot (as
     /// `host_tests::paper_pilot` and the simulator's defaults).
-    fn pilot_spec() -> PilotSpec {
+    fn pilot_spec(estimator: wmr_core::pilot::spec::EstimatorSpec) -> PilotSpec {
         PilotSpec {
             tracker: TrackerSpec {
                 period_s: PERIOD_S,
@@ -179,7 +186,7 @@ mod on_target {
                 fix_timeout_ticks: 100,
                 failsafe_decel_m_s2: 0.5,
                 max_fix_age_ticks: 2,
-                estimator: wmr_core::pilot::spec::EstimatorSpec::HeadingObserver,
+                estimator,
                 law: wmr_core::pilot::spec::LawSpec::Saturated,
                 sensors: wmr_core::pilot::spec::SensorSpec {
                     track_width_m: 0.2,
@@ -1224,7 +1231,7 @@ mod on_target {
         );
         let cal = calibrate();
 
-        let spec = pilot_spec();
+        let spec = pilot_spec(wmr_core::pilot::spec::EstimatorSpec::HeadingObserver);
         let (Ok(config), Ok(grid)) = (spec.build(), GRID.build()) else {
             fail("bench configuration refused");
         };
@@ -1281,6 +1288,72 @@ mod on_target {
             });
         };
 
+        // The same whole tick with the fusion EKF estimator, on its own
+        // proxies: a tag frame on even ticks only.
+        #[cfg(feature = "fusion-ekf")]
+        let fusion_bus = ProxyBus::new();
+        #[cfg(feature = "fusion-ekf")]
+        let mut fusion_robot: ProxyRobot<'_> = {
+            let fusion_spec = pilot_spec(wmr_core::pilot::spec::EstimatorSpec::Fusion(
+                wmr_core::pilot::spec::FusionSpec::default(),
+            ));
+            let Some(pilot) = fusion_spec
+                .build()
+                .ok()
+                .and_then(|config| Pilot::new(config).ok())
+            else {
+                fail("bench fusion pilot refused");
+            };
+            fusion_bus.reset(PWM_MAX_DUTY);
+            let motor = |side| {
+                MotorDriver::new(
+                    fusion_bus.pwm(side),
+                    fusion_bus.direction_pin(side),
+                    MotorWiring::default(),
+                )
+            };
+            Robot::new(
+                pilot,
+                (
+                    fusion_bus.encoder(Side::Left),
+                    fusion_bus.encoder(Side::Right),
+                ),
+                (motor(Side::Left), motor(Side::Right)),
+                RfidReader::new(fusion_bus.uart()),
+                grid,
+            )
+        };
+        // Loads the fusion robot's proxies with `r`, its tag frame on even
+        // ticks only; whether it carries one.
+        #[cfg(feature = "fusion-ekf")]
+        let fusion_load = |r: &Reading| {
+            let frame = r.tick.is_multiple_of(2);
+            let uart = if frame {
+                let Ok(uart) = heapless::Vec::from_slice(&encode_frame(r.tag)) else {
+                    fail("RFID frame does not fit a tick's UART bytes");
+                };
+                uart
+            } else {
+                heapless::Vec::new()
+            };
+            fusion_bus.load(&TickInput {
+                tick: r.tick,
+                left_count: Some(r.counts[0]),
+                right_count: Some(r.counts[1]),
+                uart,
+            });
+            frame
+        };
+        #[cfg(feature = "fusion-ekf")]
+        let mut fusion_stages = [
+            Stage::new("robot_tick_fusion_fix"),
+            Stage::new("robot_tick_fusion_dead_reckoned"),
+        ];
+        #[cfg(feature = "fusion-ekf")]
+        let mut fusion_frames = 0_u32;
+        #[cfg(feature = "fusion-ekf")]
+        let mut fusion_stack = Some(0_u32);
+
         let mut stages = [
             Stage::new("odometry"),
             Stage::new("heading_observer"),
@@ -1328,6 +1401,16 @@ mod on_target {
             (c[4], _) = timed(&measurement, |m| pilot_step(&mut lone_pilot, m));
             load(&r);
             (c[5], _) = timed(&(), |()| robot_tick(&mut robot));
+            #[cfg(feature = "fusion-ekf")]
+            {
+                let frame = fusion_load(&r);
+                fusion_frames += u32::from(frame);
+                let (counts, _) = timed(&(), |()| robot_tick(&mut fusion_robot));
+                if k >= WARMUP_TICKS {
+                    let [fix, dead_reckoned] = &mut fusion_stages;
+                    if frame { fix } else { dead_reckoned }.record(counts);
+                }
+            }
 
             if k >= WARMUP_TICKS {
                 for (stage, &counts) in stages.iter_mut().zip(&c) {
@@ -1336,6 +1419,10 @@ mod on_target {
             }
         }
         for stage in &stages {
+            stage.report(cal);
+        }
+        #[cfg(feature = "fusion-ekf")]
+        for stage in &fusion_stages {
             stage.report(cal);
         }
         bench_math(cal);
@@ -1350,15 +1437,30 @@ mod on_target {
 
         let mut peak = Some(0_u32);
         for k in 0..STACK_TICKS {
-            load(&world.reading(WARMUP_TICKS + SAMPLES as u32 + k));
+            let r = world.reading(WARMUP_TICKS + SAMPLES as u32 + k);
+            load(&r);
             let tick = stack_bytes(|| {
                 black_box(robot_tick(black_box(&mut robot)));
             });
             peak = peak.zip(tick).map(|(a, b)| a.max(b));
+            // Fix and dead-reckoned ticks alike.
+            #[cfg(feature = "fusion-ekf")]
+            {
+                fusion_frames += u32::from(fusion_load(&r));
+                let tick = stack_bytes(|| {
+                    black_box(robot_tick(black_box(&mut fusion_robot)));
+                });
+                fusion_stack = fusion_stack.zip(tick).map(|(a, b)| a.max(b));
+            }
         }
         match peak {
             Some(bytes) => hprintln!("stack robot_tick bytes={}", bytes),
             None => fail("the tick used the whole painted stack window"),
+        }
+        #[cfg(feature = "fusion-ekf")]
+        match fusion_stack {
+            Some(bytes) => hprintln!("stack robot_tick_fusion bytes={}", bytes),
+            None => fail("the fusion tick used the whole painted stack window"),
         }
 
         // The robot must have run the whole path: a frame and a fix every
@@ -1376,6 +1478,28 @@ mod on_target {
         let ticks = WARMUP_TICKS + SAMPLES as u32 + STACK_TICKS;
         if rfid.frames_ok != ticks || fixes + 1 < ticks || faults != Default::default() {
             fail("the bench robot did not read a tag and track every tick");
+        }
+        #[cfg(feature = "fusion-ekf")]
+        {
+            // The fusion robot: every frame read and used, no device fault,
+            // never in the failsafe, its filter correcting with some fixes.
+            let rfid = fusion_robot.rfid_counters();
+            let faults = fusion_robot.counters();
+            let tracker = fusion_robot.pilot().tracker().counters();
+            hprintln!(
+                "check fusion frames_ok={} fixes_used={} failsafe_entries={} fixes_gated={}",
+                rfid.frames_ok,
+                tracker.fixes_used,
+                tracker.failsafe_entries,
+                tracker.fixes_gated
+            );
+            if rfid.frames_ok != fusion_frames
+                || tracker.fixes_used + 1 < fusion_frames
+                || faults != Default::default()
+                || tracker.failsafe_entries != 0
+            {
+                fail("the fusion bench robot did not read its tags and track");
+            }
         }
         hprintln!("done");
         debug::exit(EXIT_SUCCESS);

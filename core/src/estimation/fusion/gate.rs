@@ -86,22 +86,20 @@ impl PositionMeasurement {
         }
     }
 
+    /// Finite, with positive variances (and a positive definite ellipse).
     fn is_finite(&self) -> bool {
-        match *self {
+        let (values, positive) = match *self {
             Self::Ellipse {
                 position,
                 covariance_m2: [xx, xy, yy],
-            } => {
-                position.is_finite()
-                    && [xx, xy, yy].iter().all(|v| v.is_finite())
-                    && xx > 0.0
-                    && yy > 0.0
-                    && xx * yy - xy * xy > 0.0
-            }
+            } => (
+                [position.x, position.y, xx, xy, yy],
+                xx > 0.0 && yy > 0.0 && xx * yy - xy * xy > 0.0,
+            ),
             Self::Point {
                 position,
-                variance_m2,
-            } => position.is_finite() && variance_m2.iter().all(|v| v.is_finite() && *v > 0.0),
+                variance_m2: [vx, vy],
+            } => ([position.x, position.y, vx, vy, 0.0], vx > 0.0 && vy > 0.0),
             Self::X {
                 value_m,
                 variance_m2,
@@ -109,8 +107,9 @@ impl PositionMeasurement {
             | Self::Y {
                 value_m,
                 variance_m2,
-            } => value_m.is_finite() && variance_m2.is_finite() && variance_m2 > 0.0,
-        }
+            } => ([value_m, variance_m2, 0.0, 0.0, 0.0], variance_m2 > 0.0),
+        };
+        positive && all_finite(&values)
     }
 }
 
@@ -426,10 +425,16 @@ fn mahalanobis(
     let (distance2, dof) = match *measurement {
         PositionMeasurement::Point { .. } | PositionMeasurement::Ellipse { .. } => {
             let (position, r) = measurement.position_and_covariance()?;
-            let innovation = Vector2::new(position.x - mean.x, position.y - mean.y);
-            let s = covariance.fixed_view::<2, 2>(0, 0).into_owned() + r;
-            let s_inv = s.try_inverse()?;
-            ((innovation.transpose() * s_inv * innovation).x, 2)
+            let [y0, y1] = [position.x - mean.x, position.y - mean.y];
+            // S = H P Hᵀ + R: P's x/y block plus R; S⁻¹ in closed form.
+            let c = covariance;
+            let [[i00, i01], [i10, i11]] = inverse_2x2([
+                [c.m11 + r.m11, c.m12 + r.m12],
+                [c.m21 + r.m21, c.m22 + r.m22],
+            ])?;
+            // (ỹᵀ S⁻¹) ỹ, in the order of the dense product it replaced.
+            let (row0, row1) = (y0 * i00 + y1 * i10, y0 * i01 + y1 * i11);
+            (row0 * y0 + row1 * y1, 2)
         }
         PositionMeasurement::X {
             value_m,
@@ -445,4 +450,28 @@ fn mahalanobis(
 
 fn axis_distance2(innovation: f32, s: f32) -> Option<(f32, u8)> {
     (s.is_finite() && s > 0.0).then(|| (innovation * innovation / s, 1))
+}
+
+/// The inverse of the 2×2 matrix of rows `s` by its closed form,
+/// `[[s11, −s01], [−s10, s00]] / det` (`None` if `det = 0`): the 2-D
+/// innovation covariance `S` of a fix needs no general inverse. The
+/// arithmetic of nalgebra's `try_inverse` for 2×2, which it replaced.
+pub(crate) fn inverse_2x2(s: [[f32; 2]; 2]) -> Option<[[f32; 2]; 2]> {
+    let [[s00, s01], [s10, s11]] = s;
+    let determinant = s00 * s11 - s10 * s01;
+    (determinant != 0.0).then(|| {
+        [
+            [s11 / determinant, -s01 / determinant],
+            [-s10 / determinant, s00 / determinant],
+        ]
+    })
+}
+
+/// Whether every value is finite, by one float sum: `v − v` is 0 for a
+/// finite `v` and NaN for an infinite or NaN one, and a NaN stays in the
+/// sum (smaller code than a bit test per value).
+// `v − v` is the point here.
+#[allow(clippy::eq_op)]
+pub(crate) fn all_finite(values: &[f32]) -> bool {
+    values.iter().fold(0.0, |sum, v| sum + (v - v)) == 0.0
 }

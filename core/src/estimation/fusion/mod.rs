@@ -281,6 +281,8 @@ impl FusionEstimator {
     /// with this tick's fix (`after_gap`: fixes were missing before it, so
     /// a change of tag is no single boundary crossing). Returns the
     /// estimated pose, `None` before the first fix.
+    // Not inlined: one copy, out of the caller's tick.
+    #[inline(never)]
     pub fn step(
         &mut self,
         odometry: &OdometryStep,
@@ -324,8 +326,12 @@ impl FusionEstimator {
             } else {
                 let (sin_theta, cos_theta) = math::sincos(pose.heading_rad);
                 let last_step = Vec2::new(odometry.ds_m * cos_theta, odometry.ds_m * sin_theta);
-                for measurement in self.cells.measurements(tag, last_step, pose.position) {
-                    filter.correct(&measurement);
+                // By reference: the slice iterator has no bounds check (the
+                // by-value iterator of heapless's Vec indexes, with a panic
+                // path).
+                let measurements = self.cells.measurements(tag, last_step, pose.position);
+                for measurement in &measurements {
+                    filter.correct(measurement);
                 }
             }
             let relocalised = filter.counters().relocalisations != relocalisations;

@@ -11,22 +11,63 @@
 //! carries `∂(p, θ)/∂ε` and `ε`'s own random walk adds its variance per
 //! metre driven.
 
-use nalgebra::{Matrix2, Matrix3x2, Vector2};
-
 use crate::estimation::fusion::config::PoseFilterConfig;
 use crate::estimation::fusion::gate::{PoseCovariance, PoseState};
 use crate::math;
 use crate::odometry::OdometryStep;
+
+/// The odometry Jacobian `F = ∂x⁺/∂x` by its non-zero entries: `F` is the
+/// identity but for the heading column `F[0..2, 2] = (−c sin m, c cos m)`
+/// and the scale columns `F[0..3, 3..5] = ∂(x, y, θ)/∂(ε_R, ε_L)` (module
+/// docs, "Prediction"). Five of its 25 entries are neither 0 nor 1, and
+/// the EKF's predict multiplies by it without the zeros (`EkfCore`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct OdometryJacobian {
+    /// `(F[0][2], F[1][2]) = (−c sin m, c cos m)`.
+    pub(crate) heading: [f32; 2],
+    /// Rows `x, y, θ` of `F[·][3..5]`: `∂(x, y, θ)/∂(ε_R, ε_L)`.
+    pub(crate) scale: [[f32; 2]; 3],
+}
 
 /// The odometry step through the wheel-scale estimate, and its
 /// linearisation at a state (module docs, "Prediction").
 pub(crate) struct OdometryLinearisation {
     /// The state after the step.
     pub(crate) state: PoseState,
-    /// `F = ∂x⁺/∂x`.
-    pub(crate) jacobian: PoseCovariance,
-    /// `G Σ Gᵀ` plus the scale errors' random walk.
-    pub(crate) process_noise: PoseCovariance,
+    /// `F = ∂x⁺/∂x`, by its non-zero entries.
+    pub(crate) jacobian: OdometryJacobian,
+    /// Rows `x, y, θ` of `G = ∂(x, y, θ)/∂(s_R, s_L)`.
+    pub(crate) by_wheels: [[f32; 2]; 3],
+    /// Each wheel's travel variance `Σ = diag(α|s_R| + σ₀², α|s_L| + σ₀²)`.
+    pub(crate) wheel_variances: [f32; 2],
+    /// The variances the scale errors `(ε_R, ε_L)` gain.
+    pub(crate) scale_walk: [f32; 2],
+}
+
+impl OdometryLinearisation {
+    /// The 3×3 block `G Σ Gᵀ` of the process noise, as rows:
+    /// `(G Σ Gᵀ)_ij = (G_i0 Σ_R) G_j0 + (G_i1 Σ_L) G_j1` (the order of the
+    /// dense product it replaced, so that it rounds the same; so rounded
+    /// it need not be symmetric to the bit).
+    pub(crate) fn pose_noise(&self) -> [[f32; 3]; 3] {
+        let [sigma_r, sigma_l] = self.wheel_variances;
+        let weighted = self.by_wheels.map(|[r, l]| [r * sigma_r, l * sigma_l]);
+        weighted.map(|[wr, wl]| self.by_wheels.map(|[r, l]| wr * r + wl * l))
+    }
+
+    /// The process noise as a matrix: `G Σ Gᵀ` in the pose block, the
+    /// scale errors' random walk on the diagonal of the last two states.
+    pub(crate) fn process_noise(&self) -> PoseCovariance {
+        let mut q = PoseCovariance::zeros();
+        for (row, values) in q.row_iter_mut().zip(self.pose_noise()) {
+            for (entry, value) in row.into_iter().zip(values) {
+                *entry = value;
+            }
+        }
+        q.m44 = self.scale_walk[0];
+        q.m55 = self.scale_walk[1];
+        q
+    }
 }
 
 /// Each wheel's travel `(s_R, s_L)` for an odometry step `(Δs, Δθ)` on a
@@ -86,8 +127,8 @@ pub(crate) fn scale_walk_variance(config: &PoseFilterConfig, travel_m: f32) -> f
     config.scale_walk_per_m * travel_m.abs()
 }
 
-/// The odometry step at `state`: the moved state, `F` and `G Σ Gᵀ` (module
-/// docs, "Prediction").
+/// The odometry step at `state`: the moved state, `F` and the parts of
+/// `G Σ Gᵀ` (module docs, "Prediction").
 pub(crate) fn linearise_odometry(
     config: &PoseFilterConfig,
     state: &PoseState,
@@ -106,40 +147,29 @@ pub(crate) fn linearise_odometry(
     next.x += chord * cos_m;
     next.y += chord * sin_m;
     next.z = math::wrap_angle(theta + dth);
-    // ∂(x, y, θ)/∂(Δs, Δθ), then ∂(Δs, Δθ)/∂(s_R, s_L).
-    let by_step = Matrix3x2::new(
-        cos_m,
-        -0.5 * chord * sin_m,
-        sin_m,
-        0.5 * chord * cos_m,
-        0.0,
-        1.0,
-    );
-    let by_wheels = by_step * Matrix2::new(0.5, 0.5, 1.0 / b, -1.0 / b);
-    let mut jacobian = PoseCovariance::identity();
-    jacobian
-        .fixed_view_mut::<2, 1>(0, 2)
-        .copy_from(&Vector2::new(-chord * sin_m, chord * cos_m));
-    // ∂(x, y, θ)/∂ε = ∂/∂(s_R, s_L) · diag(nominal_r, nominal_l).
-    let by_scale = by_wheels * Matrix2::new(nominal_r, 0.0, 0.0, nominal_l);
-    jacobian.fixed_view_mut::<3, 2>(0, 3).copy_from(&by_scale);
-    let noise = Matrix2::from_diagonal(&Vector2::new(
-        wheel_variance(config, right),
-        wheel_variance(config, left),
-    ));
-    let mut process_noise = PoseCovariance::zeros();
-    process_noise
-        .fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&(by_wheels * noise * by_wheels.transpose()));
-    process_noise
-        .fixed_view_mut::<2, 2>(3, 3)
-        .copy_from(&Matrix2::from_diagonal(&Vector2::new(
-            scale_walk_variance(config, right),
-            scale_walk_variance(config, left),
-        )));
+    // ∂(x, y, θ)/∂(Δs, Δθ), rows x, y, θ.
+    let by_step = [
+        [cos_m, -0.5 * chord * sin_m],
+        [sin_m, 0.5 * chord * cos_m],
+        [0.0, 1.0],
+    ];
+    // G = ∂(x, y, θ)/∂(Δs, Δθ) · ∂(Δs, Δθ)/∂(s_R, s_L), the latter
+    // [[1/2, 1/2], [1/b, −1/b]].
+    let inverse_b = 1.0 / b;
+    let by_wheels = by_step.map(|[s, t]| [s * 0.5 + t * inverse_b, s * 0.5 + t * -inverse_b]);
+    // ∂(x, y, θ)/∂ε = G · diag(nominal_r, nominal_l).
+    let scale = by_wheels.map(|[r, l]| [r * nominal_r, l * nominal_l]);
     OdometryLinearisation {
         state: next,
-        jacobian,
-        process_noise,
+        jacobian: OdometryJacobian {
+            heading: [-chord * sin_m, chord * cos_m],
+            scale,
+        },
+        by_wheels,
+        wheel_variances: [wheel_variance(config, right), wheel_variance(config, left)],
+        scale_walk: [
+            scale_walk_variance(config, right),
+            scale_walk_variance(config, left),
+        ],
     }
 }

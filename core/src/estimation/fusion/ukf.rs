@@ -198,7 +198,7 @@ impl PoseFilterCore for UkfCore {
 
     fn predict(&mut self, config: &PoseFilterConfig, odometry: &OdometryStep) -> bool {
         let mean = *self.filter.state();
-        let mut q = linearise_odometry(config, &mean, odometry).process_noise;
+        let mut q = linearise_odometry(config, &mean, odometry).process_noise();
         q.m44 += SCALE_VARIANCE_PER_STEP;
         q.m55 += SCALE_VARIANCE_PER_STEP;
         let applied = self.filter.set_process_noise(q).is_ok()
