@@ -66,9 +66,10 @@ pub const PAPERS: [&[&str]; 3] = [&[], &["libm"], &["micromath", "defmt", "serde
 /// The firmware's rows (built with `--no-default-features` and the board's
 /// feature added), linted with each board of [`crate::BOARDS`].
 pub const FIRMWARE: [&[&str]; 4] = [
-    // The shipped configuration: the f32 backend, paper 001 and 002 only.
+    // The shipped configuration: the f32 backend, paper 001 and 002 and the
+    // fusion EKF (every board turns `fusion-ekf` on).
     &[],
-    &["micromath", "fusion-ekf"],
+    &["micromath"],
     &["libm", "fusion-ukf", "wheel-speed-observer"],
     &["micromath", "fusion-particle-filter"],
 ];
@@ -76,7 +77,7 @@ pub const FIRMWARE: [&[&str]; 4] = [
 /// The rows of `wmr-bench-m0` (the on-target bench for the Cortex-M0,
 /// linted on `thumbv6m-none-eabi` only): its default backend, and both
 /// other backends at once.
-pub const BENCH_M0: [&[&str]; 2] = [&[], &["libm", "micromath"]];
+pub const BENCH_M0: [&[&str]; 2] = [&[], &["libm", "micromath", "fusion-ekf"]];
 
 /// Clippy `-D warnings` on every row of the matrix.
 pub fn clippy_matrix() -> crate::Result {
@@ -212,11 +213,14 @@ mod tests {
         }
     }
 
-    /// Every feature of `manifest` but `skip` is on in a row and off in
-    /// another; each `fusion-*` feature is a row's only estimator feature,
-    /// and one row has none.
-    fn check(manifest: &str, rows: &[&[&str]], skip: &[&str]) {
+    /// With `base` added to every row (a board, which may imply features
+    /// of its own): every feature of `manifest` but `skip` and those `base`
+    /// implies is on in a row and off in another; each `fusion-*` feature
+    /// is, with `base`'s, a row's only estimator feature, and one row has
+    /// only `base`'s.
+    fn check(manifest: &str, rows: &[&[&str]], skip: &[&str], base: &[&str]) {
         let all = features(manifest);
+        let base = closure(base, &all);
         let rows: Vec<BTreeSet<String>> = rows
             .iter()
             .inspect(|row| {
@@ -224,9 +228,16 @@ mod tests {
                     assert!(all.contains_key(*f), "{manifest} has no feature `{f}`");
                 }
             })
-            .map(|row| closure(row, &all))
+            .map(|row| {
+                let mut on = closure(row, &all);
+                on.extend(base.iter().cloned());
+                on
+            })
             .collect();
-        for f in all.keys().filter(|f| !skip.contains(&f.as_str())) {
+        for f in all
+            .keys()
+            .filter(|f| !skip.contains(&f.as_str()) && !base.contains(*f))
+        {
             assert!(rows.iter().any(|r| r.contains(f)), "`{f}` never on");
             assert!(rows.iter().any(|r| !r.contains(f)), "`{f}` never off");
         }
@@ -236,9 +247,10 @@ mod tests {
                 .cloned()
                 .collect()
         };
-        assert!(rows.iter().any(|r| estimators(r).is_empty()));
+        assert!(rows.iter().any(|r| estimators(r) == estimators(&base)));
         for f in all.keys().filter(|f| f.starts_with("fusion-")) {
-            let alone = closure(&[f.as_str()], &all);
+            let mut alone = closure(&[f.as_str()], &all);
+            alone.extend(estimators(&base));
             assert!(
                 rows.iter().any(|r| estimators(r) == alone),
                 "`{f}` never the only estimator feature"
@@ -248,7 +260,7 @@ mod tests {
 
     #[test]
     fn core_rows_cover_every_choice() {
-        check("core/Cargo.toml", &CORE, &["default", "std"]);
+        check("core/Cargo.toml", &CORE, &["default", "std"], &[]);
         let has = |r: &&[&str], f: &str| r.contains(&f);
         // The default backend, each other one alone and both together.
         assert!(CORE.iter().any(|r| !has(r, "libm") && !has(r, "micromath")));
@@ -264,7 +276,18 @@ mod tests {
         // `cargo xtask panic-free` builds it (`xtask/src/panic_free.rs`).
         let mut skip = vec!["default", "panic-never"];
         skip.extend(&boards);
-        check("firmware/Cargo.toml", &FIRMWARE, &skip);
+        // Every row runs with each board; both boards imply the same
+        // features (`fusion-ekf`).
+        let manifest = features("firmware/Cargo.toml");
+        let implied = |board: &str| closure(&[board], &manifest);
+        assert!(boards.iter().all(|b| {
+            let mut a = implied(b);
+            let mut z = implied(boards[0]);
+            a.remove(*b);
+            z.remove(boards[0]);
+            a == z
+        }));
+        check("firmware/Cargo.toml", &FIRMWARE, &skip, &[boards[0]]);
         assert!(
             FIRMWARE
                 .iter()
