@@ -14,7 +14,7 @@ use std::time::Duration;
 use firmware_sim::hil::{
     HilOptions, QemuTarget, build_firmware, build_firmware_with, run_hil, workspace_root,
 };
-use firmware_sim::{Scenario, run};
+use firmware_sim::{Record, Scenario, Summary, run};
 use wmr_core::control::saturated::GainError;
 use wmr_core::pilot::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec, SpecError};
 use wmr_link::{HostMessage, Refusal, TargetMessage, TickInput};
@@ -75,33 +75,11 @@ fn fusion_ukf_scenario() -> Scenario {
 #[test]
 fn fusion_ukf_in_the_firmware_runs_exactly_as_on_the_host() {
     let scenario = fusion_ukf_scenario();
-    let host = run(&scenario, |_, _| {}).unwrap();
     let fusion_options = HilOptions {
         firmware: Some(fusion_firmware()),
         ..options()
     };
-    let hil = run_hil(&scenario, &fusion_options, |_, _| {}).unwrap();
-    let (h, f) = (&host.records, &hil.result.records);
-    assert_eq!(h.len(), f.len());
-    let first_difference = h
-        .iter()
-        .zip(f)
-        .find(|(a, b)| format!("{a:?}") != format!("{b:?}"))
-        .map(|(a, _)| a.tick);
-    let s = &hil.result.summary;
-    let report = s.hil.expect("hil report");
-    println!(
-        "HIL fusion UKF {} ticks: first differing record {first_difference:?}; firmware \
-         error after {} s: max {:.4} mean {:.4} m; peak stack {} B",
-        f.len(),
-        s.transient_s,
-        s.max_error_m,
-        s.mean_error_m,
-        report.peak_stack_bytes
-    );
-    assert_eq!(first_difference, None, "records differ");
-    assert_eq!(report.firmware_ticks, scenario_ticks(&scenario));
-    assert_eq!(report.firmware_link.corrupt_frames, 0);
+    runs_exactly_as_on_the_host("fusion UKF", &scenario, &fusion_options);
 
     let mut plain = QemuTarget::start(&firmware(), &options()).unwrap();
     let configure =
@@ -126,29 +104,7 @@ fn fusion_ekf_in_the_default_firmware_runs_exactly_as_on_the_host() {
         filter: FusionFilterSpec::Ekf,
         ..FusionSpec::default()
     });
-    let host = run(&scenario, |_, _| {}).unwrap();
-    let hil = run_hil(&scenario, &options(), |_, _| {}).unwrap();
-    let (h, f) = (&host.records, &hil.result.records);
-    assert_eq!(h.len(), f.len());
-    let first_difference = h
-        .iter()
-        .zip(f)
-        .find(|(a, b)| format!("{a:?}") != format!("{b:?}"))
-        .map(|(a, _)| a.tick);
-    let s = &hil.result.summary;
-    let report = s.hil.expect("hil report");
-    println!(
-        "HIL fusion EKF {} ticks: first differing record {first_difference:?}; firmware \
-         error after {} s: max {:.4} mean {:.4} m; peak stack {} B",
-        f.len(),
-        s.transient_s,
-        s.max_error_m,
-        s.mean_error_m,
-        report.peak_stack_bytes
-    );
-    assert_eq!(first_difference, None, "records differ");
-    assert_eq!(report.firmware_ticks, scenario_ticks(&scenario));
-    assert_eq!(report.firmware_link.corrupt_frames, 0);
+    let s = runs_exactly_as_on_the_host("fusion EKF", &scenario, &options());
     // The fusion estimator's targets on the RFID figure-eight
     // (host-tests/tests/fusion_ekf.rs: ≤ 0.02 / ≤ 0.005 m).
     assert!(s.max_error_m <= 0.02 && s.mean_error_m <= 0.005, "{s:?}");
@@ -162,17 +118,12 @@ fn firmware_under_qemu_tracks_the_figure_eight_exactly_as_the_host_run() {
     let host = run(&scenario, |_, _| {}).unwrap();
     let hil = run_hil(&scenario, &options(), |_, _| {}).unwrap();
     let (h, f) = (&host.records, &hil.result.records);
-    assert_eq!(h.len(), f.len());
-
-    let mut max_position_diff = 0.0_f64;
-    let mut first_difference = None;
-    for (a, b) in h.iter().zip(f) {
-        let d = (a.x_m - b.x_m).hypot(a.y_m - b.y_m);
-        max_position_diff = max_position_diff.max(d);
-        if first_difference.is_none() && format!("{a:?}") != format!("{b:?}") {
-            first_difference = Some(a.tick);
-        }
-    }
+    let first_difference = first_difference(h, f);
+    let max_position_diff = h
+        .iter()
+        .zip(f)
+        .map(|(a, b)| (a.x_m - b.x_m).hypot(a.y_m - b.y_m))
+        .fold(0.0_f64, f64::max);
     let s = &hil.result.summary;
     let report = s.hil.expect("hil report");
     println!(
@@ -225,11 +176,7 @@ fn reader_traffic_at_the_links_maximum_is_drained_every_tick() {
     let host = run(&scenario, |_, _| {}).unwrap();
     let hil = run_hil(&scenario, &options(), |_, _| {}).unwrap();
     let (h, f) = (&host.records, &hil.result.records);
-    let first_difference = h
-        .iter()
-        .zip(f)
-        .find(|(a, b)| format!("{a:?}") != format!("{b:?}"))
-        .map(|(a, _)| a.tick);
+    let first_difference = first_difference(h, f);
     let s = &hil.result.summary;
     let report = s.hil.expect("hil report");
     let rfid = s.rfid.expect("rfid counters");
@@ -244,7 +191,6 @@ fn reader_traffic_at_the_links_maximum_is_drained_every_tick() {
         s.mean_error_m
     );
     assert_eq!(first_difference, None, "records differ");
-    assert_eq!(h.len(), f.len());
     let ticks = scenario_ticks(&scenario);
     // The line was full: more than 10 frames a tick, every one read but
     // those still on the line or in the ring when the run ended (at most a
@@ -260,6 +206,41 @@ fn reader_traffic_at_the_links_maximum_is_drained_every_tick() {
     // still on the line), the others replaced and counted.
     assert_eq!(tracker.fixes_used, ticks - 1);
     assert_eq!(rfid.superseded + tracker.fixes_used, rfid.frames_ok);
+}
+
+/// The tick of the first record where a host run and a firmware run
+/// differ (`None`: identical), after checking they have as many records.
+fn first_difference(host: &[Record], firmware: &[Record]) -> Option<u32> {
+    assert_eq!(host.len(), firmware.len());
+    host.iter()
+        .zip(firmware)
+        .find(|(a, b)| format!("{a:?}") != format!("{b:?}"))
+        .map(|(a, _)| a.tick)
+}
+
+/// `scenario` on the host and through the firmware of `options`: the same
+/// records, bit for bit, every tick run by the firmware, no corrupt frame.
+/// Prints the firmware's figures under `label`; returns its summary.
+fn runs_exactly_as_on_the_host(label: &str, scenario: &Scenario, options: &HilOptions) -> Summary {
+    let host = run(scenario, |_, _| {}).unwrap();
+    let hil = run_hil(scenario, options, |_, _| {}).unwrap();
+    let (h, f) = (&host.records, &hil.result.records);
+    let first_difference = first_difference(h, f);
+    let s = hil.result.summary;
+    let report = s.hil.expect("hil report");
+    println!(
+        "HIL {label} {} ticks: first differing record {first_difference:?}; firmware \
+         error after {} s: max {:.4} mean {:.4} m; peak stack {} B",
+        f.len(),
+        s.transient_s,
+        s.max_error_m,
+        s.mean_error_m,
+        report.peak_stack_bytes
+    );
+    assert_eq!(first_difference, None, "records differ");
+    assert_eq!(report.firmware_ticks, scenario_ticks(scenario));
+    assert_eq!(report.firmware_link.corrupt_frames, 0);
+    s
 }
 
 fn scenario_ticks(s: &Scenario) -> u32 {
