@@ -306,33 +306,21 @@ const M0_PREFIX: &str = "m0.";
 /// Builds `wmr-bench-m0` (the same bench source, default backend) for the
 /// Cortex-M0 and runs it on QEMU's `microbit`.
 pub fn run_m0() -> Result<Report, String> {
-    let dir = crate::target::target_dir();
-    let dir_arg = dir.to_string_lossy().into_owned();
-    crate::cargo(
-        &[
-            "build",
-            "-p",
-            "wmr-bench-m0",
-            "--release",
-            "--target",
-            M0_TARGET,
-            "--target-dir",
-            &dir_arg,
-        ],
+    let elfs = crate::target::build_release(
+        "wmr-bench-m0",
+        M0_TARGET,
         &[],
+        &[],
+        &["wmr-bench-m0"],
+        "bench-m0",
     )?;
-    let built = dir.join(M0_TARGET).join("release").join("wmr-bench-m0");
-    let out = dir.join("elf").join("bench-m0");
-    std::fs::create_dir_all(&out).map_err(|e| format!("create {}: {e}", out.display()))?;
-    let elf = out.join("wmr-bench-m0");
-    std::fs::copy(&built, &elf)
-        .map_err(|e| format!("copy {} to {}: {e}", built.display(), elf.display()))?;
+    let elf = elfs.first().ok_or("no ELF built")?;
     eprintln!(
         "    running {} under QEMU {M0_MACHINE} (-icount shift={M0_ICOUNT_SHIFT})",
         elf.display()
     );
-    let sizes = crate::size::analyse(&elf)?;
-    let output = qemu_on(&elf, M0_MACHINE, M0_ICOUNT_SHIFT, QEMU_TIMEOUT)?;
+    let sizes = crate::size::analyse(elf)?;
+    let output = qemu_on(elf, M0_MACHINE, M0_ICOUNT_SHIFT, QEMU_TIMEOUT)?;
     let mut report = parse(&output).map_err(|e| format!("{}: {e}", elf.display()))?;
     report.elf_flash_ram = Some((sizes.flash, sizes.ram));
     if report.machine != M0_MACHINE {

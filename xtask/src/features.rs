@@ -87,24 +87,12 @@ pub fn clippy_matrix() -> crate::Result {
             for row in rows {
                 let features = row.join(",");
                 let package = format!("wmr-{name}");
-                crate::step(&format!("clippy {name} {target} [{features}]"), || {
-                    crate::cargo(
-                        &[
-                            "clippy",
-                            "-p",
-                            &package,
-                            "--target",
-                            target,
-                            "--no-default-features",
-                            "--features",
-                            &features,
-                            "--",
-                            "-D",
-                            "warnings",
-                        ],
-                        &[],
-                    )
-                })?;
+                clippy(
+                    &format!("{name} {target} [{features}]"),
+                    &package,
+                    target,
+                    &["--no-default-features", "--features", &features],
+                )?;
             }
         }
     }
@@ -114,52 +102,42 @@ pub fn clippy_matrix() -> crate::Result {
                 .chain(row.iter().copied())
                 .collect::<Vec<_>>()
                 .join(",");
-            crate::step(&format!("clippy firmware {board} [{features}]"), || {
-                crate::cargo(
-                    &[
-                        "clippy",
-                        "-p",
-                        "wmr-firmware",
-                        "--release",
-                        "--target",
-                        crate::FIRMWARE_TARGET,
-                        "--all-targets",
-                        "--no-default-features",
-                        "--features",
-                        &features,
-                        "--",
-                        "-D",
-                        "warnings",
-                    ],
-                    &[],
-                )
-            })?;
+            clippy(
+                &format!("firmware {board} [{features}]"),
+                "wmr-firmware",
+                crate::FIRMWARE_TARGET,
+                &[
+                    "--release",
+                    "--all-targets",
+                    "--no-default-features",
+                    "--features",
+                    &features,
+                ],
+            )?;
         }
     }
     for row in BENCH_M0 {
         let features = row.join(",");
         let target = crate::bench_target::M0_TARGET;
-        crate::step(&format!("clippy bench-m0 {target} [{features}]"), || {
-            crate::cargo(
-                &[
-                    "clippy",
-                    "-p",
-                    "wmr-bench-m0",
-                    "--release",
-                    "--target",
-                    target,
-                    "--all-targets",
-                    "--features",
-                    &features,
-                    "--",
-                    "-D",
-                    "warnings",
-                ],
-                &[],
-            )
-        })?;
+        clippy(
+            &format!("bench-m0 {target} [{features}]"),
+            "wmr-bench-m0",
+            target,
+            &["--release", "--all-targets", "--features", &features],
+        )?;
     }
     Ok(())
+}
+
+/// One step of the matrix: `cargo clippy -p <package> --target <target>
+/// <args> -- -D warnings`, named `clippy <label>`.
+fn clippy(label: &str, package: &str, target: &str, args: &[&str]) -> crate::Result {
+    crate::step(&format!("clippy {label}"), || {
+        let mut all = vec!["clippy", "-p", package, "--target", target];
+        all.extend(args);
+        all.extend(["--", "-D", "warnings"]);
+        crate::cargo(&all, &[])
+    })
 }
 
 #[cfg(test)]

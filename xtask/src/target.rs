@@ -45,19 +45,8 @@ impl Build<'_> {
     /// where the next build (other features, other opt-level) leaves it be.
     /// Returns the copies, in the order of `bins`.
     pub fn run(&self, label: &str) -> Result<Vec<PathBuf>, String> {
-        let dir = target_dir();
-        let dir_arg = dir.to_string_lossy().into_owned();
         let features = self.features.join(",");
-        let mut args = vec![
-            "build",
-            "-p",
-            "wmr-firmware",
-            "--release",
-            "--target",
-            TARGET,
-            "--target-dir",
-            &dir_arg,
-        ];
+        let mut args = Vec::new();
         for bin in self.bins {
             args.extend(["--bin", bin]);
         }
@@ -67,20 +56,48 @@ impl Build<'_> {
         if !features.is_empty() {
             args.extend(["--features", &features]);
         }
-        crate::cargo(&args, self.env)?;
-        let out = dir.join("elf").join(label);
-        std::fs::create_dir_all(&out).map_err(|e| format!("create {}: {e}", out.display()))?;
-        self.bins
-            .iter()
-            .map(|bin| {
-                let built = dir.join(TARGET).join("release").join(bin);
-                let copy = out.join(bin);
-                std::fs::copy(&built, &copy)
-                    .map_err(|e| format!("copy {} to {}: {e}", built.display(), copy.display()))?;
-                Ok(copy)
-            })
-            .collect()
+        build_release("wmr-firmware", TARGET, &args, self.env, self.bins, label)
     }
+}
+
+/// `cargo build -p <package> --release --target <target>` with `args`
+/// into xtask's target directory, then copies each of `bins` to
+/// `target/xtask/elf/<label>/<bin>`, where the next build (other features,
+/// other opt-level) leaves it be. Returns the copies, in the order of
+/// `bins`.
+pub fn build_release(
+    package: &str,
+    target: &str,
+    args: &[&str],
+    env: &[(&str, &str)],
+    bins: &[&str],
+    label: &str,
+) -> Result<Vec<PathBuf>, String> {
+    let dir = target_dir();
+    let dir_arg = dir.to_string_lossy().into_owned();
+    let mut all = vec![
+        "build",
+        "-p",
+        package,
+        "--release",
+        "--target",
+        target,
+        "--target-dir",
+        &dir_arg,
+    ];
+    all.extend(args);
+    crate::cargo(&all, env)?;
+    let out = dir.join("elf").join(label);
+    std::fs::create_dir_all(&out).map_err(|e| format!("create {}: {e}", out.display()))?;
+    bins.iter()
+        .map(|bin| {
+            let built = dir.join(target).join("release").join(bin);
+            let copy = out.join(bin);
+            std::fs::copy(&built, &copy)
+                .map_err(|e| format!("copy {} to {}: {e}", built.display(), copy.display()))?;
+            Ok(copy)
+        })
+        .collect()
 }
 
 /// Runs an ELF on QEMU's `netduinoplus2` with `-icount shift=0` (one
