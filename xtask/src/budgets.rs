@@ -93,6 +93,10 @@ impl Budgets {
                     | "flash_bytes"
                     | "flash_limit_bytes"
                     | "targets"
+                    // Checked by the HIL tests (host-tests/tests/hil.rs),
+                    // which measure them.
+                    | "hil_peak_stack_bytes"
+                    | "hil_peak_stack_limit_bytes"
             ) {
                 return Err(format!("{FILE}: unknown key `{key}`"));
             }

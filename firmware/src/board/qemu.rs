@@ -97,20 +97,38 @@ fn send(serial: &mut Usart1, tx: &mut Sender, message: TargetMessage) {
     }
 }
 
+/// Ends QEMU with a failure: start-up found the hardware or the statics
+/// already taken, which only a bug can cause.
+fn fail() -> ! {
+    debug::exit(EXIT_FAILURE);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
 /// The firmware: serve the link until the host says `Finish`.
+///
+/// The long-lived state (the proxy bus, the session with its robot, the
+/// link receiver: about 1.9 KB) lives in statics (`cortex_m::singleton!`,
+/// in `.bss`), not in this function's frame, so the stack holds only what
+/// a message's handling needs (docs/firmware.md, "Memory").
 pub fn run() -> ! {
     let (Some(dp), Some(cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
         // Only possible if something took them before `main`.
-        debug::exit(EXIT_FAILURE);
-        loop {
-            cortex_m::asm::wfi();
-        }
+        fail()
     };
     let mut serial = Usart1::new(dp.USART1, &dp.RCC);
     let mut millis = Millis::new(cp.SYST);
-    let bus = ProxyBus::new();
-    let mut session = Session::new(&bus);
-    let mut rx = Receiver::new();
+    let Some(bus) = cortex_m::singleton!(: ProxyBus = ProxyBus::new()) else {
+        fail()
+    };
+    let bus: &'static ProxyBus = bus;
+    let Some(session) = cortex_m::singleton!(: Session<'static> = Session::new(bus)) else {
+        fail()
+    };
+    let Some(rx) = cortex_m::singleton!(: Receiver = Receiver::new()) else {
+        fail()
+    };
     let mut tx = Sender::default();
     defmt::info!(
         "wmr-firmware (QEMU board), link protocol {}",
