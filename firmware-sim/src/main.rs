@@ -50,7 +50,8 @@ enum Command {
     /// same files as `run`, plus the firmware's defmt log.
     Hil {
         /// Scenario file or embedded name; default:
-        /// `figure_eight_rfid_full_stack`.
+        /// `figure_eight_rfid_full_stack_fusion_ekf` (the firmware's default
+        /// estimator; `figure_eight_rfid_full_stack` runs paper 001's).
         scenario: Option<String>,
         /// Output directory (default: out/<scenario name>-hil).
         #[arg(long)]
@@ -236,7 +237,7 @@ fn real_main() -> anyhow::Result<()> {
             no_plot,
         } => {
             let mut scenario = match scenario {
-                None => Scenario::embedded("figure_eight_rfid_full_stack")?,
+                None => Scenario::embedded("figure_eight_rfid_full_stack_fusion_ekf")?,
                 Some(arg) => load(&arg)?,
             };
             if let Some(d) = duration_s {

@@ -79,7 +79,8 @@ fn fusion_ukf_in_the_firmware_runs_exactly_as_on_the_host() {
         firmware: Some(fusion_firmware()),
         ..options()
     };
-    runs_exactly_as_on_the_host("fusion UKF", &scenario, &fusion_options);
+    let summary = runs_exactly_as_on_the_host("fusion UKF", &scenario, &fusion_options);
+    peak_stack_within_budget("fusion_ukf", &summary);
 
     let mut plain = QemuTarget::start(&firmware(), &options()).unwrap();
     let configure =
@@ -90,24 +91,28 @@ fn fusion_ukf_in_the_firmware_runs_exactly_as_on_the_host() {
     );
 }
 
-/// The fusion EKF, which every board carries (issue 15, item 4), selected
-/// over the link in the default firmware: 120 s of the full-stack
-/// figure-eight, the same records as the host run, bit for bit. (The whole
-/// 480 s run, by `firmware-sim hil`: 0.0035 / 0.0016 m max / mean after
-/// 100 s, against paper 001's estimator's 0.0266 / 0.0042 m; peak stack
-/// 5,752 B.)
+/// The firmware's default scenario (`figure_eight_rfid_full_stack_fusion_ekf`:
+/// the fusion EKF, which every board carries (issue 15, item 4), selected
+/// over the link): 120 s of the full-stack figure-eight, the same records
+/// as the host run, bit for bit, within the stack budget. (The whole 480 s
+/// run, by `firmware-sim hil`: 0.0035 / 0.0016 m max / mean after 100 s,
+/// against paper 001's estimator's 0.0266 / 0.0042 m.)
 #[test]
 fn fusion_ekf_in_the_default_firmware_runs_exactly_as_on_the_host() {
-    let mut scenario = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    let mut scenario = Scenario::embedded("figure_eight_rfid_full_stack_fusion_ekf").unwrap();
+    assert_eq!(
+        scenario.estimator,
+        EstimatorSpec::Fusion(FusionSpec {
+            filter: FusionFilterSpec::Ekf,
+            ..FusionSpec::default()
+        })
+    );
     scenario.duration_s = 120.0;
-    scenario.estimator = EstimatorSpec::Fusion(FusionSpec {
-        filter: FusionFilterSpec::Ekf,
-        ..FusionSpec::default()
-    });
     let s = runs_exactly_as_on_the_host("fusion EKF", &scenario, &options());
     // The fusion estimator's targets on the RFID figure-eight
     // (host-tests/tests/fusion_ekf.rs: ≤ 0.02 / ≤ 0.005 m).
     assert!(s.max_error_m <= 0.02 && s.mean_error_m <= 0.005, "{s:?}");
+    peak_stack_within_budget("fusion_ekf", &s);
 }
 
 /// Section 6.3.2's figure-eight through the full device stack, with the
@@ -150,7 +155,7 @@ fn firmware_under_qemu_tracks_the_figure_eight_exactly_as_the_host_run() {
     assert_eq!(report.firmware_link.sequence_gaps, 0);
     assert_eq!(report.host_link.corrupt_frames, 0);
     assert_eq!(report.uart_overruns, 0);
-    assert!(report.peak_stack_bytes > 0);
+    peak_stack_within_budget("heading_observer", s);
 }
 
 /// The RFID line at the most the link carries: 160,000 Bd (160 bytes per
@@ -241,6 +246,46 @@ fn runs_exactly_as_on_the_host(label: &str, scenario: &Scenario, options: &HilOp
     assert_eq!(report.firmware_ticks, scenario_ticks(scenario));
     assert_eq!(report.firmware_link.corrupt_frames, 0);
     s
+}
+
+/// The firmware's peak stack over a HIL run (`summary`) against its budget
+/// `[hil_peak_stack_bytes] name` in `firmware/budgets.toml` (over by more
+/// than the file's `tolerance` or `min_slack` fails, as xtask's budgets do)
+/// and its hard limit `[hil_peak_stack_limit_bytes] name`, if it has one.
+fn peak_stack_within_budget(name: &str, summary: &Summary) {
+    let peak = f64::from(summary.hil.expect("hil report").peak_stack_bytes);
+    let path = workspace_root().join("firmware").join("budgets.toml");
+    let text = std::fs::read_to_string(&path).expect("read firmware/budgets.toml");
+    let budgets: toml::Table = text.parse().expect("parse firmware/budgets.toml");
+    let number = |v: &toml::Value| v.as_integer().map(|i| i as f64).or_else(|| v.as_float());
+    let entry = |table: &str| {
+        budgets
+            .get(table)
+            .and_then(|t| t.get(name))
+            .and_then(number)
+    };
+    let budget = entry("hil_peak_stack_bytes")
+        .unwrap_or_else(|| panic!("firmware/budgets.toml has no [hil_peak_stack_bytes] {name}"));
+    let tolerance = budgets
+        .get("tolerance")
+        .and_then(number)
+        .expect("tolerance");
+    let min_slack = budgets
+        .get("min_slack")
+        .and_then(number)
+        .expect("min_slack");
+    println!("HIL peak stack {name}: {peak} B, budget {budget} B");
+    assert!(peak > 0.0, "the stack was not painted");
+    assert!(
+        peak <= budget + (budget * tolerance).max(min_slack),
+        "HIL peak stack {name}: {peak} B, over its budget of {budget} B"
+    );
+    if let Some(limit) = entry("hil_peak_stack_limit_bytes") {
+        assert!(
+            peak <= limit,
+            "HIL peak stack {name}: {peak} B, over its limit of {limit} B"
+        );
+    }
 }
 
 fn scenario_ticks(s: &Scenario) -> u32 {

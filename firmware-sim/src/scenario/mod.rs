@@ -73,6 +73,10 @@ pub const EMBEDDED: &[(&str, &str)] = &[
         include_str!("../../scenarios/figure_eight_rfid_full_stack.toml"),
     ),
     (
+        "figure_eight_rfid_full_stack_fusion_ekf",
+        include_str!("../../scenarios/figure_eight_rfid_full_stack_fusion_ekf.toml"),
+    ),
+    (
         "figure_eight_rfid_pose_observer",
         include_str!("../../scenarios/figure_eight_rfid_pose_observer.toml"),
     ),

@@ -16,7 +16,7 @@ fn err_of(text: &str) -> ScenarioError {
 
 #[test]
 fn embedded_scenarios_parse_and_validate() {
-    assert_eq!(EMBEDDED.len(), 6);
+    assert_eq!(EMBEDDED.len(), 7);
     for (name, text) in EMBEDDED {
         let s = Scenario::from_toml_str(text).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(&s.name, name);
@@ -30,6 +30,27 @@ fn embedded_scenarios_parse_and_validate() {
         Scenario::embedded("nope").unwrap_err().field(),
         Some("name")
     );
+}
+
+/// The firmware's default scenario is paper 001's full-stack run with the
+/// fusion EKF, and nothing else different (so that the two cannot drift
+/// apart).
+#[test]
+fn firmware_default_scenario_is_the_full_stack_run_with_the_fusion_ekf() {
+    let paper = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    let mut fusion = Scenario::embedded("figure_eight_rfid_full_stack_fusion_ekf").unwrap();
+    assert_eq!(
+        fusion.estimator,
+        EstimatorSpec::Fusion(FusionSpec {
+            filter: FusionFilterSpec::Ekf,
+            ..FusionSpec::default()
+        })
+    );
+    assert_ne!(paper.estimator, fusion.estimator);
+    fusion.name.clone_from(&paper.name);
+    fusion.description.clone_from(&paper.description);
+    fusion.estimator = paper.estimator;
+    assert_eq!(fusion, paper);
 }
 
 #[test]
