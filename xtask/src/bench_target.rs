@@ -309,7 +309,7 @@ pub fn run_m0() -> Result<Report, String> {
     let elfs = crate::target::build_release(
         "wmr-bench-m0",
         M0_TARGET,
-        &[],
+        &["--features", "fusion-ekf"],
         &[],
         &["wmr-bench-m0"],
         "bench-m0",
@@ -517,9 +517,11 @@ pub fn m0_markdown(m0: &Report) -> String {
          compiler-builtins' soft float): `wmr-bench-m0` (the same source, \
          {M0_TARGET}, backend {}) under QEMU `{M0_MACHINE}` (nRF51822, 16 MHz) \
          with `-icount shift={M0_ICOUNT_SHIFT}` ({:.5} SysTick counts per \
-         instruction, expected 1.024). Mean (min–max) over {} calls; the \
-         filters are not run (their states and stacks do not fit beside the \
-         bench in 16 KiB of RAM).\n",
+         instruction, expected 1.024). Mean (min–max) over {} calls; both \
+         whole ticks, each robot in a function of its own (paper 001's \
+         estimator, and the fusion EKF with a tag frame every other tick); \
+         paper 004's filters are not run (their states and stacks do not fit \
+         beside the bench in 16 KiB of RAM).\n",
         m0.backend, m0.counts_per_instruction, m0.samples
     );
     md.push_str("| stage or function | Cortex-M0 |\n| --- | ---: |\n");
@@ -533,12 +535,19 @@ pub fn m0_markdown(m0: &Report) -> String {
         "| tick peak stack (below the caller's SP) | {} B |",
         grouped(m0.tick_stack_bytes)
     );
+    if let Some(bytes) = m0.stack("robot_tick_fusion") {
+        let _ = writeln!(
+            md,
+            "| tick peak stack, fusion EKF estimator (below the caller's SP) | {} B |",
+            grouped(bytes)
+        );
+    }
     if let Some((flash, ram)) = m0.elf_flash_ram {
         let _ = writeln!(
             md,
-            "\n`wmr-bench-m0` itself: {} B flash, {} B static RAM (the core's tick, \
-             the HIL link's proxies and the math benches; no firmware is built for \
-             the M0).",
+            "\n`wmr-bench-m0` itself: {} B flash, {} B static RAM (the core's ticks \
+             with both estimators, the HIL link's proxies and the math benches; no \
+             firmware is built for the M0).",
             grouped(flash),
             grouped(ram)
         );

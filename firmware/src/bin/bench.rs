@@ -368,6 +368,16 @@ mod on_target {
     const COUNTER_START: i32 = 65_000;
 
     impl World {
+        /// The world of a bench pilot's `config` on the tag `grid`.
+        fn new(config: &wmr_core::pilot::PilotConfig, grid: TagGrid) -> Self {
+            Self {
+                trajectory: *config.tracker().trajectory(),
+                geometry: *config.drive().geometry(),
+                grid,
+                wheel_angle_rad: [0.0; 2],
+            }
+        }
+
         fn reading(&mut self, tick: u32) -> Reading {
             let reference = self.trajectory.sample(tick as f32 * PERIOD_S);
             let vel = reference.velocity;
@@ -1170,6 +1180,263 @@ mod on_target {
 
     // ------------------------------------------------------------------ main
 
+    /// Paper 001's robot along the figure-eight: each stage of its tick
+    /// timed on its own, then the whole tick and its stack (item 3 of the
+    /// module's documentation). In a function of its own, as
+    /// [`bench_fusion_tick`] is, so that the two robots and their samples
+    /// never take stack at the same time.
+    #[inline(never)]
+    fn bench_tick(cal: Calibration) {
+        let spec = pilot_spec(wmr_core::pilot::spec::EstimatorSpec::HeadingObserver);
+        let (Ok(config), Ok(grid)) = (spec.build(), GRID.build()) else {
+            fail("bench configuration refused");
+        };
+        let [k1, k2, k3] = spec.tracker.gains;
+        let (Ok(pilot), Ok(gains)) = (Pilot::new(config), TrackingGains::new(k1, k2, k3)) else {
+            fail("bench pilot refused");
+        };
+        let drive = *config.drive();
+        let geometry = *drive.geometry();
+        let mut world = World::new(&config, grid);
+
+        // Stage by stage, each with its own state, fed from the world and
+        // from the previous stage's output.
+        let Ok(counter) = WrappingCounter::new(spec.encoder_bits) else {
+            fail("bench counter refused");
+        };
+        let mut counters = [counter; 2];
+        let mut observer = HeadingObserver::new(*config.tracker().observer());
+        let mut law = TrackingController::new(gains);
+        let mut wheel_loop = WheelSpeedLoop::default();
+        let mut lone_pilot = pilot.clone();
+
+        // The whole tick: the firmware's robot on the HIL link's proxies.
+        let bus = ProxyBus::new();
+        bus.reset(PWM_MAX_DUTY);
+        let motor = |side| {
+            MotorDriver::new(
+                bus.pwm(side),
+                bus.direction_pin(side),
+                MotorWiring::default(),
+            )
+        };
+        let mut robot: ProxyRobot<'_> = Robot::new(
+            pilot,
+            (bus.encoder(Side::Left), bus.encoder(Side::Right)),
+            (motor(Side::Left), motor(Side::Right)),
+            RfidReader::new(bus.uart()),
+            grid,
+        );
+        let load = |r: &Reading| {
+            let Ok(uart) = heapless::Vec::from_slice(&encode_frame(r.tag)) else {
+                fail("RFID frame does not fit a tick's UART bytes");
+            };
+            bus.load(&TickInput {
+                tick: r.tick,
+                left_count: Some(r.counts[0]),
+                right_count: Some(r.counts[1]),
+                uart,
+            });
+        };
+
+        let mut stages = [
+            Stage::new("odometry"),
+            Stage::new("heading_observer"),
+            Stage::new("output_feedback"),
+            Stage::new("wheel_speed_loop"),
+            Stage::new("pilot_step"),
+            Stage::new("robot_tick"),
+        ];
+        let mut previous_tag = None;
+        let mut estimate = HeadingEstimate::default();
+        for k in 0..WARMUP_TICKS + SAMPLES as u32 {
+            let r = world.reading(k);
+            let mut c = [0_u32; 6];
+
+            let odo;
+            (c[0], odo) = timed(&(geometry, r.counts, PERIOD_S), |i| {
+                odometry(&mut counters, i)
+            });
+            if let Some(previous) = previous_tag {
+                (c[1], estimate) = timed(&(odo.body, r.tag_position - previous), |i| {
+                    observer_update(&mut observer, i)
+                });
+            }
+            previous_tag = Some(r.tag_position);
+            let command;
+            (c[2], command) = timed(&(r.reference, r.tag_position, estimate), |i| {
+                output_feedback(&mut law, i)
+            });
+            let target = geometry.wheels_from_body(command.body).left_rad_s;
+            let input = (
+                *drive.speed_loop(),
+                PERIOD_S,
+                target,
+                Some(odo.wheels.left_rad_s),
+            );
+            (c[3], _) = timed(&input, |i| speed_loop(&mut wheel_loop, i));
+            let measurement = Measurement {
+                left_count: Some(r.counts[0]),
+                right_count: Some(r.counts[1]),
+                fix: Some(TagFix {
+                    position: r.tag_position,
+                    age_ticks: 0,
+                }),
+            };
+            (c[4], _) = timed(&measurement, |m| pilot_step(&mut lone_pilot, m));
+            load(&r);
+            (c[5], _) = timed(&(), |()| robot_tick(&mut robot));
+
+            if k >= WARMUP_TICKS {
+                for (stage, &counts) in stages.iter_mut().zip(&c) {
+                    stage.record(counts);
+                }
+            }
+        }
+        for stage in &stages {
+            stage.report(cal);
+        }
+        let mut peak = Some(0_u32);
+        for k in 0..STACK_TICKS {
+            let r = world.reading(WARMUP_TICKS + SAMPLES as u32 + k);
+            load(&r);
+            let tick = stack_bytes(|| {
+                black_box(robot_tick(black_box(&mut robot)));
+            });
+            peak = peak.zip(tick).map(|(a, b)| a.max(b));
+        }
+        match peak {
+            Some(bytes) => hprintln!("stack robot_tick bytes={}", bytes),
+            None => fail("the tick used the whole painted stack window"),
+        }
+
+        // The robot must have run the whole path: a frame and a fix every
+        // tick, no device fault.
+        let rfid = robot.rfid_counters();
+        let faults = robot.counters();
+        let fixes = robot.pilot().tracker().counters().fixes_used;
+        hprintln!(
+            "check frames_ok={} unknown_tags={} encoder_errors={} fixes_used={}",
+            rfid.frames_ok,
+            faults.unknown_tags,
+            faults.left_encoder_errors + faults.right_encoder_errors,
+            fixes
+        );
+        let ticks = WARMUP_TICKS + SAMPLES as u32 + STACK_TICKS;
+        if rfid.frames_ok != ticks || fixes + 1 < ticks || faults != Default::default() {
+            fail("the bench robot did not read a tag and track every tick");
+        }
+    }
+
+    /// The whole tick with the fusion EKF estimator (`EstimatorSpec::Fusion`,
+    /// default settings) on its own proxies, over the same readings as
+    /// paper 001's robot in [`bench_tick`] (the same world, from its first
+    /// tick), but a tag frame on even ticks only: its ticks with
+    /// a fix and its dead-reckoned ticks are reported apart, then its stack
+    /// over fix and dead-reckoned ticks alike. In a function of its own, so
+    /// that its robot and its samples take stack only while it runs (the
+    /// Cortex-M0 has 16 KiB of RAM in all).
+    #[cfg(feature = "fusion-ekf")]
+    #[inline(never)]
+    fn bench_fusion_tick(cal: Calibration) {
+        let spec = pilot_spec(wmr_core::pilot::spec::EstimatorSpec::Fusion(
+            wmr_core::pilot::spec::FusionSpec::default(),
+        ));
+        let (Ok(config), Ok(grid)) = (spec.build(), GRID.build()) else {
+            fail("bench fusion configuration refused");
+        };
+        let Ok(pilot) = Pilot::new(config) else {
+            fail("bench fusion pilot refused");
+        };
+        let mut world = World::new(&config, grid);
+        let bus = ProxyBus::new();
+        bus.reset(PWM_MAX_DUTY);
+        let motor = |side| {
+            MotorDriver::new(
+                bus.pwm(side),
+                bus.direction_pin(side),
+                MotorWiring::default(),
+            )
+        };
+        let mut robot: ProxyRobot<'_> = Robot::new(
+            pilot,
+            (bus.encoder(Side::Left), bus.encoder(Side::Right)),
+            (motor(Side::Left), motor(Side::Right)),
+            RfidReader::new(bus.uart()),
+            world.grid,
+        );
+        // Loads the proxies with `r`, its tag frame on even ticks only;
+        // whether it carries one.
+        let load = |r: &Reading| {
+            let frame = r.tick.is_multiple_of(2);
+            let uart = if frame {
+                let Ok(uart) = heapless::Vec::from_slice(&encode_frame(r.tag)) else {
+                    fail("RFID frame does not fit a tick's UART bytes");
+                };
+                uart
+            } else {
+                heapless::Vec::new()
+            };
+            bus.load(&TickInput {
+                tick: r.tick,
+                left_count: Some(r.counts[0]),
+                right_count: Some(r.counts[1]),
+                uart,
+            });
+            frame
+        };
+        let mut frames = 0_u32;
+        let mut stages = [
+            Stage::new("robot_tick_fusion_fix"),
+            Stage::new("robot_tick_fusion_dead_reckoned"),
+        ];
+        for k in 0..WARMUP_TICKS + SAMPLES as u32 {
+            let r = world.reading(k);
+            let frame = load(&r);
+            frames += u32::from(frame);
+            let (counts, _) = timed(&(), |()| robot_tick(&mut robot));
+            if k >= WARMUP_TICKS {
+                let [fix, dead_reckoned] = &mut stages;
+                if frame { fix } else { dead_reckoned }.record(counts);
+            }
+        }
+        for stage in &stages {
+            stage.report(cal);
+        }
+        let mut peak = Some(0_u32);
+        for k in 0..STACK_TICKS {
+            let r = world.reading(WARMUP_TICKS + SAMPLES as u32 + k);
+            frames += u32::from(load(&r));
+            let tick = stack_bytes(|| {
+                black_box(robot_tick(black_box(&mut robot)));
+            });
+            peak = peak.zip(tick).map(|(a, b)| a.max(b));
+        }
+        match peak {
+            Some(bytes) => hprintln!("stack robot_tick_fusion bytes={}", bytes),
+            None => fail("the fusion tick used the whole painted stack window"),
+        }
+        // Every frame read and used, no device fault, never in the
+        // failsafe, the filter correcting with some fixes.
+        let rfid = robot.rfid_counters();
+        let faults = robot.counters();
+        let tracker = robot.pilot().tracker().counters();
+        hprintln!(
+            "check fusion frames_ok={} fixes_used={} failsafe_entries={} fixes_gated={}",
+            rfid.frames_ok,
+            tracker.fixes_used,
+            tracker.failsafe_entries,
+            tracker.fixes_gated
+        );
+        if rfid.frames_ok != frames
+            || tracker.fixes_used + 1 < frames
+            || faults != Default::default()
+            || tracker.failsafe_entries != 0
+        {
+            fail("the fusion bench robot did not read its tags and track");
+        }
+    }
+
     fn fail(why: &str) -> ! {
         hprintln!("error {}", why);
         debug::exit(EXIT_FAILURE);
@@ -1231,275 +1498,17 @@ mod on_target {
         );
         let cal = calibrate();
 
-        let spec = pilot_spec(wmr_core::pilot::spec::EstimatorSpec::HeadingObserver);
-        let (Ok(config), Ok(grid)) = (spec.build(), GRID.build()) else {
-            fail("bench configuration refused");
-        };
-        let [k1, k2, k3] = spec.tracker.gains;
-        let (Ok(pilot), Ok(gains)) = (Pilot::new(config), TrackingGains::new(k1, k2, k3)) else {
-            fail("bench pilot refused");
-        };
-        let drive = *config.drive();
-        let geometry = *drive.geometry();
-        let mut world = World {
-            trajectory: *config.tracker().trajectory(),
-            geometry,
-            grid,
-            wheel_angle_rad: [0.0; 2],
-        };
-
-        // Stage by stage, each with its own state, fed from the world and
-        // from the previous stage's output.
-        let Ok(counter) = WrappingCounter::new(spec.encoder_bits) else {
-            fail("bench counter refused");
-        };
-        let mut counters = [counter; 2];
-        let mut observer = HeadingObserver::new(*config.tracker().observer());
-        let mut law = TrackingController::new(gains);
-        let mut wheel_loop = WheelSpeedLoop::default();
-        let mut lone_pilot = pilot.clone();
-
-        // The whole tick: the firmware's robot on the HIL link's proxies.
-        let bus = ProxyBus::new();
-        bus.reset(PWM_MAX_DUTY);
-        let motor = |side| {
-            MotorDriver::new(
-                bus.pwm(side),
-                bus.direction_pin(side),
-                MotorWiring::default(),
-            )
-        };
-        let mut robot: ProxyRobot<'_> = Robot::new(
-            pilot,
-            (bus.encoder(Side::Left), bus.encoder(Side::Right)),
-            (motor(Side::Left), motor(Side::Right)),
-            RfidReader::new(bus.uart()),
-            grid,
-        );
-        let load = |r: &Reading| {
-            let Ok(uart) = heapless::Vec::from_slice(&encode_frame(r.tag)) else {
-                fail("RFID frame does not fit a tick's UART bytes");
-            };
-            bus.load(&TickInput {
-                tick: r.tick,
-                left_count: Some(r.counts[0]),
-                right_count: Some(r.counts[1]),
-                uart,
-            });
-        };
-
-        // The same whole tick with the fusion EKF estimator, on its own
-        // proxies: a tag frame on even ticks only.
+        bench_tick(cal);
         #[cfg(feature = "fusion-ekf")]
-        let fusion_bus = ProxyBus::new();
-        #[cfg(feature = "fusion-ekf")]
-        let mut fusion_robot: ProxyRobot<'_> = {
-            let fusion_spec = pilot_spec(wmr_core::pilot::spec::EstimatorSpec::Fusion(
-                wmr_core::pilot::spec::FusionSpec::default(),
-            ));
-            let Some(pilot) = fusion_spec
-                .build()
-                .ok()
-                .and_then(|config| Pilot::new(config).ok())
-            else {
-                fail("bench fusion pilot refused");
-            };
-            fusion_bus.reset(PWM_MAX_DUTY);
-            let motor = |side| {
-                MotorDriver::new(
-                    fusion_bus.pwm(side),
-                    fusion_bus.direction_pin(side),
-                    MotorWiring::default(),
-                )
-            };
-            Robot::new(
-                pilot,
-                (
-                    fusion_bus.encoder(Side::Left),
-                    fusion_bus.encoder(Side::Right),
-                ),
-                (motor(Side::Left), motor(Side::Right)),
-                RfidReader::new(fusion_bus.uart()),
-                grid,
-            )
-        };
-        // Loads the fusion robot's proxies with `r`, its tag frame on even
-        // ticks only; whether it carries one.
-        #[cfg(feature = "fusion-ekf")]
-        let fusion_load = |r: &Reading| {
-            let frame = r.tick.is_multiple_of(2);
-            let uart = if frame {
-                let Ok(uart) = heapless::Vec::from_slice(&encode_frame(r.tag)) else {
-                    fail("RFID frame does not fit a tick's UART bytes");
-                };
-                uart
-            } else {
-                heapless::Vec::new()
-            };
-            fusion_bus.load(&TickInput {
-                tick: r.tick,
-                left_count: Some(r.counts[0]),
-                right_count: Some(r.counts[1]),
-                uart,
-            });
-            frame
-        };
-        #[cfg(feature = "fusion-ekf")]
-        let mut fusion_stages = [
-            Stage::new("robot_tick_fusion_fix"),
-            Stage::new("robot_tick_fusion_dead_reckoned"),
-        ];
-        #[cfg(feature = "fusion-ekf")]
-        let mut fusion_frames = 0_u32;
-        #[cfg(feature = "fusion-ekf")]
-        let mut fusion_stack = Some(0_u32);
-
-        let mut stages = [
-            Stage::new("odometry"),
-            Stage::new("heading_observer"),
-            Stage::new("output_feedback"),
-            Stage::new("wheel_speed_loop"),
-            Stage::new("pilot_step"),
-            Stage::new("robot_tick"),
-        ];
-        let mut previous_tag = None;
-        let mut estimate = HeadingEstimate::default();
-        for k in 0..WARMUP_TICKS + SAMPLES as u32 {
-            let r = world.reading(k);
-            let mut c = [0_u32; 6];
-
-            let odo;
-            (c[0], odo) = timed(&(geometry, r.counts, PERIOD_S), |i| {
-                odometry(&mut counters, i)
-            });
-            if let Some(previous) = previous_tag {
-                (c[1], estimate) = timed(&(odo.body, r.tag_position - previous), |i| {
-                    observer_update(&mut observer, i)
-                });
-            }
-            previous_tag = Some(r.tag_position);
-            let command;
-            (c[2], command) = timed(&(r.reference, r.tag_position, estimate), |i| {
-                output_feedback(&mut law, i)
-            });
-            let target = geometry.wheels_from_body(command.body).left_rad_s;
-            let input = (
-                *drive.speed_loop(),
-                PERIOD_S,
-                target,
-                Some(odo.wheels.left_rad_s),
-            );
-            (c[3], _) = timed(&input, |i| speed_loop(&mut wheel_loop, i));
-            let measurement = Measurement {
-                left_count: Some(r.counts[0]),
-                right_count: Some(r.counts[1]),
-                fix: Some(TagFix {
-                    position: r.tag_position,
-                    age_ticks: 0,
-                }),
-            };
-            (c[4], _) = timed(&measurement, |m| pilot_step(&mut lone_pilot, m));
-            load(&r);
-            (c[5], _) = timed(&(), |()| robot_tick(&mut robot));
-            #[cfg(feature = "fusion-ekf")]
-            {
-                let frame = fusion_load(&r);
-                fusion_frames += u32::from(frame);
-                let (counts, _) = timed(&(), |()| robot_tick(&mut fusion_robot));
-                if k >= WARMUP_TICKS {
-                    let [fix, dead_reckoned] = &mut fusion_stages;
-                    if frame { fix } else { dead_reckoned }.record(counts);
-                }
-            }
-
-            if k >= WARMUP_TICKS {
-                for (stage, &counts) in stages.iter_mut().zip(&c) {
-                    stage.record(counts);
-                }
-            }
-        }
-        for stage in &stages {
-            stage.report(cal);
-        }
-        #[cfg(feature = "fusion-ekf")]
-        for stage in &fusion_stages {
-            stage.report(cal);
-        }
+        bench_fusion_tick(cal);
         bench_math(cal);
         // The filters' states and stacks (up to 5 KB and 2.4 KB each) do
         // not fit beside the bench in the nRF51's 16 KiB of RAM: the M0
-        // measures the tick and the math only.
+        // measures the ticks and the math only.
         #[cfg(target_abi = "eabihf")]
         {
             bench_paper_004(cal);
             bench_fusion(cal);
-        }
-
-        let mut peak = Some(0_u32);
-        for k in 0..STACK_TICKS {
-            let r = world.reading(WARMUP_TICKS + SAMPLES as u32 + k);
-            load(&r);
-            let tick = stack_bytes(|| {
-                black_box(robot_tick(black_box(&mut robot)));
-            });
-            peak = peak.zip(tick).map(|(a, b)| a.max(b));
-            // Fix and dead-reckoned ticks alike.
-            #[cfg(feature = "fusion-ekf")]
-            {
-                fusion_frames += u32::from(fusion_load(&r));
-                let tick = stack_bytes(|| {
-                    black_box(robot_tick(black_box(&mut fusion_robot)));
-                });
-                fusion_stack = fusion_stack.zip(tick).map(|(a, b)| a.max(b));
-            }
-        }
-        match peak {
-            Some(bytes) => hprintln!("stack robot_tick bytes={}", bytes),
-            None => fail("the tick used the whole painted stack window"),
-        }
-        #[cfg(feature = "fusion-ekf")]
-        match fusion_stack {
-            Some(bytes) => hprintln!("stack robot_tick_fusion bytes={}", bytes),
-            None => fail("the fusion tick used the whole painted stack window"),
-        }
-
-        // The robot must have run the whole path: a frame and a fix every
-        // tick, no device fault.
-        let rfid = robot.rfid_counters();
-        let faults = robot.counters();
-        let fixes = robot.pilot().tracker().counters().fixes_used;
-        hprintln!(
-            "check frames_ok={} unknown_tags={} encoder_errors={} fixes_used={}",
-            rfid.frames_ok,
-            faults.unknown_tags,
-            faults.left_encoder_errors + faults.right_encoder_errors,
-            fixes
-        );
-        let ticks = WARMUP_TICKS + SAMPLES as u32 + STACK_TICKS;
-        if rfid.frames_ok != ticks || fixes + 1 < ticks || faults != Default::default() {
-            fail("the bench robot did not read a tag and track every tick");
-        }
-        #[cfg(feature = "fusion-ekf")]
-        {
-            // The fusion robot: every frame read and used, no device fault,
-            // never in the failsafe, its filter correcting with some fixes.
-            let rfid = fusion_robot.rfid_counters();
-            let faults = fusion_robot.counters();
-            let tracker = fusion_robot.pilot().tracker().counters();
-            hprintln!(
-                "check fusion frames_ok={} fixes_used={} failsafe_entries={} fixes_gated={}",
-                rfid.frames_ok,
-                tracker.fixes_used,
-                tracker.failsafe_entries,
-                tracker.fixes_gated
-            );
-            if rfid.frames_ok != fusion_frames
-                || tracker.fixes_used + 1 < fusion_frames
-                || faults != Default::default()
-                || tracker.failsafe_entries != 0
-            {
-                fail("the fusion bench robot did not read its tags and track");
-            }
         }
         hprintln!("done");
         debug::exit(EXIT_SUCCESS);
