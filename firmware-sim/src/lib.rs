@@ -48,7 +48,8 @@
 //!   under QEMU, in lock-step over a serial link. Uses `scenario`,
 //!   `report`, `simulation`.
 //! * [`sweep`]: Monte Carlo sweeps: seeded variations of a scenario run in
-//!   parallel, convergence and error statistics, their files. Uses
+//!   parallel, convergence and error statistics, their files, shards of
+//!   the runs for other machines and their merge. Uses
 //!   `scenario`, `report`, `simulation`, `output`.
 //! * [`slip`]: paper 004's tracked robot under slip with the adaptive
 //!   controllers and the EKF, UKF or particle filter (`firmware-sim slip`),

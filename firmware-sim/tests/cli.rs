@@ -83,7 +83,11 @@ fn a_closed_output_pipe_ends_quietly() {
     use std::process::Stdio;
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().to_string_lossy().into_owned();
-    let cases: [&[&str]; 3] = [
+    let shard_dir = dir.path().join("shard").to_string_lossy().into_owned();
+    let merged_dir = dir.path().join("merged").to_string_lossy().into_owned();
+    let short_sweep = ["sweep", "--runs", "2", "--duration-s", "1", "--no-plot"];
+    let shard: Vec<&str> = [&short_sweep[..], &["--shard", "0/1", "--out", &shard_dir]].concat();
+    let cases: [&[&str]; 5] = [
         &["scenarios"],
         &["show", "figure_eight_rfid"],
         &[
@@ -95,6 +99,9 @@ fn a_closed_output_pipe_ends_quietly() {
             "--out",
             &out_dir,
         ],
+        // Each writes its files before it prints: the merge reads the shard.
+        &shard,
+        &["sweep-merge", &shard_dir, "--no-plot", "--out", &merged_dir],
     ];
     for args in cases {
         let mut child = sim()
@@ -113,4 +120,5 @@ fn a_closed_output_pipe_ends_quietly() {
             "{args:?}: {err}"
         );
     }
+    assert!(dir.path().join("merged/summary.json").is_file());
 }

@@ -25,15 +25,22 @@
 //! 0.05 m with the exact position, 3 × the tag spacing with tags, plus
 //! 3 × the largest position-noise std when that is varied; hold = 20 % of
 //! the duration.
+//!
+//! # Sharding
+//! Because a run depends on `(S, i)` only, a sweep can be split over
+//! machines: [`run_sweep_shard`] runs one [`shard::Shard`]'s share of the
+//! indices, and [`shard::merge_shards`] merges the shards into what
+//! [`run_sweep`] returns (see [`shard`]).
 
 pub mod output;
+pub mod shard;
 
 use std::f64::consts::{PI, TAU};
 
 use rand::rngs::ChaCha8Rng;
 use rand::{Rng as _, RngExt as _, SeedableRng as _};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::report::{Record, RunResult};
 use crate::scenario::{
@@ -239,7 +246,7 @@ pub fn convergence(records: &[Record], threshold_m: f64, hold_s: f64) -> Converg
 
 /// One run of a sweep: what was varied and what came out (one row of
 /// `runs.csv`; empty cells for what does not apply).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SweepRun {
     /// Run index `i`.
     pub index: u64,
@@ -561,12 +568,37 @@ pub fn run_sweep(
     options: &SweepOptions,
     progress: &(dyn Fn() + Sync),
 ) -> anyhow::Result<SweepResult> {
+    run_indices(scenario, options, 0..options.runs, progress)
+}
+
+/// Runs only `shard`'s share of the indices `0 .. options.runs` (see
+/// [`shard::Shard::indices`]): the rows the whole sweep has for them, and
+/// the figures of those rows alone.
+///
+/// # Errors
+/// As [`run_sweep`].
+pub fn run_sweep_shard(
+    scenario: &Scenario,
+    options: &SweepOptions,
+    shard: shard::Shard,
+    progress: &(dyn Fn() + Sync),
+) -> anyhow::Result<SweepResult> {
+    run_indices(scenario, options, shard.indices(options.runs), progress)
+}
+
+/// Runs the variations `indices` of `scenario` in parallel.
+fn run_indices(
+    scenario: &Scenario,
+    options: &SweepOptions,
+    indices: std::ops::Range<u64>,
+    progress: &(dyn Fn() + Sync),
+) -> anyhow::Result<SweepResult> {
     let (setup, plan) = plan_of(scenario)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(options.threads)
         .build()?;
     let rows = pool.install(|| {
-        (0..options.runs)
+        indices
             .into_par_iter()
             .map(|index| {
                 let (_, _, row) = run_variation(scenario, &plan, options.seed, index)?;
@@ -575,15 +607,33 @@ pub fn run_sweep(
             })
             .collect::<anyhow::Result<Vec<SweepRun>>>()
     })?;
-    let summary = SweepSummary::of(
-        scenario,
-        setup_label(&setup),
-        &setup,
-        plan,
-        options.seed,
-        &rows,
-    );
-    Ok(SweepResult { rows, summary })
+    Ok(result_of(scenario, &setup, plan, options.seed, rows))
+}
+
+/// The result of a sweep of `scenario` with seed `seed` that produced
+/// `rows` (in index order): the figures [`run_sweep`] computes, from rows
+/// that were run elsewhere (the shards of [`shard::merge_shards`]).
+///
+/// # Errors
+/// The scenario's validation error.
+pub fn summarize(
+    scenario: &Scenario,
+    seed: u64,
+    rows: Vec<SweepRun>,
+) -> Result<SweepResult, ScenarioError> {
+    let (setup, plan) = plan_of(scenario)?;
+    Ok(result_of(scenario, &setup, plan, seed, rows))
+}
+
+fn result_of(
+    scenario: &Scenario,
+    setup: &Setup,
+    plan: SweepPlan,
+    seed: u64,
+    rows: Vec<SweepRun>,
+) -> SweepResult {
+    let summary = SweepSummary::of(scenario, setup_label(setup), setup, plan, seed, &rows);
+    SweepResult { rows, summary }
 }
 
 /// "plant, controller, position" as a run's summary names them.

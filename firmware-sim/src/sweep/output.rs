@@ -26,6 +26,18 @@ pub struct SweepFiles {
     pub error_vs_distance: Option<PathBuf>,
 }
 
+/// Where a sweep of `count` scenarios writes the files of scenario
+/// `name`: `root` itself for one scenario, `root/<name>` for several (with
+/// the combined `root/table.md`).
+#[must_use]
+pub fn scenario_dir(root: &Path, count: usize, name: &str) -> PathBuf {
+    if count == 1 {
+        root.to_path_buf()
+    } else {
+        root.join(name)
+    }
+}
+
 /// Writes the sweep's files into `dir`, creating it.
 ///
 /// # Errors
