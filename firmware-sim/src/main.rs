@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use firmware_sim::hil::{HilOptions, run_hil};
+use firmware_sim::hil::{HilOptions, LinkFaultSpec, run_hil};
 use firmware_sim::output::{format_summary, write_all};
 use firmware_sim::scenario::{EMBEDDED, Scenario, embedded_source};
 use firmware_sim::slip::{self, Estimator, SlipScenario};
@@ -64,6 +64,13 @@ enum Command {
         /// Firmware ELF (default: build the QEMU-board firmware with cargo).
         #[arg(long)]
         firmware: Option<PathBuf>,
+        /// Inject seeded faults on the link during the ticks, both ways:
+        /// 1 % of bytes corrupted, 0.5 % of frames each dropped, duplicated
+        /// and delayed by a frame, and an outage past the firmware's link
+        /// timeout before 0.1 % of ticks (issue 16's soak). Prints what was
+        /// injected against what each side counted.
+        #[arg(long, value_name = "SEED")]
+        link_faults: Option<u64>,
         /// Override the scenario's duration, s.
         #[arg(long)]
         duration_s: Option<f64>,
@@ -266,6 +273,7 @@ fn real_main() -> anyhow::Result<()> {
             firmware,
             duration_s,
             timeout_s,
+            link_faults,
             no_plot,
         } => {
             let mut scenario = match scenario {
@@ -289,6 +297,7 @@ fn real_main() -> anyhow::Result<()> {
                 firmware,
                 log: Some(out.join("firmware.defmt")),
                 answer_timeout: std::time::Duration::from_secs_f64(timeout_s),
+                faults: link_faults.map(LinkFaultSpec::soak),
             };
             let bar = progress_bar(&scenario, 0.0)?;
             let run = run_hil(&scenario, &options, |done, _| bar.set_position(done));

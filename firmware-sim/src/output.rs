@@ -182,16 +182,54 @@ pub fn format_summary(s: &Summary) -> String {
         );
         let _ = writeln!(
             o,
-            "link          firmware saw: ok {} corrupt {} gaps {} timeouts {} unexpected {};  host saw: ok {} corrupt {} gaps {}",
+            "link          firmware saw: ok {} corrupt {} gaps {} stale {} timeouts {} unexpected {} repeated ticks {};  host saw: ok {} corrupt {} gaps {} stale {}",
             f.frames_ok,
             f.corrupt_frames,
             f.sequence_gaps,
+            f.stale_frames,
             f.timeouts,
             f.unexpected_messages,
+            h.repeated_ticks,
             l.frames_ok,
             l.corrupt_frames,
-            l.sequence_gaps
+            l.sequence_gaps,
+            l.stale_frames
         );
+        if let Some(r) = &h.link_faults {
+            let verdict = |expected: &crate::hil::ExpectedCounters, seen| {
+                if expected.agrees_with(seen) {
+                    "agree".to_owned()
+                } else {
+                    format!(
+                        "DISAGREE (expected ok {} corrupt {} gaps {} stale {})",
+                        expected.frames_ok,
+                        expected.corrupt_frames,
+                        expected.sequence_gaps,
+                        expected.stale_frames
+                    )
+                }
+            };
+            for (way, i) in [("to firmware", &r.to_firmware), ("to host", &r.to_host)] {
+                let _ = writeln!(
+                    o,
+                    "faults        {way}: {} frames, dropped {} duplicated {} delayed {} corrupted {} ({} bytes)",
+                    i.frames, i.dropped, i.duplicated, i.delayed, i.corrupted, i.bytes_corrupted
+                );
+            }
+            let _ = writeln!(
+                o,
+                "faults        counts: firmware {}, host {}; outages {} timeouts {} silence reports {} (+{} lost) resent ticks {} nacks {} stale answers {}",
+                verdict(&r.firmware_expected, f),
+                verdict(&r.host_expected, l),
+                r.outages,
+                f.timeouts,
+                r.silence_reports,
+                r.silence_reports_lost,
+                r.resent_ticks,
+                r.nacks,
+                r.stale_answers
+            );
+        }
     }
     if let Some(n) = s.floor_tags {
         let _ = writeln!(o, "floor         {n} tags");

@@ -345,7 +345,7 @@ pub struct Summary {
 }
 
 /// What the HIL run adds to the summary.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct HilReport {
     /// Ticks the firmware ran.
     pub firmware_ticks: u32,
@@ -357,6 +357,14 @@ pub struct HilReport {
     pub host_link: LinkCounters,
     /// UART bytes the firmware's proxy buffer lost.
     pub uart_overruns: u32,
+    /// Ticks the firmware answered again (their first answer was lost).
+    pub repeated_ticks: u32,
+    /// Ticks the firmware refused as older than its last answer.
+    pub stale_ticks: u32,
+    /// The faults injected on the link (`--link-faults`), and what each
+    /// side must have counted.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub link_faults: Option<crate::hil::LinkFaultReport>,
 }
 
 /// Everything a run produced.

@@ -118,6 +118,10 @@ impl Harness<'_> {
             (HostMessage::Tick(_), TargetMessage::Refused(Refusal::NotConfigured)) => {
                 assert!(self.pwm_max_duty.is_none());
             }
+            // A tick older than the last answered: refused, never run.
+            (HostMessage::Tick(_), TargetMessage::Refused(Refusal::StaleTick { .. })) => {
+                assert!(self.pwm_max_duty.is_some());
+            }
             (HostMessage::Tick(input), TargetMessage::Ticked(t)) => {
                 assert!(self.pwm_max_duty.is_some());
                 assert_eq!(t.tick, input.tick);
@@ -245,10 +249,14 @@ fn run(u: &mut Unstructured, bus: &ProxyBus) -> Result<()> {
                 h.feed(&garbage);
             }
             _ => {
-                h.session.link_silent();
+                let report = h.session.link_silent(wmr_link::LINK_TIMEOUT_MS);
                 for side in [Side::Left, Side::Right] {
                     assert_eq!(bus.motor(side).duty, 0);
                 }
+                assert!(
+                    matches!(report, TargetMessage::LinkSilent { motors, .. } if motors.iter().all(|m| m.duty == 0)),
+                    "{report:?}"
+                );
             }
         }
     }

@@ -29,9 +29,11 @@ use crate::report::{HilReport, RunResult};
 use crate::scenario::Scenario;
 use crate::simulation::{hil_configuration, run_with_target};
 
+mod faults;
 mod firmware;
 mod qemu;
 
+pub use faults::{ExpectedCounters, InjectedFaults, LinkFaultReport, LinkFaultSpec, OUTAGE_MS};
 pub use firmware::{
     FIRMWARE_TARGET, build_firmware, build_firmware_with, decode_defmt_log, workspace_root,
 };
@@ -85,6 +87,9 @@ pub fn run_hil(
         firmware_link: finished.counters.link,
         host_link: target.rx.counters(),
         uart_overruns: finished.counters.uart_overruns,
+        repeated_ticks: finished.counters.repeated_ticks,
+        stale_ticks: finished.counters.stale_ticks,
+        link_faults: target.fault_report(),
     };
     result.summary.hil = Some(report);
     if let Some(raw) = &options.log {

@@ -1,6 +1,7 @@
 //! QEMU running the firmware ([`QemuTarget`]), how it is run
 //! ([`HilOptions`]), and the lock-step link to its USART1.
 
+use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
@@ -9,11 +10,17 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail, ensure};
 use wmr_link::{
-    Diagnostics, Finished, HostMessage, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver, Refusal,
-    Sender, TargetMessage, TickInput, TickOutput,
+    Diagnostics, Finished, HostMessage, LinkError, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver,
+    Refusal, Sender, TargetMessage, TickInput, TickOutput,
 };
 
+use super::faults::{Frame, Injector, LinkFaultReport, LinkFaultSpec, OUTAGE_MS};
 use crate::simulation::TargetLink;
+
+/// How long the host waits for a tick's answer before sending the tick
+/// again: well inside the firmware's link timeout, so that a lost frame
+/// costs a resend, not a stop of the motors.
+pub const RESEND_AFTER: Duration = Duration::from_millis(20);
 
 /// The QEMU binary looked for on `PATH`.
 pub const QEMU: &str = "qemu-system-arm";
@@ -25,8 +32,11 @@ pub struct HilOptions {
     pub firmware: Option<PathBuf>,
     /// Where QEMU's stdout (the defmt log) goes; `None` discards it.
     pub log: Option<PathBuf>,
-    /// Longest wait for any answer of the firmware.
+    /// Longest wait for any answer of the firmware (for a tick: across its
+    /// resends).
     pub answer_timeout: Duration,
+    /// Seeded faults on the link during the ticks (`None`: a clean link).
+    pub faults: Option<LinkFaultSpec>,
 }
 
 impl Default for HilOptions {
@@ -35,8 +45,29 @@ impl Default for HilOptions {
             firmware: None,
             log: None,
             answer_timeout: Duration::from_secs(10),
+            faults: None,
         }
     }
+}
+
+/// The faulty link's state: an injector each way, the bytes of the frame
+/// from the firmware being assembled, and the host's figures.
+struct FaultyLink {
+    to_firmware: Injector,
+    to_host: Injector,
+    incoming: Vec<u8>,
+    report: LinkFaultReport,
+}
+
+/// What one wait for the firmware gave.
+enum Event {
+    Message(TargetMessage),
+    /// A corrupt frame (dropped and counted by the receiver).
+    Corrupt,
+    /// A stale frame (dropped and counted by the receiver).
+    Stale,
+    /// Nothing within the wait.
+    Quiet,
 }
 
 /// QEMU running the firmware, and the socket to its USART1.
@@ -46,9 +77,10 @@ pub struct QemuTarget {
     pub(super) rx: Receiver,
     tx: Sender,
     timeout: Duration,
-    /// Bytes read from the socket and not yet given to `rx`.
-    pending: Vec<u8>,
-    pending_at: usize,
+    /// Bytes off the link (after any faults) not yet given to `rx`.
+    inbox: VecDeque<u8>,
+    /// Faults, when the options ask for them; active during ticks only.
+    faulty: Option<FaultyLink>,
     /// The firmware's end-of-run report, once received.
     pub(super) finished: Option<Finished>,
     // Keeps the socket's directory alive.
@@ -138,11 +170,32 @@ impl QemuTarget {
             rx: Receiver::new(),
             tx: Sender::default(),
             timeout: options.answer_timeout,
-            pending: Vec::with_capacity(4096),
-            pending_at: 0,
+            inbox: VecDeque::with_capacity(4096),
+            faulty: None,
             finished: None,
             _dir: dir,
         };
+        if let Some(spec) = options.faults {
+            spec.validate()?;
+            target.faulty = Some(FaultyLink {
+                to_firmware: Injector::new(spec, 0),
+                to_host: Injector::new(spec, 1),
+                incoming: Vec::new(),
+                report: LinkFaultReport {
+                    spec,
+                    to_firmware: Default::default(),
+                    to_host: Default::default(),
+                    firmware_expected: Default::default(),
+                    host_expected: Default::default(),
+                    outages: 0,
+                    resent_ticks: 0,
+                    nacks: 0,
+                    silence_reports: 0,
+                    silence_reports_lost: 0,
+                    stale_answers: 0,
+                },
+            });
+        }
         match target.receive()? {
             TargetMessage::Hello { protocol } if protocol == PROTOCOL_VERSION => Ok(target),
             TargetMessage::Hello { protocol } => bail!(
@@ -167,55 +220,243 @@ impl QemuTarget {
     /// # Errors
     /// The socket failed.
     pub fn send(&mut self, message: &HostMessage) -> anyhow::Result<()> {
+        self.send_through(message, false)
+    }
+
+    /// Sends one message, through the faults if `faulty`.
+    fn send_through(&mut self, message: &HostMessage, faulty: bool) -> anyhow::Result<()> {
         let mut out = [0_u8; MAX_FRAME_BYTES];
+        let seq = self.tx.next_seq();
         let bytes = self
             .tx
             .frame(message, &mut out)
             .map_err(|e| anyhow::anyhow!("message too long for the link: {e:?}"))?
             .to_vec();
-        self.send_raw(&bytes)
+        let wire = match self.faulty.as_mut() {
+            Some(link) => link.to_firmware.deliver(
+                Frame {
+                    bytes,
+                    seq,
+                    silence_report: false,
+                },
+                faulty,
+            ),
+            None => bytes,
+        };
+        self.send_raw(&wire)
+    }
+
+    /// The faulty link's figures so far (`None` on a clean link).
+    #[must_use]
+    pub fn fault_report(&self) -> Option<LinkFaultReport> {
+        self.faulty.as_ref().map(|link| {
+            let mut r = link.report;
+            r.to_firmware = link.to_firmware.injected;
+            r.to_host = link.to_host.injected;
+            r.firmware_expected = link.to_firmware.expected;
+            r.host_expected = link.to_host.expected;
+            r.silence_reports_lost = link.to_host.silence_reports_lost;
+            r
+        })
+    }
+
+    /// Counts a report of the faulty run (no-op on a clean link).
+    fn count(&mut self, f: impl FnOnce(&mut LinkFaultReport)) {
+        if let Some(link) = self.faulty.as_mut() {
+            f(&mut link.report);
+        }
+    }
+
+    /// A `LinkSilent` report: the motors must be stopped, and the
+    /// firmware must have waited exactly its timeout.
+    fn silence_reported(
+        &mut self,
+        motors: [wmr_link::MotorOutput; 2],
+        silent_ms: u32,
+    ) -> anyhow::Result<()> {
+        ensure!(
+            motors.iter().all(|m| m.duty == 0),
+            "the firmware reported the link silent with its motors still driven: {motors:?}"
+        );
+        ensure!(
+            silent_ms == wmr_link::LINK_TIMEOUT_MS,
+            "the firmware stopped the motors after {silent_ms} ms of silence, not {} ms",
+            wmr_link::LINK_TIMEOUT_MS
+        );
+        self.count(|r| r.silence_reports += 1);
+        Ok(())
+    }
+
+    /// An outage: the host silent for [`OUTAGE_MS`], past the firmware's
+    /// timeout; what the firmware sends meanwhile is handled as during a
+    /// tick.
+    fn outage(&mut self) -> anyhow::Result<()> {
+        self.count(|r| r.outages += 1);
+        let end = Instant::now() + Duration::from_millis(OUTAGE_MS);
+        loop {
+            let left = end.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Ok(());
+            }
+            match self.wait(left, true)? {
+                Event::Message(TargetMessage::LinkSilent { motors, silent_ms }) => {
+                    self.silence_reported(motors, silent_ms)?;
+                }
+                Event::Message(TargetMessage::Nack) => self.count(|r| r.nacks += 1),
+                Event::Message(TargetMessage::Ticked(_) | TargetMessage::Refused(_))
+                | Event::Stale => self.count(|r| r.stale_answers += 1),
+                Event::Message(other) => bail!("unexpected message during an outage: {other:?}"),
+                Event::Corrupt | Event::Quiet => {}
+            }
+        }
+    }
+
+    /// One tick over the faulty link: sent again until its answer comes
+    /// (after [`RESEND_AFTER`] without one, on a `Nack`, or on a corrupt
+    /// frame back), within the answer timeout.
+    fn faulty_tick(&mut self, input: &TickInput) -> anyhow::Result<TickOutput> {
+        let outage = self
+            .faulty
+            .as_mut()
+            .is_some_and(|link| link.to_firmware.outage());
+        if outage {
+            self.outage()?;
+        }
+        let message = HostMessage::Tick(input.clone());
+        let deadline = Instant::now() + self.timeout;
+        let mut resend = true;
+        loop {
+            ensure!(
+                Instant::now() < deadline,
+                "the firmware did not answer tick {} within {:?} over the faulty link",
+                input.tick,
+                self.timeout
+            );
+            if resend {
+                self.send_through(&message, true)?;
+                resend = false;
+            }
+            match self.wait(RESEND_AFTER, true)? {
+                Event::Message(TargetMessage::Ticked(out)) if out.tick == input.tick => {
+                    return Ok(out);
+                }
+                Event::Message(
+                    TargetMessage::Ticked(_) | TargetMessage::Refused(Refusal::StaleTick { .. }),
+                )
+                | Event::Stale => self.count(|r| r.stale_answers += 1),
+                Event::Message(TargetMessage::Nack) => {
+                    self.count(|r| {
+                        r.nacks += 1;
+                        r.resent_ticks += 1;
+                    });
+                    resend = true;
+                }
+                Event::Message(TargetMessage::LinkSilent { motors, silent_ms }) => {
+                    self.silence_reported(motors, silent_ms)?;
+                }
+                Event::Message(TargetMessage::Refused(Refusal::NotConfigured)) => {
+                    bail!("the firmware was not configured (did it reset?)")
+                }
+                Event::Message(other) => {
+                    bail!("unexpected answer to tick {}: {other:?}", input.tick)
+                }
+                Event::Corrupt | Event::Quiet => {
+                    self.count(|r| r.resent_ticks += 1);
+                    resend = true;
+                }
+            }
+        }
+    }
+
+    /// Ends the faulty part of the run: the frame each injector still
+    /// holds back goes out (late, so stale at its receiver).
+    fn release_held(&mut self) -> anyhow::Result<()> {
+        let Some(link) = self.faulty.as_mut() else {
+            return Ok(());
+        };
+        let to_firmware = link.to_firmware.release_held();
+        self.inbox.extend(link.to_host.release_held());
+        self.send_raw(&to_firmware)
     }
 
     /// Waits for the next message from the firmware.
     ///
     /// # Errors
-    /// Timeout, a closed socket, or a corrupt frame (the link is a local
-    /// socket: corruption means a firmware bug, so it is not retried).
+    /// Timeout, a closed socket, or a corrupt frame (outside the faulty
+    /// ticks the link is a local socket: corruption means a firmware bug,
+    /// so it is not retried).
     pub fn receive(&mut self) -> anyhow::Result<TargetMessage> {
-        let deadline = Instant::now() + self.timeout;
+        match self.wait(self.timeout, false)? {
+            Event::Message(m) => Ok(m),
+            Event::Corrupt => bail!("corrupt frame from the firmware"),
+            Event::Stale => bail!("stale frame from the firmware"),
+            Event::Quiet => bail!("the firmware did not answer within {:?}", self.timeout),
+        }
+    }
+
+    /// Waits up to `wait` for the next frame from the firmware, through
+    /// the faults if `faulty`.
+    fn wait(&mut self, wait: Duration, faulty: bool) -> anyhow::Result<Event> {
+        let deadline = Instant::now() + wait;
         loop {
-            while let Some(&byte) = self.pending.get(self.pending_at) {
-                self.pending_at += 1;
-                if let Some(frame) = self.rx.push::<TargetMessage>(byte) {
-                    return frame
-                        .map_err(|e| anyhow::anyhow!("corrupt frame from the firmware: {e:?}"));
+            while let Some(byte) = self.inbox.pop_front() {
+                match self.rx.push::<TargetMessage>(byte) {
+                    None => {}
+                    Some(Ok(m)) => return Ok(Event::Message(m)),
+                    Some(Err(LinkError::Stale)) => return Ok(Event::Stale),
+                    Some(Err(_)) => return Ok(Event::Corrupt),
                 }
             }
             let left = deadline.saturating_duration_since(Instant::now());
-            ensure!(
-                !left.is_zero(),
-                "the firmware did not answer within {:?}",
-                self.timeout
-            );
+            if left.is_zero() {
+                return Ok(Event::Quiet);
+            }
             self.stream.set_read_timeout(Some(left))?;
-            self.pending.resize(4096, 0);
-            self.pending_at = 0;
-            match self.stream.read(&mut self.pending) {
+            let mut buf = [0_u8; 4096];
+            match self.stream.read(&mut buf) {
                 Ok(0) => bail!("the firmware closed the link (QEMU exited?)"),
-                Ok(n) => self.pending.truncate(n),
+                Ok(n) => self.take_in(buf.get(..n).unwrap_or_default(), faulty)?,
                 Err(e)
                     if matches!(
                         e.kind(),
                         std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                    ) =>
-                {
-                    self.pending.clear();
-                }
+                    ) => {}
                 Err(e) => {
                     return Err(anyhow::Error::new(e).context("reading the firmware's USART1"));
                 }
             }
         }
+    }
+
+    /// Bytes read from the socket into the inbox: as they are, or frame by
+    /// frame through the faults.
+    fn take_in(&mut self, bytes: &[u8], faulty: bool) -> anyhow::Result<()> {
+        let Some(link) = self.faulty.as_mut() else {
+            self.inbox.extend(bytes);
+            return Ok(());
+        };
+        for &b in bytes {
+            link.incoming.push(b);
+            if b != 0 {
+                continue;
+            }
+            let bytes = std::mem::take(&mut link.incoming);
+            let mut copy = bytes.clone();
+            let body = copy.len().saturating_sub(1);
+            let frame = wmr_link::decode::<TargetMessage>(&mut copy[..body]).map_err(|e| {
+                anyhow::anyhow!("the firmware sent a frame that does not decode: {e}")
+            })?;
+            let silence_report = matches!(frame.body, TargetMessage::LinkSilent { .. });
+            self.inbox.extend(link.to_host.deliver(
+                Frame {
+                    bytes,
+                    seq: frame.seq,
+                    silence_report,
+                },
+                faulty,
+            ));
+        }
+        Ok(())
     }
 
     /// Sends a message and waits for the answer.
@@ -232,9 +473,33 @@ impl QemuTarget {
     /// # Errors
     /// A wrong answer, or QEMU not exiting cleanly.
     pub fn end(&mut self) -> anyhow::Result<Finished> {
-        let finished = match self.exchange(&HostMessage::Finish)? {
-            TargetMessage::Finished(f) => f,
-            other => bail!("unexpected answer to Finish: {other:?}"),
+        self.release_held()?;
+        self.send(&HostMessage::Finish)?;
+        let finished = loop {
+            match self.wait(self.timeout, false)? {
+                Event::Message(TargetMessage::Finished(f)) => break f,
+                // After a faulty run: late answers to resent ticks, and
+                // the frames held back, are stale; a report of silence
+                // may still come.
+                Event::Message(
+                    TargetMessage::Ticked(_) | TargetMessage::Refused(Refusal::StaleTick { .. }),
+                )
+                | Event::Stale
+                    if self.faulty.is_some() =>
+                {
+                    self.count(|r| r.stale_answers += 1);
+                }
+                Event::Message(TargetMessage::LinkSilent { motors, silent_ms }) => {
+                    self.silence_reported(motors, silent_ms)?;
+                }
+                Event::Message(other) => bail!("unexpected answer to Finish: {other:?}"),
+                Event::Corrupt => bail!("corrupt frame from the firmware"),
+                Event::Stale => bail!("stale frame from the firmware"),
+                Event::Quiet => bail!(
+                    "the firmware did not answer Finish within {:?}",
+                    self.timeout
+                ),
+            }
         };
         let deadline = Instant::now() + self.timeout;
         loop {
@@ -255,12 +520,24 @@ impl QemuTarget {
 
 impl TargetLink for QemuTarget {
     fn tick(&mut self, input: &TickInput) -> anyhow::Result<TickOutput> {
-        match self.exchange(&HostMessage::Tick(input.clone()))? {
-            TargetMessage::Ticked(out) => Ok(out),
-            TargetMessage::Refused(Refusal::NotConfigured) => {
-                bail!("the firmware was not configured (did it reset?)")
+        if self.faulty.is_some() {
+            return self.faulty_tick(input);
+        }
+        self.send(&HostMessage::Tick(input.clone()))?;
+        loop {
+            match self.receive()? {
+                TargetMessage::Ticked(out) => return Ok(out),
+                // The host took longer than the link timeout since the
+                // last tick (a loaded machine): the firmware stopped the
+                // motors meanwhile, which simulated time does not see.
+                TargetMessage::LinkSilent { motors, silent_ms } => {
+                    self.silence_reported(motors, silent_ms)?;
+                }
+                TargetMessage::Refused(Refusal::NotConfigured) => {
+                    bail!("the firmware was not configured (did it reset?)")
+                }
+                other => bail!("unexpected answer to tick {}: {other:?}", input.tick),
             }
-            other => bail!("unexpected answer to tick {}: {other:?}", input.tick),
         }
     }
 

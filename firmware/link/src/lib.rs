@@ -21,6 +21,19 @@
 //! Each side sends the next message only after the answer to the last, so
 //! the run is deterministic whatever the speed of QEMU or of the host.
 //!
+//! # Faults
+//! A frame that arrives corrupt is dropped and counted, and the firmware
+//! answers it with [`TargetMessage::Nack`], so that the host resends its
+//! last message at once instead of waiting for a timeout. The host resends
+//! a tick whose answer does not come (lost either way); the firmware
+//! answers a tick it already ran again from its cached answer, without
+//! running it twice ([`Diagnostics::repeated_ticks`]). A frame whose
+//! sequence number is behind the last accepted one (a duplicate, or one
+//! overtaken by a newer frame) is dropped and counted
+//! ([`LinkCounters::stale_frames`]): stale data is never used as fresh.
+//! After [`LINK_TIMEOUT_MS`] without a valid frame the firmware stops the
+//! motors and says so ([`TargetMessage::LinkSilent`]).
+//!
 //! # Framing
 //! One frame is `COBS(postcard(Frame{seq, body}) ‖ CRC-32(…) as LE u32) ‖ 0x00`.
 //! - **postcard** (serde) encodes the message compactly (varints).
@@ -29,7 +42,8 @@
 //! - **COBS** removes every zero byte, so `0x00` marks the end of a frame and
 //!   a receiver resynchronises at the next `0x00` after any garbage.
 //! - **`seq`** counts each side's frames from 0 (wrapping); a receiver
-//!   counts gaps (lost frames) and repeats.
+//!   counts gaps (lost frames) and drops stale frames (at most
+//!   [`STALE_WINDOW`] behind; further behind is a restart of the peer).
 //!
 //! Nothing allocates; buffers are sized by [`MAX_FRAME_BYTES`].
 
@@ -58,8 +72,17 @@ use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 /// Bump when a message changes shape; both sides refuse a mismatch (6:
 /// the estimator's sensor facts left `EstimatorSpec::Fusion` for
 /// `TrackerSpec::sensors`; 7: `RfidCounters::backlogged_polls` in the
-/// diagnostics).
-pub const PROTOCOL_VERSION: u16 = 7;
+/// diagnostics; 8: `Nack`, `LinkSilent`, stale frames and repeated ticks).
+pub const PROTOCOL_VERSION: u16 = 8;
+
+/// Silence on the link, while configured, after which the firmware stops
+/// the motors, ms (five 10 ms control periods).
+pub const LINK_TIMEOUT_MS: u32 = 50;
+
+/// A frame at most this many sequence numbers behind the next expected one
+/// is stale (a duplicate, or overtaken by a newer frame) and dropped;
+/// further behind, it is taken as a restart of the peer and accepted.
+pub const STALE_WINDOW: u32 = 64;
 
 /// Largest encoded frame, bytes, including COBS overhead and the `0x00`.
 pub const MAX_FRAME_BYTES: usize = 512;
@@ -129,6 +152,17 @@ pub enum TargetMessage {
     Ticked(TickOutput),
     /// Answer to [`HostMessage::Finish`].
     Finished(Finished),
+    /// A corrupt frame arrived (and was dropped): the host should resend
+    /// its last message.
+    Nack,
+    /// The link was silent for [`LINK_TIMEOUT_MS`] while configured: the
+    /// motors are stopped (as shown) until the next tick.
+    LinkSilent {
+        /// The motors after stopping them.
+        motors: [MotorOutput; 2],
+        /// Milliseconds of silence when they were stopped.
+        silent_ms: u32,
+    },
 }
 
 /// Why a configuration was refused.
@@ -141,6 +175,11 @@ pub enum Refusal {
     Spec(SpecError),
     /// A tick arrived before any configuration.
     NotConfigured,
+    /// A tick older than the last one answered (never run late).
+    StaleTick {
+        /// The tick last answered.
+        last_answered: u32,
+    },
 }
 
 impl core::fmt::Display for Refusal {
@@ -149,6 +188,12 @@ impl core::fmt::Display for Refusal {
             Self::Protocol(v) => write!(f, "the firmware speaks link protocol {v}"),
             Self::Spec(e) => write!(f, "the core refused the spec: {e}"),
             Self::NotConfigured => f.write_str("a tick arrived before any configuration"),
+            Self::StaleTick { last_answered } => {
+                write!(
+                    f,
+                    "a tick older than tick {last_answered}, already answered"
+                )
+            }
         }
     }
 }
@@ -218,6 +263,11 @@ pub struct Diagnostics {
     pub link: LinkCounters,
     /// UART bytes the proxy could not buffer (overrun), lost.
     pub uart_overruns: u32,
+    /// Ticks received again after their answer (the host resent them
+    /// because the answer was lost): answered again, not run again.
+    pub repeated_ticks: u32,
+    /// Ticks older than the last one answered: refused, never run.
+    pub stale_ticks: u32,
 }
 
 /// Faults of the link, as one side saw them.
@@ -230,6 +280,9 @@ pub struct LinkCounters {
     pub corrupt_frames: u32,
     /// Frames missing between two accepted ones (by sequence number).
     pub sequence_gaps: u32,
+    /// Intact frames dropped because their sequence number was behind the
+    /// next expected one (duplicates, or overtaken by a newer frame).
+    pub stale_frames: u32,
     /// Times the link was silent past the timeout (motors stopped).
     pub timeouts: u32,
     /// Messages that made no sense in the current state (e.g. a tick
@@ -277,6 +330,9 @@ pub enum LinkError {
     Crc,
     /// postcard could not decode the payload as the expected message.
     Decode,
+    /// An intact frame behind the next expected sequence number (a
+    /// duplicate, or overtaken by a newer frame): dropped, not corrupt.
+    Stale,
 }
 
 impl core::fmt::Display for LinkError {
@@ -287,6 +343,7 @@ impl core::fmt::Display for LinkError {
             Self::TooShort => "frame shorter than its CRC",
             Self::Crc => "frame CRC mismatch",
             Self::Decode => "frame payload does not decode as the expected message",
+            Self::Stale => "stale frame: behind the next expected sequence number",
         })
     }
 }
@@ -417,6 +474,7 @@ impl Receiver {
                 frames_ok: 0,
                 corrupt_frames: 0,
                 sequence_gaps: 0,
+                stale_frames: 0,
                 timeouts: 0,
                 unexpected_messages: 0,
             },
@@ -452,14 +510,19 @@ impl Receiver {
             .and_then(decode::<M>);
         Some(match result {
             Ok(frame) => {
-                self.counters.frames_ok = self.counters.frames_ok.saturating_add(1);
                 if let Some(expected) = self.next_seq {
+                    let behind = expected.wrapping_sub(frame.seq);
+                    if (1..=STALE_WINDOW).contains(&behind) {
+                        // A duplicate or an overtaken frame: never used.
+                        self.counters.stale_frames = self.counters.stale_frames.saturating_add(1);
+                        return Some(Err(LinkError::Stale));
+                    }
                     let gap = frame.seq.wrapping_sub(expected);
-                    // A gap larger than half the range is a repeat or a
-                    // restart of the peer; count it as one gap.
+                    // Far behind: a restart of the peer; one gap.
                     let gap = if gap > u32::MAX / 2 { 1 } else { gap };
                     self.counters.sequence_gaps = self.counters.sequence_gaps.saturating_add(gap);
                 }
+                self.counters.frames_ok = self.counters.frames_ok.saturating_add(1);
                 self.next_seq = Some(frame.seq.wrapping_add(1));
                 Ok(frame.body)
             }
@@ -494,6 +557,12 @@ pub struct Sender {
 }
 
 impl Sender {
+    /// The sequence number the next frame will carry.
+    #[must_use]
+    pub fn next_seq(&self) -> u32 {
+        self.seq
+    }
+
     /// Encodes the next frame into `out`.
     ///
     /// # Errors
@@ -651,6 +720,58 @@ mod tests {
         let got = feed::<HostMessage>(&mut rx, &[first, fifth].concat());
         assert_eq!(got.len(), 2);
         assert_eq!(rx.counters().sequence_gaps, 3);
+    }
+
+    #[test]
+    fn duplicates_and_overtaken_frames_are_dropped_as_stale() {
+        let mut tx = Sender::default();
+        let mut rx = Receiver::new();
+        let mut out = [0; MAX_FRAME_BYTES];
+        let frames: Vec<Vec<u8>> = (0..3)
+            .map(|_| tx.frame(HostMessage::Finish, &mut out).unwrap().to_vec())
+            .collect();
+        // 0, 0 again (a duplicate), 2 (overtakes 1), then the late 1.
+        let stream = [&frames[0], &frames[0], &frames[2], &frames[1]].map(|f| f.as_slice());
+        let got = feed::<HostMessage>(&mut rx, &stream.concat());
+        assert_eq!(
+            got,
+            vec![
+                Ok(HostMessage::Finish),
+                Err(LinkError::Stale),
+                Ok(HostMessage::Finish),
+                Err(LinkError::Stale)
+            ]
+        );
+        let c = rx.counters();
+        assert_eq!((c.frames_ok, c.stale_frames), (2, 2));
+        // 1 was missing when 2 came; it came late and was not used.
+        assert_eq!((c.sequence_gaps, c.corrupt_frames), (1, 0));
+    }
+
+    #[test]
+    fn a_peer_far_behind_has_restarted_and_is_accepted() {
+        let mut tx = Sender::default();
+        let mut rx = Receiver::new();
+        let mut out = [0; MAX_FRAME_BYTES];
+        for _ in 0..=STALE_WINDOW + 1 {
+            let bytes = tx.frame(HostMessage::Finish, &mut out).unwrap().to_vec();
+            assert_eq!(
+                feed::<HostMessage>(&mut rx, &bytes),
+                vec![Ok(HostMessage::Finish)]
+            );
+        }
+        // The peer restarts its numbering from 0: more than the window
+        // behind, so accepted (one gap), not stale.
+        let restarted = Sender::default()
+            .frame(HostMessage::Finish, &mut out)
+            .unwrap()
+            .to_vec();
+        assert_eq!(
+            feed::<HostMessage>(&mut rx, &restarted),
+            vec![Ok(HostMessage::Finish)]
+        );
+        let c = rx.counters();
+        assert_eq!((c.stale_frames, c.sequence_gaps), (0, 1));
     }
 
     #[test]

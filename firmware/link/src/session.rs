@@ -9,8 +9,8 @@ use wmr_core::pilot::spec::SpecError;
 
 use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
 use crate::{
-    Configure, Diagnostics, Finished, HostMessage, LinkCounters, PROTOCOL_VERSION, Refusal,
-    TargetMessage, TickOutput,
+    Configure, Diagnostics, Finished, HostMessage, LinkCounters, MotorOutput, PROTOCOL_VERSION,
+    Refusal, TargetMessage, TickOutput,
 };
 
 /// The robot a HIL session runs: the core's [`Robot`] on proxy devices.
@@ -28,6 +28,10 @@ pub struct Session<'a> {
     bus: &'a ProxyBus,
     robot: Option<ProxyRobot<'a>>,
     ticks: u32,
+    /// The last tick's answer, sent again if the host resends that tick.
+    last_answer: Option<TickOutput>,
+    repeated_ticks: u32,
+    stale_ticks: u32,
 }
 
 impl<'a> Session<'a> {
@@ -38,6 +42,9 @@ impl<'a> Session<'a> {
             bus,
             robot: None,
             ticks: 0,
+            last_answer: None,
+            repeated_ticks: 0,
+            stale_ticks: 0,
         }
     }
 
@@ -58,36 +65,51 @@ impl<'a> Session<'a> {
     ) -> (TargetMessage, bool) {
         match message {
             HostMessage::Configure(c) => (self.configure(c), false),
-            HostMessage::Tick(input) => match self.robot.as_mut() {
-                None => (TargetMessage::Refused(Refusal::NotConfigured), false),
-                Some(robot) => {
+            HostMessage::Tick(input) => match (self.robot.as_mut(), self.last_answer) {
+                (None, _) => (TargetMessage::Refused(Refusal::NotConfigured), false),
+                // The host resent a tick whose answer it lost: the same
+                // answer again; the robot does not run the tick twice.
+                (Some(_), Some(last)) if last.tick == input.tick => {
+                    self.repeated_ticks = self.repeated_ticks.saturating_add(1);
+                    (TargetMessage::Ticked(last), false)
+                }
+                // Older than the last answer: never run late.
+                (Some(_), Some(last)) if input.tick < last.tick => {
+                    self.stale_ticks = self.stale_ticks.saturating_add(1);
+                    (
+                        TargetMessage::Refused(Refusal::StaleTick {
+                            last_answered: last.tick,
+                        }),
+                        false,
+                    )
+                }
+                (Some(robot), _) => {
                     self.bus.load(input);
                     let out = robot.tick();
                     self.ticks = self.ticks.saturating_add(1);
                     let t = &out.pilot.tracker;
-                    (
-                        TargetMessage::Ticked(TickOutput {
-                            tick: input.tick,
-                            left: self.bus.motor(Side::Left),
-                            right: self.bus.motor(Side::Right),
-                            mode: t.mode,
-                            reference_m: [t.reference.position.x, t.reference.position.y],
-                            position_m: [t.position.x, t.position.y],
-                            heading: [t.heading.cos_theta, t.heading.sin_theta],
-                            command: [t.command.v_m_s, t.command.omega_rad_s],
-                            fix: out.fix.is_some(),
-                            speed_limited: out.pilot.drive.speed_limited,
-                            accel_limited: out.pilot.drive.accel_limited,
-                        }),
-                        false,
-                    )
+                    let answer = TickOutput {
+                        tick: input.tick,
+                        left: self.bus.motor(Side::Left),
+                        right: self.bus.motor(Side::Right),
+                        mode: t.mode,
+                        reference_m: [t.reference.position.x, t.reference.position.y],
+                        position_m: [t.position.x, t.position.y],
+                        heading: [t.heading.cos_theta, t.heading.sin_theta],
+                        command: [t.command.v_m_s, t.command.omega_rad_s],
+                        fix: out.fix.is_some(),
+                        speed_limited: out.pilot.drive.speed_limited,
+                        accel_limited: out.pilot.drive.accel_limited,
+                    };
+                    self.last_answer = Some(answer);
+                    (TargetMessage::Ticked(answer), false)
                 }
             },
             HostMessage::Finish => (
                 TargetMessage::Finished(Finished {
                     ticks: self.ticks,
                     peak_stack_bytes: peak_stack_bytes(),
-                    motors: [self.bus.motor(Side::Left), self.bus.motor(Side::Right)],
+                    motors: self.motors(),
                     counters: self.diagnostics(link),
                 }),
                 true,
@@ -95,10 +117,19 @@ impl<'a> Session<'a> {
         }
     }
 
-    /// The link went silent: stop the motors (the robot would otherwise
-    /// drive on its last command with no sensor data).
-    pub fn link_silent(&mut self) {
+    /// The link went silent for `silent_ms`: stop the motors (the robot
+    /// would otherwise drive on its last command with no sensor data).
+    /// Returns the report for the host, with the motors as they are now.
+    pub fn link_silent(&mut self, silent_ms: u32) -> TargetMessage {
         self.bus.stop_motors();
+        TargetMessage::LinkSilent {
+            motors: self.motors(),
+            silent_ms,
+        }
+    }
+
+    fn motors(&self) -> [MotorOutput; 2] {
+        [self.bus.motor(Side::Left), self.bus.motor(Side::Right)]
     }
 
     /// All counters now.
@@ -107,6 +138,8 @@ impl<'a> Session<'a> {
         let mut d = Diagnostics {
             link,
             uart_overruns: self.bus.uart_overruns(),
+            repeated_ticks: self.repeated_ticks,
+            stale_ticks: self.stale_ticks,
             ..Diagnostics::default()
         };
         if let Some(robot) = &self.robot {
@@ -147,6 +180,7 @@ impl<'a> Session<'a> {
                     grid,
                 ));
                 self.ticks = 0;
+                self.last_answer = None;
                 TargetMessage::Configured
             }
         }
@@ -278,8 +312,49 @@ mod tests {
             }
         }
         assert!(driven);
-        s.link_silent();
+        let report = s.link_silent(crate::LINK_TIMEOUT_MS);
         assert_eq!(bus.motor(Side::Left).duty, 0);
         assert_eq!(bus.motor(Side::Right).duty, 0);
+        let TargetMessage::LinkSilent { motors, silent_ms } = report else {
+            panic!("{report:?}")
+        };
+        assert_eq!(silent_ms, crate::LINK_TIMEOUT_MS);
+        assert!(motors.iter().all(|m| m.duty == 0));
+    }
+
+    /// A resent tick is answered again without running the robot twice; an
+    /// older tick is refused; both are counted.
+    #[test]
+    fn a_resent_tick_is_answered_again_and_an_older_one_refused() {
+        let bus = ProxyBus::new();
+        let mut s = Session::new(&bus);
+        let link = LinkCounters::default();
+        s.handle(&HostMessage::Configure(configure()), link, || 0);
+        let tick = |k: u32, counts: u32| {
+            let frame = encode_frame(TagGrid::id(10, 10));
+            HostMessage::Tick(TickInput {
+                tick: k,
+                left_count: Some(counts),
+                right_count: Some(counts),
+                uart: heapless::Vec::from_slice(&frame).unwrap(),
+            })
+        };
+        for k in 0..5 {
+            s.handle(&tick(k, 10 * k), link, || 0);
+        }
+        let (first, _) = s.handle(&tick(5, 50), link, || 0);
+        // The same tick again, even with other readings: the first answer.
+        let (again, _) = s.handle(&tick(5, 999), link, || 0);
+        assert_eq!(again, first);
+        let (older, _) = s.handle(&tick(3, 30), link, || 0);
+        assert_eq!(
+            older,
+            TargetMessage::Refused(Refusal::StaleTick { last_answered: 5 })
+        );
+        let (TargetMessage::Finished(f), true) = s.handle(&HostMessage::Finish, link, || 0) else {
+            panic!("no report")
+        };
+        assert_eq!(f.ticks, 6, "the robot ran each tick once");
+        assert_eq!((f.counters.repeated_ticks, f.counters.stale_ticks), (1, 1));
     }
 }

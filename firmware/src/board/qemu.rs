@@ -12,10 +12,14 @@
 //!   a hardware timer; see `board::blackpill`.)
 //! - **SysTick** (core clock, 1 ms) times the link: after
 //!   [`LINK_TIMEOUT_MS`] without a valid frame while a run is configured,
-//!   the firmware counts a timeout and stops the motors, as a robot must
-//!   when its sensors go silent. It drives again on the next tick frame.
-//! - **Corrupt frames** (bad COBS/CRC/postcard, too long) are dropped and
-//!   counted; the receiver resynchronises at the next `0x00`.
+//!   the firmware counts a timeout, stops the motors, as a robot must
+//!   when its sensors go silent, and reports it (`LinkSilent`, with the
+//!   motors). It drives again on the next tick frame.
+//! - **Corrupt frames** (bad COBS/CRC/postcard, too long) are dropped,
+//!   counted and answered with `Nack`, so that the host resends at once;
+//!   the receiver resynchronises at the next `0x00`. Stale frames (a
+//!   duplicate, or overtaken by a newer one) are dropped and counted, never
+//!   used. A resent tick is answered again, not run twice (`Session`).
 //! - **Logs** go out with defmt over semihosting (QEMU's stdout; decode with
 //!   the firmware ELF), through the firmware's own logger (`crate::logger`). The run ends on the host's `Finish`: the firmware
 //!   answers with its stack high-water mark and exits through semihosting.
@@ -26,14 +30,25 @@ use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 use stm32f4xx_hal::pac;
 use wmr_link::proxy::ProxyBus;
 use wmr_link::session::Session;
-use wmr_link::{HostMessage, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver, Sender, TargetMessage};
+use wmr_link::{
+    HostMessage, LINK_TIMEOUT_MS, LinkError, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver, Sender,
+    TargetMessage,
+};
 
 /// Core clock of the `netduinoplus2` model, Hz.
 const CORE_CLOCK_HZ: u32 = 168_000_000;
 
-/// Silence on the link, while configured, after which the motors stop, ms
-/// (five 10 ms control periods).
-pub const LINK_TIMEOUT_MS: u32 = 50;
+/// Link faults logged one by one; after that, one line in [`LOG_EVERY`]
+/// (a faulty link must not slow the firmware down with semihosting logs;
+/// every fault is counted either way).
+const LOG_FIRST: u32 = 8;
+/// See [`LOG_FIRST`].
+const LOG_EVERY: u32 = 1000;
+
+/// Whether the `n`-th fault (from 1) of a kind is logged.
+fn worth_logging(n: u32) -> bool {
+    n <= LOG_FIRST || n.is_multiple_of(LOG_EVERY)
+}
 
 /// USART1 by register: QEMU's model needs no baud rate or GPIO setup.
 struct Usart1 {
@@ -148,20 +163,35 @@ pub fn run() -> ! {
         if let Some(byte) = serial.read_byte() {
             match rx.push::<HostMessage>(byte) {
                 None => {}
-                Some(Err(e)) => defmt::warn!("corrupt frame dropped: {}", e),
+                // Counted by the receiver; the host gets the count.
+                Some(Err(LinkError::Stale)) => {}
+                Some(Err(e)) => {
+                    let n = rx.counters().corrupt_frames;
+                    if worth_logging(n) {
+                        defmt::warn!("corrupt frame dropped ({} so far): {}", n, e);
+                    }
+                    send(&mut serial, &mut tx, TargetMessage::Nack);
+                }
                 Some(Ok(message)) => {
                     silent_ms = 0;
                     if stopped_for_silence {
-                        defmt::info!("link back");
+                        if worth_logging(rx.counters().timeouts) {
+                            defmt::info!("link back");
+                        }
                         stopped_for_silence = false;
                     }
                     let (answer, done) =
                         session.handle(&message, rx.counters(), crate::stack::peak_bytes);
                     match answer {
                         TargetMessage::Configured => defmt::info!("configured"),
-                        TargetMessage::Refused(why) => {
+                        // Why is in the answer, which the host prints
+                        // (formatting `Refusal` here would cost 0.8 KB of
+                        // flash).
+                        TargetMessage::Refused(_) => {
                             rx.note_unexpected();
-                            defmt::warn!("refused: {}", why);
+                            if worth_logging(rx.counters().unexpected_messages) {
+                                defmt::warn!("refused (the host shows why)");
+                            }
                         }
                         _ => {}
                     }
@@ -176,9 +206,12 @@ pub fn run() -> ! {
             silent_ms = silent_ms.saturating_add(1);
             if silent_ms >= LINK_TIMEOUT_MS {
                 rx.note_timeout();
-                session.link_silent();
+                let report = session.link_silent(silent_ms);
                 stopped_for_silence = true;
-                defmt::warn!("link silent for {} ms: motors stopped", silent_ms);
+                if worth_logging(rx.counters().timeouts) {
+                    defmt::warn!("link silent for {} ms: motors stopped", silent_ms);
+                }
+                send(&mut serial, &mut tx, report);
             }
         }
     }
