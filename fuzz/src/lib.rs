@@ -190,6 +190,7 @@ fn any_pilot_spec(u: &mut Unstructured) -> Result<PilotSpec> {
             wheel_variance_floor_m2: float(u, 1.96e-9)?,
             tag_spacing_m: float(u, 0.1)?,
             read_radius_m: float(u, 0.0)?,
+            antenna_offset_m: [float(u, 0.1)?, float(u, 0.0)?],
         },
     };
     Ok(PilotSpec {

@@ -76,6 +76,7 @@ impl SpecError {
     pub fn section(&self) -> &'static str {
         match self {
             Self::Trajectory(_) => "tracker.trajectory",
+            Self::Tracker(TrackerConfigError::AntennaOffset) => "tracker.sensors",
             Self::Gains(_) | Self::Observer(_) | Self::Tracker(_) => "tracker",
             Self::PoseObserver(_) => "tracker.estimator.pose_observer",
             Self::Fusion(
@@ -351,6 +352,12 @@ pub struct SensorSpec {
     /// Reader range around the antenna, m (0: the nearest tag is read
     /// every tick).
     pub read_radius_m: f32,
+    /// Where the reader's antenna sits from the axle midpoint, m, in the
+    /// robot's frame: `[ahead, to the left]` (default `[0, 0]`; at most
+    /// [`TrackerConfig::MAX_ANTENNA_OFFSET_M`] away). Every estimator gets
+    /// its fixes moved back to the midpoint
+    /// ([`TrackerConfig::with_antenna_offset`]).
+    pub antenna_offset_m: [f32; 2],
 }
 
 /// The tracker's law (with the `serde` feature, the `law` key of a
@@ -536,6 +543,10 @@ impl TrackerSpec {
         let config = TrackerConfig::new(observer, gains, trajectory, self.fix_timeout_ticks)
             .and_then(|t| t.with_failsafe_decel(self.failsafe_decel_m_s2))
             .map(|t| t.with_max_fix_age(self.max_fix_age_ticks))
+            .and_then(|t| {
+                let [ahead, left] = self.sensors.antenna_offset_m;
+                t.with_antenna_offset(Vec2::new(ahead, left))
+            })
             .map_err(SpecError::Tracker)?;
         let estimator = match self.estimator {
             EstimatorSpec::HeadingObserver => EstimatorChoice::HeadingObserver,
@@ -719,6 +730,7 @@ mod tests {
                     wheel_variance_floor_m2: 2.5e-10,
                     tag_spacing_m: 0.1,
                     read_radius_m: 0.0,
+                    antenna_offset_m: [0.0; 2],
                 },
             },
             drive: DriveSpec {

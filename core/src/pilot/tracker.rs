@@ -49,6 +49,17 @@
 //! are rejected and counted; a non-finite command (which valid
 //! configuration and finite measurements do not produce) is replaced by
 //! zero and counted.
+//!
+//! # The reader's antenna
+//! A tag is read where the antenna is, at `d = (d_x, d_y)` from the axle
+//! midpoint in the robot's frame (`x` ahead, `y` to the left;
+//! [`TrackerConfig::with_antenna_offset`]). Every estimator and law works
+//! on the axle midpoint, so each accepted fix `p_a` becomes
+//! `p = p_a − R(θ̂) d`, with `R(θ̂) = [[ĉ, −ŝ], [ŝ, ĉ]]` from the heading
+//! estimate `(ĉ, ŝ)` before this tick's update, scaled down to unit length
+//! where it is longer (an estimate still converging, `|(ĉ, ŝ)| < 1`,
+//! moves the fix by less: at `(0, 0)`, before any heading is known, not
+//! at all). With a zero offset the fix is used as it is, bit for bit.
 
 use crate::control::saturated::{GainBound, TrackingCommand, TrackingGains};
 use crate::control::{Law, LawChoice, LawCommand, TrackingLaw};
@@ -75,6 +86,9 @@ pub enum TrackerConfigError {
     FixTimeout,
     /// A paper 002 estimator or law with a step other than the tracker's.
     AlgorithmPeriod,
+    /// Antenna offset not finite, or farther than
+    /// [`TrackerConfig::MAX_ANTENNA_OFFSET_M`] from the axle midpoint.
+    AntennaOffset,
 }
 
 impl core::fmt::Display for TrackerConfigError {
@@ -86,6 +100,9 @@ impl core::fmt::Display for TrackerConfigError {
             Self::FixTimeout => f.write_str("fix_timeout_ticks must be ≥ 1"),
             Self::AlgorithmPeriod => {
                 f.write_str("a paper 002 estimator or law must run at the tracker's period_s")
+            }
+            Self::AntennaOffset => {
+                f.write_str("antenna_offset_m must be finite and within 1 m of the axle midpoint")
             }
         }
     }
@@ -126,9 +143,14 @@ pub struct TrackerConfig {
     gain_bound: GainBound,
     estimator: EstimatorChoice,
     law: LawChoice,
+    antenna_offset: Vec2,
 }
 
 impl TrackerConfig {
+    /// Farthest the reader's antenna may sit from the axle midpoint, m (a
+    /// larger figure is a unit mistake, not a robot).
+    pub const MAX_ANTENNA_OFFSET_M: f32 = 1.0;
+
     /// Default failsafe deceleration, m/s².
     pub const DEFAULT_FAILSAFE_DECEL_M_S2: f32 = 0.5;
     /// Default age beyond which a fix is stale, ticks.
@@ -163,7 +185,30 @@ impl TrackerConfig {
             gain_bound: gains.check_bound(trajectory.speed_bounds()),
             estimator: EstimatorChoice::HeadingObserver,
             law: LawChoice::Saturated,
+            antenna_offset: Vec2::ZERO,
         })
+    }
+
+    /// Where the RFID reader's antenna sits, m, in the robot's frame from
+    /// the axle midpoint (`x` ahead, `y` to the left); the default is the
+    /// midpoint itself. Fixes are moved back to the midpoint with the
+    /// heading estimate (module documentation).
+    ///
+    /// # Errors
+    /// [`TrackerConfigError::AntennaOffset`] if not finite or farther
+    /// than [`Self::MAX_ANTENNA_OFFSET_M`].
+    pub fn with_antenna_offset(mut self, offset_m: Vec2) -> Result<Self, TrackerConfigError> {
+        if !(offset_m.is_finite() && offset_m.norm() <= Self::MAX_ANTENNA_OFFSET_M) {
+            return Err(TrackerConfigError::AntennaOffset);
+        }
+        self.antenna_offset = offset_m;
+        Ok(self)
+    }
+
+    /// The antenna's offset from the axle midpoint, m (robot frame).
+    #[must_use]
+    pub fn antenna_offset(&self) -> Vec2 {
+        self.antenna_offset
     }
 
     /// Runs the estimator `choice` instead of paper 001's observer (5)
@@ -499,8 +544,32 @@ impl OutputFeedbackTracker {
             None
         } else {
             self.counters.fixes_used = self.counters.fixes_used.saturating_add(1);
-            Some(fix.position)
+            Some(self.axle_midpoint(fix.position))
         }
+    }
+
+    /// The axle midpoint of a robot whose antenna is at `antenna`, by the
+    /// heading estimate (module documentation, "The reader's antenna").
+    fn axle_midpoint(&self, antenna: Vec2) -> Vec2 {
+        let d = self.config.antenna_offset;
+        if d == Vec2::ZERO {
+            return antenna;
+        }
+        let h = self.estimator.heading();
+        let (c, s) = (h.cos_theta, h.sin_theta);
+        let length = crate::math::sqrt(c * c + s * s);
+        // The estimators guard theirs; should one not be finite, the fix
+        // is not moved rather than made non-finite.
+        if !length.is_finite() {
+            return antenna;
+        }
+        // Longer than 1: the direction alone.
+        let scale = if length > 1.0 { 1.0 / length } else { 1.0 };
+        let (c, s) = (c * scale, s * scale);
+        Vec2::new(
+            antenna.x - (c * d.x - s * d.y),
+            antenna.y - (s * d.x + c * d.y),
+        )
     }
 
     /// Lowers |v| by `decel·h` toward zero, scaling ω with v (same arc);
@@ -562,6 +631,51 @@ mod tests {
             position: Vec2::new(x, y),
             age_ticks: 0,
         })
+    }
+
+    #[test]
+    fn an_antenna_offset_is_validated() {
+        let cfg = *tracker(10).config();
+        assert!(cfg.with_antenna_offset(Vec2::new(0.1, -0.05)).is_ok());
+        for bad in [
+            Vec2::new(f32::NAN, 0.0),
+            Vec2::new(0.0, f32::INFINITY),
+            Vec2::new(0.8, 0.8),
+        ] {
+            assert_eq!(
+                cfg.with_antenna_offset(bad).unwrap_err(),
+                TrackerConfigError::AntennaOffset
+            );
+        }
+    }
+
+    /// Fixes are moved from the antenna back to the axle midpoint by the
+    /// heading estimate: not at all before any heading is known, by the
+    /// whole offset once it has converged.
+    #[test]
+    fn fixes_move_from_the_antenna_to_the_axle_midpoint() {
+        let offset = Vec2::new(0.1, 0.02);
+        let cfg = tracker(1000).config().with_antenna_offset(offset).unwrap();
+        let mut t = OutputFeedbackTracker::new(cfg);
+        // The first fix: heading (0, 0), nothing known, the fix as it is.
+        let first = t.step(&moving(0.2), fix(0.5, 0.0));
+        assert_eq!(first.position, Vec2::new(0.5, 0.0));
+        // Driving along +x with a fix each tick: the observer learns the
+        // heading, and the fix moves back by R(θ̂)·offset.
+        let mut out = first;
+        for k in 1..3000 {
+            let x = 0.5 + 0.2 * 0.01 * k as f32;
+            out = t.step(&moving(0.2), fix(x, 0.0));
+        }
+        let h = out.heading;
+        assert!(
+            (h.cos_theta - 1.0).abs() < 0.05 && h.sin_theta.abs() < 0.05,
+            "{h:?}"
+        );
+        let x = 0.5 + 0.2 * 0.01 * 3000.0;
+        let next = t.step(&moving(0.2), fix(x, 0.0));
+        assert!((next.position.x - (x - 0.1)).abs() < 0.01, "{next:?}");
+        assert!((next.position.y - (-0.02)).abs() < 0.01, "{next:?}");
     }
 
     #[test]

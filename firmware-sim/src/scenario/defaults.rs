@@ -99,3 +99,6 @@ pub fn fix_timeout_s() -> f64 {
 pub fn decel_m_s2() -> f64 {
     f64::from(wmr_core::pilot::tracker::TrackerConfig::DEFAULT_FAILSAFE_DECEL_M_S2)
 }
+pub fn yes() -> bool {
+    true
+}

@@ -506,9 +506,16 @@ pub enum PositionSpec {
         /// Read radius around the antenna (`range` mode), m.
         #[serde(default = "defaults::read_radius_m")]
         read_radius_m: f64,
-        /// Antenna ahead of the axle midpoint, m.
+        /// Antenna ahead of the axle midpoint, m (where the simulated reader
+        /// reads; the estimators are told, unless
+        /// `antenna_offset_compensated = false`).
         #[serde(default)]
         antenna_offset_m: f64,
+        /// Whether the core is told the antenna offset (`tracker.sensors.
+        /// antenna_offset_m`) and moves each fix back to the axle midpoint;
+        /// `false` shows what ignoring it costs.
+        #[serde(default = "defaults::yes")]
+        antenna_offset_compensated: bool,
         /// Line speed, baud.
         #[serde(default = "defaults::baud")]
         baud: u32,

@@ -224,8 +224,17 @@ impl Scenario {
     }
 
     /// What the estimator knows of the sensors: the plant's track width and
-    /// count quantization, the floor's spacing and the reader's range.
+    /// count quantization, the floor's spacing, the reader's range and
+    /// where its antenna is (unless `antenna_offset_compensated = false`).
     fn sensor_spec(&self) -> SensorSpec {
+        let antenna_ahead_m = match self.position {
+            PositionSpec::Reader {
+                antenna_offset_m,
+                antenna_offset_compensated: true,
+                ..
+            } => antenna_offset_m,
+            _ => 0.0,
+        };
         let (spacing_m, read_radius_m) = match self.position {
             PositionSpec::NearestTag { spacing_m, .. } => (spacing_m, 0.0),
             PositionSpec::Reader {
@@ -262,6 +271,7 @@ impl Scenario {
             wheel_variance_floor_m2: f(floor_m2),
             tag_spacing_m: f(spacing_m),
             read_radius_m: f(read_radius_m),
+            antenna_offset_m: [f(antenna_ahead_m), 0.0],
         }
     }
 
@@ -597,6 +607,8 @@ impl Scenario {
                 mode,
                 read_radius_m,
                 antenna_offset_m,
+                // The core's business (`sensor_spec`).
+                antenna_offset_compensated: _,
                 baud,
                 repeat_interval_s,
                 corrupt_byte_probability,

@@ -72,8 +72,9 @@ use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 /// Bump when a message changes shape; both sides refuse a mismatch (6:
 /// the estimator's sensor facts left `EstimatorSpec::Fusion` for
 /// `TrackerSpec::sensors`; 7: `RfidCounters::backlogged_polls` in the
-/// diagnostics; 8: `Nack`, `LinkSilent`, stale frames and repeated ticks).
-pub const PROTOCOL_VERSION: u16 = 8;
+/// diagnostics; 8: `Nack`, `LinkSilent`, stale frames and repeated ticks;
+/// 9: `SensorSpec::antenna_offset_m`).
+pub const PROTOCOL_VERSION: u16 = 9;
 
 /// Silence on the link, while configured, after which the firmware stops
 /// the motors, ms (five 10 ms control periods).
@@ -629,6 +630,7 @@ mod tests {
                         wheel_variance_floor_m2: 1.96e-9,
                         tag_spacing_m: 0.1,
                         read_radius_m: 0.0,
+                        antenna_offset_m: [0.0; 2],
                     },
                 },
                 drive: DriveSpec {

@@ -220,6 +220,7 @@ mod tests {
                         wheel_variance_floor_m2: 1.96e-9,
                         tag_spacing_m: 0.1,
                         read_radius_m: 0.0,
+                        antenna_offset_m: [0.0; 2],
                     },
                 },
                 drive: DriveSpec {

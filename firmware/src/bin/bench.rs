@@ -194,6 +194,7 @@ mod on_target {
                     wheel_variance_floor_m2: 7.06e-10,
                     tag_spacing_m: 0.1,
                     read_radius_m: 0.0,
+                    antenna_offset_m: [0.0; 2],
                 },
             },
             drive: DriveSpec {

@@ -170,6 +170,8 @@ pub const PILOT: PilotSpec = PilotSpec {
             wheel_variance_floor_m2: 7.06e-10,
             tag_spacing_m: 0.0,
             read_radius_m: 0.0,
+            // The reader's antenna at the axle midpoint.
+            antenna_offset_m: [0.0; 2],
         },
     },
     drive: DriveSpec {
