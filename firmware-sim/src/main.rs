@@ -176,6 +176,15 @@ enum Command {
         /// Embedded scenario name (see `scenarios`).
         name: String,
     },
+    /// List every key of a scenario file: when it applies, its type or
+    /// allowed values, default, unit and meaning (generated from the types
+    /// that parse the file, so it cannot drift). `--json` prints the JSON
+    /// Schema instead, for editors that check TOML against one.
+    Schema {
+        /// The JSON Schema (draft 2020-12) instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// Standard output was closed by its reader (`firmware-sim … | head`):
@@ -250,6 +259,18 @@ fn real_main() -> anyhow::Result<()> {
             for (name, text) in slip::EMBEDDED_SLIP {
                 let s = SlipScenario::from_toml_str(text)?;
                 outln!("{name:<30} {:>6} s  {}", s.duration_s, s.description);
+            }
+            Ok(())
+        }
+        Command::Schema { json } => {
+            use firmware_sim::scenario::keys;
+            if json {
+                outln!(
+                    "{}",
+                    serde_json::to_string_pretty(&keys::scenario_schema())?
+                );
+            } else {
+                out!("{}", keys::markdown(&keys::scenario_keys()));
             }
             Ok(())
         }
@@ -720,11 +741,15 @@ fn rerun_one(
 /// A scenario file, or an embedded scenario by name.
 fn load(arg: &str) -> anyhow::Result<Scenario> {
     let path = PathBuf::from(arg);
-    Ok(if !path.exists() && embedded_source(arg).is_some() {
+    let scenario = if !path.exists() && embedded_source(arg).is_some() {
         Scenario::embedded(arg)?
     } else {
         Scenario::from_file(&path)?
-    })
+    };
+    for warning in scenario.warnings() {
+        eprintln!("warning: {arg}: {warning}");
+    }
+    Ok(scenario)
 }
 
 /// Runs with a progress bar on stderr (hidden when stderr is not a

@@ -52,6 +52,7 @@ pub const CORE: [&[&str]; 6] = [
         "micromath",
         "defmt",
         "serde",
+        "schemars",
         "fusion-ukf",
         "fusion-particle-filter",
         "wheel-speed-observer",

@@ -152,6 +152,7 @@ impl core::error::Error for SpecError {
 /// `estimator = "heading_observer"` (the default), `[estimator.pose_observer]`
 /// or `[estimator.fusion]`, each field optional with the default documented
 /// on it.
+#[cfg_attr(feature = "schemars", derive(schemars::JsonSchema))]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(
@@ -204,6 +205,7 @@ impl EstimatorSpec {
 }
 
 /// The fusion estimator's tuning (the `[estimator.fusion]` table).
+#[cfg_attr(feature = "schemars", derive(schemars::JsonSchema))]
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(
@@ -313,6 +315,7 @@ impl Default for FusionSpec {
 }
 
 /// The fusion estimator's filter.
+#[cfg_attr(feature = "schemars", derive(schemars::JsonSchema))]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(
@@ -365,6 +368,7 @@ pub struct SensorSpec {
 /// `law = "saturated"`, the default, also spelled `"paper_001"`, or
 /// `[controller.law.cascaded]` / `[controller.law.heading_error_sine]`,
 /// each field optional with the default documented on it).
+#[cfg_attr(feature = "schemars", derive(schemars::JsonSchema))]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(

@@ -36,6 +36,7 @@ use std::path::Path;
 
 mod defaults;
 mod error;
+pub mod keys;
 mod legacy;
 mod schema;
 mod sweep_spec;
@@ -92,6 +93,8 @@ pub const EMBEDDED: &[(&str, &str)] = &[
         "figure_eight_state_feedback",
         include_str!("../../scenarios/figure_eight_state_feedback.toml"),
     ),
+    ("circle", include_str!("../../scenarios/circle.toml")),
+    ("line", include_str!("../../scenarios/line.toml")),
 ];
 
 /// The TOML text of an embedded scenario, by file name (without `.toml`).

@@ -9,7 +9,7 @@ use super::defaults;
 use super::sweep_spec::SweepSpec;
 
 /// A simulation scenario (the TOML file's top level).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Scenario {
     /// Short name (used for the default output directory).
@@ -64,7 +64,7 @@ pub struct Scenario {
 }
 
 /// The reference trajectory.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ReferenceSpec {
     /// Paper 001's figure-eight, `x = h1 sin 2s`, `y = h1 sin s`, `s = h2 t + φ`.
@@ -106,7 +106,7 @@ pub enum ReferenceSpec {
 }
 
 /// Initial pose of the robot and of the observer's estimate.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InitialSpec {
     /// x, m.
@@ -127,7 +127,9 @@ pub struct InitialSpec {
 }
 
 /// Which tracking law.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum ControllerKind {
     /// Observer (5) + law (27)–(28): position only (paper 001, Theorem 3).
@@ -141,7 +143,7 @@ pub enum ControllerKind {
 ///
 /// (De)serialized by hand around the derived code (`remote = "Self"`), to
 /// name the new key of a key that moved (see `legacy`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(remote = "Self", deny_unknown_fields)]
 pub struct ControllerSpec {
     /// Which law.
@@ -212,7 +214,7 @@ fn checked_table<'de, D: serde::Deserializer<'de>, T>(
 ///
 /// (De)serialized by hand around the derived code (`remote = "Self"`), to
 /// name the new key of a key that moved to `[estimator]` (see `legacy`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(remote = "Self", deny_unknown_fields)]
 pub struct ObserverSpec {
     /// Observer gain `L`, 1/m.
@@ -253,7 +255,7 @@ impl<'de> Deserialize<'de> for ObserverSpec {
 /// makes the derives inherent `PlantSpec::serialize`/`deserialize`): serde
 /// ignores keys beside a unit variant's tag, so a `[plant.dynamics]` table
 /// under `kind = "unicycle"` would otherwise vanish silently.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 #[serde(
     remote = "Self",
     tag = "kind",
@@ -310,7 +312,7 @@ pub enum PlantSpec {
 /// twice the drive's top wheel speed allows in a tick (counted in
 /// `pilot.implausible_encoder_reads`); a smaller one is odometry error (what
 /// a timer's input filter is for).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct EncoderGlitchSpec {
     /// Probability of a burst, per read of one encoder (one read a tick).
@@ -356,7 +358,7 @@ impl<'de> Deserialize<'de> for PlantSpec {
 /// full duty and zero speed less its back-EMF (no-load speed
 /// `plant.wheel_speed_at_full_duty_rad_s`), and a slope load may start at
 /// `load_start_s`. `plant.motor_time_constant_s` is then unused.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DynamicsSpec {
     /// Robot mass, kg.
@@ -386,7 +388,7 @@ pub struct DynamicsSpec {
 }
 
 /// Drive limits and per-wheel speed loops (`diff_drive` plant only).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DriveSpec {
     /// Wheel speed limit, rad/s.
@@ -415,7 +417,7 @@ pub struct DriveSpec {
 /// the motors' no-load speed (`plant.wheel_speed_at_full_duty_rad_s`) come
 /// from the plant table; these may differ from `[plant.dynamics]` to study
 /// a mismatched model.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SpeedObserverSpec {
     /// Robot mass, kg.
@@ -452,7 +454,9 @@ impl Default for DriveSpec {
 }
 
 /// When the virtual reader reports.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum ReaderModeSpec {
     /// The nearest tag, every tick (paper 001, section 6.3.2).
@@ -463,7 +467,7 @@ pub enum ReaderModeSpec {
 }
 
 /// Where the position measurement comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum PositionSpec {
     /// The true position, every tick.
@@ -537,7 +541,7 @@ pub enum PositionSpec {
 }
 
 /// What the tracker does when fixes stop.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FailsafeSpec {
     /// Time without a valid fix before the failsafe engages, s.
@@ -560,7 +564,7 @@ impl Default for FailsafeSpec {
 /// Faults on the position fix of the `exact` and `nearest_tag` sources
 /// (the `reader` source has its own link faults,
 /// `position.drop_frame_probability` and `position.corrupt_byte_probability`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MeasurementSpec {
     /// Standard deviation of the zero-mean Gaussian noise added to each

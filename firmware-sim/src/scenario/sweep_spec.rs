@@ -6,7 +6,9 @@
 use serde::{Deserialize, Serialize};
 
 /// How the initial heading is chosen.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum HeadingSweep {
     /// Uniform in (−π, π].
@@ -17,7 +19,9 @@ pub enum HeadingSweep {
 }
 
 /// How the observer's initial estimate `(ẑ3, ẑ4)` is chosen.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum ObserverStart {
     /// The scenario's `initial.estimate_cos`, `initial.estimate_sin`.
@@ -48,7 +52,7 @@ pub enum ObserverStart {
 /// position source is refused when the scenario is validated
 /// ([`ScenarioError::Invalid`](super::ScenarioError::Invalid) naming
 /// `sweep.<field>`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SweepSpec {
     /// Initial position uniform (by area) in the annulus `[r_min, r_max]`

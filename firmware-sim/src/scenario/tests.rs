@@ -16,7 +16,7 @@ fn err_of(text: &str) -> ScenarioError {
 
 #[test]
 fn embedded_scenarios_parse_and_validate() {
-    assert_eq!(EMBEDDED.len(), 7);
+    assert_eq!(EMBEDDED.len(), 9);
     for (name, text) in EMBEDDED {
         let s = Scenario::from_toml_str(text).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(&s.name, name);
@@ -51,6 +51,33 @@ fn firmware_default_scenario_is_the_full_stack_run_with_the_fusion_ekf() {
     fusion.description.clone_from(&paper.description);
     fusion.estimator = paper.estimator;
     assert_eq!(fusion, paper);
+}
+
+/// A key given where it does not apply is a warning that names it; the
+/// shipped scenarios have none.
+#[test]
+fn keys_that_do_not_apply_are_warned_about() {
+    for (name, _) in EMBEDDED {
+        assert_eq!(
+            Scenario::embedded(name).unwrap().warnings(),
+            Vec::<String>::new(),
+            "{name}"
+        );
+    }
+    let state = Scenario::from_toml_str(&format!(
+        "{MINIMAL}\n[controller]\nkind = \"state_feedback\"\n[observer]\ngain_per_m = 2.0\n"
+    ))
+    .unwrap();
+    let w = state.warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(w[0].starts_with("observer.gain_per_m: ignored"), "{w:?}");
+    let paper_reader = Scenario::from_toml_str(&format!(
+        "{MINIMAL}\n[plant]\nkind = \"diff_drive\"\n[position]\nkind = \"reader\"\nread_radius_m = 0.2\n"
+    ))
+    .unwrap();
+    let w = paper_reader.warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(w[0].starts_with("position.read_radius_m: ignored"), "{w:?}");
 }
 
 #[test]

@@ -24,8 +24,8 @@ use crate::tags::FloorTags;
 use super::defaults;
 use super::error::{ScenarioError, finite, non_negative, positive, probability};
 use super::schema::{
-    ControllerKind, DynamicsSpec, MeasurementSpec, PlantSpec, PositionSpec, ReaderModeSpec,
-    ReferenceSpec, Scenario, SpeedObserverSpec,
+    ControllerKind, DynamicsSpec, MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec,
+    ReaderModeSpec, ReferenceSpec, Scenario, SpeedObserverSpec,
 };
 use super::sweep_spec::{
     DEFAULT_EXACT_THRESHOLD_M, DEFAULT_HOLD_FRACTION, DEFAULT_START_RADIUS_M,
@@ -190,6 +190,45 @@ fn f(v: f64) -> f32 {
 }
 
 impl Scenario {
+    /// Keys given a value other than their default where they do not
+    /// apply to this setup (ignored, so probably a mistake): one line
+    /// each, naming the key and why. `firmware-sim` prints them as
+    /// warnings; `firmware-sim schema` says when each key applies.
+    #[must_use]
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if self.controller.kind == ControllerKind::StateFeedback {
+            let observer = ObserverSpec::default();
+            if self.observer.gain_per_m.to_bits() != observer.gain_per_m.to_bits() {
+                w.push("observer.gain_per_m: ignored with controller.kind = \"state_feedback\" (the heading is measured, no observer runs)".to_owned());
+            }
+            if self.observer.min_speed_m_s.to_bits() != observer.min_speed_m_s.to_bits() {
+                w.push("observer.min_speed_m_s: ignored with controller.kind = \"state_feedback\" (the heading is measured, no observer runs)".to_owned());
+            }
+            if self.initial.estimate_cos != 0.0 || self.initial.estimate_sin != 0.0 {
+                w.push("initial.estimate_cos/estimate_sin: ignored with controller.kind = \"state_feedback\" (no observer runs)".to_owned());
+            }
+            if self.controller.law != LawSpec::default() {
+                w.push("controller.law: ignored with controller.kind = \"state_feedback\" (it chooses the output-feedback law)".to_owned());
+            }
+        }
+        if let PositionSpec::Reader {
+            mode: ReaderModeSpec::Paper,
+            read_radius_m,
+            repeat_interval_s,
+            ..
+        } = self.position
+        {
+            if read_radius_m.to_bits() != defaults::read_radius_m().to_bits() {
+                w.push("position.read_radius_m: ignored with position.mode = \"paper\" (the nearest tag is read every tick); it applies to mode = \"range\"".to_owned());
+            }
+            if repeat_interval_s.to_bits() != defaults::repeat_interval_s().to_bits() {
+                w.push("position.repeat_interval_s: ignored with position.mode = \"paper\"; it applies to mode = \"range\"".to_owned());
+            }
+        }
+        w
+    }
+
     /// The core's estimator spec, as the scenario chose it; paper 002's and
     /// the fusion estimator only with output feedback, the fusion
     /// estimator only on a tag grid read without added noise. The core
