@@ -1181,6 +1181,26 @@ mod on_target {
 
     // ------------------------------------------------------------------ main
 
+    /// The firmware's robot on the HIL link's proxies of `bus` (reset to
+    /// [`PWM_MAX_DUTY`]), as a HIL session builds it.
+    fn proxy_robot(bus: &ProxyBus, pilot: Pilot, grid: TagGrid) -> ProxyRobot<'_> {
+        bus.reset(PWM_MAX_DUTY);
+        let motor = |side| {
+            MotorDriver::new(
+                bus.pwm(side),
+                bus.direction_pin(side),
+                MotorWiring::default(),
+            )
+        };
+        Robot::new(
+            pilot,
+            (bus.encoder(Side::Left), bus.encoder(Side::Right)),
+            (motor(Side::Left), motor(Side::Right)),
+            RfidReader::new(bus.uart()),
+            grid,
+        )
+    }
+
     /// Paper 001's robot along the figure-eight: each stage of its tick
     /// timed on its own, then the whole tick and its stack (item 3 of the
     /// module's documentation). In a function of its own, as
@@ -1213,21 +1233,7 @@ mod on_target {
 
         // The whole tick: the firmware's robot on the HIL link's proxies.
         let bus = ProxyBus::new();
-        bus.reset(PWM_MAX_DUTY);
-        let motor = |side| {
-            MotorDriver::new(
-                bus.pwm(side),
-                bus.direction_pin(side),
-                MotorWiring::default(),
-            )
-        };
-        let mut robot: ProxyRobot<'_> = Robot::new(
-            pilot,
-            (bus.encoder(Side::Left), bus.encoder(Side::Right)),
-            (motor(Side::Left), motor(Side::Right)),
-            RfidReader::new(bus.uart()),
-            grid,
-        );
+        let mut robot = proxy_robot(&bus, pilot, grid);
         let load = |r: &Reading| {
             let Ok(uart) = heapless::Vec::from_slice(&encode_frame(r.tag)) else {
                 fail("RFID frame does not fit a tick's UART bytes");
@@ -1351,21 +1357,7 @@ mod on_target {
         };
         let mut world = World::new(&config, grid);
         let bus = ProxyBus::new();
-        bus.reset(PWM_MAX_DUTY);
-        let motor = |side| {
-            MotorDriver::new(
-                bus.pwm(side),
-                bus.direction_pin(side),
-                MotorWiring::default(),
-            )
-        };
-        let mut robot: ProxyRobot<'_> = Robot::new(
-            pilot,
-            (bus.encoder(Side::Left), bus.encoder(Side::Right)),
-            (motor(Side::Left), motor(Side::Right)),
-            RfidReader::new(bus.uart()),
-            world.grid,
-        );
+        let mut robot = proxy_robot(&bus, pilot, world.grid);
         // Loads the proxies with `r`, its tag frame on even ticks only;
         // whether it carries one.
         let load = |r: &Reading| {
