@@ -240,7 +240,12 @@ mod tests {
 
     #[test]
     fn core_rows_cover_every_choice() {
-        check("core/Cargo.toml", &CORE, &["default", "std", "schemars"], &[]);
+        check(
+            "core/Cargo.toml",
+            &CORE,
+            &["default", "std", "schemars"],
+            &[],
+        );
         let has = |r: &&[&str], f: &str| r.contains(&f);
         // The default backend, each other one alone and both together.
         assert!(CORE.iter().any(|r| !has(r, "libm") && !has(r, "micromath")));
