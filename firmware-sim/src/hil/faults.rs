@@ -212,11 +212,6 @@ impl Injector {
         let s = self.spec;
         let u: f64 = self.rng.random();
         let mut wire = Vec::new();
-        let out = |f: &Frame, intact: bool, expected: &mut ExpectedCounters, lost: &mut u32| {
-            if !expected.arrive(f.seq, intact) && f.silence_report {
-                *lost += 1;
-            }
-        };
         if u < s.drop_probability {
             self.injected.dropped += 1;
             if frame.silence_report {
@@ -225,12 +220,7 @@ impl Injector {
         } else if u < s.drop_probability + s.duplicate_probability {
             self.injected.duplicated += 1;
             for _ in 0..2 {
-                out(
-                    &frame,
-                    true,
-                    &mut self.expected,
-                    &mut self.silence_reports_lost,
-                );
+                self.arrive(&frame, true);
                 wire.extend_from_slice(&frame.bytes);
             }
         } else if u < s.drop_probability + s.duplicate_probability + s.delay_probability
@@ -258,21 +248,11 @@ impl Injector {
                 self.injected.corrupted += 1;
                 self.injected.bytes_corrupted += hit;
             }
-            out(
-                &frame,
-                hit == 0,
-                &mut self.expected,
-                &mut self.silence_reports_lost,
-            );
+            self.arrive(&frame, hit == 0);
             wire.extend_from_slice(&bytes);
         }
         if let Some(late) = self.held.take() {
-            out(
-                &late,
-                true,
-                &mut self.expected,
-                &mut self.silence_reports_lost,
-            );
+            self.arrive(&late, true);
             wire.extend_from_slice(&late.bytes);
         }
         wire
@@ -284,19 +264,24 @@ impl Injector {
         if inject {
             return self.pass(frame);
         }
-        if !self.expected.arrive(frame.seq, true) && frame.silence_report {
+        self.arrive(&frame, true);
+        frame.bytes
+    }
+
+    /// `frame` reaches its receiver, intact or not: counted for the
+    /// replay, and as a lost report if it carries a silence report the
+    /// receiver will not accept.
+    fn arrive(&mut self, frame: &Frame, intact: bool) {
+        if !self.expected.arrive(frame.seq, intact) && frame.silence_report {
             self.silence_reports_lost += 1;
         }
-        frame.bytes
     }
 
     /// The frame held back, if any, now (counted as arriving).
     pub fn release_held(&mut self) -> Vec<u8> {
         match self.held.take() {
             Some(late) => {
-                if !self.expected.arrive(late.seq, true) && late.silence_report {
-                    self.silence_reports_lost += 1;
-                }
+                self.arrive(&late, true);
                 late.bytes
             }
             None => Vec::new(),
