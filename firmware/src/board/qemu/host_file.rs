@@ -13,6 +13,8 @@
 
 #![allow(unsafe_code)]
 
+use core::ffi::CStr;
+
 use cortex_m_semihosting::syscall;
 
 /// `SYS_OPEN` mode `"rb"`.
@@ -26,16 +28,13 @@ pub struct HostFile {
 }
 
 impl HostFile {
-    /// Opens the host file `name` (NUL-terminated; relative to QEMU's
-    /// working directory) with a `SYS_OPEN` `mode`; `None` if the host
-    /// refuses or `name` has no NUL.
-    pub fn open(name: &[u8], mode: usize) -> Option<Self> {
-        let len = name.iter().position(|&b| b == 0)?;
+    /// Opens the host file `name` (relative to QEMU's working directory)
+    /// with a `SYS_OPEN` `mode`; `None` if the host refuses.
+    pub fn open(name: &CStr, mode: usize) -> Option<Self> {
         // SAFETY: `SYS_OPEN` reads its three-word argument block (built by
         // the macro, alive across the call) and the NUL-terminated string
-        // `name` points to (checked above: a NUL at `len`); it writes no
-        // guest memory.
-        let handle = unsafe { syscall!(OPEN, name.as_ptr(), mode, len) };
+        // `name` points to; it writes no guest memory.
+        let handle = unsafe { syscall!(OPEN, name.as_ptr(), mode, name.count_bytes()) };
         // -1 is the failure value.
         (handle != usize::MAX).then_some(Self { handle })
     }
@@ -51,19 +50,13 @@ impl HostFile {
         buf.len().saturating_sub(not_read)
     }
 
-    /// Writes all of `bytes`; `false` if the host stopped taking them.
-    pub fn write_all(&mut self, mut bytes: &[u8]) -> bool {
-        while !bytes.is_empty() {
-            // SAFETY: `SYS_WRITE` reads at most `bytes.len()` bytes from
-            // `bytes.as_ptr()`: memory borrowed for the call.
-            let not_written = unsafe { syscall!(WRITE, self.handle, bytes.as_ptr(), bytes.len()) };
-            // `SYS_WRITE` returns the bytes not written; all of them (or
-            // more: -1) means an error.
-            if not_written >= bytes.len() {
-                return false;
-            }
-            bytes = bytes.get(bytes.len() - not_written..).unwrap_or_default();
-        }
-        true
+    /// Writes `bytes` in one call (to a pipe, a blocking write of a frame
+    /// is whole); whether all of them went.
+    pub fn write(&mut self, bytes: &[u8]) -> bool {
+        // SAFETY: `SYS_WRITE` reads at most `bytes.len()` bytes from
+        // `bytes.as_ptr()`: memory borrowed for the call.
+        let not_written = unsafe { syscall!(WRITE, self.handle, bytes.as_ptr(), bytes.len()) };
+        // `SYS_WRITE` returns the bytes not written (-1 on an error).
+        not_written == 0
     }
 }
