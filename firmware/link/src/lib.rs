@@ -2,8 +2,9 @@
 //! host simulator, defined once for both sides.
 //!
 //! # Protocol
-//! The firmware runs its board's devices as proxies over one serial port
-//! (USART1 of QEMU's `netduinoplus2`). The host is the world: it plays the
+//! The firmware runs its board's devices as proxies over one byte stream
+//! (QEMU's `netduinoplus2`: two host files through semihosting, see
+//! [`HIL_TO_TARGET_FILE`]; a serial port would do as well). The host is the world: it plays the
 //! motors, encoders and RFID reader.
 //!
 //! ```text
