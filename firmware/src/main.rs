@@ -2,7 +2,8 @@
 //! control logic, on one of two boards chosen by a cargo feature:
 //!
 //! - `board-qemu` (default): QEMU's `netduinoplus2` (STM32F405). The devices
-//!   are proxies over USART1 and the host simulator plays the hardware in
+//!   are proxies over the HIL link (host files through semihosting) and
+//!   the host simulator plays the hardware in
 //!   lock-step (`firmware-sim hil`); see [`board::qemu`].
 //! - `board-blackpill`: an STM32F411 "Black Pill" robot board; see
 //!   [`board::blackpill`] for the pinout and how to flash it.

@@ -3,13 +3,15 @@
 //!
 //! ```text
 //! firmware-sim                         qemu-system-arm -M netduinoplus2
-//!  plant, encoders, RFID reader ─Tick─► USART1 ─► wmr-firmware (board-qemu)
-//!  virtual PWM + DIR pins ◄──Ticked──── USART1 ◄─ core Robot on link proxies
+//!  plant, encoders, RFID reader ─Tick─► file ─► wmr-firmware (board-qemu)
+//!  virtual PWM + DIR pins ◄──Ticked─── pipe ◄─ core Robot on link proxies
 //! ```
 //!
-//! USART1 is a unix socket (`-serial unix:PATH,server=on,wait=on`): QEMU
-//! waits for the simulator to connect before it starts the CPU. The
-//! firmware's defmt log (semihosting, QEMU's stdout) is saved raw next to
+//! The link's frames go through two files in QEMU's working directory (a
+//! temporary one), which the firmware reads and writes by semihosting:
+//! the host appends to a regular file and reads a named pipe (see
+//! `qemu`: one system call a frame each way, where QEMU's USART model woke
+//! a thread per byte). The firmware's defmt log (semihosting, QEMU's stdout) is saved raw next to
 //! the run (`firmware.defmt`) and decoded with the ELF's format table into
 //! `firmware.log`. The run
 //! ends with `Finish`: the firmware reports its stack high-water mark and

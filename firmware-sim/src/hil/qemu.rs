@@ -1,17 +1,28 @@
 //! QEMU running the firmware ([`QemuTarget`]), how it is run
-//! ([`HilOptions`]), and the lock-step link to its USART1.
+//! ([`HilOptions`]), and the lock-step link to it.
+//!
+//! The link's frames travel through two files in QEMU's working directory
+//! (a temporary directory), which the firmware reads and writes by
+//! semihosting (`firmware/src/board/qemu.rs`): the host appends its frames
+//! to a regular file ([`HIL_TO_TARGET_FILE`]) and reads the firmware's from
+//! a named pipe ([`HIL_TO_HOST_PIPE`]), waiting on it with `poll`. A frame
+//! is then one system call each side, where QEMU's USART model, the link
+//! before, woke a thread per byte (1.5 ms a tick).
 
 use std::collections::VecDeque;
+use std::fs::File;
 use std::io::{Read, Write};
-use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail, ensure};
+use rustix::event::{PollFd, PollFlags, Timespec};
+use rustix::fs::{Mode, OFlags};
 use wmr_link::{
-    Diagnostics, Finished, HostMessage, LinkError, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver,
-    Refusal, Sender, TargetMessage, TickInput, TickOutput,
+    Diagnostics, Finished, HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, HostMessage, LinkError,
+    MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver, Refusal, Sender, TargetMessage, TickInput,
+    TickOutput,
 };
 
 use super::faults::{Frame, Injector, LinkFaultReport, LinkFaultSpec, OUTAGE_MS};
@@ -70,10 +81,17 @@ enum Event {
     Quiet,
 }
 
-/// QEMU running the firmware, and the socket to its USART1.
+/// How long one `poll` on the firmware's pipe waits at most before the
+/// host checks that QEMU is still running.
+const EXIT_CHECK: Duration = Duration::from_millis(100);
+
+/// QEMU running the firmware, and the link's two files.
 pub struct QemuTarget {
     child: Child,
-    stream: UnixStream,
+    /// Host to firmware: the regular file the firmware reads.
+    to_target: File,
+    /// Firmware to host: the named pipe, opened non-blocking.
+    from_target: File,
     pub(super) rx: Receiver,
     tx: Sender,
     timeout: Duration,
@@ -83,7 +101,7 @@ pub struct QemuTarget {
     faulty: Option<FaultyLink>,
     /// The firmware's end-of-run report, once received.
     pub(super) finished: Option<Finished>,
-    // Keeps the socket's directory alive.
+    // Keeps the link's directory alive.
     _dir: tempfile::TempDir,
 }
 
@@ -106,8 +124,23 @@ impl QemuTarget {
         let dir = tempfile::Builder::new()
             .prefix("wmr-hil")
             .tempdir()
-            .context("creating a directory for the link socket")?;
-        let socket = dir.path().join("usart1.sock");
+            .context("creating a directory for the link's files")?;
+        let to_target = link_path(dir.path(), HIL_TO_TARGET_FILE)?;
+        let to_target = File::create(&to_target)
+            .with_context(|| format!("creating {}", to_target.display()))?;
+        let pipe = link_path(dir.path(), HIL_TO_HOST_PIPE)?;
+        rustix::fs::mkfifoat(rustix::fs::CWD, &pipe, Mode::RUSR | Mode::WUSR)
+            .with_context(|| format!("creating the named pipe {}", pipe.display()))?;
+        // Opened before QEMU starts, so that the firmware's open for
+        // writing finds a reader; non-blocking, waited on with `poll`.
+        let from_target = File::from(
+            rustix::fs::open(&pipe, OFlags::RDONLY | OFlags::NONBLOCK, Mode::empty())
+                .with_context(|| format!("opening {}", pipe.display()))?,
+        );
+        // QEMU runs in the link's directory: the firmware opens the files
+        // by their names.
+        let firmware = std::path::absolute(firmware)
+            .with_context(|| format!("locating {}", firmware.display()))?;
         let stdout = match &options.log {
             Some(path) => Stdio::from(
                 std::fs::File::create(path)
@@ -115,7 +148,8 @@ impl QemuTarget {
             ),
             None => Stdio::null(),
         };
-        let mut child = Command::new(QEMU)
+        let child = Command::new(QEMU)
+            .current_dir(dir.path())
             .args([
                 "-M",
                 "netduinoplus2",
@@ -123,12 +157,12 @@ impl QemuTarget {
                 "none",
                 "-monitor",
                 "none",
+                "-serial",
+                "null",
             ])
             .args(["-semihosting-config", "enable=on,target=native"])
-            .arg("-serial")
-            .arg(format!("unix:{},server=on,wait=on", socket.display()))
             .arg("-kernel")
-            .arg(firmware)
+            .arg(&firmware)
             .stdin(Stdio::null())
             .stdout(stdout)
             .stderr(Stdio::piped())
@@ -143,30 +177,10 @@ impl QemuTarget {
                     anyhow::Error::new(e).context(format!("starting {QEMU}"))
                 }
             })?;
-        let deadline = Instant::now() + options.answer_timeout;
-        let stream = loop {
-            if let Ok(s) = UnixStream::connect(&socket) {
-                break s;
-            }
-            if let Ok(Some(status)) = child.try_wait() {
-                let mut err = String::new();
-                if let Some(mut e) = child.stderr.take() {
-                    let _ = e.read_to_string(&mut err);
-                }
-                bail!("{QEMU} exited at start ({status}): {}", err.trim());
-            }
-            if Instant::now() > deadline {
-                let _ = child.kill();
-                bail!(
-                    "{QEMU} did not open its serial socket within {:?}",
-                    options.answer_timeout
-                );
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        };
         let mut target = Self {
             child,
-            stream,
+            to_target,
+            from_target,
             rx: Receiver::new(),
             tx: Sender::default(),
             timeout: options.answer_timeout,
@@ -210,9 +224,9 @@ impl QemuTarget {
     /// # Errors
     /// The socket failed.
     pub fn send_raw(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
-        self.stream
+        self.to_target
             .write_all(bytes)
-            .context("writing to the firmware's USART1")
+            .context("writing to the firmware's link file")
     }
 
     /// Sends one message, without waiting.
@@ -411,24 +425,50 @@ impl QemuTarget {
             if left.is_zero() {
                 return Ok(Event::Quiet);
             }
-            self.stream.set_read_timeout(Some(left))?;
+            if !self.readable(left.min(EXIT_CHECK))? {
+                self.check_running()?;
+                continue;
+            }
             let mut buf = [0_u8; 4096];
-            match self.stream.read(&mut buf) {
+            match self.from_target.read(&mut buf) {
                 Ok(0) => bail!("the firmware closed the link (QEMU exited?)"),
                 Ok(n) => self.take_in(buf.get(..n).unwrap_or_default(), faulty)?,
                 Err(e)
                     if matches!(
                         e.kind(),
-                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::Interrupted
                     ) => {}
                 Err(e) => {
-                    return Err(anyhow::Error::new(e).context("reading the firmware's USART1"));
+                    return Err(anyhow::Error::new(e).context("reading the firmware's link pipe"));
                 }
             }
         }
     }
 
-    /// Bytes read from the socket into the inbox: as they are, or frame by
+    /// Whether the firmware's pipe has bytes (or was closed) within `wait`.
+    fn readable(&self, wait: Duration) -> anyhow::Result<bool> {
+        let timeout = Timespec::try_from(wait).context("a poll timeout")?;
+        let mut fds = [PollFd::new(&self.from_target, PollFlags::IN)];
+        match rustix::event::poll(&mut fds, Some(&timeout)) {
+            Ok(n) => Ok(n > 0),
+            Err(rustix::io::Errno::INTR) => Ok(false),
+            Err(e) => Err(anyhow::Error::new(e).context("waiting on the firmware's link pipe")),
+        }
+    }
+
+    /// An error with QEMU's own message if it has exited.
+    fn check_running(&mut self) -> anyhow::Result<()> {
+        if let Some(status) = self.child.try_wait()? {
+            let mut err = String::new();
+            if let Some(mut e) = self.child.stderr.take() {
+                let _ = e.read_to_string(&mut err);
+            }
+            bail!("{QEMU} exited ({status}): {}", err.trim());
+        }
+        Ok(())
+    }
+
+    /// Bytes read from the pipe into the inbox: as they are, or frame by
     /// frame through the faults.
     fn take_in(&mut self, bytes: &[u8], faulty: bool) -> anyhow::Result<()> {
         let Some(link) = self.faulty.as_mut() else {
@@ -544,4 +584,9 @@ impl TargetLink for QemuTarget {
     fn finish(&mut self) -> anyhow::Result<Diagnostics> {
         Ok(self.end()?.counters)
     }
+}
+
+/// The path of the link file `name` in `dir`.
+fn link_path(dir: &Path, name: &std::ffi::CStr) -> anyhow::Result<PathBuf> {
+    Ok(dir.join(name.to_str().context("a link file name")?))
 }

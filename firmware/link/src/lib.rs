@@ -2,8 +2,9 @@
 //! host simulator, defined once for both sides.
 //!
 //! # Protocol
-//! The firmware runs its board's devices as proxies over one serial port
-//! (USART1 of QEMU's `netduinoplus2`). The host is the world: it plays the
+//! The firmware runs its board's devices as proxies over one byte stream
+//! (QEMU's `netduinoplus2`: two host files through semihosting, see
+//! [`HIL_TO_TARGET_FILE`]; a serial port would do as well). The host is the world: it plays the
 //! motors, encoders and RFID reader.
 //!
 //! ```text
@@ -79,6 +80,16 @@ pub const PROTOCOL_VERSION: u16 = 9;
 /// Silence on the link, while configured, after which the firmware stops
 /// the motors, ms (five 10 ms control periods).
 pub const LINK_TIMEOUT_MS: u32 = 50;
+
+/// The QEMU board's link, host to firmware: a regular file the host
+/// appends its frames to and the firmware reads through semihosting, from
+/// QEMU's working directory (`firmware/src/board/qemu.rs`).
+pub const HIL_TO_TARGET_FILE: &core::ffi::CStr = c"wmr-link-to-target";
+
+/// The QEMU board's link, firmware to host: a named pipe the firmware
+/// writes its frames to through semihosting and the host reads, in QEMU's
+/// working directory.
+pub const HIL_TO_HOST_PIPE: &core::ffi::CStr = c"wmr-link-to-host";
 
 /// A frame at most this many sequence numbers behind the next expected one
 /// is stale (a duplicate, or overtaken by a newer frame) and dropped;

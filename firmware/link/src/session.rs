@@ -1,6 +1,6 @@
 //! The firmware's side of a HIL run: messages in, the core's robot in the
 //! middle, messages out. Board-independent (the QEMU board feeds it bytes
-//! from USART1), so it is tested on the host too.
+//! from its host link), so it is tested on the host too.
 
 use wmr_core::devices::{MotorDriver, MotorWiring, TagGrid};
 use wmr_core::pilot::Pilot;

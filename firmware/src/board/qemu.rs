@@ -3,8 +3,15 @@
 //! QEMU models the F405's USARTs, timers and the Cortex-M4 core, but no
 //! motors, encoders or RFID reader, and no RCC (clock setup is skipped: the
 //! model runs at its fixed 168 MHz). So the robot's devices are proxies
-//! (`wmr_link::proxy`) and USART1, which QEMU connects to a host chardev
-//! (`-serial unix:…`), carries the lock-step link to `firmware-sim hil`:
+//! (`wmr_link::proxy`) and two host files, read and written through
+//! semihosting ([`host_file`]), carry the lock-step link to `firmware-sim
+//! hil`: the host appends its frames to a regular file
+//! ([`HIL_TO_TARGET_FILE`]), which the firmware polls (a read at its end
+//! returns at once, so the firmware keeps its time), and the firmware
+//! writes its frames to a named pipe ([`HIL_TO_HOST_PIPE`]), which the host
+//! waits on. The frames are the link's (COBS, CRC-32), as on a serial line.
+//! (USART1 carried the link before: QEMU's USART model moves each byte
+//! with a cross-thread wake-up, about 1.5 ms a tick; see `host_file`.)
 //!
 //! - The **control tick** is the arrival of the host's `Tick` frame: in
 //!   lock-step the simulator is the clock, which makes the run
@@ -24,15 +31,20 @@
 //!   the firmware ELF), through the firmware's own logger (`crate::logger`). The run ends on the host's `Finish`: the firmware
 //!   answers with its stack high-water mark and exits through semihosting.
 
+mod host_file;
+
 use cortex_m::peripheral::SYST;
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
-use stm32f4xx_hal::pac;
+use host_file::HostFile;
+// The device crate's interrupt vectors (cortex-m-rt's `device` feature):
+// this board uses no peripheral of it.
+use stm32f4xx_hal as _;
 use wmr_link::proxy::ProxyBus;
 use wmr_link::session::Session;
 use wmr_link::{
-    HostMessage, LINK_TIMEOUT_MS, LinkError, MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver, Sender,
-    TargetMessage,
+    HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, HostMessage, LINK_TIMEOUT_MS, LinkError, MAX_FRAME_BYTES,
+    PROTOCOL_VERSION, Receiver, Sender, TargetMessage,
 };
 
 /// Core clock of the `netduinoplus2` model, Hz.
@@ -50,35 +62,50 @@ fn worth_logging(n: u32) -> bool {
     n <= LOG_FIRST || n.is_multiple_of(LOG_EVERY)
 }
 
-/// USART1 by register: QEMU's model needs no baud rate or GPIO setup.
-struct Usart1 {
-    regs: pac::USART1,
+/// Bytes read from the host per semihosting call, at most (a tick frame
+/// is about 31 B; one with a flooded RFID line takes a few reads).
+const INBOX_BYTES: usize = 64;
+
+/// The lock-step link's two host files, and the bytes read from the host
+/// and not yet given to the receiver.
+struct HostLink {
+    from_host: HostFile,
+    to_host: HostFile,
+    inbox: &'static mut [u8; INBOX_BYTES],
+    next: usize,
+    end: usize,
 }
 
-impl Usart1 {
-    fn new(regs: pac::USART1, rcc: &pac::RCC) -> Self {
-        // No effect under QEMU (no RCC model); right on silicon.
-        rcc.apb2enr().modify(|_, w| w.usart1en().set_bit());
-        regs.cr1()
-            .write(|w| w.ue().set_bit().te().set_bit().re().set_bit());
-        Self { regs }
+impl HostLink {
+    /// Opens both files (the host made them before starting QEMU); `None`
+    /// if either is missing.
+    fn open(inbox: &'static mut [u8; INBOX_BYTES]) -> Option<Self> {
+        Some(Self {
+            from_host: HostFile::open(HIL_TO_TARGET_FILE, host_file::READ_BINARY)?,
+            to_host: HostFile::open(HIL_TO_HOST_PIPE, host_file::WRITE_BINARY)?,
+            inbox,
+            next: 0,
+            end: 0,
+        })
     }
 
+    /// The next byte from the host, if it has sent one (one semihosting
+    /// read per buffer, not per byte).
     fn read_byte(&mut self) -> Option<u8> {
-        let sr = self.regs.sr().read();
-        if sr.ore().bit_is_set() {
-            defmt::warn!("USART1 overrun");
+        if self.next >= self.end {
+            self.end = self.from_host.read(self.inbox.as_mut_slice());
+            self.next = 0;
         }
-        sr.rxne()
-            .bit_is_set()
-            .then(|| self.regs.dr().read().dr().bits().to_le_bytes()[0])
+        let byte = *self.inbox.get(self.next).filter(|_| self.next < self.end)?;
+        self.next += 1;
+        Some(byte)
     }
 
+    /// Sends `bytes` to the host. A write the host does not take (its end
+    /// of the pipe closed: it stopped) loses the frame, as a cut line
+    /// would; a host still running resends or reports the silence.
     fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            while self.regs.sr().read().txe().bit_is_clear() {}
-            self.regs.dr().write(|w| w.dr().set(u16::from(b)));
-        }
+        let _ = self.to_host.write(bytes);
     }
 }
 
@@ -104,16 +131,18 @@ impl Millis {
 
 /// Encodes and sends one message (a frame that does not fit is a bug in
 /// the message sizes, caught by the link's tests; it is logged and dropped).
-fn send(serial: &mut Usart1, tx: &mut Sender, message: TargetMessage) {
+fn send(link: &mut HostLink, tx: &mut Sender, message: TargetMessage) {
     let mut out = [0_u8; MAX_FRAME_BYTES];
     match tx.frame(message, &mut out) {
-        Ok(bytes) => serial.write(bytes),
+        Ok(bytes) => link.write(bytes),
         Err(e) => defmt::error!("answer not sent: {}", e),
     }
 }
 
 /// Ends QEMU with a failure: start-up found the hardware or the statics
-/// already taken, which only a bug can cause.
+/// already taken, which only a bug can cause, or the link's files missing.
+/// (Not inlined: one copy of the exit for every start-up check, in flash.)
+#[inline(never)]
 fn fail() -> ! {
     debug::exit(EXIT_FAILURE);
     loop {
@@ -128,11 +157,17 @@ fn fail() -> ! {
 /// in `.bss`), not in this function's frame, so the stack holds only what
 /// a message's handling needs (docs/firmware.md, "Memory").
 pub fn run() -> ! {
-    let (Some(dp), Some(cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
+    let Some(cp) = cortex_m::Peripherals::take() else {
         // Only possible if something took them before `main`.
         fail()
     };
-    let mut serial = Usart1::new(dp.USART1, &dp.RCC);
+    let Some(inbox) = cortex_m::singleton!(: [u8; INBOX_BYTES] = [0; INBOX_BYTES]) else {
+        fail()
+    };
+    let Some(mut link) = HostLink::open(inbox) else {
+        defmt::error!("the link's host files are missing (start it with `firmware-sim hil`)");
+        fail()
+    };
     let mut millis = Millis::new(cp.SYST);
     let Some(bus) = cortex_m::singleton!(: ProxyBus = ProxyBus::new()) else {
         fail()
@@ -150,7 +185,7 @@ pub fn run() -> ! {
         PROTOCOL_VERSION
     );
     send(
-        &mut serial,
+        &mut link,
         &mut tx,
         TargetMessage::Hello {
             protocol: PROTOCOL_VERSION,
@@ -160,7 +195,7 @@ pub fn run() -> ! {
     let mut silent_ms: u32 = 0;
     let mut stopped_for_silence = false;
     loop {
-        if let Some(byte) = serial.read_byte() {
+        if let Some(byte) = link.read_byte() {
             match rx.push::<HostMessage>(byte) {
                 None => {}
                 // Counted by the receiver; the host gets the count.
@@ -170,7 +205,7 @@ pub fn run() -> ! {
                     if worth_logging(n) {
                         defmt::warn!("corrupt frame dropped ({} so far): {}", n, e);
                     }
-                    send(&mut serial, &mut tx, TargetMessage::Nack);
+                    send(&mut link, &mut tx, TargetMessage::Nack);
                 }
                 Some(Ok(message)) => {
                     silent_ms = 0;
@@ -195,7 +230,7 @@ pub fn run() -> ! {
                         }
                         _ => {}
                     }
-                    send(&mut serial, &mut tx, answer);
+                    send(&mut link, &mut tx, answer);
                     if done {
                         defmt::info!("finished; peak stack {} B", crate::stack::peak_bytes());
                         debug::exit(EXIT_SUCCESS);
@@ -211,7 +246,7 @@ pub fn run() -> ! {
                 if worth_logging(rx.counters().timeouts) {
                     defmt::warn!("link silent for {} ms: motors stopped", silent_ms);
                 }
-                send(&mut serial, &mut tx, report);
+                send(&mut link, &mut tx, report);
             }
         }
     }
