@@ -529,6 +529,13 @@ impl QemuTarget {
                 {
                     self.count(|r| r.stale_answers += 1);
                 }
+                // The firmware's answer to a corrupt frame sent before
+                // `Finish` (a duplicate, or the frame held back and
+                // released above): `Finish` itself goes out clean, so
+                // this is no reason to resend it.
+                Event::Message(TargetMessage::Nack) if self.faulty.is_some() => {
+                    self.count(|r| r.nacks += 1);
+                }
                 Event::Message(TargetMessage::LinkSilent { motors, silent_ms }) => {
                     self.silence_reported(motors, silent_ms)?;
                 }
