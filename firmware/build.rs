@@ -1,11 +1,24 @@
 //! Links the firmware for the STM32F4 memory map of its `memory.x`
-//! (on `thumb*` targets only; host builds of the stub need nothing).
+//! (on `thumb*` targets only; host builds of the stub need nothing), and
+//! includes a robot image when `WMR_ROBOT_IMAGE` names one.
 
 use std::{env, fs, path::PathBuf};
 
 fn main() {
     println!("cargo:rerun-if-changed=memory.x");
     println!("cargo:rerun-if-changed=build.rs");
+    // `cargo xtask firmware --robot FILE`: the robot image (`firmware-sim
+    // robot-image`) replaces the Black Pill's compiled-in configuration.
+    println!("cargo::rustc-check-cfg=cfg(wmr_robot_image)");
+    println!("cargo:rerun-if-env-changed=WMR_ROBOT_IMAGE");
+    if let Some(image) = env::var_os("WMR_ROBOT_IMAGE") {
+        let image = PathBuf::from(image);
+        println!("cargo:rerun-if-changed={}", image.display());
+        let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
+        fs::copy(&image, out.join("robot.bin"))
+            .unwrap_or_else(|e| panic!("WMR_ROBOT_IMAGE {}: {e}", image.display()));
+        println!("cargo:rustc-cfg=wmr_robot_image");
+    }
     let target = env::var("TARGET").unwrap_or_default();
     if !target.starts_with("thumb") {
         return;

@@ -176,14 +176,30 @@ enum Command {
         /// Embedded scenario name (see `scenarios`).
         name: String,
     },
-    /// List every key of a scenario file: when it applies, its type or
-    /// allowed values, default, unit and meaning (generated from the types
-    /// that parse the file, so it cannot drift). `--json` prints the JSON
-    /// Schema instead, for editors that check TOML against one.
+    /// List every key of a scenario file, then of a robot file: when it
+    /// applies, its type or allowed values, default, unit and meaning
+    /// (generated from the types that parse the files, so it cannot
+    /// drift). `--json` prints the scenario's JSON Schema instead, for
+    /// editors that check TOML against one (`--json --robot`: the robot
+    /// file's).
     Schema {
         /// The JSON Schema (draft 2020-12) instead of the table.
         #[arg(long)]
         json: bool,
+        /// With `--json`: the robot file's schema.
+        #[arg(long)]
+        robot: bool,
+    },
+    /// Validate a robot file as every simulation of it is validated (the
+    /// core's constructors included) and write its flash image, what
+    /// `cargo xtask firmware --robot FILE` builds into the Black Pill
+    /// firmware.
+    RobotImage {
+        /// The robot file (TOML).
+        robot: PathBuf,
+        /// Where to write the image.
+        #[arg(long)]
+        out: PathBuf,
     },
 }
 
@@ -262,16 +278,48 @@ fn real_main() -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Schema { json } => {
+        Command::Schema { json, robot } => {
             use firmware_sim::scenario::keys;
             if json {
-                outln!(
-                    "{}",
-                    serde_json::to_string_pretty(&keys::scenario_schema())?
-                );
+                let schema = if robot {
+                    keys::robot_schema()
+                } else {
+                    keys::scenario_schema()
+                };
+                outln!("{}", serde_json::to_string_pretty(&schema)?);
             } else {
                 out!("{}", keys::markdown(&keys::scenario_keys()));
+                outln!(
+                    "\nRobot file (`robot = \"FILE\"` in a scenario, or its `[robot]` table; \
+                     `cargo xtask firmware --robot FILE`):\n"
+                );
+                out!("{}", keys::markdown(&keys::robot_keys()));
             }
+            Ok(())
+        }
+        Command::RobotImage { robot, out } => {
+            use firmware_sim::scenario::robot::{FlashFloor, Robot};
+            let image = Robot::from_file(&robot)?.flash_image()?;
+            std::fs::write(&out, &image.bytes)
+                .map_err(|e| anyhow::anyhow!("writing {}: {e}", out.display()))?;
+            let floor = match &image.floor {
+                FlashFloor::Grid(g) => format!(
+                    "tag grid {} × {} at {} m from ({}, {}) m",
+                    g.columns, g.rows, g.spacing_m, g.origin_m[0], g.origin_m[1]
+                ),
+                FlashFloor::Map(tags) => format!("tag map of {} tags", tags.len()),
+            };
+            outln!(
+                "{}: {} B image ({floor}) -> {}",
+                robot.display(),
+                image.bytes.len(),
+                out.display()
+            );
+            // Read by `cargo xtask firmware --robot`.
+            outln!(
+                "firmware features: {}",
+                firmware_sim::hil::firmware_features(&image.pilot).join(",")
+            );
             Ok(())
         }
         Command::Show { name } => {

@@ -90,6 +90,7 @@ fn main() {
             feedforward_duty_per_rad_s: 0.05,
             kp_duty_per_rad_s: 0.05,
             ki_duty_per_rad: 0.5,
+            speed_observer: None,
         },
         encoder_bits: 16,
         max_encoder_fault_ticks: 5,

@@ -166,6 +166,7 @@ fn any_pilot_spec(u: &mut Unstructured) -> Result<PilotSpec> {
         feedforward_duty_per_rad_s: float(u, 0.05)?,
         kp_duty_per_rad_s: float(u, 0.05)?,
         ki_duty_per_rad: float(u, 0.5)?,
+        speed_observer: None,
     };
     // The sensors' track width must equal the drive's (bit for bit): keep
     // it so most of the time.

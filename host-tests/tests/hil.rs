@@ -48,6 +48,28 @@ fn fusion_firmware() -> PathBuf {
     .clone()
 }
 
+/// The QEMU-board firmware with paper 003's wheel-speed observer (feature
+/// `wheel-speed-observer`): `WMR_SPEED_OBSERVER_FIRMWARE_ELF` if set, else
+/// built here into `target/hil-firmware-speed-observer`.
+fn speed_observer_firmware() -> PathBuf {
+    static ELF: OnceLock<PathBuf> = OnceLock::new();
+    ELF.get_or_init(
+        || match std::env::var_os("WMR_SPEED_OBSERVER_FIRMWARE_ELF") {
+            Some(path) => workspace_root().join(path),
+            None => build_firmware_with(
+                Some(
+                    &workspace_root()
+                        .join("target")
+                        .join("hil-firmware-speed-observer"),
+                ),
+                &["wheel-speed-observer"],
+            )
+            .expect("build the QEMU-board firmware with wheel-speed-observer"),
+        },
+    )
+    .clone()
+}
+
 fn options() -> HilOptions {
     HilOptions {
         firmware: Some(firmware()),
@@ -87,6 +109,42 @@ fn fusion_ukf_in_the_firmware_runs_exactly_as_on_the_host() {
     let mut plain = QemuTarget::start(&firmware(), &options()).unwrap();
     let configure =
         firmware_sim::simulation::hil_configuration(&scenario.validate().unwrap()).unwrap();
+    assert_eq!(
+        plain.exchange(&HostMessage::Configure(configure)).unwrap(),
+        TargetMessage::Refused(Refusal::Spec(SpecError::NotInThisBuild))
+    );
+}
+
+/// Paper 003's wheel-speed observer on the speed loops, configured over
+/// the link (protocol 10 carries it in the drive's spec): 30 s of the
+/// full-stack figure-eight give the host run's records, bit for bit. The
+/// default firmware, built without the feature, refuses it.
+#[test]
+fn the_wheel_speed_observer_in_the_firmware_runs_exactly_as_on_the_host() {
+    let mut scenario = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    scenario.duration_s = 30.0;
+    scenario.transient_s = 0.0;
+    let mut drive = scenario.drive.unwrap_or_default();
+    drive.speed_observer = Some(firmware_sim::scenario::SpeedObserverSpec {
+        mass_kg: 4.0,
+        yaw_inertia_kg_m2: 0.08,
+        wheel_inertia_kg_m2: 0.0,
+        stall_torque_nm: 0.6,
+        lambda_per_s: 5.0,
+        friction_gain: 0.01,
+        disturbance_gain: 0.1,
+    });
+    scenario.drive = Some(drive);
+    let observer_options = HilOptions {
+        firmware: Some(speed_observer_firmware()),
+        ..options()
+    };
+    runs_exactly_as_on_the_host("wheel-speed observer", &scenario, &observer_options);
+
+    let mut plain = QemuTarget::start(&firmware(), &options()).unwrap();
+    let configure =
+        firmware_sim::simulation::hil_configuration(&scenario.validate().unwrap()).unwrap();
+    assert!(configure.pilot.drive.speed_observer.is_some());
     assert_eq!(
         plain.exchange(&HostMessage::Configure(configure)).unwrap(),
         TargetMessage::Refused(Refusal::Spec(SpecError::NotInThisBuild))

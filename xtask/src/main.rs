@@ -21,7 +21,10 @@
 //!   board, for a covering set of the feature combinations a user can
 //!   pick (the table and why these rows: `xtask/src/features.rs`).
 //! * `firmware` — release ELFs of both boards, copied to
-//!   `target/firmware/wmr-firmware-<board>.elf`.
+//!   `target/firmware/wmr-firmware-<board>.elf`. `firmware --robot FILE`:
+//!   the Black Pill firmware with that robot file's configuration in flash
+//!   (`xtask/src/robot.rs`); `flash --robot FILE` also flashes it with
+//!   probe-rs.
 //! * `panic-free` — the link-time proof that the release firmware cannot
 //!   panic: each board, in its default configuration and with each
 //!   estimator feature, built with a panic handler that cannot link while
@@ -52,6 +55,7 @@ mod features;
 mod fuzz;
 mod opt_levels;
 mod panic_free;
+mod robot;
 mod size;
 mod target;
 
@@ -62,7 +66,7 @@ use std::time::Instant;
 const TARGETS: [&str; 2] = ["thumbv7em-none-eabihf", "thumbv6m-none-eabi"];
 
 /// The command line's synopsis.
-const USAGE: &str = "usage: cargo xtask <ci|features|firmware|panic-free|bench|bench-target [--write]|size|opt-levels|fuzz [--seconds N]>";
+const USAGE: &str = "usage: cargo xtask <ci|features|firmware [--robot FILE]|flash --robot FILE|panic-free|bench|bench-target [--write]|size|opt-levels|fuzz [--seconds N]>";
 
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
@@ -70,8 +74,14 @@ fn main() -> ExitCode {
     let options: Vec<String> = args.collect();
     let mut write = false;
     let mut fuzz_seconds = fuzz::CI_SECONDS;
+    let mut robot = None;
     match (task.as_str(), options.as_slice()) {
         ("bench-target", [flag]) if flag == "--write" => write = true,
+        ("firmware" | "flash", [flag, file]) if flag == "--robot" => robot = Some(file.clone()),
+        ("flash", _) => {
+            eprintln!("{USAGE}");
+            return ExitCode::from(2);
+        }
         ("fuzz", [flag, n]) if flag == "--seconds" => match n.parse() {
             Ok(n) if n > 0 => fuzz_seconds = n,
             _ => {
@@ -88,11 +98,19 @@ fn main() -> ExitCode {
     let result = match task.as_str() {
         "ci" => ci(),
         "features" => features::clippy_matrix(),
-        "firmware" => build_firmware().map(|elfs| {
-            for (board, elf) in elfs {
-                println!("{board:<10} {}", elf.display());
-            }
-        }),
+        "firmware" => match &robot {
+            Some(file) => robot::build_robot_firmware(file).map(|elf| {
+                println!("blackpill  {}", elf.display());
+            }),
+            None => build_firmware().map(|elfs| {
+                for (board, elf) in elfs {
+                    println!("{board:<10} {}", elf.display());
+                }
+            }),
+        },
+        "flash" => robot
+            .as_deref()
+            .map_or_else(|| Err(USAGE.to_owned()), robot::flash),
         "panic-free" => panic_free::panic_free(),
         "bench" => cargo(&["bench", "-p", "host-tests", "--bench", "tick"], &[]),
         "bench-target" => bench_target::bench_target(write),

@@ -19,6 +19,7 @@ use crate::control::cascaded::{CascadedGains, CascadedGainsError};
 use crate::control::heading_error_sine::{HeadingErrorSineConfig, HeadingErrorSineConfigError};
 use crate::control::saturated::{GainError, TrackingGains};
 use crate::devices::{TagGrid, TagGridError};
+use crate::drive::momenta_observer::MomentaObserverError;
 use crate::drive::{DriveConfig, DriveConfigError, SpeedLoopGains};
 use crate::estimation::EstimatorChoice;
 use crate::estimation::fusion::PoseFilterError;
@@ -58,7 +59,8 @@ pub enum SpecError {
     Fusion(PoseFilterError),
     /// A part this build of the core was compiled without (the fusion
     /// estimator needs the cargo feature `fusion-ekf`, its UKF
-    /// `fusion-ukf`, its particle filter `fusion-particle-filter`).
+    /// `fusion-ukf`, its particle filter `fusion-particle-filter`; the
+    /// wheel-speed observer `wheel-speed-observer`).
     NotInThisBuild,
     /// Paper 002's cascaded controller (31).
     CascadedLaw(CascadedGainsError),
@@ -66,6 +68,9 @@ pub enum SpecError {
     HeadingErrorSineLaw(HeadingErrorSineConfigError),
     /// The sensors' track width differs from the drive's.
     SensorTrackWidth,
+    /// Paper 003's wheel-speed observer of the speed loops
+    /// ([`SpeedObserverSpec`]).
+    SpeedObserver(MomentaObserverError),
 }
 
 impl SpecError {
@@ -89,6 +94,7 @@ impl SpecError {
             Self::CascadedLaw(_) => "tracker.law.cascaded",
             Self::HeadingErrorSineLaw(_) => "tracker.law.heading_error_sine",
             Self::Geometry(_) | Self::Drive(_) => "drive",
+            Self::SpeedObserver(_) => "drive.speed_observer",
             Self::Pilot(_) => "",
             Self::TagGrid(_) => "tag_grid",
             Self::NotInThisBuild => "",
@@ -110,6 +116,7 @@ impl SpecError {
             Self::Fusion(e) => e,
             Self::CascadedLaw(e) => e,
             Self::HeadingErrorSineLaw(e) => e,
+            Self::SpeedObserver(e) => e,
             Self::NotInThisBuild | Self::SensorTrackWidth => return None,
         })
     }
@@ -130,7 +137,7 @@ impl core::fmt::Display for SpecError {
             None => f.write_str(
                 "this build of the core lacks the selected part (the fusion estimator needs \
                  the cargo feature fusion-ekf, its UKF fusion-ukf, its particle filter \
-                 fusion-particle-filter)",
+                 fusion-particle-filter; drive.speed_observer needs wheel-speed-observer)",
             ),
         }
     }
@@ -607,6 +614,72 @@ pub struct DriveSpec {
     pub kp_duty_per_rad_s: f32,
     /// Integral gain, duty per rad.
     pub ki_duty_per_rad: f32,
+    /// Run the speed loops on paper 003's wheel-speed observer instead of
+    /// the counts differenced over a tick (`None`: differenced counts;
+    /// `Some` needs the cargo feature `wheel-speed-observer`, else
+    /// [`SpecError::NotInThisBuild`]).
+    pub speed_observer: Option<SpeedObserverSpec>,
+}
+
+/// Paper 003's wheel-speed observer on the robot's wheels (Romero &
+/// Ortega, *Two globally convergent adaptive speed observers for mechanical
+/// systems*, Proposition 1 applied in section 6.1;
+/// [`crate::drive::speed_observer`]): the robot as the observer models it.
+/// The wheel radius and track are the drive's ([`DriveSpec`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct SpeedObserverSpec {
+    /// Robot mass, kg.
+    pub mass_kg: f32,
+    /// Yaw inertia about the axle midpoint, kg m².
+    pub yaw_inertia_kg_m2: f32,
+    /// Each wheel's drive-train inertia at the wheel, kg m² (may be 0).
+    pub wheel_inertia_kg_m2: f32,
+    /// Motor torque at the wheel at full duty and standstill, N·m.
+    pub stall_torque_nm: f32,
+    /// The motors' no-load wheel speed at full duty, rad/s.
+    pub no_load_speed_rad_s: f32,
+    /// `λ`, 1/s.
+    pub lambda_per_s: f32,
+    /// Damping adaptation gain `γ_r`.
+    pub friction_gain: f32,
+    /// Load adaptation gain `γ_d`.
+    pub disturbance_gain: f32,
+}
+
+impl SpeedObserverSpec {
+    /// The validated observer configuration for the drive `drive` and the
+    /// control period `period_s`.
+    ///
+    /// # Errors
+    /// [`SpecError::SpeedObserver`].
+    #[cfg(feature = "wheel-speed-observer")]
+    pub fn build(
+        &self,
+        drive: &DriveSpec,
+        period_s: f32,
+    ) -> Result<crate::drive::speed_observer::WheelSpeedObserverConfig, SpecError> {
+        use crate::drive::momenta_observer::WheelInertia;
+        use crate::drive::speed_observer::WheelSpeedObserverConfig;
+        WheelInertia::new(
+            self.mass_kg,
+            self.yaw_inertia_kg_m2,
+            drive.wheel_radius_m,
+            drive.track_width_m,
+            self.wheel_inertia_kg_m2,
+        )
+        .and_then(|inertia| {
+            WheelSpeedObserverConfig::new(
+                inertia,
+                self.stall_torque_nm,
+                self.no_load_speed_rad_s,
+                period_s,
+            )
+        })
+        .and_then(|c| c.with_gains(self.lambda_per_s, self.friction_gain, self.disturbance_gain))
+        .map_err(SpecError::SpeedObserver)
+    }
 }
 
 impl DriveSpec {
@@ -633,6 +706,33 @@ impl DriveSpec {
             },
         )
         .map_err(SpecError::Drive)
+        .and_then(|drive| self.with_speed_observer(drive, period_s))
+    }
+
+    #[cfg(feature = "wheel-speed-observer")]
+    fn with_speed_observer(
+        &self,
+        drive: DriveConfig,
+        period_s: f32,
+    ) -> Result<DriveConfig, SpecError> {
+        match &self.speed_observer {
+            None => Ok(drive),
+            Some(o) => drive
+                .with_speed_observer(o.build(self, period_s)?)
+                .map_err(SpecError::Drive),
+        }
+    }
+
+    #[cfg(not(feature = "wheel-speed-observer"))]
+    fn with_speed_observer(
+        &self,
+        drive: DriveConfig,
+        _period_s: f32,
+    ) -> Result<DriveConfig, SpecError> {
+        match self.speed_observer {
+            None => Ok(drive),
+            Some(_) => Err(SpecError::NotInThisBuild),
+        }
     }
 }
 
@@ -746,6 +846,7 @@ mod tests {
                 feedforward_duty_per_rad_s: 0.05,
                 kp_duty_per_rad_s: 0.05,
                 ki_duty_per_rad: 0.5,
+                speed_observer: None,
             },
             encoder_bits: 16,
             max_encoder_fault_ticks: 5,

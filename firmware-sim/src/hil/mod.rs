@@ -25,6 +25,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail, ensure};
+use wmr_core::pilot::spec::PilotSpec;
 use wmr_link::{HostMessage, TargetMessage};
 
 use crate::report::{HilReport, RunResult};
@@ -52,7 +53,31 @@ pub struct HilRun {
     pub firmware: PathBuf,
 }
 
-/// Runs `scenario` with its control tick in the firmware under QEMU.
+/// The firmware's cargo features `pilot` needs beyond what both boards
+/// carry (the fusion EKF): the wheel-speed observer, the fusion
+/// estimator's UKF or particle filter.
+#[must_use]
+pub fn firmware_features(pilot: &PilotSpec) -> Vec<&'static str> {
+    use wmr_core::pilot::spec::{EstimatorSpec, FusionFilterSpec};
+    let mut features = Vec::new();
+    if pilot.drive.speed_observer.is_some() {
+        features.push("wheel-speed-observer");
+    }
+    match pilot.tracker.estimator {
+        EstimatorSpec::Fusion(f) if f.filter == FusionFilterSpec::Ukf => {
+            features.push("fusion-ukf")
+        }
+        EstimatorSpec::Fusion(f) if f.filter == FusionFilterSpec::ParticleFilter => {
+            features.push("fusion-particle-filter");
+        }
+        _ => {}
+    }
+    features
+}
+
+/// Runs `scenario` with its control tick in the firmware under QEMU (built
+/// with the [`firmware_features`] it needs, unless `options.firmware`
+/// names an ELF).
 ///
 /// # Errors
 /// QEMU missing or failing, the firmware refusing the configuration, not
@@ -66,7 +91,7 @@ pub fn run_hil(
     let configure = hil_configuration(&setup)?;
     let firmware = match &options.firmware {
         Some(path) => path.clone(),
-        None => build_firmware(None)?,
+        None => build_firmware_with(None, &firmware_features(&configure.pilot))?,
     };
     ensure!(
         firmware.is_file(),

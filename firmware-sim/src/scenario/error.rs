@@ -25,6 +25,16 @@ pub enum ScenarioError {
         /// What is wrong with it.
         reason: String,
     },
+    /// A value of a robot file (or its tag map) out of range.
+    #[error("robot file {path}: field `{field}`: {reason}")]
+    Robot {
+        /// The file (or `[robot]` for a robot embedded in a scenario).
+        path: String,
+        /// Dotted path of the robot file's key (or a tag map's line).
+        field: String,
+        /// What is wrong with it.
+        reason: String,
+    },
 }
 
 impl ScenarioError {
@@ -35,11 +45,12 @@ impl ScenarioError {
         }
     }
 
-    /// The offending field's dotted path, for [`Self::Invalid`].
+    /// The offending field's dotted path, for [`Self::Invalid`] and
+    /// [`Self::Robot`].
     #[must_use]
     pub fn field(&self) -> Option<&str> {
         match self {
-            Self::Invalid { field, .. } => Some(field),
+            Self::Invalid { field, .. } | Self::Robot { field, .. } => Some(field),
             _ => None,
         }
     }

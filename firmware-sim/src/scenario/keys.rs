@@ -34,10 +34,26 @@ pub fn scenario_schema() -> Value {
     serde_json::to_value(schemars::schema_for!(Scenario)).unwrap_or(Value::Null)
 }
 
+/// The JSON Schema of a robot file (draft 2020-12).
+#[must_use]
+pub fn robot_schema() -> Value {
+    serde_json::to_value(schemars::schema_for!(super::robot::RobotFile)).unwrap_or(Value::Null)
+}
+
 /// Every key of a scenario file, in the order of the file's tables.
 #[must_use]
 pub fn scenario_keys() -> Vec<KeyDoc> {
-    let schema = scenario_schema();
+    keys_of(&scenario_schema())
+}
+
+/// Every key of a robot file (`robot = "FILE"`, or a scenario's `[robot]`
+/// table), in the order of the file's tables.
+#[must_use]
+pub fn robot_keys() -> Vec<KeyDoc> {
+    keys_of(&robot_schema())
+}
+
+fn keys_of(schema: &Value) -> Vec<KeyDoc> {
     let defs = schema
         .get("$defs")
         .and_then(Value::as_object)
@@ -48,7 +64,7 @@ pub fn scenario_keys() -> Vec<KeyDoc> {
         defs: &defs,
         keys: &mut keys,
     }
-    .table("", &schema, None);
+    .table("", schema, None);
     keys
 }
 
@@ -436,6 +452,44 @@ mod tests {
                 assert!(listed.contains(&key.as_str()), "{name}: `{key}` not listed");
             }
         }
+    }
+
+    /// Every key of every shipped robot file is in the robot list.
+    #[test]
+    fn every_key_of_the_shipped_robots_is_listed() {
+        let keys = robot_keys();
+        let listed: Vec<&str> = keys.iter().map(|k| k.key.as_str()).collect();
+        for key in [
+            "plant.wheel_radius_m",
+            "drive.speed_observer.mass_kg",
+            "reader.antenna_offset_m",
+            "floor.file",
+            "floor.spacing_m",
+            "estimator.fusion.filter",
+        ] {
+            assert!(listed.contains(&key), "`{key}` not listed");
+        }
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots");
+        let mut robots = 0;
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            let text = std::fs::read_to_string(&path).unwrap();
+            if path.extension().is_none_or(|e| e != "toml") || text.contains("\nrobot = ") {
+                continue; // tag maps and scenarios
+            }
+            robots += 1;
+            let table: toml::Table = text.parse().unwrap();
+            let mut used = Vec::new();
+            flat("", &table, &mut used);
+            for key in used {
+                assert!(
+                    listed.contains(&key.as_str()),
+                    "{}: `{key}` not listed",
+                    path.display()
+                );
+            }
+        }
+        assert!(robots >= 2, "{robots} robot files in {}", dir.display());
     }
 
     #[test]

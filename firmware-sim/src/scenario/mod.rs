@@ -28,6 +28,8 @@
 //!   estimator and the law are the core's own spec types
 //!   ([`EstimatorSpec`], [`LawSpec`]), so the list of both is written once,
 //!   in the core;
+//! * `robot`: the robot file ([`robot::RobotFile`]) and how a scenario
+//!   takes its tables ([`Scenario::resolve_robot`]);
 //! * `validate`: [`Scenario::validate`] and what it builds ([`Setup`],
 //!   [`PlantSetup`], [`PositionSetup`]);
 //! * this file: parsing, files and the embedded scenarios ([`EMBEDDED`]).
@@ -38,6 +40,7 @@ mod defaults;
 mod error;
 pub mod keys;
 mod legacy;
+pub mod robot;
 mod schema;
 mod sweep_spec;
 mod validate;
@@ -127,18 +130,36 @@ impl Scenario {
     /// [`ScenarioError::Parse`] for bad TOML or schema (unknown or missing
     /// keys, wrong types), [`ScenarioError::Invalid`] for bad values.
     pub fn from_toml_str(text: &str) -> Result<Self, ScenarioError> {
-        let scenario: Self =
+        Self::from_toml_str_in(text, None)
+    }
+
+    /// [`Self::from_toml_str`] for a scenario whose robot file (`robot =
+    /// "FILE"`) is relative to `dir` (`None`: none is read, as
+    /// [`Self::from_toml_str`] does, which refuses `robot = "FILE"`). The
+    /// returned scenario holds the robot's tables in its own
+    /// ([`Self::resolve_robot`]), so it is self-contained.
+    ///
+    /// # Errors
+    /// As [`Self::from_toml_str`]; a refused robot key is a
+    /// [`ScenarioError::Robot`] naming the robot file.
+    pub fn from_toml_str_in(text: &str, dir: Option<&Path>) -> Result<Self, ScenarioError> {
+        let mut scenario: Self =
             toml::from_str(text).map_err(|e| ScenarioError::Parse(e.to_string()))?;
-        scenario.validate()?;
+        let robot = scenario.resolve_robot(dir)?;
+        scenario.validate().map_err(|e| match &robot {
+            Some(robot) => robot.name_in(e),
+            None => e,
+        })?;
         Ok(scenario)
     }
 
-    /// Reads, parses and validates a scenario file.
+    /// Reads, parses and validates a scenario file (its robot file
+    /// relative to it).
     ///
     /// # Errors
     /// As [`Self::from_toml_str`], plus [`ScenarioError::Io`].
     pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
-        read_file(path, Self::from_toml_str)
+        read_file(path, |text| Self::from_toml_str_in(text, path.parent()))
     }
 
     /// An embedded scenario by name (see [`EMBEDDED`]).

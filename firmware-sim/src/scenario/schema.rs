@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use wmr_core::pilot::spec::{EstimatorSpec, LawSpec};
 
 use super::defaults;
+use super::robot::RobotSource;
 use super::sweep_spec::SweepSpec;
 
 /// A simulation scenario (the TOML file's top level).
@@ -61,6 +62,14 @@ pub struct Scenario {
     /// What `firmware-sim sweep` varies (ignored by `run`, but validated).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sweep: Option<SweepSpec>,
+    /// The robot: a robot file (`robot = "robots/example.toml"`, relative
+    /// to the scenario file) or its tables embedded (`[robot]`; keys: the
+    /// robot file's, `firmware-sim schema`). Its tables (`period_s`,
+    /// `plant`, `drive`, `controller`, `observer`, `estimator`,
+    /// `failsafe`, and `position` from its reader and floor) replace the
+    /// scenario's, which must then be left out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<RobotSource>,
 }
 
 /// The reference trajectory.

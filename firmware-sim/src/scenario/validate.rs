@@ -4,8 +4,6 @@
 
 use wmr_core::control::saturated::{GainError, TrackingGains};
 use wmr_core::drive::DriveConfigError;
-use wmr_core::drive::momenta_observer::WheelInertia;
-use wmr_core::drive::speed_observer::WheelSpeedObserverConfig;
 use wmr_core::estimation::heading_observer::HeadingEstimate;
 use wmr_core::estimation::heading_observer::ObserverConfigError;
 use wmr_core::pilot::PilotConfig;
@@ -102,46 +100,26 @@ pub struct Setup {
     pub sweep: Option<SweepPlan>,
 }
 
-/// `config` with its speed loops on the wheel-speed observer `o`.
-fn with_speed_observer(
-    config: &PilotConfig,
+/// The core's spec of the wheel-speed observer `o` (its keys checked one
+/// by one, to name the key; the core checks the whole when it builds it).
+fn speed_observer_spec(
     o: &SpeedObserverSpec,
     params: &DiffDriveParams,
-    encoder_bits: u32,
-) -> Result<PilotConfig, ScenarioError> {
+) -> Result<core_spec::SpeedObserverSpec, ScenarioError> {
     let field = |key: &str| format!("drive.speed_observer.{key}");
-    let inertia = WheelInertia::new(
-        f(positive(&field("mass_kg"), o.mass_kg)?),
-        f(positive(&field("yaw_inertia_kg_m2"), o.yaw_inertia_kg_m2)?),
-        f(params.wheel_radius_m),
-        f(params.track_width_m),
-        f(non_negative(
+    Ok(core_spec::SpeedObserverSpec {
+        mass_kg: f(positive(&field("mass_kg"), o.mass_kg)?),
+        yaw_inertia_kg_m2: f(positive(&field("yaw_inertia_kg_m2"), o.yaw_inertia_kg_m2)?),
+        wheel_inertia_kg_m2: f(non_negative(
             &field("wheel_inertia_kg_m2"),
             o.wheel_inertia_kg_m2,
         )?),
-    )
-    .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e}")))?;
-    let stall = f(positive(&field("stall_torque_nm"), o.stall_torque_nm)?);
-    let gains = (
-        f(positive(&field("lambda_per_s"), o.lambda_per_s)?),
-        f(positive(&field("friction_gain"), o.friction_gain)?),
-        f(positive(&field("disturbance_gain"), o.disturbance_gain)?),
-    );
-    let observer = WheelSpeedObserverConfig::new(
-        inertia,
-        stall,
-        f(params.wheel_speed_at_full_duty_rad_s),
-        config.drive().period_s(),
-    )
-    .and_then(|c| c.with_gains(gains.0, gains.1, gains.2))
-    .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e}")))?;
-    let drive = config
-        .drive()
-        .with_speed_observer(observer)
-        .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e}")))?;
-    PilotConfig::new(*config.tracker(), drive, encoder_bits)
-        .map(|c| c.with_max_encoder_fault_ticks(PilotConfig::DEFAULT_MAX_ENCODER_FAULT_TICKS))
-        .map_err(|e| ScenarioError::invalid("drive.speed_observer", format!("{e}")))
+        stall_torque_nm: f(positive(&field("stall_torque_nm"), o.stall_torque_nm)?),
+        no_load_speed_rad_s: f(params.wheel_speed_at_full_duty_rad_s),
+        lambda_per_s: f(positive(&field("lambda_per_s"), o.lambda_per_s)?),
+        friction_gain: f(positive(&field("friction_gain"), o.friction_gain)?),
+        disturbance_gain: f(positive(&field("disturbance_gain"), o.disturbance_gain)?),
+    })
 }
 
 /// A refusal of the core's spec builder, named by the scenario key it came
@@ -156,6 +134,7 @@ fn spec_refusal(e: SpecError) -> ScenarioError {
         // The sensor facts come from the plant and the floor.
         "tracker.sensors" => "position",
         "drive" => "drive",
+        "drive.speed_observer" => "drive.speed_observer",
         "tag_grid" => "position",
         _ => match e {
             SpecError::Gains(GainError::K1) => "controller.k1",
@@ -575,14 +554,15 @@ impl Scenario {
                         feedforward_duty_per_rad_s: f(feedforward),
                         kp_duty_per_rad_s: f(d.kp_duty_per_rad_s),
                         ki_duty_per_rad: f(d.ki_duty_per_rad),
+                        speed_observer: d
+                            .speed_observer
+                            .map(|o| speed_observer_spec(&o, &params))
+                            .transpose()?,
                     },
                     encoder_bits,
                     max_encoder_fault_ticks: PilotConfig::DEFAULT_MAX_ENCODER_FAULT_TICKS,
                 };
-                let mut pilot = pilot_spec.build().map_err(spec_refusal)?;
-                if let Some(o) = d.speed_observer {
-                    pilot = with_speed_observer(&pilot, &o, &params, encoder_bits)?;
-                }
+                let pilot = pilot_spec.build().map_err(spec_refusal)?;
                 Ok(PlantSetup::DiffDrive {
                     params,
                     encoder_counts_per_rev,

@@ -34,7 +34,6 @@ pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
         PlantSetup::DiffDrive {
             pwm_max_duty,
             pilot_spec,
-            pilot,
             ..
         },
         PositionSetup::Reader(floor, _),
@@ -45,12 +44,6 @@ pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
              (the firmware senses through encoders and the RFID reader's UART only)"
         );
     };
-    if pilot.drive().speed_observer().is_some() {
-        anyhow::bail!(
-            "[drive.speed_observer] is not sent over the link (protocol {}): run it on the host",
-            wmr_link::PROTOCOL_VERSION
-        );
-    }
     Ok(Configure {
         protocol: wmr_link::PROTOCOL_VERSION,
         pilot: pilot_spec,
@@ -66,10 +59,12 @@ mod tests {
     use crate::scenario::{Scenario, SpeedObserverSpec};
 
     #[test]
-    fn a_speed_observer_is_refused_for_hil() {
-        // The link does not carry it: a HIL run is refused, not run without it.
+    fn the_link_carries_the_speed_observer() {
+        // Protocol 10 sends it in the drive's spec: the firmware builds the
+        // same observer from the same numbers.
         let mut full = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
-        assert!(hil_configuration(&full.validate().unwrap()).is_ok());
+        let plain = hil_configuration(&full.validate().unwrap()).unwrap();
+        assert_eq!(plain.pilot.drive.speed_observer, None);
         let mut drive = full.drive.unwrap_or_default();
         drive.speed_observer = Some(SpeedObserverSpec {
             mass_kg: 4.0,
@@ -81,7 +76,14 @@ mod tests {
             disturbance_gain: 0.1,
         });
         full.drive = Some(drive);
-        let e = hil_configuration(&full.validate().unwrap()).unwrap_err();
-        assert!(e.to_string().contains("speed_observer"), "{e}");
+        let setup = full.validate().unwrap();
+        let configure = hil_configuration(&setup).unwrap();
+        let sent = configure.pilot.drive.speed_observer.unwrap();
+        assert_eq!(sent.mass_kg, 4.0);
+        assert_eq!(sent.no_load_speed_rad_s, 20.0);
+        let PlantSetup::DiffDrive { pilot, .. } = setup.plant else {
+            panic!("diff drive")
+        };
+        assert_eq!(configure.pilot.build().unwrap(), pilot);
     }
 }

@@ -60,6 +60,7 @@
     )
 )]
 
+pub mod image;
 pub mod proxy;
 pub mod session;
 
@@ -74,8 +75,9 @@ use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 /// the estimator's sensor facts left `EstimatorSpec::Fusion` for
 /// `TrackerSpec::sensors`; 7: `RfidCounters::backlogged_polls` in the
 /// diagnostics; 8: `Nack`, `LinkSilent`, stale frames and repeated ticks;
-/// 9: `SensorSpec::antenna_offset_m`).
-pub const PROTOCOL_VERSION: u16 = 9;
+/// 9: `SensorSpec::antenna_offset_m`; 10: `DriveSpec::speed_observer`,
+/// the wheel-speed observer).
+pub const PROTOCOL_VERSION: u16 = 10;
 
 /// Silence on the link, while configured, after which the firmware stops
 /// the motors, ms (five 10 ms control periods).
@@ -616,7 +618,7 @@ mod tests {
     use proptest::prelude::*;
     use wmr_core::pilot::spec::{DriveSpec, TrackerSpec, TrajectorySpec};
 
-    fn configure() -> HostMessage {
+    pub(crate) fn configure() -> HostMessage {
         HostMessage::Configure(Configure {
             protocol: PROTOCOL_VERSION,
             pilot: PilotSpec {
@@ -653,6 +655,7 @@ mod tests {
                     feedforward_duty_per_rad_s: 0.05,
                     kp_duty_per_rad_s: 0.05,
                     ki_duty_per_rad: 0.5,
+                    speed_observer: None,
                 },
                 encoder_bits: 16,
                 max_encoder_fault_ticks: 5,

@@ -206,6 +206,7 @@ mod on_target {
                 feedforward_duty_per_rad_s: 0.05,
                 kp_duty_per_rad_s: 0.02,
                 ki_duty_per_rad: 0.1,
+                speed_observer: None,
             },
             encoder_bits: 16,
             max_encoder_fault_ticks: 5,

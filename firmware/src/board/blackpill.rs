@@ -138,13 +138,55 @@ use wmr_core::pilot::{Pilot, PilotConfig};
 use devices::{Encoder, LineErrors, RfidPump, RfidUart};
 use embedded_hal::pwm::SetDutyCycle;
 use setup::{MotorPwm, PwmChannel, RfidRx, SetupError, TickTimer};
+#[cfg(not(wmr_robot_image))]
 use tags::{FlashTagTable, SITE_TAGS};
+
+/// Where the board finds its tags: the compiled-in [`SITE_TAGS`], or (built
+/// with `cargo xtask firmware --robot FILE`) the robot image's floor.
+#[cfg(not(wmr_robot_image))]
+type BoardTags = FlashTagTable;
+/// Where the board finds its tags: the robot image's floor.
+#[cfg(wmr_robot_image)]
+type BoardTags = wmr_link::image::ImageFloor<'static>;
+
+/// The robot image of `cargo xtask firmware --robot FILE` (`firmware-sim
+/// robot-image`, [`wmr_link::image`]), in flash: it replaces [`PILOT`]
+/// and [`SITE_TAGS`].
+#[cfg(wmr_robot_image)]
+static ROBOT_IMAGE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/robot.bin"));
+
+/// The robot image's pilot, floor and control period (µs), checked for
+/// this board as [`TICK_US`] is at compile time.
+#[cfg(wmr_robot_image)]
+fn image_config() -> Result<(PilotSpec, BoardTags, u32), wmr_link::image::ImageError> {
+    let image = wmr_link::image::decode(ROBOT_IMAGE)?;
+    // Saturating: a negative or huge period becomes 0 or u32::MAX, refused.
+    let tick_us = (image.pilot.tracker.period_s * 1.0e6 + 0.5) as u32;
+    if !(1_000..=100_000).contains(&tick_us)
+        || WATCHDOG_MS * 1_000 * 2 / 3 < tick_us.saturating_mul(3)
+    {
+        return Err(wmr_link::image::ImageError::Period);
+    }
+    Ok((image.pilot, image.floor, tick_us))
+}
+
+/// Tags the board knows (for the start-up log).
+#[cfg(wmr_robot_image)]
+fn tag_count(tags: &BoardTags) -> usize {
+    match tags {
+        wmr_link::image::ImageFloor::Grid(grid) => {
+            usize::from(grid.rows()) * usize::from(grid.columns())
+        }
+        wmr_link::image::ImageFloor::Map(map) => map.len(),
+    }
+}
 
 /// The pilot, compiled in: paper 001's figure-eight (`h1` 5 m, `h2`
 /// 0.02 rad/s, phase −π/2) with the simulator's
 /// `figure_eight_rfid_full_stack` scenario for everything else (its TOML
 /// file and `firmware-sim`'s scenario defaults), so that the robot runs the
 /// configuration the simulator validated.
+#[cfg_attr(wmr_robot_image, allow(dead_code))]
 pub const PILOT: PilotSpec = PilotSpec {
     tracker: TrackerSpec {
         period_s: 0.01,
@@ -184,6 +226,7 @@ pub const PILOT: PilotSpec = PilotSpec {
         feedforward_duty_per_rad_s: 0.05,
         kp_duty_per_rad_s: 0.02,
         ki_duty_per_rad: 0.5,
+        speed_observer: None,
     },
     // TIM3 and TIM4 are 16-bit.
     encoder_bits: 16,
@@ -276,14 +319,17 @@ type BoardRobot<'a> = Robot<
     LeftMotor<'a>,
     RightMotor<'a>,
     RfidUart<'a>,
-    FlashTagTable,
+    BoardTags,
 >;
 
 /// Why the firmware is not driving.
 #[derive(Debug, Clone, Copy, defmt::Format)]
 enum Fault {
-    /// The compiled-in pilot spec was refused.
+    /// The compiled-in pilot spec (or the robot image's) was refused.
     Pilot(SpecError),
+    /// The robot image is malformed or does not suit the board.
+    #[cfg(wmr_robot_image)]
+    Image(wmr_link::image::ImageError),
     /// TIM1 (motor PWM), USART2 (RFID) or TIM5 (tick) refused its
     /// configuration.
     Peripheral(SetupError),
@@ -393,7 +439,24 @@ pub fn run() -> ! {
     let mut pump = RfidPump::new(rfid_rx, ring_in, &line_errors);
     let rfid = RfidReader::new(RfidUart::new(ring_out, &line_errors));
 
-    let pilot = match PILOT
+    #[cfg(not(wmr_robot_image))]
+    let (spec, tags, tick_us) = (PILOT, SITE_TAGS, TICK_US);
+    #[cfg(wmr_robot_image)]
+    let (spec, tags, tick_us) = match image_config() {
+        Ok(config) => config,
+        Err(e) => halt(
+            Fault::Image(e),
+            watchdog,
+            Some((left_motor, right_motor)),
+            led,
+            sysclk_hz,
+        ),
+    };
+    #[cfg(not(wmr_robot_image))]
+    let tag_count = tags.len();
+    #[cfg(wmr_robot_image)]
+    let tag_count = tag_count(&tags);
+    let pilot = match spec
         .build()
         .and_then(|config| Pilot::new(config).map_err(SpecError::Pilot))
     {
@@ -406,7 +469,7 @@ pub fn run() -> ! {
             sysclk_hz,
         ),
     };
-    let mut tick_timer = match TickTimer::start(dp.TIM5, &rcc, TICK_US) {
+    let mut tick_timer = match TickTimer::start(dp.TIM5, &rcc, tick_us) {
         Ok(timer) => timer,
         Err(e) => halt(
             Fault::Peripheral(e),
@@ -421,15 +484,15 @@ pub fn run() -> ! {
         (left_encoder, right_encoder),
         (left_motor, right_motor),
         rfid,
-        SITE_TAGS,
+        tags,
     );
 
     defmt::info!(
         "wmr-firmware (Black Pill): SYSCLK {=u32} Hz, tick {=u32} us, watchdog {=u32} ms, {=usize} tags",
         sysclk_hz,
-        TICK_US,
+        tick_us,
         WATCHDOG_MS,
-        SITE_TAGS.len()
+        tag_count
     );
 
     let cycles_per_us = (sysclk_hz / 1_000_000).max(1);
@@ -447,7 +510,7 @@ pub fn run() -> ! {
                 defmt::warn!(
                     "tick {=u32} overran its {=u32} us period (total {=u32})",
                     stats.ticks,
-                    TICK_US,
+                    tick_us,
                     stats.overruns
                 );
                 stats.overrun_logged = true;

@@ -14,6 +14,10 @@
 //! (0.22 m/s) that is one tag every 11 cm along the path, which is why the
 //! simulator's floor is a 10 cm grid. With only these seven the robot spends
 //! most of its time in the failsafe (decelerating to a stop).
+//!
+//! Built with `cargo xtask firmware --robot FILE`, the robot image's floor
+//! replaces this table (`robots/blackpill.toml` is this one as a robot file).
+#![cfg_attr(wmr_robot_image, allow(dead_code))]
 
 use wmr_core::devices::{TagId, TagLocator};
 use wmr_core::geometry::Vec2;

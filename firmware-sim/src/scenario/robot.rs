@@ -1,0 +1,606 @@
+//! The robot file (`robot.toml`): one robot, described once, for the
+//! simulator (`run`, `hil`, `sweep`) and for the firmware's flash image
+//! (`cargo xtask firmware --robot FILE`).
+//!
+//! A robot file holds the tables of a scenario that describe the robot
+//! rather than the experiment: its geometry, encoders and motors
+//! (`[plant]`, `kind = "diff_drive"`), drive limits and speed loops
+//! (`[drive]`, with `[drive.speed_observer]`), law and gains
+//! (`[controller]`), paper 001's observer (`[observer]`), the estimator
+//! (`[estimator]`), the failsafe (`[failsafe]`), its RFID reader
+//! (`[reader]`) and the floor it runs on (`[floor]`: a tag grid, or a tag
+//! map file of `id,x_m,y_m` rows). Every key means what the scenario key
+//! of the same name means, and the same code checks it.
+//!
+//! A scenario names its robot (`robot = "robots/example.toml"`, relative to
+//! the scenario file) or embeds it (`[robot]` with the same keys). The
+//! robot's tables then replace the scenario's: a scenario that also gives
+//! one of them (other than at its default) is refused, naming the key. The
+//! robot's position source is its reader on its floor, without injected
+//! faults.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use wmr_core::devices::TagId;
+use wmr_core::pilot::spec::{EstimatorSpec, PilotSpec, TagGridSpec};
+use wmr_link::image;
+
+use super::defaults;
+use super::error::ScenarioError;
+use super::schema::{
+    ControllerSpec, DriveSpec, FailsafeSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
+    ReferenceSpec, Scenario,
+};
+
+/// A robot file's top level.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RobotFile {
+    /// Short name (the flash image's and the firmware log's).
+    pub name: String,
+    /// Free text.
+    #[serde(default)]
+    pub description: String,
+    /// Control period `h`, s.
+    #[serde(default = "defaults::period_s")]
+    pub period_s: f64,
+    /// The trajectory the flashed firmware tracks (needed to flash; a
+    /// scenario naming the robot tracks its own `[reference]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference: Option<ReferenceSpec>,
+    /// Geometry (wheel radius, track), encoders and motors:
+    /// `kind = "diff_drive"` and its keys.
+    pub plant: PlantSpec,
+    /// Drive limits, speed loops and the wheel-speed observer.
+    #[serde(default)]
+    pub drive: DriveSpec,
+    /// Tracking law and gains.
+    #[serde(default)]
+    pub controller: ControllerSpec,
+    /// Paper 001's heading observer (5).
+    #[serde(default)]
+    pub observer: ObserverSpec,
+    /// The estimator (the core's `EstimatorSpec`).
+    #[serde(default)]
+    pub estimator: EstimatorSpec,
+    /// What the tracker does when fixes stop.
+    #[serde(default)]
+    pub failsafe: FailsafeSpec,
+    /// The RFID reader.
+    #[serde(default)]
+    pub reader: ReaderSpec,
+    /// The floor's tags.
+    pub floor: FloorSpec,
+}
+
+/// The robot's RFID reader (the keys of a scenario's `position.kind =
+/// "reader"` that describe the reader).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ReaderSpec {
+    /// `paper` (nearest tag every tick) or `range`.
+    #[serde(default)]
+    pub mode: ReaderModeSpec,
+    /// Read radius around the antenna (`range` mode), m.
+    #[serde(default = "defaults::read_radius_m")]
+    pub read_radius_m: f64,
+    /// Antenna ahead of the axle midpoint, m (the estimators move each fix
+    /// back to the midpoint).
+    #[serde(default)]
+    pub antenna_offset_m: f64,
+    /// Line speed, baud.
+    #[serde(default = "defaults::baud")]
+    pub baud: u32,
+    /// Repeat interval while a tag stays in range (`range` mode), s.
+    #[serde(default = "defaults::repeat_interval_s")]
+    pub repeat_interval_s: f64,
+}
+
+impl Default for ReaderSpec {
+    fn default() -> Self {
+        Self {
+            mode: ReaderModeSpec::default(),
+            read_radius_m: defaults::read_radius_m(),
+            antenna_offset_m: 0.0,
+            baud: defaults::baud(),
+            repeat_interval_s: defaults::repeat_interval_s(),
+        }
+    }
+}
+
+/// The floor's tags.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum FloorSpec {
+    /// A regular grid, ids in the core's grid encoding.
+    Grid {
+        /// Tag spacing, m.
+        #[serde(default = "defaults::spacing_m")]
+        spacing_m: f64,
+        /// A lattice point `[x, y]`, m.
+        #[serde(default)]
+        offset_m: [f64; 2],
+        /// Margin around the reference and start when `extent_m` is not given, m.
+        #[serde(default = "defaults::margin_m")]
+        margin_m: f64,
+        /// Covered rectangle `[x_min, y_min, x_max, y_max]`, m (default: automatic).
+        #[serde(default)]
+        extent_m: Option<[f64; 4]>,
+    },
+    /// Surveyed tags with arbitrary ids: a CSV file of `id,x_m,y_m` rows
+    /// (a header row is allowed; ids decimal or `0x` hexadecimal, 40 bits).
+    TagMap {
+        /// The CSV file, relative to the robot file.
+        file: String,
+    },
+}
+
+/// One surveyed tag of a tag map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MappedTag {
+    /// The id the reader reports (40 bits).
+    pub id: TagId,
+    /// Position, m.
+    pub x_m: f64,
+    /// Position, m.
+    pub y_m: f64,
+}
+
+/// A robot file as loaded: its tables and, for a tag-map floor, the map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Robot {
+    /// The file's tables.
+    pub file: RobotFile,
+    /// Where it came from (named in errors).
+    pub path: String,
+    /// The tag map, sorted by id (empty for a grid floor).
+    pub tags: Vec<MappedTag>,
+}
+
+/// Where a scenario's robot comes from: `robot = "FILE"` or `[robot]`.
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
+#[serde(untagged)]
+pub enum RobotSource {
+    /// A robot file, relative to the scenario file.
+    File(String),
+    /// The robot's tables, embedded.
+    Inline(Box<RobotFile>),
+}
+
+impl<'de> Deserialize<'de> for RobotSource {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error as _;
+        match toml::Value::deserialize(deserializer)? {
+            toml::Value::String(path) => Ok(Self::File(path)),
+            table @ toml::Value::Table(_) => RobotFile::deserialize(table)
+                .map(|r| Self::Inline(Box::new(r)))
+                // The inner error ends in a newline the outer one adds again.
+                .map_err(|e| D::Error::custom(e.to_string().trim_end())),
+            other => Err(D::Error::custom(format!(
+                "robot must be a file name or a [robot] table (got {})",
+                other.type_str()
+            ))),
+        }
+    }
+}
+
+/// Most tags a tag map may hold (the flash image's table; 16 bytes each).
+pub const MAX_MAPPED_TAGS: usize = 4096;
+
+fn robot_error(path: &str, field: &str, reason: impl Into<String>) -> ScenarioError {
+    ScenarioError::Robot {
+        path: path.to_owned(),
+        field: field.to_owned(),
+        reason: reason.into(),
+    }
+}
+
+/// Parses a tag map CSV (`id,x_m,y_m`; `#` comments, blank lines and one
+/// header row allowed), sorted by id.
+///
+/// # Errors
+/// [`ScenarioError::Robot`] naming the file, line and reason: a malformed
+/// row, an id wider than 40 bits, a duplicate id, a non-finite position,
+/// more than [`MAX_MAPPED_TAGS`] tags or none.
+pub fn parse_tag_map(path: &str, text: &str) -> Result<Vec<MappedTag>, ScenarioError> {
+    let mut tags = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let at = format!("line {}", n + 1);
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        let [id, x, y] = cells.as_slice() else {
+            return Err(robot_error(
+                path,
+                &at,
+                format!("expected 3 cells `id,x_m,y_m`, got {}", cells.len()),
+            ));
+        };
+        if tags.is_empty() && id.eq_ignore_ascii_case("id") {
+            continue; // the header row
+        }
+        let id = match id.strip_prefix("0x").or_else(|| id.strip_prefix("0X")) {
+            Some(hex) => u64::from_str_radix(hex, 16),
+            None => id.parse::<u64>(),
+        }
+        .map_err(|e| robot_error(path, &at, format!("id `{id}`: {e}")))?;
+        if id > TagId::MASK {
+            return Err(robot_error(
+                path,
+                &at,
+                format!("id {id:#x} is wider than the reader's 40 bits"),
+            ));
+        }
+        let coordinate = |name: &str, v: &str| -> Result<f64, ScenarioError> {
+            v.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && (*v as f32).is_finite())
+                .ok_or_else(|| {
+                    robot_error(path, &at, format!("{name} `{v}` is not a finite number"))
+                })
+        };
+        tags.push(MappedTag {
+            id: TagId(id),
+            x_m: coordinate("x_m", x)?,
+            y_m: coordinate("y_m", y)?,
+        });
+    }
+    if tags.is_empty() {
+        return Err(robot_error(path, "floor.file", "the tag map has no tags"));
+    }
+    if tags.len() > MAX_MAPPED_TAGS {
+        return Err(robot_error(
+            path,
+            "floor.file",
+            format!(
+                "{} tags: at most {MAX_MAPPED_TAGS} fit the firmware's table",
+                tags.len()
+            ),
+        ));
+    }
+    tags.sort_by_key(|t| t.id.0);
+    if let Some(w) = tags.windows(2).find(|w| w[0].id == w[1].id) {
+        return Err(robot_error(
+            path,
+            "floor.file",
+            format!("tag id {:#x} appears twice", w[0].id.0),
+        ));
+    }
+    Ok(tags)
+}
+
+impl Robot {
+    /// Reads and parses a robot file (and its tag map), paths relative to
+    /// the file.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Io`], [`ScenarioError::Parse`] naming the file, or
+    /// [`ScenarioError::Robot`] for the tag map.
+    pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let file: RobotFile = toml::from_str(&text)
+            .map_err(|e| ScenarioError::Parse(format!("robot file {}: {e}", path.display())))?;
+        Self::new(file, path.display().to_string(), path.parent())
+    }
+
+    /// A robot from its parsed tables; `dir` is where a tag map's path is
+    /// taken from (`None`: no file is read, and a tag map is refused).
+    ///
+    /// # Errors
+    /// The tag map cannot be read or is refused.
+    pub fn new(file: RobotFile, path: String, dir: Option<&Path>) -> Result<Self, ScenarioError> {
+        let tags = match &file.floor {
+            FloorSpec::Grid { .. } => Vec::new(),
+            FloorSpec::TagMap { file: csv } => {
+                let Some(dir) = dir else {
+                    return Err(robot_error(
+                        &path,
+                        "floor.file",
+                        "a tag map is read relative to its robot file: load the scenario \
+                         or robot from a file",
+                    ));
+                };
+                let csv_path = dir.join(csv);
+                let text =
+                    std::fs::read_to_string(&csv_path).map_err(|source| ScenarioError::Io {
+                        path: csv_path.display().to_string(),
+                        source,
+                    })?;
+                parse_tag_map(&csv_path.display().to_string(), &text)?
+            }
+        };
+        Ok(Self { file, path, tags })
+    }
+
+    /// A scenario tracking `reference` with this robot, from the start of
+    /// the reference, for `duration_s` (what the flash image is validated
+    /// as).
+    #[must_use]
+    pub fn scenario(&self, reference: ReferenceSpec, duration_s: f64) -> Scenario {
+        let mut scenario = Scenario {
+            name: self.file.name.clone(),
+            description: self.file.description.clone(),
+            duration_s,
+            period_s: defaults::period_s(),
+            transient_s: 0.0,
+            reference,
+            initial: super::InitialSpec::default(),
+            controller: ControllerSpec::default(),
+            observer: ObserverSpec::default(),
+            estimator: EstimatorSpec::default(),
+            plant: PlantSpec::default(),
+            drive: None,
+            position: PositionSpec::default(),
+            failsafe: FailsafeSpec::default(),
+            measurement: super::MeasurementSpec::default(),
+            sweep: None,
+            robot: None,
+        };
+        self.fill(&mut scenario);
+        scenario
+    }
+
+    /// Puts the robot's tables into `scenario`.
+    fn fill(&self, scenario: &mut Scenario) {
+        let r = &self.file;
+        scenario.period_s = r.period_s;
+        scenario.plant = r.plant;
+        scenario.drive = Some(r.drive);
+        scenario.controller = r.controller;
+        scenario.observer = r.observer;
+        scenario.estimator = r.estimator;
+        scenario.failsafe = r.failsafe;
+        let (spacing_m, offset_m, margin_m, extent_m) = match r.floor {
+            FloorSpec::Grid {
+                spacing_m,
+                offset_m,
+                margin_m,
+                extent_m,
+            } => (spacing_m, offset_m, margin_m, extent_m),
+            // Refused by `Scenario::resolve_robot` before it gets here.
+            FloorSpec::TagMap { .. } => (0.0, [0.0; 2], 0.0, None),
+        };
+        let reader = r.reader;
+        scenario.position = PositionSpec::Reader {
+            spacing_m,
+            offset_m,
+            margin_m,
+            extent_m,
+            mode: reader.mode,
+            read_radius_m: reader.read_radius_m,
+            antenna_offset_m: reader.antenna_offset_m,
+            antenna_offset_compensated: true,
+            baud: reader.baud,
+            repeat_interval_s: reader.repeat_interval_s,
+            corrupt_byte_probability: 0.0,
+            drop_frame_probability: 0.0,
+            seed: defaults::seed(),
+        };
+    }
+
+    /// The robot file's key a scenario key of a filled-in scenario came
+    /// from (`position.spacing_m` → `floor.spacing_m`).
+    fn key_of(field: &str) -> Option<String> {
+        let (head, rest) = field.split_once('.').unwrap_or((field, ""));
+        let robot_key = match head {
+            "period_s" | "plant" | "drive" | "controller" | "observer" | "estimator"
+            | "failsafe" => return Some(field.to_owned()),
+            "position" => match rest {
+                "spacing_m" | "offset_m" | "margin_m" | "extent_m" => format!("floor.{rest}"),
+                "" => "reader".to_owned(),
+                _ => format!("reader.{rest}"),
+            },
+            _ => return None,
+        };
+        Some(robot_key)
+    }
+
+    /// `e` with the robot file named, when it is about one of its keys.
+    #[must_use]
+    pub fn name_in(&self, e: ScenarioError) -> ScenarioError {
+        match e {
+            ScenarioError::Invalid { field, reason } => match Self::key_of(&field) {
+                Some(key) => robot_error(&self.path, &key, reason),
+                None => ScenarioError::Invalid { field, reason },
+            },
+            other => other,
+        }
+    }
+}
+
+impl Scenario {
+    /// Replaces `self.robot` by its tables (read from the file it names,
+    /// relative to `dir`; with `None` no file is read: a robot file or tag
+    /// map is refused), and returns the
+    /// robot (to name its file in validation errors: [`Robot::name_in`]).
+    ///
+    /// # Errors
+    /// The robot file cannot be read or parsed, a tag-map floor (which the
+    /// simulator does not lay out yet), or a robot table also given in the
+    /// scenario.
+    pub fn resolve_robot(&mut self, dir: Option<&Path>) -> Result<Option<Robot>, ScenarioError> {
+        let Some(source) = self.robot.take() else {
+            return Ok(None);
+        };
+        let robot = match source {
+            RobotSource::File(name) => {
+                let Some(dir) = dir else {
+                    return Err(ScenarioError::invalid(
+                        "robot",
+                        format!(
+                            "`{name}` is relative to the scenario file: load the scenario from \
+                             its file (or embed the robot as [robot])"
+                        ),
+                    ));
+                };
+                Robot::from_file(&dir.join(&name))?
+            }
+            RobotSource::Inline(file) => Robot::new(*file, "[robot]".to_owned(), dir)?,
+        };
+        if !robot.tags.is_empty() {
+            return Err(robot_error(
+                &robot.path,
+                "floor.kind",
+                "the simulator lays out tag grids only: a tag map can be flashed \
+                 (`cargo xtask firmware --robot`), not simulated yet",
+            ));
+        }
+        if !matches!(robot.file.plant, PlantSpec::DiffDrive { .. }) {
+            return Err(robot_error(
+                &robot.path,
+                "plant.kind",
+                "a robot is a \"diff_drive\" (wheels, encoders, motors)",
+            ));
+        }
+        let given = [
+            (
+                "period_s",
+                self.period_s.to_bits() != defaults::period_s().to_bits(),
+            ),
+            ("plant", self.plant != PlantSpec::default()),
+            ("drive", self.drive.is_some()),
+            ("controller", self.controller != ControllerSpec::default()),
+            ("observer", self.observer != ObserverSpec::default()),
+            ("estimator", self.estimator != EstimatorSpec::default()),
+            ("failsafe", self.failsafe != FailsafeSpec::default()),
+            ("position", self.position != PositionSpec::default()),
+        ];
+        if let Some((key, _)) = given.iter().find(|(_, given)| *given) {
+            return Err(ScenarioError::invalid(
+                key,
+                format!(
+                    "the scenario's robot ({}) sets it: remove it from the scenario",
+                    robot.path
+                ),
+            ));
+        }
+        robot.fill(self);
+        Ok(Some(robot))
+    }
+}
+
+/// The Black Pill's watchdog timeout, ms (`firmware/src/board/blackpill.rs`
+/// `WATCHDOG_MS`).
+pub const BLACKPILL_WATCHDOG_MS: u32 = 50;
+
+/// How far along the reference the flash image's automatic tag grid
+/// reaches (without `floor.extent_m`), s: an hour of it.
+pub const FLASH_GRID_REFERENCE_S: f64 = 3600.0;
+
+/// The floor of a flash image.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FlashFloor {
+    /// A tag grid.
+    Grid(TagGridSpec),
+    /// A tag map, sorted by id.
+    Map(Vec<(TagId, [f32; 2])>),
+}
+
+/// A robot's flash image (`cargo xtask firmware --robot FILE`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FlashImage {
+    /// The pilot, validated by the core's constructors.
+    pub pilot: PilotSpec,
+    /// The floor.
+    pub floor: FlashFloor,
+    /// The encoded image ([`wmr_link::image`]).
+    pub bytes: Vec<u8>,
+}
+
+impl Robot {
+    /// The robot's flash image: its pilot exactly as every simulation of
+    /// it builds it (the same validation, down to the core's
+    /// constructors), tracking its `[reference]`, and its floor: the tag
+    /// map, or the grid covering [`FLASH_GRID_REFERENCE_S`] of the
+    /// reference (or `floor.extent_m`).
+    ///
+    /// # Errors
+    /// [`ScenarioError::Robot`] naming the robot file's key: no
+    /// `[reference]`, a value the simulator or the core refuses, a tag map
+    /// with the fusion estimator (which needs a grid's spacing).
+    pub fn flash_image(&self) -> Result<FlashImage, ScenarioError> {
+        let reference = self.file.reference.ok_or_else(|| {
+            robot_error(
+                &self.path,
+                "reference",
+                "the firmware needs the trajectory it tracks: add a [reference] table",
+            )
+        })?;
+        // A tag map is validated on a stand-in grid, then the estimators
+        // are told there is none (tag spacing 0).
+        let mut stand_in = self.clone();
+        if let FloorSpec::TagMap { .. } = self.file.floor {
+            stand_in.file.floor = FloorSpec::Grid {
+                spacing_m: defaults::spacing_m(),
+                offset_m: [0.0; 2],
+                margin_m: defaults::margin_m(),
+                extent_m: None,
+            };
+        }
+        let scenario = stand_in.scenario(reference, FLASH_GRID_REFERENCE_S);
+        let setup = scenario.validate().map_err(|e| self.name_in(e))?;
+        let (
+            super::PlantSetup::DiffDrive { pilot_spec, .. },
+            super::PositionSetup::Reader(floor, _),
+        ) = (setup.plant, setup.position)
+        else {
+            return Err(robot_error(
+                &self.path,
+                "plant.kind",
+                "a robot is a \"diff_drive\" with a reader",
+            ));
+        };
+        let mut pilot = pilot_spec;
+        // The Black Pill's check of the image's period (its `image_config`).
+        let tick_us = (pilot.tracker.period_s * 1.0e6 + 0.5) as u32;
+        if !(1_000..=100_000).contains(&tick_us)
+            || BLACKPILL_WATCHDOG_MS * 1_000 * 2 / 3 < tick_us.saturating_mul(3)
+        {
+            return Err(robot_error(
+                &self.path,
+                "period_s",
+                format!(
+                    "the Black Pill runs periods of 1 ms to 100 ms that its \
+                     {BLACKPILL_WATCHDOG_MS} ms watchdog outlasts three times over (got {tick_us} µs)"
+                ),
+            ));
+        }
+        let floor = if self.tags.is_empty() {
+            FlashFloor::Grid(TagGridSpec::of(floor.grid()))
+        } else {
+            pilot.tracker.sensors.tag_spacing_m = 0.0;
+            pilot.build().map_err(|e| {
+                robot_error(
+                    &self.path,
+                    "floor.kind",
+                    format!("a tag map has no grid spacing: refused by the core: {e}"),
+                )
+            })?;
+            FlashFloor::Map(
+                self.tags
+                    .iter()
+                    .map(|t| (t.id, [t.x_m as f32, t.y_m as f32]))
+                    .collect(),
+            )
+        };
+        let mut bytes = vec![0; image::max_image_bytes(self.tags.len())];
+        let encoded = match &floor {
+            FlashFloor::Grid(grid) => image::ImageFloorSpec::Grid(*grid),
+            FlashFloor::Map(tags) => image::ImageFloorSpec::Map(tags),
+        };
+        let len = image::encode(&pilot, &encoded, &mut bytes)
+            .map_err(|e| robot_error(&self.path, "floor", e.to_string()))?;
+        bytes.truncate(len);
+        Ok(FlashImage {
+            pilot,
+            floor,
+            bytes,
+        })
+    }
+}

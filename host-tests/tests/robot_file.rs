@@ -1,0 +1,320 @@
+//! One robot file for the simulator and the flash (issue 18, items 1–2):
+//! a scenario naming its robot runs exactly as the same robot written in
+//! the scenario; a bad robot file is refused naming the file, key and
+//! reason; and the Black Pill firmware built with a robot image carries
+//! exactly the configuration the simulator validated.
+//!
+//! The firmware test builds the Black Pill board for
+//! `thumbv7em-none-eabihf` into `target/robot-firmware` (a target directory
+//! of its own, so that the nested cargo never waits on this test's build
+//! lock), as `cargo xtask firmware --robot robots/blackpill.toml` does.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use firmware_sim::hil::{FIRMWARE_TARGET, workspace_root};
+use firmware_sim::scenario::robot::{FlashFloor, Robot};
+use firmware_sim::{Scenario, run};
+use wmr_core::devices::{TagId, TagLocator};
+use wmr_core::pilot::spec::{SpecError, TagGridSpec};
+use wmr_link::image::{self, ImageFloor, MAGIC};
+
+fn robots() -> PathBuf {
+    workspace_root().join("robots")
+}
+
+/// `robots/figure_eight.toml` (which names `example.toml`) and the
+/// embedded `figure_eight_rfid_full_stack` (the same robot written in the
+/// scenario) give the same records, bit for bit.
+#[test]
+fn a_scenario_naming_its_robot_runs_as_the_same_robot_inline() {
+    let mut named = Scenario::from_file(&robots().join("figure_eight.toml")).unwrap();
+    let mut inline = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    named.duration_s = 60.0;
+    inline.duration_s = 60.0;
+    named.transient_s = 10.0;
+    inline.transient_s = 10.0;
+    // Resolved: the scenario holds the robot's tables.
+    assert_eq!(named.robot, None);
+    assert_eq!(named.plant, inline.plant);
+    assert_eq!(named.position, inline.position);
+    let a = run(&named, |_, _| {}).unwrap();
+    let b = run(&inline, |_, _| {}).unwrap();
+    assert_eq!(a.records.len(), 6_000);
+    assert!(a.records == b.records, "the records differ");
+    assert_eq!(
+        a.summary.max_error_m.to_bits(),
+        b.summary.max_error_m.to_bits()
+    );
+}
+
+/// A robot embedded as `[robot]` is the same robot.
+#[test]
+fn an_embedded_robot_is_the_same_robot() {
+    let robot = std::fs::read_to_string(robots().join("example.toml")).unwrap();
+    let robot: toml::Table = robot.parse().unwrap();
+    let mut scenario: toml::Table = std::fs::read_to_string(robots().join("figure_eight.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    scenario.insert("robot".into(), toml::Value::Table(robot));
+    let embedded = Scenario::from_toml_str(&toml::to_string(&scenario).unwrap()).unwrap();
+    let named = Scenario::from_file(&robots().join("figure_eight.toml")).unwrap();
+    assert_eq!(embedded, named);
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = workspace_root()
+        .join("target")
+        .join("robot-file-tests")
+        .join(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A bad value is refused naming the robot file, its key and the rule; a
+/// scenario that also sets a robot table is refused naming the key.
+#[test]
+fn errors_name_the_file_the_key_and_the_reason() {
+    let dir = temp_dir("errors");
+    let example = std::fs::read_to_string(robots().join("example.toml")).unwrap();
+    let cases = [
+        (
+            "wheel_radius_m = 0.03",
+            "wheel_radius_m = -0.03",
+            "plant.wheel_radius_m",
+            "must be finite and > 0",
+        ),
+        (
+            "k2 = 0.11",
+            "k2 = 0.0",
+            "controller.k2",
+            "refused by the core: gains[1] (k2) must be finite and > 0 m/s",
+        ),
+        (
+            "spacing_m = 0.1",
+            "spacing_m = 0.0",
+            "floor.spacing_m",
+            "must be finite and > 0",
+        ),
+        (
+            "max_wheel_speed_rad_s = 18.0",
+            "max_wheel_speed_rad_s = -1.0",
+            "drive.max_wheel_speed_rad_s",
+            "must be finite and > 0",
+        ),
+        (
+            "antenna_offset_m = 0.0",
+            "antenna_offset_m = 2.0",
+            "reader",
+            "antenna",
+        ),
+    ];
+    for (from, to, key, reason) in cases {
+        assert!(example.contains(from), "{from}");
+        let robot = dir.join("bad.toml");
+        std::fs::write(&robot, example.replace(from, to)).unwrap();
+        let scenario = std::fs::read_to_string(robots().join("figure_eight.toml"))
+            .unwrap()
+            .replace("robot = \"example.toml\"", "robot = \"bad.toml\"");
+        let file = dir.join("scenario.toml");
+        std::fs::write(&file, scenario).unwrap();
+        let e = Scenario::from_file(&file).unwrap_err().to_string();
+        assert!(e.contains(&robot.display().to_string()), "{to}: {e}");
+        assert!(e.contains(&format!("`{key}")), "{to}: {e}");
+        assert!(e.contains(reason), "{to}: {e}");
+        // The flash image is refused the same way.
+        let e = Robot::from_file(&robot)
+            .unwrap()
+            .flash_image()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("`{key}")) && e.contains(reason),
+            "{to}: {e}"
+        );
+    }
+    // An unknown key: the file and the key.
+    std::fs::write(
+        dir.join("bad.toml"),
+        example.replace("k2 = 0.11", "k2 = 0.11\nk4 = 1.0"),
+    )
+    .unwrap();
+    let e = Robot::from_file(&dir.join("bad.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("bad.toml") && e.contains("k4"), "{e}");
+    // A robot table in the scenario too.
+    let scenario = std::fs::read_to_string(robots().join("figure_eight.toml")).unwrap()
+        + "\n[observer]\ngain_per_m = 0.5\n";
+    let file = robots().join("figure_eight.toml");
+    let e = Scenario::from_toml_str_in(&scenario, file.parent())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("`observer`") && e.contains("robot"), "{e}");
+    // A tag map: 40-bit ids, no duplicates.
+    let map = dir.join("tags.csv");
+    std::fs::write(&map, "id,x_m,y_m\n1,0,0\n1,1,1\n").unwrap();
+    let robot = example.replace(
+        "kind = \"grid\"\nspacing_m = 0.1\noffset_m = [0.0, 0.0]",
+        "kind = \"tag_map\"\nfile = \"tags.csv\"",
+    );
+    std::fs::write(dir.join("map.toml"), &robot).unwrap();
+    let e = Robot::from_file(&dir.join("map.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("tags.csv") && e.contains("0x1 appears twice"),
+        "{e}"
+    );
+    std::fs::write(&map, "0x10000000000,0,0\n").unwrap();
+    let e = Robot::from_file(&dir.join("map.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("line 1") && e.contains("40 bits"), "{e}");
+}
+
+/// The Black Pill's robot file is the board's compiled-in default
+/// (`PILOT` and `SITE_TAGS` in `firmware/src/board/blackpill.rs` and
+/// `tags.rs`, restated here as numbers).
+#[test]
+fn the_blackpill_robot_file_is_the_boards_default() {
+    let image = Robot::from_file(&robots().join("blackpill.toml"))
+        .unwrap()
+        .flash_image()
+        .unwrap();
+    let p = image.pilot;
+    assert_eq!(p.tracker.period_s, 0.01);
+    assert_eq!(p.tracker.gains, [0.11, 0.11, 0.1]);
+    assert_eq!(p.tracker.observer_gain_per_m, 0.6);
+    assert_eq!(p.tracker.fix_timeout_ticks, 50);
+    assert_eq!(p.tracker.sensors.tag_spacing_m, 0.0);
+    assert_eq!(p.drive.wheel_radius_m, 0.03);
+    assert_eq!(p.drive.track_width_m, 0.2);
+    assert_eq!(p.drive.max_wheel_speed_rad_s, 18.0);
+    assert_eq!(p.drive.feedforward_duty_per_rad_s, 0.05);
+    assert_eq!(p.drive.kp_duty_per_rad_s, 0.02);
+    assert_eq!(p.encoder_bits, 16);
+    let FlashFloor::Map(tags) = &image.floor else {
+        panic!("a tag map")
+    };
+    assert_eq!(tags.len(), 7);
+    assert_eq!(tags[0], (TagId(0x01_0000_0001), [0.0, -5.0]));
+    assert_eq!(tags[1], (TagId(0x01_0000_0002), [-5.0, -3.535_534]));
+    // The example robot's grid floor (a 10 cm grid around the figure-eight).
+    let example = Robot::from_file(&robots().join("example.toml"))
+        .unwrap()
+        .flash_image()
+        .unwrap();
+    let FlashFloor::Grid(TagGridSpec { spacing_m, .. }) = example.floor else {
+        panic!("a grid")
+    };
+    assert_eq!(spacing_m, 0.1);
+    // The fusion estimator needs a grid's spacing: refused on a tag map.
+    let dir = temp_dir("fusion-map");
+    let text = std::fs::read_to_string(robots().join("blackpill.toml"))
+        .unwrap()
+        .replace(
+            "file = \"blackpill_tags.csv\"",
+            &format!("file = {:?}", robots().join("blackpill_tags.csv")),
+        )
+        + "\n[estimator.fusion]\nfilter = \"ekf\"\n";
+    std::fs::write(dir.join("fusion.toml"), text).unwrap();
+    let e = Robot::from_file(&dir.join("fusion.toml"))
+        .unwrap()
+        .flash_image()
+        .unwrap_err();
+    assert!(
+        e.to_string().contains("`floor.kind`") && e.to_string().contains("tag_spacing_m"),
+        "{e}"
+    );
+    let _ = SpecError::NotInThisBuild;
+}
+
+/// Builds the Black Pill firmware with `image` in flash.
+fn build_blackpill_with(image: &Path) -> PathBuf {
+    let root = workspace_root();
+    let dir = root.join("target").join("robot-firmware");
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let status = Command::new(cargo)
+        .current_dir(&root)
+        .args([
+            "build",
+            "--quiet",
+            "--release",
+            "-p",
+            "wmr-firmware",
+            "--bin",
+            "wmr-firmware",
+        ])
+        .args([
+            "--target",
+            FIRMWARE_TARGET,
+            "--no-default-features",
+            "--features",
+            "board-blackpill",
+        ])
+        .arg("--target-dir")
+        .arg(&dir)
+        .env("WMR_ROBOT_IMAGE", image)
+        .status()
+        .unwrap();
+    assert!(status.success(), "building the Black Pill firmware failed");
+    dir.join(FIRMWARE_TARGET)
+        .join("release")
+        .join("wmr-firmware")
+}
+
+/// The firmware built from `robots/blackpill.toml` holds, in its ELF, the
+/// very image the simulator made of the file: decoded from the ELF, the
+/// same pilot spec and the same tags as what `firmware-sim` parses.
+#[test]
+fn the_flashed_configuration_is_the_simulators() {
+    let robot = Robot::from_file(&robots().join("blackpill.toml")).unwrap();
+    let expected = robot.flash_image().unwrap();
+    let dir = temp_dir("flash");
+    let image_file = dir.join("blackpill.robot");
+    std::fs::write(&image_file, &expected.bytes).unwrap();
+    let elf = std::fs::read(build_blackpill_with(&image_file)).unwrap();
+    let found: Vec<usize> = elf
+        .windows(MAGIC.len())
+        .enumerate()
+        .filter(|(_, w)| *w == MAGIC)
+        .map(|(at, _)| at)
+        .collect();
+    let decoded: Vec<_> = found
+        .iter()
+        .filter_map(|&at| {
+            let bytes = elf.get(at..at + expected.bytes.len())?;
+            image::decode(bytes).ok().map(|i| (bytes, i))
+        })
+        .collect();
+    assert_eq!(
+        decoded.len(),
+        1,
+        "one image in the ELF (magic at {found:?})"
+    );
+    let (bytes, image) = &decoded[0];
+    assert_eq!(*bytes, expected.bytes.as_slice());
+    assert_eq!(image.pilot, expected.pilot);
+    assert!(image.pilot.build().is_ok());
+    let ImageFloor::Map(tags) = image.floor else {
+        panic!("a tag map")
+    };
+    let FlashFloor::Map(expected_tags) = &expected.floor else {
+        panic!("a tag map")
+    };
+    assert_eq!(
+        tags.iter().collect::<Vec<_>>(),
+        expected_tags
+            .iter()
+            .map(|(id, [x, y])| (*id, wmr_core::geometry::Vec2::new(*x, *y)))
+            .collect::<Vec<_>>()
+    );
+    for (id, [x, y]) in expected_tags {
+        assert_eq!(
+            image.floor.locate(*id),
+            Some(wmr_core::geometry::Vec2::new(*x, *y))
+        );
+    }
+}
