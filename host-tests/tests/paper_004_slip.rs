@@ -116,17 +116,15 @@ fn scenario_2_gaussian_filters() {
     }
 }
 
-/// The particle filter (100 particles) in scenario 1: it tracks the robot
-/// (estimate error ≤ 0.2 m, tracking error ≤ 0.27 m RMS), but its
-/// estimates are noisier than the Gaussian filters' and law (7) turns that
-/// noise into a drift of `p̂` (its `k1 e1²` and `(k3/k2) sin² e3` terms have
-/// a positive mean under noise): `p̂` reaches 1.7–8.2 and does not track
-/// the slip. Scenario 2 with the particle filter is not asserted: it
-/// diverges for 3 of the 5 seeds (module docs of `firmware_sim::slip`).
+/// The particle filter (100 particles, regularized: issue 17) in scenario
+/// 1: it tracks the robot (estimate error ≤ 0.2 m, tracking error ≤ 0.27 m
+/// RMS). Its start transient still pushes `p̂` up through law (7) (worst
+/// seed of 1–5: 0.95 above 4/3 during the slip, the EKF's 0.25).
 #[test]
 fn scenario_1_particle_filter() {
     let w = worst(Scenario::Velocity, Estimator::ParticleFilter);
-    // Measured: 0.182, 0.174, 0.264 m; estimate error ≤ 0.196 m.
+    // Measured (regularized): 0.122, 0.094, 0.134 m; estimate error ≤ 0.074 m
+    // (unregularized: 0.182, 0.174, 0.264 m; 0.196 m).
     assert!(w.before < 0.2 && w.during < 0.2 && w.after < 0.3, "{w:?}");
     assert!(w.estimate_error < 0.22, "{w:?}");
 }
@@ -174,8 +172,10 @@ fn diverged_runs_are_flagged() {
         );
         assert!(!(2.0..=50.0).contains(&worst), "{flags:?}");
     }
+    // Regularized (issue 17), no particle-filter run of seeds 1–5 diverges
+    // any more (11 of seeds 1–20 did before).
     let diverged_seeds = flags.iter().filter(|f| f.0).count();
-    assert!((1..5).contains(&diverged_seeds), "{flags:?}");
+    assert_eq!(diverged_seeds, 0, "{flags:?}");
     for scenario in [Scenario::Velocity, Scenario::Torque] {
         for estimator in [Estimator::Ekf, Estimator::Ukf] {
             for seed in 1..=5 {
@@ -185,6 +185,32 @@ fn diverged_runs_are_flagged() {
                     "{scenario:?} {estimator:?} {seed}: {worst}"
                 );
             }
+        }
+    }
+}
+
+/// Issue 17, item 1: the regularized particle filter (N = 100) diverges in
+/// no seed of 1–20 in either scenario (before: 11 of 20 in scenario 2).
+/// Measured (`firmware-sim slip … --estimator particle_filter --seed S`):
+/// the worst position RMS over the windows against the EKF's is 1.69×
+/// (scenario 1) and 16.5× (scenario 2), and the mean `p̂` during the slip
+/// 2.16 and 1.96: the issue's 1.5× and ±0.15 targets are not met
+/// (docs/paper-004.md).
+#[test]
+fn the_particle_filter_diverges_in_no_seed() {
+    for scenario in [Scenario::Velocity, Scenario::Torque] {
+        for seed in 1..=20 {
+            let s = firmware_sim::slip::run(&host_tests::paper_004::slip_scenario(
+                scenario,
+                Estimator::ParticleFilter,
+                seed,
+            ))
+            .expect("the embedded scenario runs")
+            .summary;
+            assert!(
+                !s.diverged && s.non_finite_records == 0 && s.tracking_error_max_m < 2.0,
+                "{scenario:?} seed {seed}: {s:?}"
+            );
         }
     }
 }

@@ -95,6 +95,7 @@ fn pf_field(e: ParticleFilterError) -> ScenarioError {
         ParticleFilterError::ProcessStd => "filter.particle_filter.process_std",
         ParticleFilterError::MeasurementStd => "measurement.variance",
         ParticleFilterError::CollapseGate => "filter.particle_filter.collapse_gate",
+        ParticleFilterError::Regularization => "filter.particle_filter.regularization",
         ParticleFilterError::PriorStd => "filter.initial_variance",
         ParticleFilterError::PriorMean => "initial",
         _ => "filter.particle_filter",
@@ -312,6 +313,14 @@ impl SlipScenario {
             ));
         }
         let gate = gate as f32;
+        let regularization = pf.regularization;
+        if !(regularization.is_finite() && regularization >= 0.0) {
+            return Err(ScenarioError::invalid(
+                "filter.particle_filter.regularization",
+                format!("must be finite and ≥ 0 (0: off) (got {regularization})"),
+            ));
+        }
+        let regularization = regularization as f32;
         let prior = p0.map(f32::sqrt);
         let x0 = x0.map(|x| x as f32);
         let ekf_field =
@@ -356,6 +365,7 @@ impl SlipScenario {
             PoseModel,
             ParticleFilterConfig::new(first::<3>(process_std).into(), first::<3>(std_r).into())
                 .and_then(|c| c.with_collapse_gate(gate))
+                .and_then(|c| c.with_regularization(regularization))
                 .map_err(pf_field)?,
             first::<3>(x0).into(),
             first::<3>(prior).into(),
@@ -366,6 +376,7 @@ impl SlipScenario {
             PoseWheelModel,
             ParticleFilterConfig::new(process_std.into(), std_r.into())
                 .and_then(|c| c.with_collapse_gate(gate))
+                .and_then(|c| c.with_regularization(regularization))
                 .map_err(pf_field)?,
             x0.into(),
             prior.into(),
