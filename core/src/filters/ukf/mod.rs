@@ -1,0 +1,299 @@
+//! A generic unscented Kalman filter (paper 004, Iossaqui, Camino &
+//! Zampieri, *nonlinear filters for tracked robots under slip*, "The UKF
+//! algorithm"): `N` states, `M` measurements, additive process and
+//! measurement noise, Van der Merwe's scaled sigma points. It follows
+//! **FilterPy 1.4.5** (`UnscentedKalmanFilter` with
+//! `MerweScaledSigmaPoints`) step for step; `host-tests/tests/ukf_filterpy.rs`
+//! checks it against FilterPy's own output.
+//!
+//! # Sigma points and weights (the paper's UKF section)
+//! ```text
+//! λ = α²(n + κ) − n        γ = √(n + λ)
+//! X = [x,  x + γ√P,  x − γ√P]                      (2n + 1 points)
+//! W₀ᵐ = λ/(n + λ)    W₀ᶜ = λ/(n + λ) + (1 − α² + β)    Wᵢᵐ = Wᵢᶜ = 1/(2(n + λ))
+//! ```
+//! The paper uses `α = 0.01, β = 2, κ = 0` ([`MerweScaledSigmaPoints`]).
+//!
+//! `√P` is FilterPy's: `scipy.linalg.cholesky((λ + n)P)` returns the upper
+//! factor `U` (`(λ + n)P = UᵀU`) and FilterPy takes its **rows**:
+//! `σ_{k+1} = x + U[k]`, `σ_{n+k+1} = x − U[k]`, `k = 0 … n−1`. A row of
+//! `U` is a column of the lower factor `L = Uᵀ` (`(λ + n)P = LLᵀ`), which is
+//! what this module computes (nalgebra's Cholesky, lower triangle):
+//! with `Lₖ` its columns, `Σₖ LₖLₖᵀ = LLᵀ = (λ + n)P`. The rows of `L` (the
+//! columns of `U`), which a port built on a lower-triangular Cholesky such
+//! as numpy's may take by mistake, are not a square root of `P` (their
+//! outer products sum to `LᵀL`): on the conformance fixtures that filter
+//! ends up 0.06 to 0.9 standard deviations away from FilterPy's.
+//!
+//! # Time update ([`UnscentedKalmanFilter::predict`])
+//! Sigma points of the posterior `(x, P)`, each propagated through the true
+//! nonlinear `f` ([`UkfModel::transition`], FilterPy's `fx`) into `σf`,
+//! then the unscented transform with the model's hooks:
+//! ```text
+//! x⁻ = mean_x(σf, Wᵐ)         P⁻ = Σᵢ Wᵢᶜ r(σfᵢ, x⁻) r(σfᵢ, x⁻)ᵀ + Q
+//! ```
+//! with `mean_x` = [`UkfModel::state_mean`] (`x_mean_fn`) and `r` =
+//! [`UkfModel::state_residual`] (`residual_x`).
+//!
+//! # Measurement update ([`UnscentedKalmanFilter::update`])
+//! As in FilterPy 1.4.5, the update **reuses the propagated points `σf`**
+//! of the last predict (it does not draw new sigma points from `(x⁻, P⁻)`;
+//! FilterPy changed that after 1.4.5):
+//! ```text
+//! σhᵢ = h(σfᵢ)                ŷ = mean_z(σh, Wᵐ)
+//! S = Pyy = Σᵢ Wᵢᶜ rz(σhᵢ, ŷ) rz(σhᵢ, ŷ)ᵀ + R
+//! Pxy = Σᵢ Wᵢᶜ r(σfᵢ, x⁻) rz(σhᵢ, ŷ)ᵀ        K = Pxy S⁻¹
+//! ỹ = rz(y, ŷ)                x = x⁻ + K ỹ      P = P⁻ − K S Kᵀ
+//! ```
+//! (`h` = [`UkfModel::measure`], `mean_z` = [`UkfModel::measurement_mean`],
+//! `rz` = [`UkfModel::measurement_residual`]). Because `σf` predate `Q`,
+//! `S` and `Pxy` do not contain it: on a linear system this is the Kalman
+//! filter only when `Q = 0`, and otherwise the Kalman filter with
+//! `S = H(P⁻ − Q)Hᵀ + R`, `Pxy = (P⁻ − Q)Hᵀ` (the unit tests check both;
+//! later FilterPy versions redraw the points to include `Q`). With
+//! [`UnscentedKalmanFilter::with_redrawn_update_points`] the update draws
+//! fresh points from `(x⁻, P⁻)` instead, as those later versions do: then
+//! a linear system is the Kalman filter whatever `Q`, which a filter whose
+//! `Q` per step is as large as `R` needs (the fusion estimator's UKF,
+//! [`crate::estimation::fusion::ukf`]). `K` comes
+//! from a Cholesky solve with `S` (nalgebra's inverse if `S` is not
+//! positive definite), not from `S⁻¹` as in FilterPy: in `f32`, nalgebra's
+//! closed-form 4 × 4 inverse cost the landmark fixture 3e-4 in `P`. The
+//! state is not normalised
+//! after the update (FilterPy does not either): an angle may leave
+//! (−π, π] by the correction until the next predict's mean brings it back.
+//! Where this filter departs from FilterPy, it does so where FilterPy's
+//! behaviour is undefined or would fail:
+//! * An update with no fresh `σf` (before the first predict, or a second
+//!   update after the same predict) draws sigma points from the current
+//!   `(x, P)` (no transition). FilterPy would use zeros, or the stale
+//!   points of the previous prior; its docs advise recomputing them.
+//! * `P` is symmetrised after every step; `K S Kᵀ` is formed as FilterPy
+//!   forms it and the asymmetry it leaves is rounding.
+//! * The failures below have defined reactions instead of exceptions.
+//!
+//! # Angles
+//! A state or measurement with angle components overrides the four hooks;
+//! [`unscented_mean_with_angles`] (the circular mean `atan2(Σ W sin, Σ W
+//! cos)`, FilterPy's book recipe) and [`residual_with_angles`] (difference
+//! wrapped to (−π, π]) do it for chosen components. The unscented circular
+//! mean has resultant `Σ W cos d ≈ 1 − σ²/2` for an angle of variance `σ²`
+//! (whatever `α`): above about 2 rad² it turns negative, the mean flips by
+//! π and `P⁻` becomes indefinite. FilterPy fails there too (paper 004's
+//! `P0 = 10 I` on the heading makes scipy raise at the second predict), so
+//! start an angle with a variance well below 2 rad².
+//!
+//! # `f32` and small `α`
+//! With `α = 0.01` and `n = 3`, `W₀ᵐ = −9999` and `Wᵢ = 1666.7`: a plain
+//! `Σ W σ` loses four digits to cancellation, and the `f32` weights
+//! themselves sum to 1 only within a few 1e-4. The default means are
+//! therefore evaluated as `σ₀ + Σ_{i≥1} Wᵢ(σᵢ − σ₀)` (and the circular mean
+//! about `σ₀`), equal to FilterPy's `Σ W σ` for weights that sum to one
+//! but free of that cancellation. What no evaluation order can recover is
+//! the rounding of the points themselves: the offsets `γ√P` (`γ = 0.017`)
+//! are stored on top of `x`, and every `f(σᵢ)` is rounded at `ε|x|`, so a
+//! predict's mean carries `Σ_{i≥1}|Wᵢ| · ε|x|` (1e4 · 1.2e-7 · |x|, a few
+//! 1e-4 · |x|) of rounding and `P⁻` a relative `ε|x|/(γ√P)`. Against
+//! FilterPy's `f64` (`host-tests/tests/ukf_filterpy.rs`) that is 0.06 σ in
+//! `x` and 0.2–1.4 % in `P` over paper 004's scenario 1, against 2e-5 at
+//! `α = 0.5`. The estimator is no worse for it (the errors are a small
+//! fraction of its own σ); a larger `α` (0.1 … 1) is the cure when the
+//! numbers must reproduce.
+//!
+//! # Bad input and failures
+//! Each of these skips the step, leaves the estimate as it was (except the
+//! reset), is counted in [`UkfCounters`] and is reported by the returned
+//! [`UkfOutcome`]:
+//! * a non-finite input `u`, step `dt` (or a negative one), measurement `z`
+//!   or per-call `R` (not finite, symmetric and positive semi-definite):
+//!   [`UkfOutcome::RejectedInput`];
+//! * `(λ + n)P` does not factor (not positive definite, e.g. after
+//!   rounding): it is symmetrised, its diagonal raised by
+//!   [`COVARIANCE_JITTER`] times its largest diagonal entry, and factored
+//!   again; if that works the step goes on ([`UkfOutcome::Repaired`],
+//!   counted as a repair). Otherwise `P` is reset to the initial covariance
+//!   given at construction, `x` is kept and the step is skipped
+//!   ([`UkfOutcome::CovarianceReset`]);
+//! * `S` not invertible: [`UkfOutcome::SingularInnovation`];
+//! * a non-finite result (`x`, `P`, `S` or `K`):
+//!   [`UkfOutcome::NonFiniteResult`].
+//!
+//! Everything is stack-allocated: `σf` is an `N × S` matrix, `S = 2N + 1`.
+
+mod filter;
+mod sigma_points;
+#[cfg(test)]
+mod tests;
+
+pub use filter::UnscentedKalmanFilter;
+pub use sigma_points::{
+    MerweScaledSigmaPoints, residual_with_angles, unscented_mean, unscented_mean_with_angles,
+};
+
+use nalgebra::{SMatrix, SVector};
+
+/// The jitter added to the diagonal of `(λ + n)P` when it does not factor,
+/// relative to its largest diagonal entry: about 80 `f32` ulps, above the
+/// rounding that makes a positive definite `P` fail, below any variance
+/// that matters.
+pub const COVARIANCE_JITTER: f32 = 1e-5;
+
+/// Why a sigma-point set or a filter was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum UkfError {
+    /// The number of sigma points `S` is not `2N + 1`, or `N = 0`. `S` is
+    /// a separate const parameter only because stable Rust cannot write
+    /// `SMatrix<f32, N, { 2 * N + 1 }>` (`generic_const_exprs` is
+    /// unstable); it is checked here instead.
+    SigmaPointCount,
+    /// `α` not finite and positive.
+    Alpha,
+    /// `β` not finite.
+    Beta,
+    /// `κ` not finite, or `n + κ ≤ 0` (then `n + λ = α²(n + κ) ≤ 0`).
+    Kappa,
+    /// `n + λ = α²(n + κ)` under- or overflows `f32`, so the weights are
+    /// not finite.
+    Spread,
+    /// The initial state is not finite.
+    InitialState,
+    /// The initial covariance is not finite, symmetric and positive
+    /// definite.
+    InitialCovariance,
+    /// The process noise `Q` is not finite, symmetric and positive
+    /// semi-definite.
+    ProcessNoise,
+    /// The measurement noise `R` is not finite, symmetric and positive
+    /// semi-definite.
+    MeasurementNoise,
+}
+
+impl core::fmt::Display for UkfError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::SigmaPointCount => "the sigma-point count S must be 2N + 1 with N > 0",
+            Self::Alpha => "alpha (α) must be finite and > 0",
+            Self::Beta => "beta (β) must be finite",
+            Self::Kappa => "kappa (κ) must be finite with n + κ > 0",
+            Self::Spread => {
+                "n + λ = α²(n + κ) under- or overflows f32 (the weights are not finite)"
+            }
+            Self::InitialState => "the initial state must be finite",
+            Self::InitialCovariance => {
+                "the initial covariance must be finite, symmetric and positive definite"
+            }
+            Self::ProcessNoise => {
+                "the process noise Q must be finite, symmetric and positive semi-definite"
+            }
+            Self::MeasurementNoise => {
+                "the measurement noise R must be finite, symmetric and positive semi-definite"
+            }
+        })
+    }
+}
+
+impl core::error::Error for UkfError {}
+
+/// A system for the [`UnscentedKalmanFilter`]: FilterPy's `fx`, `hx` and
+/// its four hooks `residual_x`, `residual_z`, `x_mean_fn`, `z_mean_fn`.
+pub trait UkfModel<const N: usize, const M: usize> {
+    /// The input `u` (FilterPy's `**fx_args`).
+    type Input;
+
+    /// Whether `u` is usable (finite): a rejected input skips the predict.
+    fn input_is_finite(&self, u: &Self::Input) -> bool;
+
+    /// `f(x, u, dt)`: the state after a step of `dt_s` seconds (`fx`).
+    fn transition(&self, x: &SVector<f32, N>, u: &Self::Input, dt_s: f32) -> SVector<f32, N>;
+
+    /// `h(x)`: the expected measurement (`hx`).
+    fn measure(&self, x: &SVector<f32, N>) -> SVector<f32, M>;
+
+    /// `a − b` for states (`residual_x`; default plain difference, see
+    /// [`residual_with_angles`]).
+    fn state_residual(&self, a: &SVector<f32, N>, b: &SVector<f32, N>) -> SVector<f32, N> {
+        a - b
+    }
+
+    /// `a − b` for measurements (`residual_z`; default plain difference).
+    fn measurement_residual(&self, a: &SVector<f32, M>, b: &SVector<f32, M>) -> SVector<f32, M> {
+        a - b
+    }
+
+    /// The weighted mean of state sigma points (columns) with weights
+    /// summing to one (`x_mean_fn`; default [`unscented_mean`], see
+    /// [`unscented_mean_with_angles`]).
+    fn state_mean<const S: usize>(
+        &self,
+        sigmas: &SMatrix<f32, N, S>,
+        weights: &SVector<f32, S>,
+    ) -> SVector<f32, N> {
+        unscented_mean(sigmas, weights)
+    }
+
+    /// The weighted mean of measurement sigma points (`z_mean_fn`; default
+    /// [`unscented_mean`]).
+    fn measurement_mean<const S: usize>(
+        &self,
+        sigmas: &SMatrix<f32, M, S>,
+        weights: &SVector<f32, S>,
+    ) -> SVector<f32, M> {
+        unscented_mean(sigmas, weights)
+    }
+}
+
+/// What a [`UnscentedKalmanFilter::predict`] or
+/// [`UnscentedKalmanFilter::update`] did (module docs, "Bad input and
+/// failures").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum UkfOutcome {
+    /// The step was applied.
+    Applied,
+    /// The step was applied after `(λ + n)P` was symmetrised and jittered
+    /// to factor.
+    Repaired,
+    /// Skipped: non-finite input, step, measurement or per-call noise.
+    RejectedInput,
+    /// Skipped: `(λ + n)P` did not factor even jittered; `P` was reset to
+    /// the initial covariance, `x` kept.
+    CovarianceReset,
+    /// Skipped: the innovation covariance `S` is not invertible.
+    SingularInnovation,
+    /// Skipped: the result was not finite; the estimate is unchanged.
+    NonFiniteResult,
+}
+
+impl UkfOutcome {
+    /// Whether the step changed the estimate as the filter equations say
+    /// ([`Self::Applied`] or [`Self::Repaired`]).
+    #[must_use]
+    pub fn is_applied(self) -> bool {
+        matches!(self, Self::Applied | Self::Repaired)
+    }
+}
+
+/// What the filter skipped or repaired, since construction (saturating).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct UkfCounters {
+    /// Steps skipped for a non-finite (or negative) `u`, `dt`, `z` or `R`.
+    pub rejected_inputs: u32,
+    /// Steps skipped for a non-finite result.
+    pub non_finite_results: u32,
+    /// Updates skipped because `S` was not invertible.
+    pub singular_innovations: u32,
+    /// Factorisations of `(λ + n)P` that needed the jitter.
+    pub covariance_repairs: u32,
+    /// Resets of `P` to the initial covariance (the factorisation failed
+    /// even jittered).
+    pub covariance_resets: u32,
+}
+
+pub(crate) fn bump(counter: &mut u32) {
+    *counter = counter.saturating_add(1);
+}
