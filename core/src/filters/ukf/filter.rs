@@ -2,9 +2,11 @@
 
 use nalgebra::{SMatrix, SVector};
 
+use super::factor::{outer, semidefinite_factor};
 use super::sigma_points::{lower_factor, points_from_factor};
 use super::{
-    COVARIANCE_JITTER, MerweScaledSigmaPoints, UkfCounters, UkfError, UkfModel, UkfOutcome, bump,
+    COVARIANCE_JITTER, MerweScaledSigmaPoints, UkfCounters, UkfError, UkfForm, UkfModel,
+    UkfOutcome, bump,
 };
 
 /// `K = Pxy S⁻¹` for a symmetric `S`: as `Kᵀ = S⁻¹ Pxyᵀ` by Cholesky when
@@ -71,6 +73,15 @@ where
     pub(super) innovation_covariance: SMatrix<f32, M, M>,
     pub(super) gain: SMatrix<f32, N, M>,
     pub(super) counters: UkfCounters,
+    /// Which covariance is propagated.
+    pub(super) form: UkfForm,
+    /// The square-root form's lower factor `L` of `P` (`P = L Lᵀ`); zero
+    /// in the covariance form.
+    pub(super) factor: SMatrix<f32, N, N>,
+    /// `√Q` (lower, [`semidefinite_factor`]).
+    pub(super) q_factor: SMatrix<f32, N, N>,
+    /// `√R`.
+    pub(super) r_factor: SMatrix<f32, M, M>,
 }
 
 impl<Model, const N: usize, const M: usize, const S: usize> UnscentedKalmanFilter<Model, N, M, S>
@@ -122,7 +133,40 @@ where
             innovation_covariance: SMatrix::zeros(),
             gain: SMatrix::zeros(),
             counters: UkfCounters::default(),
+            form: UkfForm::Covariance,
+            factor: SMatrix::zeros(),
+            q_factor: semidefinite_factor(&symmetrize(&q)),
+            r_factor: semidefinite_factor(&symmetrize(&r)),
         })
+    }
+
+    /// The filter in `form` ([`UkfForm`]; a new filter is in the
+    /// covariance form).
+    ///
+    /// # Errors
+    /// [`UkfError::SquareRootBeta`]: the square-root form needs `β ≥ α²`
+    /// (module docs, "Square-root form"); the filter is not built.
+    pub fn with_form(self, form: UkfForm) -> Result<Self, UkfError> {
+        let factor = match form {
+            UkfForm::Covariance => SMatrix::zeros(),
+            UkfForm::SquareRoot => {
+                if self.points.centre_term().is_none() {
+                    return Err(UkfError::SquareRootBeta);
+                }
+                lower_factor(&self.p).ok_or(UkfError::InitialCovariance)?
+            }
+        };
+        Ok(Self {
+            form,
+            factor,
+            ..self
+        })
+    }
+
+    /// The form the filter propagates.
+    #[must_use]
+    pub fn form(&self) -> UkfForm {
+        self.form
     }
 
     /// Updates draw their sigma points from the prior `(x⁻, P⁻)`, which
@@ -221,6 +265,7 @@ where
             return Err(UkfError::ProcessNoise);
         }
         self.q = symmetrize(&q);
+        self.q_factor = semidefinite_factor(&self.q);
         Ok(())
     }
 
@@ -234,6 +279,7 @@ where
             return Err(UkfError::MeasurementNoise);
         }
         self.r = symmetrize(&r);
+        self.r_factor = semidefinite_factor(&self.r);
         Ok(())
     }
 
@@ -247,11 +293,15 @@ where
         if !all_finite(&x) {
             return Err(UkfError::InitialState);
         }
-        if !(is_noise_covariance(&p) && lower_factor(&p).is_some()) {
+        let p = symmetrize(&p);
+        let Some(factor) = lower_factor(&p).filter(|_| is_noise_covariance(&p)) else {
             return Err(UkfError::InitialCovariance);
-        }
+        };
         self.x = x;
-        self.p = symmetrize(&p);
+        self.p = p;
+        if self.form == UkfForm::SquareRoot {
+            self.factor = factor;
+        }
         self.sigmas_f_fresh = false;
         Ok(())
     }
@@ -259,13 +309,21 @@ where
     /// The sigma points of the current `(x, P)`, with the repair and reset
     /// of the module docs: `Ok((points, repaired))`, or `Err` after a reset.
     fn draw_sigma_points(&mut self) -> Result<(SMatrix<f32, N, S>, bool), UkfOutcome> {
+        if self.form == UkfForm::SquareRoot {
+            let l = self.factor * self.points.gamma();
+            return Ok((points_from_factor(&self.x, &l), false));
+        }
         if let Some(points) = self.points.sigma_points(&self.x, &self.p) {
             return Ok((points, false));
         }
         let scaled = symmetrize(&(self.p * self.points.spread));
-        let largest = scaled.diagonal().amax();
-        let jitter = (COVARIANCE_JITTER * largest).max(f32::MIN_POSITIVE);
-        let jittered = scaled + SMatrix::<f32, N, N>::identity() * jitter;
+        // Each diagonal entry raised by the jitter times itself (a floor
+        // for a zero or negative one), so that a small variance is not
+        // swamped by the largest.
+        let mut jittered = scaled;
+        for v in jittered.iter_mut().step_by(N + 1).take(N) {
+            *v += (COVARIANCE_JITTER * v.abs()).max(f32::MIN_POSITIVE);
+        }
         if let Some(l) = lower_factor(&jittered) {
             bump(&mut self.counters.covariance_repairs);
             return Ok((points_from_factor(&self.x, &l), true));
@@ -295,21 +353,32 @@ where
         let x = self
             .model
             .state_mean(&sigmas_f, &self.points.mean_weights());
-        let mut p = self.q;
-        for (sigma, &w) in sigmas_f
-            .column_iter()
-            .zip(self.points.covariance_weights().iter())
-        {
-            let d = self.model.state_residual(&sigma.into_owned(), &x);
-            p += d * d.transpose() * w;
-        }
-        if !(all_finite(&x) && all_finite(&p) && all_finite(&sigmas_f)) {
+        let (p, factor) = match self.form {
+            UkfForm::Covariance => {
+                let mut p = self.q;
+                for (sigma, &w) in sigmas_f
+                    .column_iter()
+                    .zip(self.points.covariance_weights().iter())
+                {
+                    let d = self.model.state_residual(&sigma.into_owned(), &x);
+                    p += d * d.transpose() * w;
+                }
+                (symmetrize(&p), self.factor)
+            }
+            UkfForm::SquareRoot => {
+                let deviations = self.centred_state_deviations(&sigmas_f, &x);
+                let factor = self.points.centred_factor(self.q_factor, &deviations);
+                (outer(&factor), factor)
+            }
+        };
+        if !(all_finite(&x) && all_finite(&p) && all_finite(&factor) && all_finite(&sigmas_f)) {
             bump(&mut self.counters.non_finite_results);
             self.sigmas_f_fresh = false;
             return UkfOutcome::NonFiniteResult;
         }
         self.x = x;
-        self.p = symmetrize(&p);
+        self.p = p;
+        self.factor = factor;
         self.sigmas_f = sigmas_f;
         self.sigmas_f_fresh = true;
         if repaired {
@@ -322,8 +391,8 @@ where
     /// The measurement update with `z` and the filter's `R`: FilterPy's
     /// `update(z)` (module docs), on the last predict's `σf`.
     pub fn update(&mut self, z: &SVector<f32, M>) -> UkfOutcome {
-        let r = self.r;
-        self.update_with(z, &r)
+        let (r, r_factor) = (self.r, self.r_factor);
+        self.update_with(z, &r, &r_factor)
     }
 
     /// The measurement update with `z` and, for this call only, the
@@ -334,7 +403,8 @@ where
             bump(&mut self.counters.rejected_inputs);
             return UkfOutcome::RejectedInput;
         }
-        self.update_with(z, &symmetrize(r))
+        let r = symmetrize(r);
+        self.update_with(z, &r, &semidefinite_factor(&r))
     }
 
     /// The measurement update with component `index` (`< M`) of the
@@ -353,17 +423,13 @@ where
             bump(&mut self.counters.rejected_inputs);
             return UkfOutcome::RejectedInput;
         }
-        let (sigmas_f, repaired, sigmas_h, z_mean) = match self.measurement_sigmas() {
+        let (sigmas_f, repaired, reused, sigmas_h, z_mean) = match self.measurement_sigmas() {
             Ok(drawn) => drawn,
             Err(outcome) => return outcome,
         };
-        let mut dz = SMatrix::<f32, 1, S>::zeros();
-        for (sigma_h, d) in sigmas_h.column_iter().zip(dz.iter_mut()) {
-            let residual = self
-                .model
-                .measurement_residual(&sigma_h.into_owned(), &z_mean);
-            *d = residual.get(index).copied().unwrap_or(f32::NAN);
-        }
+        let dz = self.measurement_deviations(&sigmas_h, &z_mean, |d| {
+            SVector::<f32, 1>::new(d.get(index).copied().unwrap_or(f32::NAN))
+        });
         let mut full_z = z_mean;
         if let Some(component) = full_z.get_mut(index) {
             *component = z;
@@ -375,8 +441,9 @@ where
             .copied()
             .unwrap_or(f32::NAN);
         let innovation = SVector::<f32, 1>::new(innovation);
+        let r_factor = SMatrix::<f32, 1, 1>::new(crate::math::sqrt(r));
         let r = SMatrix::<f32, 1, 1>::new(r);
-        match self.correct(&sigmas_f, &dz, &innovation, &r) {
+        match self.correct(&sigmas_f, reused, &dz, &innovation, (&r, &r_factor)) {
             Ok((gain, s)) => {
                 self.innovation = SVector::zeros();
                 self.innovation_covariance = SMatrix::zeros();
@@ -396,25 +463,23 @@ where
         }
     }
 
-    fn update_with(&mut self, z: &SVector<f32, M>, r: &SMatrix<f32, M, M>) -> UkfOutcome {
+    fn update_with(
+        &mut self,
+        z: &SVector<f32, M>,
+        r: &SMatrix<f32, M, M>,
+        r_factor: &SMatrix<f32, M, M>,
+    ) -> UkfOutcome {
         if !all_finite(z) {
             bump(&mut self.counters.rejected_inputs);
             return UkfOutcome::RejectedInput;
         }
-        let (sigmas_f, repaired, sigmas_h, z_mean) = match self.measurement_sigmas() {
+        let (sigmas_f, repaired, reused, sigmas_h, z_mean) = match self.measurement_sigmas() {
             Ok(drawn) => drawn,
             Err(outcome) => return outcome,
         };
-        let mut dz = SMatrix::<f32, M, S>::zeros();
-        for (sigma_h, mut d) in sigmas_h.column_iter().zip(dz.column_iter_mut()) {
-            d.copy_from(
-                &self
-                    .model
-                    .measurement_residual(&sigma_h.into_owned(), &z_mean),
-            );
-        }
+        let dz = self.measurement_deviations(&sigmas_h, &z_mean, |d| d);
         let innovation = self.model.measurement_residual(z, &z_mean);
-        match self.correct(&sigmas_f, &dz, &innovation, r) {
+        match self.correct(&sigmas_f, reused, &dz, &innovation, (r, r_factor)) {
             Ok((gain, s)) => {
                 self.innovation = innovation;
                 self.innovation_covariance = s;
@@ -423,6 +488,72 @@ where
             }
             Err(outcome) => outcome,
         }
+    }
+
+    /// The measurement deviations of the points (columns, `pick`ed to the
+    /// `K` measured components): in the covariance form `rz(σhᵢ, ŷ)`; in
+    /// the square-root form centred on the first point, `rz(ŷ, σh₀)` in
+    /// column 0 and `rz(σhᵢ, σh₀)` in the others (module docs).
+    fn measurement_deviations<const K: usize>(
+        &self,
+        sigmas_h: &SMatrix<f32, M, S>,
+        z_mean: &SVector<f32, M>,
+        pick: impl Fn(SVector<f32, M>) -> SVector<f32, K>,
+    ) -> SMatrix<f32, K, S> {
+        let mut dz = SMatrix::<f32, K, S>::zeros();
+        match self.form {
+            UkfForm::Covariance => {
+                for (sigma_h, d) in sigmas_h.data.0.iter().zip(dz.data.0.iter_mut()) {
+                    let residual = self
+                        .model
+                        .measurement_residual(&SVector::from(*sigma_h), z_mean);
+                    let [column] = pick(residual).data.0;
+                    *d = column;
+                }
+            }
+            UkfForm::SquareRoot => {
+                let Some(centre) = sigmas_h.data.0.first().map(|c| SVector::from(*c)) else {
+                    return dz;
+                };
+                for (i, (sigma_h, d)) in
+                    sigmas_h.data.0.iter().zip(dz.data.0.iter_mut()).enumerate()
+                {
+                    let residual = if i == 0 {
+                        self.model.measurement_residual(z_mean, &centre)
+                    } else {
+                        self.model
+                            .measurement_residual(&SVector::from(*sigma_h), &centre)
+                    };
+                    let [column] = pick(residual).data.0;
+                    *d = column;
+                }
+            }
+        }
+        dz
+    }
+
+    /// The state deviations of the points `sigmas` about the first one,
+    /// `r(mean, σ₀)` in column 0 and `r(σᵢ, σ₀)` in the others (the
+    /// square-root form's centred sums, module docs).
+    pub(super) fn centred_state_deviations(
+        &self,
+        sigmas: &SMatrix<f32, N, S>,
+        mean: &SVector<f32, N>,
+    ) -> SMatrix<f32, N, S> {
+        let mut d = SMatrix::<f32, N, S>::zeros();
+        let Some(centre) = sigmas.data.0.first().map(|c| SVector::from(*c)) else {
+            return d;
+        };
+        for (i, (sigma, out)) in sigmas.data.0.iter().zip(d.data.0.iter_mut()).enumerate() {
+            let residual = if i == 0 {
+                self.model.state_residual(mean, &centre)
+            } else {
+                self.model.state_residual(&SVector::from(*sigma), &centre)
+            };
+            let [column] = residual.data.0;
+            *out = column;
+        }
+        d
     }
 
     fn outcome(repaired: bool) -> UkfOutcome {
@@ -434,8 +565,9 @@ where
     }
 
     /// The update's points: the last predict's `σf` if still fresh (else
-    /// drawn from `(x, P)`), whether they were repaired, their images
-    /// under `h` and the mean of those.
+    /// drawn from `(x, P)`), whether they were repaired, whether they are
+    /// the predict's (which leave out `Q`), their images under `h` and
+    /// the mean of those.
     #[allow(clippy::type_complexity)]
     fn measurement_sigmas(
         &mut self,
@@ -443,12 +575,14 @@ where
         (
             SMatrix<f32, N, S>,
             bool,
+            bool,
             SMatrix<f32, M, S>,
             SVector<f32, M>,
         ),
         UkfOutcome,
     > {
-        let (sigmas_f, repaired) = if self.sigmas_f_fresh && !self.redraw_for_update {
+        let reused = self.sigmas_f_fresh && !self.redraw_for_update;
+        let (sigmas_f, repaired) = if reused {
             (self.sigmas_f, false)
         } else {
             self.draw_sigma_points()?
@@ -460,48 +594,114 @@ where
         let z_mean = self
             .model
             .measurement_mean(&sigmas_h, &self.points.mean_weights());
-        Ok((sigmas_f, repaired, sigmas_h, z_mean))
+        Ok((sigmas_f, repaired, reused, sigmas_h, z_mean))
     }
 
-    /// The correction from the measurement residuals `dz` of the points
-    /// `sigmas_f` (columns) and the innovation, with noise `r` (`K`
-    /// measured components): `S`, `P_xz`, the gain, and `x, P` updated.
-    /// Returns the gain and `S`, or the outcome of a failure (counted).
+    /// The correction from the measurement deviations `dz`
+    /// ([`Self::measurement_deviations`]) of the points `sigmas_f`
+    /// (columns) and the innovation, with noise `r` and its factor (`K`
+    /// measured components): `S`, `P_xz`, the gain, and `x, P` updated in
+    /// the filter's form. `reused`: the points are the predict's, whose
+    /// covariance lacks `Q`. Returns the gain and `S`, or the outcome of a
+    /// failure (counted).
     fn correct<const K: usize>(
         &mut self,
         sigmas_f: &SMatrix<f32, N, S>,
+        reused: bool,
         dz: &SMatrix<f32, K, S>,
         innovation: &SVector<f32, K>,
-        r: &SMatrix<f32, K, K>,
+        (r, r_factor): (&SMatrix<f32, K, K>, &SMatrix<f32, K, K>),
     ) -> Result<(SMatrix<f32, N, K>, SMatrix<f32, K, K>), UkfOutcome> {
-        let mut s = *r;
-        let mut cross = SMatrix::<f32, N, K>::zeros();
-        for ((sigma_f, d), &w) in sigmas_f
-            .column_iter()
-            .zip(dz.column_iter())
-            .zip(self.points.covariance_weights().iter())
-        {
-            let dx = self.model.state_residual(&sigma_f.into_owned(), &self.x);
-            s += d * d.transpose() * w;
-            cross += dx * d.transpose() * w;
-        }
-        if !(all_finite(&s) && all_finite(&cross)) {
-            bump(&mut self.counters.non_finite_results);
-            return Err(UkfOutcome::NonFiniteResult);
-        }
-        let Some(gain) = kalman_gain(&cross, &s) else {
-            bump(&mut self.counters.singular_innovations);
-            return Err(UkfOutcome::SingularInnovation);
+        let corrected = match self.form {
+            UkfForm::Covariance => self.correct_covariance(sigmas_f, reused, dz, innovation, r),
+            UkfForm::SquareRoot => {
+                self.correct_square_root(sigmas_f, reused, dz, innovation, r_factor)
+            }
         };
-        let x = self.x + gain * innovation;
-        let p = self.p - gain * s * gain.transpose();
-        if !(all_finite(&x) && all_finite(&p) && all_finite(&gain) && all_finite(innovation)) {
+        let (x, p, factor, gain, s) = match corrected {
+            Ok(corrected) => corrected,
+            Err(outcome) => {
+                bump(match outcome {
+                    UkfOutcome::SingularInnovation => &mut self.counters.singular_innovations,
+                    _ => &mut self.counters.non_finite_results,
+                });
+                return Err(outcome);
+            }
+        };
+        if !(all_finite(&x)
+            && all_finite(&p)
+            && all_finite(&factor)
+            && all_finite(&gain)
+            && all_finite(innovation))
+        {
             bump(&mut self.counters.non_finite_results);
             return Err(UkfOutcome::NonFiniteResult);
         }
         self.x = x;
-        self.p = symmetrize(&p);
+        self.p = p;
+        self.factor = factor;
         self.sigmas_f_fresh = false;
         Ok((gain, s))
+    }
+
+    /// The covariance form's correction (module docs, "Measurement
+    /// update"): FilterPy's `S`, `P_xz` and gain, and the Joseph-type
+    /// `P = Σᵢ Wᵢᶜ eᵢ eᵢᵀ + K R Kᵀ (+ Q)`, `eᵢ = r(σfᵢ, x⁻) − K dzᵢ`.
+    #[allow(clippy::type_complexity)]
+    fn correct_covariance<const K: usize>(
+        &self,
+        sigmas_f: &SMatrix<f32, N, S>,
+        reused: bool,
+        dz: &SMatrix<f32, K, S>,
+        innovation: &SVector<f32, K>,
+        r: &SMatrix<f32, K, K>,
+    ) -> Result<
+        (
+            SVector<f32, N>,
+            SMatrix<f32, N, N>,
+            SMatrix<f32, N, N>,
+            SMatrix<f32, N, K>,
+            SMatrix<f32, K, K>,
+        ),
+        UkfOutcome,
+    > {
+        let mut s = *r;
+        let mut cross = SMatrix::<f32, N, K>::zeros();
+        let mut dx = SMatrix::<f32, N, S>::zeros();
+        for (((sigma_f, d), &w), dx) in sigmas_f
+            .data
+            .0
+            .iter()
+            .zip(dz.data.0.iter())
+            .zip(self.points.covariance_weights().iter())
+            .zip(dx.data.0.iter_mut())
+        {
+            let d = SVector::<f32, K>::from(*d);
+            let residual = self.model.state_residual(&SVector::from(*sigma_f), &self.x);
+            s += d * d.transpose() * w;
+            cross += residual * d.transpose() * w;
+            let [column] = residual.data.0;
+            *dx = column;
+        }
+        if !(all_finite(&s) && all_finite(&cross)) {
+            return Err(UkfOutcome::NonFiniteResult);
+        }
+        let gain = kalman_gain(&cross, &s).ok_or(UkfOutcome::SingularInnovation)?;
+        let x = self.x + gain * innovation;
+        let mut p = gain * r * gain.transpose();
+        if reused {
+            p += self.q;
+        }
+        let deviations = dx - gain * dz;
+        for (e, &w) in deviations
+            .data
+            .0
+            .iter()
+            .zip(self.points.covariance_weights().iter())
+        {
+            let e = SVector::<f32, N>::from(*e);
+            p += e * e.transpose() * w;
+        }
+        Ok((x, symmetrize(&p), self.factor, gain, s))
     }
 }

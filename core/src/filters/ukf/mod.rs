@@ -43,8 +43,22 @@
 //! σhᵢ = h(σfᵢ)                ŷ = mean_z(σh, Wᵐ)
 //! S = Pyy = Σᵢ Wᵢᶜ rz(σhᵢ, ŷ) rz(σhᵢ, ŷ)ᵀ + R
 //! Pxy = Σᵢ Wᵢᶜ r(σfᵢ, x⁻) rz(σhᵢ, ŷ)ᵀ        K = Pxy S⁻¹
-//! ỹ = rz(y, ŷ)                x = x⁻ + K ỹ      P = P⁻ − K S Kᵀ
+//! ỹ = rz(y, ŷ)                x = x⁻ + K ỹ
+//! P = Σᵢ Wᵢᶜ eᵢ eᵢᵀ + K R Kᵀ (+ Q),   eᵢ = r(σfᵢ, x⁻) − K rz(σhᵢ, ŷ)
 //! ```
+//! The last line is a Joseph-type form of FilterPy's `P = P⁻ − K S Kᵀ`: the
+//! points' own covariance `Σ Wᶜ r rᵀ` is `P⁻ − Q` for the predict's points
+//! (so `Q` is added back) and `P⁻` for redrawn ones, and expanding the sum
+//! gives `P⁻ − K Pxyᵀ − Pxy Kᵀ + K S Kᵀ = P⁻ − K S Kᵀ` for the optimal `K`,
+//! with FilterPy's weights. Unlike the difference it does not cancel: a
+//! measurement that pins a state down leaves that state's deviations
+//! `eᵢ ≈ 0` and its variance `≈ K R Kᵀ` (issue 17's case, `P₀ =
+//! [[100, 0.05], [0.05, 1e-4]]` measured with `R = 1e-12`: `P₂₂ = 1e-12`
+//! where the difference gave −2.9e-11 in `f32`). It is positive
+//! semi-definite by construction whenever the weights are non-negative;
+//! a negative `W₀ᶜ` (small `α`) multiplies `e₀`, the centre point's
+//! deviation, which is rounding-sized on a near-linear step. It costs one
+//! more `N × S` product than the difference (bench table).
 //! (`h` = [`UkfModel::measure`], `mean_z` = [`UkfModel::measurement_mean`],
 //! `rz` = [`UkfModel::measurement_residual`]). Because `σf` predate `Q`,
 //! `S` and `Pxy` do not contain it: on a linear system this is the Kalman
@@ -68,9 +82,44 @@
 //!   update after the same predict) draws sigma points from the current
 //!   `(x, P)` (no transition). FilterPy would use zeros, or the stale
 //!   points of the previous prior; its docs advise recomputing them.
-//! * `P` is symmetrised after every step; `K S Kᵀ` is formed as FilterPy
-//!   forms it and the asymmetry it leaves is rounding.
+//! * `P` is symmetrised after every step; the update is the Joseph-type
+//!   form above, not the difference.
 //! * The failures below have defined reactions instead of exceptions.
+//!
+//! # Square-root form
+//! [`UkfForm::SquareRoot`] ([`UnscentedKalmanFilter::with_form`]) is Van
+//! der Merwe & Wan's square-root UKF (2001, "The square-root unscented
+//! Kalman filter for state and parameter estimation", ICASSP, Algorithm
+//! 3.1): it propagates the lower Cholesky factor `L` of `P` (`P = L Lᵀ`,
+//! the paper's `Sᵀ`) instead of `P`, with the same points `x ± γLₖ`, the
+//! same means and the same FilterPy 1.4.5 reuse of `σf`. The paper forms
+//! the factor as `qr([√W₁ (σ₁:₂ₙ − x̄), √Q])` and then `cholupdate`s it
+//! with the centre point at weight `W₀ᶜ` (eqs. 20–21), a downdate when
+//! `W₀ᶜ < 0`, i.e. for any `α` below about 1. Here the deviations are
+//! taken about the centre point, `dᵢ = r(σᵢ, σ₀)` and `m = r(x̄, σ₀)`:
+//! for a linear mean `x̄ = σ₀ + Σ_{i≥1} Wᵢ dᵢ`, and
+//! ```text
+//! Σᵢ Wᵢᶜ (σᵢ − x̄)(σᵢ − x̄)ᵀ = Σ_{i≥1} Wᵢ dᵢ dᵢᵀ + (β − α²) m mᵀ
+//! ```
+//! (the centre weight `W₀ᶜ = 2 − Σ_{i≥1} Wᵢ − α² + β` cancels to `β − α²`),
+//! so `L⁻` is `√Q` updated by the `2n` columns `√Wᵢ dᵢ` and by
+//! `√(β − α²) m`: rank-one updates only (Givens rotations, the
+//! QR of the paper one column at a time), positive semi-definite by
+//! construction, and no downdate of weight 1e4 at `α = 0.01`. Hence the
+//! condition `β ≥ α²` ([`UkfError::SquareRootBeta`]; `β = 2` meets it for
+//! any `α ≤ 1.41`). The measurement factor `S_y` is built the same way
+//! from `√R` (eqs. 23–24), `Pxy` from the same centred sums (eq. 25),
+//! `K = (Pxy / S_yᵀ) / S_y` by two triangular solves (eq. 27). The paper
+//! then downdates `L⁻` by the `M` columns of `K S_y` (eq. 27), which in
+//! `f32` fails exactly where the covariance form's difference cancels (a
+//! variance falling by orders of magnitude); instead the posterior factor
+//! is built by updates from the Joseph-type sum above, `√Wᵢ (dᵢ − K dzᵢ)`,
+//! `√(β − α²)(m − K m_z)` and the columns of `K √R` (and `√Q` for the
+//! predict's points). `√Q` and `√R` are semidefinite
+//! factors (`Q = 0` allowed), made when they are set.
+//! [`UnscentedKalmanFilter::covariance`] is `L Lᵀ`. The form never needs
+//! the repair below. For angle components the centred sums differ from
+//! FilterPy's in the circular mean's rounding only.
 //!
 //! # Angles
 //! A state or measurement with angle components overrides the four hooks;
@@ -108,8 +157,9 @@
 //!   or per-call `R` (not finite, symmetric and positive semi-definite):
 //!   [`UkfOutcome::RejectedInput`];
 //! * `(λ + n)P` does not factor (not positive definite, e.g. after
-//!   rounding): it is symmetrised, its diagonal raised by
-//!   [`COVARIANCE_JITTER`] times its largest diagonal entry, and factored
+//!   rounding; covariance form only): it is symmetrised, each diagonal
+//!   entry raised by [`COVARIANCE_JITTER`] times itself (not the largest
+//!   one, which swamped small variances: issue 17), and factored
 //!   again; if that works the step goes on ([`UkfOutcome::Repaired`],
 //!   counted as a repair). Otherwise `P` is reset to the initial covariance
 //!   given at construction, `x` is kept and the step is skipped
@@ -120,8 +170,10 @@
 //!
 //! Everything is stack-allocated: `σf` is an `N × S` matrix, `S = 2N + 1`.
 
+mod factor;
 mod filter;
 mod sigma_points;
+mod square_root;
 #[cfg(test)]
 mod tests;
 
@@ -132,8 +184,8 @@ pub use sigma_points::{
 
 use nalgebra::{SMatrix, SVector};
 
-/// The jitter added to the diagonal of `(λ + n)P` when it does not factor,
-/// relative to its largest diagonal entry: about 80 `f32` ulps, above the
+/// The jitter added to each diagonal entry of `(λ + n)P` when it does not
+/// factor, relative to that entry: about 80 `f32` ulps, above the
 /// rounding that makes a positive definite `P` fail, below any variance
 /// that matters.
 pub const COVARIANCE_JITTER: f32 = 1e-5;
@@ -168,6 +220,10 @@ pub enum UkfError {
     /// The measurement noise `R` is not finite, symmetric and positive
     /// semi-definite.
     MeasurementNoise,
+    /// The square-root form ([`UkfForm::SquareRoot`]) needs `β ≥ α²`: its
+    /// centre term enters the factor as a rank-one update of weight
+    /// `√(β − α²)` (module docs, "Square-root form").
+    SquareRootBeta,
 }
 
 impl core::fmt::Display for UkfError {
@@ -190,6 +246,7 @@ impl core::fmt::Display for UkfError {
             Self::MeasurementNoise => {
                 "the measurement noise R must be finite, symmetric and positive semi-definite"
             }
+            Self::SquareRootBeta => "beta (β) must be ≥ alpha² (α²) for the square-root form",
         })
     }
 }
@@ -274,6 +331,19 @@ impl UkfOutcome {
     pub fn is_applied(self) -> bool {
         matches!(self, Self::Applied | Self::Repaired)
     }
+}
+
+/// Which covariance the [`UnscentedKalmanFilter`] propagates (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum UkfForm {
+    /// `P` itself, FilterPy's equations with a Joseph-type update.
+    #[default]
+    Covariance,
+    /// Its lower Cholesky factor `L` (Van der Merwe & Wan 2001): positive
+    /// semi-definite by construction; needs `β ≥ α²`.
+    SquareRoot,
 }
 
 /// What the filter skipped or repaired, since construction (saturating).

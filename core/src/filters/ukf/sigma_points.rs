@@ -6,6 +6,7 @@ use nalgebra::{SMatrix, SVector};
 use crate::math;
 
 use super::UkfError;
+use super::factor::rank_one_update;
 
 /// Van der Merwe's scaled sigma points for `N` states (FilterPy's
 /// `MerweScaledSigmaPoints(n, alpha, beta, kappa)` with its default
@@ -134,6 +135,52 @@ impl<const N: usize, const S: usize> MerweScaledSigmaPoints<N, S> {
             *w = centre;
         }
         weights
+    }
+
+    /// `√(β − α²)`, the weight of the square-root form's centre term
+    /// (module docs, "Square-root form"), if `β ≥ α²`.
+    pub(super) fn centre_term(&self) -> Option<f32> {
+        let excess = self.beta - self.alpha * self.alpha;
+        (excess >= 0.0).then(|| math::sqrt(excess))
+    }
+
+    /// A factor `L` of `base baseᵀ + Σ_{i≥1} Wᵢ dᵢ dᵢᵀ + (β − α²) d₀ d₀ᵀ`
+    /// for deviations `d` centred on the first point (column 0: the mean's
+    /// deviation), by rank-one updates of `base`: the square-root form's
+    /// `qr` and `cholupdate` (module docs). It equals the factor of
+    /// `Σᵢ Wᵢᶜ (σᵢ − x̄)(σᵢ − x̄)ᵀ` (+ `base baseᵀ`) for a linear mean.
+    pub(super) fn centred_factor<const R: usize>(
+        &self,
+        base: SMatrix<f32, R, R>,
+        deviations: &SMatrix<f32, R, S>,
+    ) -> SMatrix<f32, R, R> {
+        let mut l = base;
+        let Some((centre, others)) = deviations.data.0.split_first() else {
+            return l;
+        };
+        let centre_weight = self.centre_term().unwrap_or(0.0);
+        rank_one_update(&mut l, &(SVector::from(*centre) * centre_weight));
+        let w = math::sqrt(self.point_weight);
+        for column in others {
+            rank_one_update(&mut l, &(SVector::from(*column) * w));
+        }
+        l
+    }
+
+    /// `Σ_{i≥1} Wᵢ aᵢ bᵢᵀ + (β − α²) a₀ b₀ᵀ` for deviations centred on the
+    /// first point: the cross covariance of [`Self::centred_factor`].
+    pub(super) fn centred_cross<const R: usize, const K: usize>(
+        &self,
+        a: &SMatrix<f32, R, S>,
+        b: &SMatrix<f32, K, S>,
+    ) -> SMatrix<f32, R, K> {
+        let mut cross = SMatrix::<f32, R, K>::zeros();
+        let excess = self.beta - self.alpha * self.alpha;
+        for (i, (a, b)) in a.data.0.iter().zip(b.data.0.iter()).enumerate() {
+            let w = if i == 0 { excess } else { self.point_weight };
+            cross += SVector::<f32, R>::from(*a) * SVector::<f32, K>::from(*b).transpose() * w;
+        }
+        cross
     }
 
     /// The sigma points of `(x, P)` as columns, in FilterPy's order

@@ -528,3 +528,212 @@ proptest! {
         }
     }
 }
+
+/// A filter in `form` on the linear model, with FilterPy's reuse of the
+/// predict's points or with points redrawn for the update.
+fn linear_filter(
+    model: Linear,
+    alpha: f32,
+    (x0, p0, q, r): (
+        SVector<f32, 2>,
+        SMatrix<f32, 2, 2>,
+        SMatrix<f32, 2, 2>,
+        SMatrix<f32, 1, 1>,
+    ),
+    form: UkfForm,
+) -> UnscentedKalmanFilter<Linear, 2, 1, 5> {
+    let points = MerweScaledSigmaPoints::<2, 5>::new(alpha, 2.0, 0.0).unwrap();
+    UnscentedKalmanFilter::new(model, points, x0, p0, q, r)
+        .unwrap()
+        .with_form(form)
+        .unwrap()
+}
+
+const FORMS: [UkfForm; 2] = [UkfForm::Covariance, UkfForm::SquareRoot];
+
+/// Issue 17's case: `P0 = [[100, 0.05], [0.05, 1e-4]]`, identity
+/// dynamics, `Q = 0`, the second state measured with `R = 1e-12`. The
+/// exact posterior `P₂₂` is `1e-4·1e-12/(1e-4 + 1e-12) ≈ 1e-12`; FilterPy's
+/// `P⁻ − K S Kᵀ` gave −2.9e-11 in `f32`, and the repair that followed set
+/// it to 7.5e-4. Both forms now keep it at 1e-12 and need no repair.
+/// The state starts at zero: at `α = 0.01` the sigma points of a variance
+/// of 1e-12 are `x ± 1.4e-8`, below the `f32` resolution of an `x` of 0.5
+/// (6e-8), where they round onto `x` and the next predict's `P₂₂` is 0 in
+/// either form (module docs, "`f32` and small `α`").
+#[test]
+fn a_sharp_measurement_keeps_the_covariance_positive() {
+    let model = Linear {
+        a: SMatrix::<f32, 2, 2>::identity(),
+        b: SVector::<f32, 2>::zeros(),
+        h: SMatrix::<f32, 1, 2>::new(0.0, 1.0),
+    };
+    let p0 = SMatrix::<f32, 2, 2>::new(100.0, 0.05, 0.05, 1e-4);
+    let setup = (
+        SVector::<f32, 2>::zeros(),
+        p0,
+        SMatrix::<f32, 2, 2>::zeros(),
+        SMatrix::<f32, 1, 1>::new(1e-12),
+    );
+    let exact_p22 = 1e-4_f64 * 1e-12 / (1e-4 + 1e-12);
+    for form in FORMS {
+        for alpha in [0.01_f32, 0.1, 1.0] {
+            let mut ukf = linear_filter(model, alpha, setup, form);
+            assert_eq!(ukf.predict(&0.0, 0.1), UkfOutcome::Applied);
+            assert_eq!(
+                ukf.update(&SVector::<f32, 1>::new(1e-6)),
+                UkfOutcome::Applied
+            );
+            let after_update = ukf.covariance()[(1, 1)];
+            assert_eq!(ukf.predict(&0.0, 0.1), UkfOutcome::Applied);
+            let after_predict = ukf.covariance()[(1, 1)];
+            println!(
+                "{form:?}, α {alpha}: P₂₂ {after_update:e} after the update, \
+                 {after_predict:e} after the next predict"
+            );
+            for p22 in [after_update, after_predict] {
+                let relative = (f64::from(p22) - exact_p22).abs() / exact_p22;
+                assert!(relative < 1e-3, "{form:?}, α {alpha}: P₂₂ = {p22:e}");
+            }
+            assert_eq!(
+                ukf.counters(),
+                UkfCounters::default(),
+                "{form:?}, α {alpha}"
+            );
+            // The factor of the square-root form is P's.
+            if form == UkfForm::SquareRoot {
+                let l = ukf.factor;
+                let p = *ukf.covariance();
+                assert!((l * l.transpose() - p).amax() <= 1e-6 * p.amax());
+            }
+        }
+    }
+}
+
+/// Over 1,000 steps of a linear system with the update's points redrawn,
+/// both forms are the Kalman filter (in `f64`) to `f32` rounding, at the
+/// paper's `α = 0.01` as at `α = 0.1`. The bound is the rounding of the
+/// sigma points amplified by the weights (module docs, "`f32` and small
+/// `α`"): the state offsets `γ√P` are stored on top of `x` and rounded at
+/// `ε|x|`, and each propagated point's rounding enters the mean with
+/// weight `Wᵢ = 1/(2γ²)`, so `P` carries a relative `Σ|Wᵢ| ε` per step
+/// (1e4 ε at `α = 0.01`, 100 ε at `α = 0.1`). `Q` here keeps `P` well above
+/// that floor; with `Q` near zero the rounding dominates whatever the form
+/// (module docs).
+#[test]
+fn both_forms_are_the_kalman_filter_over_1000_steps() {
+    let model = Linear {
+        a: SMatrix::<f32, 2, 2>::new(1.0, 0.1, 0.0, 0.95),
+        b: SVector::<f32, 2>::new(0.005, 0.1),
+        h: SMatrix::<f32, 1, 2>::new(1.0, 0.0),
+    };
+    let q = SMatrix::<f32, 2, 2>::new(1e-3, 2e-4, 2e-4, 2e-3);
+    let setup = (
+        SVector::<f32, 2>::new(0.5, -0.2),
+        SMatrix::<f32, 2, 2>::new(1.0, 0.3, 0.3, 0.5),
+        q,
+        SMatrix::<f32, 1, 1>::new(0.04),
+    );
+    let to64 = |m: &SMatrix<f32, 2, 2>| m.map(f64::from);
+    for form in FORMS {
+        for alpha in [0.01_f32, 0.1] {
+            let mut ukf = linear_filter(model, alpha, setup, form).with_redrawn_update_points();
+            let points = *ukf.sigma_point_weights();
+            let spread: f32 = points.mean_weights().iter().skip(1).map(|w| w.abs()).sum();
+            let tol = f64::from(5.0 * spread * f32::EPSILON).max(1e-5);
+            let (a, b, h) = (
+                to64(&model.a),
+                model.b.map(f64::from),
+                model.h.map(f64::from),
+            );
+            let (q, r) = (to64(&q), 0.04_f64);
+            let (mut x, mut p) = (setup.0.map(f64::from), to64(&setup.1));
+            let mut worst = (0.0_f64, 0.0_f64);
+            for k in 0..1000_u32 {
+                let u = 0.3 * f64::from(k % 7) - 0.8;
+                let z = 0.02 * f64::from(k % 50) - 0.5 * f64::from(k % 3);
+                assert_eq!(ukf.predict(&(u as f32), 0.1), UkfOutcome::Applied);
+                x = a * x + b * u;
+                p = a * p * a.transpose() + q;
+                assert_eq!(
+                    ukf.update(&SVector::<f32, 1>::new(z as f32)),
+                    UkfOutcome::Applied
+                );
+                let s = (h * p * h.transpose())[(0, 0)] + r;
+                let gain = p * h.transpose() / s;
+                x += gain * (z - (h * x)[(0, 0)]);
+                p -= gain * gain.transpose() * s;
+                let dx = (ukf.state().map(f64::from) - x).amax();
+                let dp = (ukf.covariance().map(f64::from) - p).amax() / p.amax();
+                worst = (worst.0.max(dx), worst.1.max(dp));
+            }
+            println!(
+                "{form:?}, α {alpha}: worst |Δx| {:.1e}, |ΔP|/|P| {:.1e} over 1,000 steps \
+                 (bound {tol:.1e})",
+                worst.0, worst.1
+            );
+            assert!(
+                worst.0 < tol && worst.1 < tol,
+                "{form:?}, α {alpha}: {worst:?}"
+            );
+            assert_eq!(ukf.counters(), UkfCounters::default());
+        }
+    }
+}
+
+/// The square-root form needs `β ≥ α²`; the form is kept.
+#[test]
+fn the_square_root_form_is_validated() {
+    let points = MerweScaledSigmaPoints::<3, 7>::new(1.0, 0.5, 0.0).unwrap();
+    let i = M3::identity();
+    let ukf = UnscentedKalmanFilter::new(Unicycle, points, V3::zeros(), i, i, i).unwrap();
+    assert_eq!(ukf.form(), UkfForm::Covariance);
+    assert_eq!(
+        ukf.with_form(UkfForm::SquareRoot).err(),
+        Some(UkfError::SquareRootBeta)
+    );
+    assert_eq!(
+        unicycle_filter(0.5)
+            .with_form(UkfForm::SquareRoot)
+            .map(|f| f.form()),
+        Ok(UkfForm::SquareRoot)
+    );
+}
+
+/// On the nonlinear unicycle the two forms give the same estimate to
+/// rounding, with the predict's points reused and redrawn, for full and
+/// one-component updates.
+#[test]
+fn the_forms_agree_on_a_nonlinear_model() {
+    for redraw in [false, true] {
+        let mut a = unicycle_filter(0.5);
+        if redraw {
+            a = a.with_redrawn_update_points();
+        }
+        let mut b = a.with_form(UkfForm::SquareRoot).unwrap();
+        let mut worst = (0.0_f32, 0.0_f32);
+        for k in 0..200_u16 {
+            let t = f32::from(k) * 0.05;
+            let u = [0.5 + 0.2 * math::sin(t), 0.3 * math::cos(0.7 * t)];
+            let z = V3::new(0.4 * math::sin(t), 0.3 * t, 0.5 + 0.1 * t);
+            assert_eq!(a.predict(&u, 0.05), b.predict(&u, 0.05));
+            if k % 3 == 0 {
+                let (i, zi) = (usize::from(k % 2), z[usize::from(k % 2)]);
+                assert_eq!(a.update_component(i, zi, 0.05), UkfOutcome::Applied);
+                assert_eq!(b.update_component(i, zi, 0.05), UkfOutcome::Applied);
+            } else {
+                assert_eq!(a.update(&z), UkfOutcome::Applied);
+                assert_eq!(b.update(&z), UkfOutcome::Applied);
+            }
+            worst.0 = worst.0.max((a.state() - b.state()).amax());
+            worst.1 = worst
+                .1
+                .max((a.covariance() - b.covariance()).amax() / a.covariance().amax());
+        }
+        println!(
+            "redraw {redraw}: worst |Δx| {:.1e}, |ΔP|/|P| {:.1e}",
+            worst.0, worst.1
+        );
+        assert!(worst.0 < 1e-4 && worst.1 < 1e-4, "{worst:?}");
+        assert_eq!(b.counters(), UkfCounters::default());
+    }
+}
