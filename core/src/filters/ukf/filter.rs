@@ -5,8 +5,8 @@ use nalgebra::{SMatrix, SVector};
 use super::factor::{outer, semidefinite_factor};
 use super::sigma_points::{lower_factor, points_from_factor};
 use super::{
-    COVARIANCE_JITTER, MerweScaledSigmaPoints, UkfCounters, UkfError, UkfForm, UkfModel,
-    UkfOutcome, bump,
+    COVARIANCE_JITTER, MerweScaledSigmaPoints, StepOutcome, UkfCounters, UkfError, UkfForm,
+    UkfModel, bump,
 };
 
 /// `K = Pxy S⁻¹` for a symmetric `S`: as `Kᵀ = S⁻¹ Pxyᵀ` by Cholesky when
@@ -308,7 +308,7 @@ where
 
     /// The sigma points of the current `(x, P)`, with the repair and reset
     /// of the module docs: `Ok((points, repaired))`, or `Err` after a reset.
-    fn draw_sigma_points(&mut self) -> Result<(SMatrix<f32, N, S>, bool), UkfOutcome> {
+    fn draw_sigma_points(&mut self) -> Result<(SMatrix<f32, N, S>, bool), StepOutcome> {
         if self.form == UkfForm::SquareRoot {
             let l = self.factor * self.points.gamma();
             return Ok((points_from_factor(&self.x, &l), false));
@@ -331,16 +331,16 @@ where
         self.p = self.initial_covariance;
         self.sigmas_f_fresh = false;
         bump(&mut self.counters.covariance_resets);
-        Err(UkfOutcome::CovarianceReset)
+        Err(StepOutcome::CovarianceReset)
     }
 
     /// The time update over `dt_s` seconds (≥ 0) with input `u`: FilterPy's
     /// `predict(dt, u=u)` (module docs). On return [`Self::state`] and
     /// [`Self::covariance`] are the prior `x⁻, P⁻`.
-    pub fn predict(&mut self, u: &Model::Input, dt_s: f32) -> UkfOutcome {
+    pub fn predict(&mut self, u: &Model::Input, dt_s: f32) -> StepOutcome {
         if !(dt_s.is_finite() && dt_s >= 0.0 && self.model.input_is_finite(u)) {
             bump(&mut self.counters.rejected_inputs);
-            return UkfOutcome::RejectedInput;
+            return StepOutcome::RejectedInput;
         }
         let (sigmas, repaired) = match self.draw_sigma_points() {
             Ok(drawn) => drawn,
@@ -352,6 +352,7 @@ where
         }
         let x = self
             .model
+            .angles()
             .state_mean(&sigmas_f, &self.points.mean_weights());
         let (p, factor) = match self.form {
             UkfForm::Covariance => {
@@ -360,7 +361,7 @@ where
                     .column_iter()
                     .zip(self.points.covariance_weights().iter())
                 {
-                    let d = self.model.state_residual(&sigma.into_owned(), &x);
+                    let d = self.model.angles().state_residual(&sigma.into_owned(), &x);
                     p += d * d.transpose() * w;
                 }
                 (symmetrize(&p), self.factor)
@@ -374,7 +375,7 @@ where
         if !(all_finite(&x) && all_finite(&p) && all_finite(&factor) && all_finite(&sigmas_f)) {
             bump(&mut self.counters.non_finite_results);
             self.sigmas_f_fresh = false;
-            return UkfOutcome::NonFiniteResult;
+            return StepOutcome::NonFiniteResult;
         }
         self.x = x;
         self.p = p;
@@ -382,15 +383,15 @@ where
         self.sigmas_f = sigmas_f;
         self.sigmas_f_fresh = true;
         if repaired {
-            UkfOutcome::Repaired
+            StepOutcome::Repaired
         } else {
-            UkfOutcome::Applied
+            StepOutcome::Applied
         }
     }
 
     /// The measurement update with `z` and the filter's `R`: FilterPy's
     /// `update(z)` (module docs), on the last predict's `σf`.
-    pub fn update(&mut self, z: &SVector<f32, M>) -> UkfOutcome {
+    pub fn update(&mut self, z: &SVector<f32, M>) -> StepOutcome {
         let (r, r_factor) = (self.r, self.r_factor);
         self.update_with(z, &r, &r_factor)
     }
@@ -398,10 +399,14 @@ where
     /// The measurement update with `z` and, for this call only, the
     /// measurement noise `r` (FilterPy's `update(z, R)`; an `r` that is not
     /// finite, symmetric and positive semi-definite rejects the update).
-    pub fn update_with_noise(&mut self, z: &SVector<f32, M>, r: &SMatrix<f32, M, M>) -> UkfOutcome {
+    pub fn update_with_noise(
+        &mut self,
+        z: &SVector<f32, M>,
+        r: &SMatrix<f32, M, M>,
+    ) -> StepOutcome {
         if !is_noise_covariance(r) {
             bump(&mut self.counters.rejected_inputs);
-            return UkfOutcome::RejectedInput;
+            return StepOutcome::RejectedInput;
         }
         let r = symmetrize(r);
         self.update_with(z, &r, &semidefinite_factor(&r))
@@ -418,10 +423,10 @@ where
     /// component `index` (as a full update with infinite variance on the
     /// other components would leave them). An `index ≥ M`, or an `r` that
     /// is not finite and ≥ 0, rejects the update.
-    pub fn update_component(&mut self, index: usize, z: f32, r: f32) -> UkfOutcome {
+    pub fn update_component(&mut self, index: usize, z: f32, r: f32) -> StepOutcome {
         if !(index < M && z.is_finite() && r.is_finite() && r >= 0.0) {
             bump(&mut self.counters.rejected_inputs);
-            return UkfOutcome::RejectedInput;
+            return StepOutcome::RejectedInput;
         }
         let (sigmas_f, repaired, reused, sigmas_h, z_mean) = match self.measurement_sigmas() {
             Ok(drawn) => drawn,
@@ -436,6 +441,7 @@ where
         }
         let innovation = self
             .model
+            .angles()
             .measurement_residual(&full_z, &z_mean)
             .get(index)
             .copied()
@@ -468,17 +474,17 @@ where
         z: &SVector<f32, M>,
         r: &SMatrix<f32, M, M>,
         r_factor: &SMatrix<f32, M, M>,
-    ) -> UkfOutcome {
+    ) -> StepOutcome {
         if !all_finite(z) {
             bump(&mut self.counters.rejected_inputs);
-            return UkfOutcome::RejectedInput;
+            return StepOutcome::RejectedInput;
         }
         let (sigmas_f, repaired, reused, sigmas_h, z_mean) = match self.measurement_sigmas() {
             Ok(drawn) => drawn,
             Err(outcome) => return outcome,
         };
         let dz = self.measurement_deviations(&sigmas_h, &z_mean, |d| d);
-        let innovation = self.model.measurement_residual(z, &z_mean);
+        let innovation = self.model.angles().measurement_residual(z, &z_mean);
         match self.correct(&sigmas_f, reused, &dz, &innovation, (r, r_factor)) {
             Ok((gain, s)) => {
                 self.innovation = innovation;
@@ -506,6 +512,7 @@ where
                 for (sigma_h, d) in sigmas_h.data.0.iter().zip(dz.data.0.iter_mut()) {
                     let residual = self
                         .model
+                        .angles()
                         .measurement_residual(&SVector::from(*sigma_h), z_mean);
                     let [column] = pick(residual).data.0;
                     *d = column;
@@ -519,9 +526,10 @@ where
                     sigmas_h.data.0.iter().zip(dz.data.0.iter_mut()).enumerate()
                 {
                     let residual = if i == 0 {
-                        self.model.measurement_residual(z_mean, &centre)
+                        self.model.angles().measurement_residual(z_mean, &centre)
                     } else {
                         self.model
+                            .angles()
                             .measurement_residual(&SVector::from(*sigma_h), &centre)
                     };
                     let [column] = pick(residual).data.0;
@@ -546,9 +554,11 @@ where
         };
         for (i, (sigma, out)) in sigmas.data.0.iter().zip(d.data.0.iter_mut()).enumerate() {
             let residual = if i == 0 {
-                self.model.state_residual(mean, &centre)
+                self.model.angles().state_residual(mean, &centre)
             } else {
-                self.model.state_residual(&SVector::from(*sigma), &centre)
+                self.model
+                    .angles()
+                    .state_residual(&SVector::from(*sigma), &centre)
             };
             let [column] = residual.data.0;
             *out = column;
@@ -556,11 +566,11 @@ where
         d
     }
 
-    fn outcome(repaired: bool) -> UkfOutcome {
+    fn outcome(repaired: bool) -> StepOutcome {
         if repaired {
-            UkfOutcome::Repaired
+            StepOutcome::Repaired
         } else {
-            UkfOutcome::Applied
+            StepOutcome::Applied
         }
     }
 
@@ -579,7 +589,7 @@ where
             SMatrix<f32, M, S>,
             SVector<f32, M>,
         ),
-        UkfOutcome,
+        StepOutcome,
     > {
         let reused = self.sigmas_f_fresh && !self.redraw_for_update;
         let (sigmas_f, repaired) = if reused {
@@ -593,6 +603,7 @@ where
         }
         let z_mean = self
             .model
+            .angles()
             .measurement_mean(&sigmas_h, &self.points.mean_weights());
         Ok((sigmas_f, repaired, reused, sigmas_h, z_mean))
     }
@@ -611,7 +622,7 @@ where
         dz: &SMatrix<f32, K, S>,
         innovation: &SVector<f32, K>,
         (r, r_factor): (&SMatrix<f32, K, K>, &SMatrix<f32, K, K>),
-    ) -> Result<(SMatrix<f32, N, K>, SMatrix<f32, K, K>), UkfOutcome> {
+    ) -> Result<(SMatrix<f32, N, K>, SMatrix<f32, K, K>), StepOutcome> {
         let corrected = match self.form {
             UkfForm::Covariance => self.correct_covariance(sigmas_f, reused, dz, innovation, r),
             UkfForm::SquareRoot => {
@@ -622,7 +633,7 @@ where
             Ok(corrected) => corrected,
             Err(outcome) => {
                 bump(match outcome {
-                    UkfOutcome::SingularInnovation => &mut self.counters.singular_innovations,
+                    StepOutcome::SingularInnovation => &mut self.counters.singular_innovations,
                     _ => &mut self.counters.non_finite_results,
                 });
                 return Err(outcome);
@@ -635,7 +646,7 @@ where
             && all_finite(innovation))
         {
             bump(&mut self.counters.non_finite_results);
-            return Err(UkfOutcome::NonFiniteResult);
+            return Err(StepOutcome::NonFiniteResult);
         }
         self.x = x;
         self.p = p;
@@ -663,7 +674,7 @@ where
             SMatrix<f32, N, K>,
             SMatrix<f32, K, K>,
         ),
-        UkfOutcome,
+        StepOutcome,
     > {
         let mut s = *r;
         let mut cross = SMatrix::<f32, N, K>::zeros();
@@ -677,16 +688,19 @@ where
             .zip(dx.data.0.iter_mut())
         {
             let d = SVector::<f32, K>::from(*d);
-            let residual = self.model.state_residual(&SVector::from(*sigma_f), &self.x);
+            let residual = self
+                .model
+                .angles()
+                .state_residual(&SVector::from(*sigma_f), &self.x);
             s += d * d.transpose() * w;
             cross += residual * d.transpose() * w;
             let [column] = residual.data.0;
             *dx = column;
         }
         if !(all_finite(&s) && all_finite(&cross)) {
-            return Err(UkfOutcome::NonFiniteResult);
+            return Err(StepOutcome::NonFiniteResult);
         }
-        let gain = kalman_gain(&cross, &s).ok_or(UkfOutcome::SingularInnovation)?;
+        let gain = kalman_gain(&cross, &s).ok_or(StepOutcome::SingularInnovation)?;
         let x = self.x + gain * innovation;
         let mut p = gain * r * gain.transpose();
         if reused {

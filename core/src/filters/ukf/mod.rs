@@ -32,8 +32,8 @@
 //! ```text
 //! x⁻ = mean_x(σf, Wᵐ)         P⁻ = Σᵢ Wᵢᶜ r(σfᵢ, x⁻) r(σfᵢ, x⁻)ᵀ + Q
 //! ```
-//! with `mean_x` = [`UkfModel::state_mean`] (`x_mean_fn`) and `r` =
-//! [`UkfModel::state_residual`] (`residual_x`).
+//! with `mean_x` the state mean (`x_mean_fn`) and `r` the state residual
+//! (`residual_x`) of [`UkfModel::angles`].
 //!
 //! # Measurement update ([`UnscentedKalmanFilter::update`])
 //! As in FilterPy 1.4.5, the update **reuses the propagated points `σf`**
@@ -59,8 +59,8 @@
 //! a negative `W₀ᶜ` (small `α`) multiplies `e₀`, the centre point's
 //! deviation, which is rounding-sized on a near-linear step. It costs one
 //! more `N × S` product than the difference (bench table).
-//! (`h` = [`UkfModel::measure`], `mean_z` = [`UkfModel::measurement_mean`],
-//! `rz` = [`UkfModel::measurement_residual`]). Because `σf` predate `Q`,
+//! (`h` = [`UkfModel::measure`], `mean_z` and `rz` the measurement mean and
+//! residual of [`UkfModel::angles`]). Because `σf` predate `Q`,
 //! `S` and `Pxy` do not contain it: on a linear system this is the Kalman
 //! filter only when `Q = 0`, and otherwise the Kalman filter with
 //! `S = H(P⁻ − Q)Hᵀ + R`, `Pxy = (P⁻ − Q)Hᵀ` (the unit tests check both;
@@ -118,14 +118,22 @@
 //! predict's points). `√Q` and `√R` are semidefinite
 //! factors (`Q = 0` allowed), made when they are set.
 //! [`UnscentedKalmanFilter::covariance`] is `L Lᵀ`. The form never needs
-//! the repair below. For angle components the centred sums differ from
-//! FilterPy's in the circular mean's rounding only.
+//! the repair below. The centred identity needs the mean to be the weighted
+//! mean of the deviations; an angle's circular mean is not, so with angle
+//! components the form departs from FilterPy's covariance where an angle's
+//! spread is wide: 6.8e-4 σ and 1.6e-3 of `P` on the four-state
+//! range-and-bearing fixture (`host-tests/tests/ukf_filterpy.rs`), worst
+//! at the first update from the prior, against 2.4e-5 σ for the covariance
+//! form.
 //!
 //! # Angles
-//! A state or measurement with angle components overrides the four hooks;
-//! [`unscented_mean_with_angles`] (the circular mean `atan2(Σ W sin, Σ W
-//! cos)`, FilterPy's book recipe) and [`residual_with_angles`] (difference
-//! wrapped to (−π, π]) do it for chosen components. The unscented circular
+//! A model names its angle components once, [`UkfModel::angles`] (an
+//! [`AngleComponents`]), and the filter takes FilterPy's four hooks from
+//! it: [`unscented_mean_with_angles`] (the circular mean `atan2(Σ W sin,
+//! Σ W cos)`, FilterPy's book recipe) for `x_mean_fn`/`z_mean_fn` and
+//! [`residual_with_angles`] (difference wrapped to (−π, π]) for
+//! `residual_x`/`residual_z`. (Before issue 17 the four were separate
+//! trait methods, and a model that overrode three of them compiled.) The unscented circular
 //! mean has resultant `Σ W cos d ≈ 1 − σ²/2` for an angle of variance `σ²`
 //! (whatever `α`): above about 2 rad² it turns negative, the mean flips by
 //! π and `P⁻` becomes indefinite. FilterPy fails there too (paper 004's
@@ -152,21 +160,21 @@
 //! # Bad input and failures
 //! Each of these skips the step, leaves the estimate as it was (except the
 //! reset), is counted in [`UkfCounters`] and is reported by the returned
-//! [`UkfOutcome`]:
+//! [`StepOutcome`]:
 //! * a non-finite input `u`, step `dt` (or a negative one), measurement `z`
 //!   or per-call `R` (not finite, symmetric and positive semi-definite):
-//!   [`UkfOutcome::RejectedInput`];
+//!   [`StepOutcome::RejectedInput`];
 //! * `(λ + n)P` does not factor (not positive definite, e.g. after
 //!   rounding; covariance form only): it is symmetrised, each diagonal
 //!   entry raised by [`COVARIANCE_JITTER`] times itself (not the largest
 //!   one, which swamped small variances: issue 17), and factored
-//!   again; if that works the step goes on ([`UkfOutcome::Repaired`],
+//!   again; if that works the step goes on ([`StepOutcome::Repaired`],
 //!   counted as a repair). Otherwise `P` is reset to the initial covariance
 //!   given at construction, `x` is kept and the step is skipped
-//!   ([`UkfOutcome::CovarianceReset`]);
-//! * `S` not invertible: [`UkfOutcome::SingularInnovation`];
+//!   ([`StepOutcome::CovarianceReset`]);
+//! * `S` not invertible: [`StepOutcome::SingularInnovation`];
 //! * a non-finite result (`x`, `P`, `S` or `K`):
-//!   [`UkfOutcome::NonFiniteResult`].
+//!   [`StepOutcome::NonFiniteResult`].
 //!
 //! Everything is stack-allocated: `σf` is an `N × S` matrix, `S = 2N + 1`.
 
@@ -177,12 +185,14 @@ mod square_root;
 #[cfg(test)]
 mod tests;
 
+pub use super::StepOutcome;
 pub use filter::UnscentedKalmanFilter;
-pub use sigma_points::{
-    MerweScaledSigmaPoints, residual_with_angles, unscented_mean, unscented_mean_with_angles,
-};
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::SVector;
+pub use sigma_points::{
+    AngleComponents, MerweScaledSigmaPoints, residual_with_angles, unscented_mean,
+    unscented_mean_with_angles,
+};
 
 /// The jitter added to each diagonal entry of `(λ + n)P` when it does not
 /// factor, relative to that entry: about 80 `f32` ulps, above the
@@ -195,11 +205,6 @@ pub const COVARIANCE_JITTER: f32 = 1e-5;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum UkfError {
-    /// The number of sigma points `S` is not `2N + 1`, or `N = 0`. `S` is
-    /// a separate const parameter only because stable Rust cannot write
-    /// `SMatrix<f32, N, { 2 * N + 1 }>` (`generic_const_exprs` is
-    /// unstable); it is checked here instead.
-    SigmaPointCount,
     /// `α` not finite and positive.
     Alpha,
     /// `β` not finite.
@@ -229,7 +234,6 @@ pub enum UkfError {
 impl core::fmt::Display for UkfError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(match self {
-            Self::SigmaPointCount => "the sigma-point count S must be 2N + 1 with N > 0",
             Self::Alpha => "alpha (α) must be finite and > 0",
             Self::Beta => "beta (β) must be finite",
             Self::Kappa => "kappa (κ) must be finite with n + κ > 0",
@@ -268,68 +272,13 @@ pub trait UkfModel<const N: usize, const M: usize> {
     /// `h(x)`: the expected measurement (`hx`).
     fn measure(&self, x: &SVector<f32, N>) -> SVector<f32, M>;
 
-    /// `a − b` for states (`residual_x`; default plain difference, see
-    /// [`residual_with_angles`]).
-    fn state_residual(&self, a: &SVector<f32, N>, b: &SVector<f32, N>) -> SVector<f32, N> {
-        a - b
-    }
-
-    /// `a − b` for measurements (`residual_z`; default plain difference).
-    fn measurement_residual(&self, a: &SVector<f32, M>, b: &SVector<f32, M>) -> SVector<f32, M> {
-        a - b
-    }
-
-    /// The weighted mean of state sigma points (columns) with weights
-    /// summing to one (`x_mean_fn`; default [`unscented_mean`], see
-    /// [`unscented_mean_with_angles`]).
-    fn state_mean<const S: usize>(
-        &self,
-        sigmas: &SMatrix<f32, N, S>,
-        weights: &SVector<f32, S>,
-    ) -> SVector<f32, N> {
-        unscented_mean(sigmas, weights)
-    }
-
-    /// The weighted mean of measurement sigma points (`z_mean_fn`; default
-    /// [`unscented_mean`]).
-    fn measurement_mean<const S: usize>(
-        &self,
-        sigmas: &SMatrix<f32, M, S>,
-        weights: &SVector<f32, S>,
-    ) -> SVector<f32, M> {
-        unscented_mean(sigmas, weights)
-    }
-}
-
-/// What a [`UnscentedKalmanFilter::predict`] or
-/// [`UnscentedKalmanFilter::update`] did (module docs, "Bad input and
-/// failures").
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub enum UkfOutcome {
-    /// The step was applied.
-    Applied,
-    /// The step was applied after `(λ + n)P` was symmetrised and jittered
-    /// to factor.
-    Repaired,
-    /// Skipped: non-finite input, step, measurement or per-call noise.
-    RejectedInput,
-    /// Skipped: `(λ + n)P` did not factor even jittered; `P` was reset to
-    /// the initial covariance, `x` kept.
-    CovarianceReset,
-    /// Skipped: the innovation covariance `S` is not invertible.
-    SingularInnovation,
-    /// Skipped: the result was not finite; the estimate is unchanged.
-    NonFiniteResult,
-}
-
-impl UkfOutcome {
-    /// Whether the step changed the estimate as the filter equations say
-    /// ([`Self::Applied`] or [`Self::Repaired`]).
-    #[must_use]
-    pub fn is_applied(self) -> bool {
-        matches!(self, Self::Applied | Self::Repaired)
+    /// Which state and measurement components are angles (default: none).
+    /// The filter takes FilterPy's four hooks from it (`residual_x`,
+    /// `residual_z`: wrapped differences; `x_mean_fn`, `z_mean_fn`:
+    /// circular means; module docs, "Angles"), all four or none for each
+    /// component.
+    fn angles(&self) -> AngleComponents<N, M> {
+        AngleComponents::NONE
     }
 }
 

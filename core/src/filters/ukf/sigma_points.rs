@@ -11,6 +11,20 @@ use super::factor::rank_one_update;
 /// Van der Merwe's scaled sigma points for `N` states (FilterPy's
 /// `MerweScaledSigmaPoints(n, alpha, beta, kappa)` with its default
 /// Cholesky square root): the parameters and the `S = 2N + 1` weights.
+///
+/// `S` is a separate const parameter only because stable Rust cannot write
+/// `SMatrix<f32, N, { 2 * N + 1 }>` (`generic_const_exprs` is unstable);
+/// [`Self::new`] checks `S = 2N + 1` (and `N ≥ 1`) when it is compiled, so
+/// a wrong count is a build error, not a run-time one:
+/// ```
+/// use wmr_core::filters::ukf::MerweScaledSigmaPoints;
+/// assert!(MerweScaledSigmaPoints::<3, 7>::new(0.5, 2.0, 0.0).is_ok());
+/// ```
+/// ```compile_fail
+/// use wmr_core::filters::ukf::MerweScaledSigmaPoints;
+/// // 6 ≠ 2·3 + 1: "the sigma-point count S must be 2N + 1 with N > 0".
+/// let _ = MerweScaledSigmaPoints::<3, 6>::new(0.5, 2.0, 0.0);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct MerweScaledSigmaPoints<const N: usize, const S: usize> {
@@ -33,12 +47,15 @@ impl<const N: usize, const S: usize> MerweScaledSigmaPoints<N, S> {
     /// Gaussian prior) and secondary scaling `κ` (0, or `3 − n`).
     ///
     /// # Errors
-    /// [`UkfError::SigmaPointCount`] unless `S = 2N + 1` and `N ≥ 1`; the
-    /// first of [`UkfError::Alpha`], [`UkfError::Beta`],
-    /// [`UkfError::Kappa`], [`UkfError::Spread`] out of range.
+    /// The first of [`UkfError::Alpha`], [`UkfError::Beta`],
+    /// [`UkfError::Kappa`], [`UkfError::Spread`] out of range. `S = 2N + 1`
+    /// and `N ≥ 1` are checked when the call is compiled (type docs).
     pub fn new(alpha: f32, beta: f32, kappa: f32) -> Result<Self, UkfError> {
-        if N == 0 || S != 2 * N + 1 {
-            return Err(UkfError::SigmaPointCount);
+        const {
+            assert!(
+                N > 0 && S == 2 * N + 1,
+                "the sigma-point count S must be 2N + 1 with N > 0"
+            );
         }
         if !(alpha.is_finite() && alpha > 0.0) {
             return Err(UkfError::Alpha);
@@ -80,7 +97,7 @@ impl<const N: usize, const S: usize> MerweScaledSigmaPoints<N, S> {
     /// The paper's parameters: `α = 0.01, β = 2, κ = 0`.
     ///
     /// # Errors
-    /// [`UkfError::SigmaPointCount`] unless `S = 2N + 1` and `N ≥ 1`.
+    /// None for these parameters (the `Result` is [`Self::new`]'s).
     pub fn paper() -> Result<Self, UkfError> {
         Self::new(0.01, 2.0, 0.0)
     }
@@ -229,8 +246,8 @@ pub(super) fn points_from_factor<const N: usize, const S: usize>(
 /// The weighted mean `Σ Wᵢ σᵢ` of the columns of `sigmas`, evaluated as
 /// `σ₀ + Σ_{i≥1} Wᵢ(σᵢ − σ₀)`: the same for weights that sum to one (the
 /// contract; `weights[0]` is not read), without the cancellation of
-/// `|W₀| ~ 10⁴` (module docs). The default of [`UkfModel::state_mean`] and
-/// [`UkfModel::measurement_mean`], FilterPy's `np.dot(Wm, sigmas)`.
+/// `|W₀| ~ 10⁴` (module docs). The filter's mean for components that are
+/// not angles ([`AngleComponents`]), FilterPy's `np.dot(Wm, sigmas)`.
 #[must_use]
 pub fn unscented_mean<const R: usize, const S: usize>(
     sigmas: &SMatrix<f32, R, S>,
@@ -269,8 +286,17 @@ pub fn unscented_mean_with_angles<const R: usize, const S: usize>(
     weights: &SVector<f32, S>,
     angles: &[usize],
 ) -> SVector<f32, R> {
+    mean_with_angle_indices(sigmas, weights, angles.iter().copied())
+}
+
+/// [`unscented_mean_with_angles`] for the angle components `angles`.
+fn mean_with_angle_indices<const R: usize, const S: usize>(
+    sigmas: &SMatrix<f32, R, S>,
+    weights: &SVector<f32, S>,
+    angles: impl Iterator<Item = usize>,
+) -> SVector<f32, R> {
     let mut mean = unscented_mean(sigmas, weights);
-    for &i in angles {
+    for i in angles {
         let Some(row) = sigmas.row_iter().nth(i) else {
             continue;
         };
@@ -300,11 +326,127 @@ pub fn residual_with_angles<const R: usize>(
     b: &SVector<f32, R>,
     angles: &[usize],
 ) -> SVector<f32, R> {
+    residual_with_angle_indices(a, b, angles.iter().copied())
+}
+
+/// [`residual_with_angles`] for the angle components `angles`.
+fn residual_with_angle_indices<const R: usize>(
+    a: &SVector<f32, R>,
+    b: &SVector<f32, R>,
+    angles: impl Iterator<Item = usize>,
+) -> SVector<f32, R> {
     let mut d = a - b;
-    for &i in angles {
+    for i in angles {
         if let Some(v) = d.get_mut(i) {
             *v = math::wrap_angle(*v);
         }
     }
     d
+}
+
+/// Which components of a model's state (`N`) and measurement (`M`) are
+/// angles in radians: the one setting ([`super::UkfModel::angles`]) from
+/// which the filter takes FilterPy's four hooks, `residual_x` and
+/// `residual_z` (differences wrapped to (−π, π], [`residual_with_angles`])
+/// and `x_mean_fn` and `z_mean_fn` (circular means,
+/// [`unscented_mean_with_angles`]), so that a model cannot wrap an angle's
+/// residuals and forget its mean.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AngleComponents<const N: usize, const M: usize> {
+    state: [bool; N],
+    measurement: [bool; M],
+}
+
+impl<const N: usize, const M: usize> AngleComponents<N, M> {
+    /// No angles: plain differences and weighted means.
+    pub const NONE: Self = Self {
+        state: [false; N],
+        measurement: [false; M],
+    };
+
+    /// `state[i]`: state component `i` is an angle; `measurement[j]`:
+    /// measurement component `j` is.
+    #[must_use]
+    pub const fn new(state: [bool; N], measurement: [bool; M]) -> Self {
+        Self { state, measurement }
+    }
+
+    /// The angles listed by index; indices `≥ N` (`≥ M`) are ignored, as
+    /// [`residual_with_angles`] ignores them.
+    #[must_use]
+    pub const fn from_indices(state: &[usize], measurement: &[usize]) -> Self {
+        let mut angles = Self::NONE;
+        let mut k = 0;
+        while k < state.len() {
+            if state[k] < N {
+                angles.state[state[k]] = true;
+            }
+            k += 1;
+        }
+        let mut k = 0;
+        while k < measurement.len() {
+            if measurement[k] < M {
+                angles.measurement[measurement[k]] = true;
+            }
+            k += 1;
+        }
+        angles
+    }
+
+    /// Which state components are angles.
+    #[must_use]
+    pub const fn state(&self) -> [bool; N] {
+        self.state
+    }
+
+    /// Which measurement components are angles.
+    #[must_use]
+    pub const fn measurement(&self) -> [bool; M] {
+        self.measurement
+    }
+
+    /// `a − b` for states, angles wrapped.
+    #[must_use]
+    pub fn state_residual(&self, a: &SVector<f32, N>, b: &SVector<f32, N>) -> SVector<f32, N> {
+        residual_with_angle_indices(a, b, indices(&self.state))
+    }
+
+    /// `a − b` for measurements, angles wrapped.
+    #[must_use]
+    pub fn measurement_residual(
+        &self,
+        a: &SVector<f32, M>,
+        b: &SVector<f32, M>,
+    ) -> SVector<f32, M> {
+        residual_with_angle_indices(a, b, indices(&self.measurement))
+    }
+
+    /// The mean of state sigma points, circular for angles.
+    #[must_use]
+    pub fn state_mean<const S: usize>(
+        &self,
+        sigmas: &SMatrix<f32, N, S>,
+        weights: &SVector<f32, S>,
+    ) -> SVector<f32, N> {
+        mean_with_angle_indices(sigmas, weights, indices(&self.state))
+    }
+
+    /// The mean of measurement sigma points, circular for angles.
+    #[must_use]
+    pub fn measurement_mean<const S: usize>(
+        &self,
+        sigmas: &SMatrix<f32, M, S>,
+        weights: &SVector<f32, S>,
+    ) -> SVector<f32, M> {
+        mean_with_angle_indices(sigmas, weights, indices(&self.measurement))
+    }
+}
+
+/// The indices of the `true` flags.
+fn indices<const K: usize>(flags: &[bool; K]) -> impl Iterator<Item = usize> + '_ {
+    flags
+        .iter()
+        .enumerate()
+        .filter_map(|(i, &angle)| angle.then_some(i))
 }

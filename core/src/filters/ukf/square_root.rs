@@ -6,7 +6,7 @@ use nalgebra::{SMatrix, SVector};
 
 use super::factor::{add_columns, outer};
 use super::filter::UnscentedKalmanFilter;
-use super::{UkfModel, UkfOutcome};
+use super::{StepOutcome, UkfModel};
 
 impl<Model, const N: usize, const M: usize, const S: usize> UnscentedKalmanFilter<Model, N, M, S>
 where
@@ -35,16 +35,16 @@ where
             SMatrix<f32, N, K>,
             SMatrix<f32, K, K>,
         ),
-        UkfOutcome,
+        StepOutcome,
     > {
         let dx = self.centred_state_deviations(sigmas_f, &self.x);
         let s_factor = self.points.centred_factor(*r_factor, dz);
         let cross = self.points.centred_cross(&dx, dz);
         if !(s_factor.iter().all(|v| v.is_finite()) && cross.iter().all(|v| v.is_finite())) {
-            return Err(UkfOutcome::NonFiniteResult);
+            return Err(StepOutcome::NonFiniteResult);
         }
         if !s_factor.diagonal().iter().all(|&d| d > 0.0) {
-            return Err(UkfOutcome::SingularInnovation);
+            return Err(StepOutcome::SingularInnovation);
         }
         // Kᵀ = S_y⁻ᵀ S_y⁻¹ P_xyᵀ: nalgebra's Cholesky solve on the factor
         // as it is (lower triangle read).
@@ -52,7 +52,7 @@ where
             .solve(&cross.transpose())
             .transpose();
         if !gain.iter().all(|v| v.is_finite()) {
-            return Err(UkfOutcome::SingularInnovation);
+            return Err(StepOutcome::SingularInnovation);
         }
         let x = self.x + gain * innovation;
         let base = if reused {

@@ -4,6 +4,7 @@ use super::filter::*;
 use super::sigma_points::*;
 use super::*;
 use crate::math;
+use nalgebra::{SMatrix, SVector};
 use proptest::prelude::*;
 
 type V3 = SVector<f32, 3>;
@@ -32,25 +33,8 @@ impl UkfModel<3, 3> for Unicycle {
     fn measure(&self, x: &V3) -> V3 {
         *x
     }
-    fn state_residual(&self, a: &V3, b: &V3) -> V3 {
-        residual_with_angles(a, b, &PSI)
-    }
-    fn measurement_residual(&self, a: &V3, b: &V3) -> V3 {
-        residual_with_angles(a, b, &PSI)
-    }
-    fn state_mean<const S: usize>(
-        &self,
-        sigmas: &SMatrix<f32, 3, S>,
-        weights: &SVector<f32, S>,
-    ) -> V3 {
-        unscented_mean_with_angles(sigmas, weights, &PSI)
-    }
-    fn measurement_mean<const S: usize>(
-        &self,
-        sigmas: &SMatrix<f32, 3, S>,
-        weights: &SVector<f32, S>,
-    ) -> V3 {
-        unscented_mean_with_angles(sigmas, weights, &PSI)
+    fn angles(&self) -> AngleComponents<3, 3> {
+        AngleComponents::from_indices(&PSI, &PSI)
     }
 }
 
@@ -91,20 +75,10 @@ fn spd() -> M3 {
     M3::new(0.3, 0.1, 0.02, 0.1, 0.25, -0.03, 0.02, -0.03, 0.1)
 }
 
+/// `S = 2N + 1` is a compile-time check (the `compile_fail` doctest of
+/// [`MerweScaledSigmaPoints`]); the right counts build.
 #[test]
 fn sigma_point_count_is_checked() {
-    assert_eq!(
-        MerweScaledSigmaPoints::<3, 6>::new(0.5, 2.0, 0.0),
-        Err(UkfError::SigmaPointCount)
-    );
-    assert_eq!(
-        MerweScaledSigmaPoints::<3, 8>::new(0.5, 2.0, 0.0),
-        Err(UkfError::SigmaPointCount)
-    );
-    assert_eq!(
-        MerweScaledSigmaPoints::<0, 1>::new(0.5, 2.0, 0.0),
-        Err(UkfError::SigmaPointCount)
-    );
     assert!(MerweScaledSigmaPoints::<3, 7>::new(0.5, 2.0, 0.0).is_ok());
     assert!(MerweScaledSigmaPoints::<1, 3>::paper().is_ok());
 }
@@ -247,11 +221,11 @@ fn linear_system_is_the_kalman_filter() {
             for k in 0..50_u8 {
                 let u = 0.3 * f32::from(k % 7) - 0.8;
                 let z = SVector::<f32, 1>::new(0.02 * f32::from(k) - 0.5 * f32::from(k % 3));
-                assert_eq!(ukf.predict(&u, 0.1), UkfOutcome::Applied);
+                assert_eq!(ukf.predict(&u, 0.1), StepOutcome::Applied);
                 x = model.a * x + model.b * u;
                 let without_q = model.a * p * model.a.transpose();
                 p = without_q + q;
-                assert_eq!(ukf.update(&z), UkfOutcome::Applied);
+                assert_eq!(ukf.update(&z), StepOutcome::Applied);
                 let s = model.h * without_q * model.h.transpose() + r;
                 let k_gain = without_q * model.h.transpose() * s.try_inverse().unwrap();
                 x += k_gain * (z - model.h * x);
@@ -314,12 +288,12 @@ fn component_updates_are_the_scalar_kalman_filter() {
     let mut worst = 0.0_f32;
     for k in 0..40_u8 {
         let u = 0.2 * f32::from(k % 5) - 0.4;
-        assert_eq!(ukf.predict(&u, 0.1), UkfOutcome::Applied);
+        assert_eq!(ukf.predict(&u, 0.1), StepOutcome::Applied);
         x = a * x + SVector::<f32, 2>::new(0.0, u);
         p = a * p * a.transpose() + q;
         let index = usize::from(k % 2);
         let (z, r) = (0.05 * f32::from(k) - 0.3, 0.01 + 0.01 * f32::from(k % 3));
-        assert_eq!(ukf.update_component(index, z, r), UkfOutcome::Applied);
+        assert_eq!(ukf.update_component(index, z, r), StepOutcome::Applied);
         let s = p[(index, index)] + r;
         let gain = p.column(index) / s;
         let innovation = z - x[index];
@@ -336,7 +310,10 @@ fn component_updates_are_the_scalar_kalman_filter() {
     }
     assert!(worst < 1e-5, "{worst}");
     for (index, z, r) in [(2, 0.0, 1.0), (0, f32::NAN, 1.0), (0, 0.0, -1.0)] {
-        assert_eq!(ukf.update_component(index, z, r), UkfOutcome::RejectedInput);
+        assert_eq!(
+            ukf.update_component(index, z, r),
+            StepOutcome::RejectedInput
+        );
     }
     assert_eq!(ukf.counters().rejected_inputs, 3);
 }
@@ -348,57 +325,57 @@ fn cholesky_failure_repairs_or_resets() {
     let mut ukf = unicycle_filter(0.5);
     // Singular (semi-definite) P: the jitter repairs it.
     ukf.p = M3::new(1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.1);
-    assert_eq!(ukf.predict(&[1.0, 0.1], 0.1), UkfOutcome::Repaired);
+    assert_eq!(ukf.predict(&[1.0, 0.1], 0.1), StepOutcome::Repaired);
     assert_eq!(ukf.counters().covariance_repairs, 1);
     assert!(ukf.covariance().iter().all(|v| v.is_finite()));
     // Indefinite P: reset and skipped.
     let x = *ukf.state();
     ukf.p = M3::new(1.0, 2.0, 0.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0);
-    assert_eq!(ukf.predict(&[1.0, 0.1], 0.1), UkfOutcome::CovarianceReset);
+    assert_eq!(ukf.predict(&[1.0, 0.1], 0.1), StepOutcome::CovarianceReset);
     assert_eq!(ukf.counters().covariance_resets, 1);
     assert_eq!(ukf.covariance(), ukf.initial_covariance());
     assert_eq!(*ukf.state(), x);
     assert!(ukf.propagated_sigma_points().is_none());
     // And the filter goes on from there.
-    assert_eq!(ukf.predict(&[1.0, 0.1], 0.1), UkfOutcome::Applied);
+    assert_eq!(ukf.predict(&[1.0, 0.1], 0.1), StepOutcome::Applied);
     // An update with no fresh points draws them, and resets the same way.
     ukf.p = -M3::identity();
-    assert_eq!(ukf.update(&V3::zeros()), UkfOutcome::Applied);
+    assert_eq!(ukf.update(&V3::zeros()), StepOutcome::Applied);
     ukf.p = -M3::identity();
-    assert_eq!(ukf.update(&V3::zeros()), UkfOutcome::CovarianceReset);
+    assert_eq!(ukf.update(&V3::zeros()), StepOutcome::CovarianceReset);
     assert_eq!(ukf.counters().covariance_resets, 2);
 }
 
 #[test]
 fn bad_input_is_skipped_and_counted() {
     let mut ukf = unicycle_filter(0.01);
-    assert_eq!(ukf.predict(&[0.5, 0.2], 0.005), UkfOutcome::Applied);
+    assert_eq!(ukf.predict(&[0.5, 0.2], 0.005), StepOutcome::Applied);
     let (x, p) = (*ukf.state(), *ukf.covariance());
     assert_eq!(
         ukf.update(&V3::new(f32::NAN, 0.0, 0.0)),
-        UkfOutcome::RejectedInput
+        StepOutcome::RejectedInput
     );
     assert_eq!(
         ukf.update_with_noise(&V3::zeros(), &(M3::identity() * f32::INFINITY)),
-        UkfOutcome::RejectedInput
+        StepOutcome::RejectedInput
     );
     assert_eq!(
         ukf.predict(&[f32::NAN, 0.2], 0.005),
-        UkfOutcome::RejectedInput
+        StepOutcome::RejectedInput
     );
     assert_eq!(
         ukf.predict(&[0.5, 0.2], f32::NAN),
-        UkfOutcome::RejectedInput
+        StepOutcome::RejectedInput
     );
-    assert_eq!(ukf.predict(&[0.5, 0.2], -0.005), UkfOutcome::RejectedInput);
+    assert_eq!(ukf.predict(&[0.5, 0.2], -0.005), StepOutcome::RejectedInput);
     // Finite input, non-finite result (overflow in f).
-    assert_eq!(ukf.predict(&[3e38, 0.2], 1e3), UkfOutcome::NonFiniteResult);
+    assert_eq!(ukf.predict(&[3e38, 0.2], 1e3), StepOutcome::NonFiniteResult);
     assert_eq!(ukf.counters().rejected_inputs, 5);
     assert_eq!(ukf.counters().non_finite_results, 1);
     assert_eq!((*ukf.state(), *ukf.covariance()), (x, p));
     // Still works afterwards.
-    assert_eq!(ukf.predict(&[0.5, 0.2], 0.005), UkfOutcome::Applied);
-    assert_eq!(ukf.update(&V3::new(0.0, 0.0, 0.5)), UkfOutcome::Applied);
+    assert_eq!(ukf.predict(&[0.5, 0.2], 0.005), StepOutcome::Applied);
+    assert_eq!(ukf.update(&V3::new(0.0, 0.0, 0.5)), StepOutcome::Applied);
 }
 
 /// A measurement that carries no information and no noise: `S = 0`.
@@ -419,11 +396,11 @@ fn singular_innovation_is_skipped() {
         SMatrix::zeros(),
     )
     .unwrap();
-    assert_eq!(ukf.predict(&0.0, 0.1), UkfOutcome::Applied);
+    assert_eq!(ukf.predict(&0.0, 0.1), StepOutcome::Applied);
     let x = *ukf.state();
     assert_eq!(
         ukf.update(&SVector::<f32, 1>::new(1.0)),
-        UkfOutcome::SingularInnovation
+        StepOutcome::SingularInnovation
     );
     assert_eq!(ukf.counters().singular_innovations, 1);
     assert_eq!(*ukf.state(), x);
@@ -441,11 +418,11 @@ fn update_reuses_the_propagated_points() {
     a.predict(&[2.0, 3.0], 0.2);
     b.predict(&[2.0, 3.0], 0.2);
     let kept = *a.propagated_sigma_points().unwrap();
-    assert_eq!(a.update(&z), UkfOutcome::Applied);
+    assert_eq!(a.update(&z), StepOutcome::Applied);
     assert!(a.propagated_sigma_points().is_none());
     // Redrawn from (x⁻, P⁻): not the same update (f is nonlinear).
     b.sigmas_f_fresh = false;
-    assert_eq!(b.update(&z), UkfOutcome::Applied);
+    assert_eq!(b.update(&z), StepOutcome::Applied);
     assert!((a.state() - b.state()).amax() > 1e-5);
     // The propagated points are 7 distinct images of the prior's.
     assert!(kept.column(1) != kept.column(4));
@@ -578,13 +555,13 @@ fn a_sharp_measurement_keeps_the_covariance_positive() {
     for form in FORMS {
         for alpha in [0.01_f32, 0.1, 1.0] {
             let mut ukf = linear_filter(model, alpha, setup, form);
-            assert_eq!(ukf.predict(&0.0, 0.1), UkfOutcome::Applied);
+            assert_eq!(ukf.predict(&0.0, 0.1), StepOutcome::Applied);
             assert_eq!(
                 ukf.update(&SVector::<f32, 1>::new(1e-6)),
-                UkfOutcome::Applied
+                StepOutcome::Applied
             );
             let after_update = ukf.covariance()[(1, 1)];
-            assert_eq!(ukf.predict(&0.0, 0.1), UkfOutcome::Applied);
+            assert_eq!(ukf.predict(&0.0, 0.1), StepOutcome::Applied);
             let after_predict = ukf.covariance()[(1, 1)];
             println!(
                 "{form:?}, α {alpha}: P₂₂ {after_update:e} after the update, \
@@ -651,12 +628,12 @@ fn both_forms_are_the_kalman_filter_over_1000_steps() {
             for k in 0..1000_u32 {
                 let u = 0.3 * f64::from(k % 7) - 0.8;
                 let z = 0.02 * f64::from(k % 50) - 0.5 * f64::from(k % 3);
-                assert_eq!(ukf.predict(&(u as f32), 0.1), UkfOutcome::Applied);
+                assert_eq!(ukf.predict(&(u as f32), 0.1), StepOutcome::Applied);
                 x = a * x + b * u;
                 p = a * p * a.transpose() + q;
                 assert_eq!(
                     ukf.update(&SVector::<f32, 1>::new(z as f32)),
-                    UkfOutcome::Applied
+                    StepOutcome::Applied
                 );
                 let s = (h * p * h.transpose())[(0, 0)] + r;
                 let gain = p * h.transpose() / s;
@@ -718,11 +695,11 @@ fn the_forms_agree_on_a_nonlinear_model() {
             assert_eq!(a.predict(&u, 0.05), b.predict(&u, 0.05));
             if k % 3 == 0 {
                 let (i, zi) = (usize::from(k % 2), z[usize::from(k % 2)]);
-                assert_eq!(a.update_component(i, zi, 0.05), UkfOutcome::Applied);
-                assert_eq!(b.update_component(i, zi, 0.05), UkfOutcome::Applied);
+                assert_eq!(a.update_component(i, zi, 0.05), StepOutcome::Applied);
+                assert_eq!(b.update_component(i, zi, 0.05), StepOutcome::Applied);
             } else {
-                assert_eq!(a.update(&z), UkfOutcome::Applied);
-                assert_eq!(b.update(&z), UkfOutcome::Applied);
+                assert_eq!(a.update(&z), StepOutcome::Applied);
+                assert_eq!(b.update(&z), StepOutcome::Applied);
             }
             worst.0 = worst.0.max((a.state() - b.state()).amax());
             worst.1 = worst
