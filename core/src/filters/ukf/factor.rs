@@ -26,7 +26,7 @@ pub(super) fn rank_one_update<const N: usize>(l: &mut SMatrix<f32, N, N>, a: &SV
             continue;
         };
         let r = math::hypot(diagonal, ak);
-        if !(r > 0.0) {
+        if r.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
             continue;
         }
         let (c, s) = (diagonal / r, ak / r);
@@ -69,7 +69,7 @@ pub(super) fn semidefinite_factor<const K: usize>(a: &SMatrix<f32, K, K>) -> SMa
             let v = at(&l, j, k);
             d -= v * v;
         }
-        if !(d > tiny) {
+        if d.partial_cmp(&tiny) != Some(core::cmp::Ordering::Greater) {
             continue;
         }
         let root = math::sqrt(d);

@@ -375,6 +375,10 @@ impl<const N: usize, const M: usize> AngleComponents<N, M> {
     /// The angles listed by index; indices `≥ N` (`≥ M`) are ignored, as
     /// [`residual_with_angles`] ignores them.
     #[must_use]
+    #[allow(
+        clippy::indexing_slicing,
+        reason = "a const fn cannot use get_mut; every index is checked against its length first"
+    )]
     pub const fn from_indices(state: &[usize], measurement: &[usize]) -> Self {
         let mut angles = Self::NONE;
         let mut k = 0;
