@@ -56,8 +56,7 @@ use std::path::Path;
 
 use nalgebra::{SMatrix, SVector};
 use wmr_core::filters::ukf::{
-    MerweScaledSigmaPoints, UkfModel, UkfOutcome, UnscentedKalmanFilter, residual_with_angles,
-    unscented_mean_with_angles,
+    AngleComponents, MerweScaledSigmaPoints, StepOutcome, UkfForm, UkfModel, UnscentedKalmanFilter,
 };
 use wmr_core::math::{cos, sin, wrap_angle};
 
@@ -77,6 +76,10 @@ impl Fixture {
             .join(name);
         let text =
             std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        Self::parse(&text)
+    }
+
+    fn parse(text: &str) -> Self {
         let mut params = HashMap::new();
         let mut records = Vec::new();
         for line in text
@@ -141,25 +144,12 @@ impl UkfModel<3, 3> for Scenario1 {
     fn measure(&self, x: &V3) -> V3 {
         *x
     }
-    fn state_residual(&self, a: &V3, b: &V3) -> V3 {
-        residual_with_angles(a, b, if self.angles { &PSI } else { &[] })
-    }
-    fn measurement_residual(&self, a: &V3, b: &V3) -> V3 {
-        residual_with_angles(a, b, if self.angles { &PSI } else { &[] })
-    }
-    fn state_mean<const S: usize>(
-        &self,
-        sigmas: &SMatrix<f32, 3, S>,
-        weights: &SVector<f32, S>,
-    ) -> V3 {
-        unscented_mean_with_angles(sigmas, weights, if self.angles { &PSI } else { &[] })
-    }
-    fn measurement_mean<const S: usize>(
-        &self,
-        sigmas: &SMatrix<f32, 3, S>,
-        weights: &SVector<f32, S>,
-    ) -> V3 {
-        unscented_mean_with_angles(sigmas, weights, if self.angles { &PSI } else { &[] })
+    fn angles(&self) -> AngleComponents<3, 3> {
+        if self.angles {
+            AngleComponents::from_indices(&PSI, &PSI)
+        } else {
+            AngleComponents::NONE
+        }
     }
 }
 
@@ -188,25 +178,8 @@ impl UkfModel<3, 4> for Landmarks {
         }
         z
     }
-    fn state_residual(&self, a: &V3, b: &V3) -> V3 {
-        residual_with_angles(a, b, &PSI)
-    }
-    fn measurement_residual(&self, a: &SVector<f32, 4>, b: &SVector<f32, 4>) -> SVector<f32, 4> {
-        residual_with_angles(a, b, &BEARINGS)
-    }
-    fn state_mean<const S: usize>(
-        &self,
-        sigmas: &SMatrix<f32, 3, S>,
-        weights: &SVector<f32, S>,
-    ) -> V3 {
-        unscented_mean_with_angles(sigmas, weights, &PSI)
-    }
-    fn measurement_mean<const S: usize>(
-        &self,
-        sigmas: &SMatrix<f32, 4, S>,
-        weights: &SVector<f32, S>,
-    ) -> SVector<f32, 4> {
-        unscented_mean_with_angles(sigmas, weights, &BEARINGS)
+    fn angles(&self) -> AngleComponents<3, 4> {
+        AngleComponents::from_indices(&PSI, &BEARINGS)
     }
 }
 
@@ -262,7 +235,7 @@ where
         } else {
             ukf.update(&SVector::<f32, M>::from_row_slice(&data))
         };
-        assert_eq!(outcome, UkfOutcome::Applied, "record {step} ({kind})");
+        assert_eq!(outcome, StepOutcome::Applied, "record {step} ({kind})");
         let (x_ref, p_upper) = reference.split_at(3);
         let mut p_ref = SMatrix::<f64, 3, 3>::zeros();
         let mut upper = p_upper.iter();
@@ -347,4 +320,148 @@ fn scenario1_default_hooks_matches_filterpy() {
     // rad; module docs).
     assert!(dev.state_sigma < 0.2, "{dev:?}");
     assert!(dev.covariance < 4e-2, "{dev:?}");
+}
+
+/// Issue 17's four-state case (`fixtures/ukf/range_bearing4.txt`, written
+/// by `generate_range_bearing.py`): state `(X, Y, ψ, v)`, input `(a, ω)`,
+/// range and bearing to two landmarks, `α = 0.5`, ψ crossing ±π twice.
+#[derive(Debug, Clone, Copy)]
+struct RangeBearing4 {
+    marks: [[f32; 2]; 2],
+}
+
+impl UkfModel<4, 4> for RangeBearing4 {
+    type Input = [f32; 2];
+    fn input_is_finite(&self, u: &[f32; 2]) -> bool {
+        u.iter().all(|v| v.is_finite())
+    }
+    fn transition(&self, x: &SVector<f32, 4>, u: &[f32; 2], dt_s: f32) -> SVector<f32, 4> {
+        let [a, w] = *u;
+        SVector::<f32, 4>::new(
+            x[0] + dt_s * x[3] * cos(x[2]),
+            x[1] + dt_s * x[3] * sin(x[2]),
+            wrap_angle(x[2] + dt_s * w),
+            x[3] + dt_s * a,
+        )
+    }
+    fn measure(&self, x: &SVector<f32, 4>) -> SVector<f32, 4> {
+        let mut z = SVector::<f32, 4>::zeros();
+        for (k, [lx, ly]) in self.marks.iter().enumerate() {
+            let (dx, dy) = (lx - x[0], ly - x[1]);
+            z[2 * k] = dx.hypot(dy);
+            z[2 * k + 1] = wrap_angle(dy.atan2(dx) - x[2]);
+        }
+        z
+    }
+    fn angles(&self) -> AngleComponents<4, 4> {
+        AngleComponents::from_indices(&PSI, &BEARINGS)
+    }
+}
+
+/// The worst deviations of the `f32` filter in `form` from FilterPy over
+/// the four-state fixture, as in [`run`].
+fn run_range_bearing4(form: UkfForm) -> Deviation {
+    const TEXT: &str = include_str!("../fixtures/ukf/range_bearing4.txt");
+    let fixture = Fixture::parse(TEXT);
+    let m = fixture.f32s("landmarks");
+    let model = RangeBearing4 {
+        marks: [[m[0], m[1]], [m[2], m[3]]],
+    };
+    let points = MerweScaledSigmaPoints::<4, 9>::new(
+        fixture.scalar("alpha"),
+        fixture.scalar("beta"),
+        fixture.scalar("kappa"),
+    )
+    .expect("fixture weights");
+    let dt = fixture.scalar("dt");
+    let mut ukf = UnscentedKalmanFilter::new(
+        model,
+        points,
+        SVector::<f32, 4>::from_row_slice(&fixture.f32s("x0")),
+        fixture.matrix::<4>("P0"),
+        fixture.matrix::<4>("Q"),
+        fixture.matrix::<4>("R"),
+    )
+    .and_then(|f| f.with_form(form))
+    .expect("fixture filter");
+    let mut dev = Deviation::default();
+    for (step, (kind, values)) in fixture.records.iter().enumerate() {
+        let width = if kind == "predict" { 2 } else { 4 };
+        assert_eq!(values.len(), width + 4 + 10, "record {step}");
+        let data: Vec<f32> = values[..width]
+            .iter()
+            .map(|t| t.parse().expect("an f32"))
+            .collect();
+        let reference: Vec<f64> = values[width..]
+            .iter()
+            .map(|t| t.parse().expect("an f64"))
+            .collect();
+        let outcome = if kind == "predict" {
+            ukf.predict(&[data[0], data[1]], dt)
+        } else {
+            ukf.update(&SVector::<f32, 4>::from_row_slice(&data))
+        };
+        assert_eq!(outcome, StepOutcome::Applied, "record {step} ({kind})");
+        let (x_ref, p_upper) = reference.split_at(4);
+        let mut p_ref = SMatrix::<f64, 4, 4>::zeros();
+        let mut upper = p_upper.iter();
+        for i in 0..4 {
+            for j in i..4 {
+                let v = *upper.next().expect("ten entries");
+                p_ref[(i, j)] = v;
+                p_ref[(j, i)] = v;
+            }
+        }
+        let (x, p) = (ukf.state(), ukf.covariance());
+        for i in 0..4 {
+            let mut d = f64::from(x[i]) - x_ref[i];
+            if i == 2 {
+                d = (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                    - std::f64::consts::PI;
+            }
+            let sigma = d.abs() / p_ref[(i, i)].sqrt();
+            dev.state_abs = dev.state_abs.max(d.abs());
+            if sigma > dev.state_sigma {
+                dev.state_sigma = sigma;
+                dev.worst_step = step;
+            }
+            for j in 0..4 {
+                let scale = (p_ref[(i, i)] * p_ref[(j, j)]).sqrt();
+                let e = (f64::from(p[(i, j)]) - p_ref[(i, j)]).abs() / scale;
+                dev.covariance = dev.covariance.max(e);
+            }
+        }
+        dev.steps += 1;
+    }
+    assert_eq!(ukf.counters(), Default::default());
+    dev
+}
+
+/// Both forms against FilterPy on the four-state range-and-bearing case
+/// whose heading crosses ±π. The covariance form is FilterPy's algebra
+/// (its Joseph-type update is the same `P` for the optimal gain): measured
+/// 2.4e-5 σ and 5.5e-6, held to the landmark case's `α = 0.5` tolerance,
+/// 1e-4. The square-root form takes its sums about the centre point
+/// (module docs of `wmr_core::filters::ukf`, "Square-root form"), which is
+/// FilterPy's covariance exactly only where the mean is the weighted mean
+/// of the deviations; ψ's and the bearings' means are circular. Measured:
+/// 6.8e-4 σ and 1.6e-3, worst at the first update from the wide prior
+/// (record 1), where the circular means depart most from the weighted ones
+/// (that cause is inferred, not isolated); asserted at 3×, 2e-3 σ and 5e-3.
+#[test]
+fn range_bearing_four_states_matches_filterpy_in_both_forms() {
+    for form in [UkfForm::Covariance, UkfForm::SquareRoot] {
+        let dev = run_range_bearing4(form);
+        report(
+            &format!("range and bearing, N = 4, ψ across ±π ({form:?})"),
+            &dev,
+        );
+        assert_eq!(dev.steps, 300);
+        let (state_tol, covariance_tol) = match form {
+            UkfForm::Covariance => (1e-4, 1e-4),
+            UkfForm::SquareRoot => (2e-3, 5e-3),
+        };
+        assert!(dev.state_sigma < state_tol, "{form:?}: {dev:?}");
+        assert!(dev.covariance < covariance_tol, "{form:?}: {dev:?}");
+    }
 }

@@ -55,7 +55,7 @@ use nalgebra::{Matrix2, SMatrix, SVector, Vector2};
 
 use wmr_core::filters::ekf::EkfModel;
 use wmr_core::filters::particle_filter::ParticleModel;
-use wmr_core::filters::ukf::{UkfModel, residual_with_angles, unscented_mean_with_angles};
+use wmr_core::filters::ukf::{AngleComponents, UkfModel, residual_with_angles};
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2, WheelSpeeds};
 use wmr_core::math;
 
@@ -747,36 +747,8 @@ macro_rules! pose_model_filters {
                 *x
             }
 
-            fn state_residual(
-                &self,
-                a: &SVector<f32, $n>,
-                b: &SVector<f32, $n>,
-            ) -> SVector<f32, $n> {
-                residual_with_angles(a, b, &HEADING)
-            }
-
-            fn measurement_residual(
-                &self,
-                a: &SVector<f32, $n>,
-                b: &SVector<f32, $n>,
-            ) -> SVector<f32, $n> {
-                residual_with_angles(a, b, &HEADING)
-            }
-
-            fn state_mean<const S: usize>(
-                &self,
-                sigmas: &SMatrix<f32, $n, S>,
-                weights: &SVector<f32, S>,
-            ) -> SVector<f32, $n> {
-                unscented_mean_with_angles(sigmas, weights, &HEADING)
-            }
-
-            fn measurement_mean<const S: usize>(
-                &self,
-                sigmas: &SMatrix<f32, $n, S>,
-                weights: &SVector<f32, S>,
-            ) -> SVector<f32, $n> {
-                unscented_mean_with_angles(sigmas, weights, &HEADING)
+            fn angles(&self) -> AngleComponents<$n, $n> {
+                AngleComponents::from_indices(&HEADING, &HEADING)
             }
         }
     };

@@ -89,11 +89,13 @@ const MATH: [(&str, &str); 7] = [
 
 /// Paper 004's filters: the bench's name and the row label. Each has the
 /// stages `<name>_predict` and `<name>_update`.
-const FILTERS: [(&str, &str); 9] = [
+const FILTERS: [(&str, &str); 11] = [
     ("ekf3", "EKF, N = M = 3 (`PoseModel`)"),
     ("ekf5", "EKF, N = M = 5 (`PoseWheelModel`)"),
     ("ukf3", "UKF, N = M = 3 (7 sigma points)"),
     ("ukf5", "UKF, N = M = 5 (11 sigma points)"),
+    ("srukf3", "square-root UKF, N = M = 3"),
+    ("srukf5", "square-root UKF, N = M = 5"),
     ("pf3", "particle filter, N = M = 3, 100 particles"),
     ("pf5", "particle filter, N = M = 5, 100 particles"),
     ("fusion_ekf", "fusion EKF (`PoseEkf`: odometry, 2-D fix)"),

@@ -18,12 +18,25 @@
 //! (both identity by default).
 //!
 //! # Bad input
-//! A non-finite input or measurement, an innovation covariance `S` that
-//! does not factor (not positive definite), or a non-finite result skips
-//! the step, keeps the previous estimate and is counted
-//! ([`EkfCounters`]).
+//! Each of these skips the step, keeps the previous estimate, is counted
+//! ([`EkfCounters`]) and is reported by the returned [`StepOutcome`], the
+//! outcome type the UKF returns too:
+//! * a non-finite or negative step `dt`, a non-finite measurement, or a
+//!   per-call `R` ([`ExtendedKalmanFilter::update_with_noise`]) that is
+//!   not finite, symmetric and positive definite:
+//!   [`StepOutcome::RejectedInput`];
+//! * an innovation covariance `S` that does not factor (not positive
+//!   definite): [`StepOutcome::SingularInnovation`];
+//! * a non-finite result: [`StepOutcome::NonFiniteResult`].
+//!
+//! `Q` and `R` can be replaced between steps
+//! ([`ExtendedKalmanFilter::set_process_noise`],
+//! [`ExtendedKalmanFilter::set_measurement_noise`]), checked as at
+//! construction.
 
 use nalgebra::{SMatrix, SVector};
+
+pub use super::StepOutcome;
 
 /// A system for the [`ExtendedKalmanFilter`].
 pub trait EkfModel<const N: usize, const M: usize> {
@@ -76,9 +89,15 @@ pub trait EkfModel<const N: usize, const M: usize> {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum FilterConfigError {
-    /// A covariance (`P0`, `Q` or `R`) is not finite, symmetric and positive
-    /// semi-definite (`P0`, `R`: definite).
-    Covariance,
+    /// The initial covariance `P0` is not finite, symmetric and positive
+    /// definite.
+    InitialCovariance,
+    /// The process noise `Q` is not finite, symmetric and positive
+    /// semi-definite.
+    ProcessNoise,
+    /// The measurement noise `R` is not finite, symmetric and positive
+    /// definite.
+    MeasurementNoise,
     /// The initial state is not finite.
     InitialState,
 }
@@ -86,7 +105,15 @@ pub enum FilterConfigError {
 impl core::fmt::Display for FilterConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(match self {
-            Self::Covariance => "a covariance (P0, Q or R) must be finite, symmetric and positive semi-definite (P0 and R definite)",
+            Self::InitialCovariance => {
+                "the initial covariance P0 must be finite, symmetric and positive definite"
+            }
+            Self::ProcessNoise => {
+                "the process noise Q must be finite, symmetric and positive semi-definite"
+            }
+            Self::MeasurementNoise => {
+                "the measurement noise R must be finite, symmetric and positive definite"
+            }
             Self::InitialState => "the initial state must be finite",
         })
     }
@@ -99,9 +126,10 @@ impl core::error::Error for FilterConfigError {}
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct EkfCounters {
-    /// Predictions skipped for a non-finite input or result.
+    /// Predictions skipped for a bad step `dt` or a non-finite result.
     pub rejected_predictions: u32,
-    /// Updates skipped for a non-finite measurement or result.
+    /// Updates skipped for a non-finite measurement, a bad per-call `R` or
+    /// a non-finite result.
     pub rejected_updates: u32,
     /// Updates skipped because `S` was not positive definite.
     pub singular_innovations: u32,
@@ -126,6 +154,24 @@ fn symmetric<const K: usize>(a: &SMatrix<f32, K, K>) -> bool {
     a.iter().all(|x| x.is_finite()) && (a - a.transpose()).amax() <= 1e-6 * a.amax().max(1e-30)
 }
 
+/// Finite, symmetric and positive definite.
+fn definite<const K: usize>(a: &SMatrix<f32, K, K>) -> bool {
+    symmetric(a) && a.cholesky().is_some()
+}
+
+/// Finite, symmetric and positive semi-definite (it factors once its
+/// diagonal is raised by 1e-6 of its largest entry).
+fn semidefinite<const K: usize>(a: &SMatrix<f32, K, K>) -> bool {
+    symmetric(a)
+        && (a + SMatrix::<f32, K, K>::identity() * (1e-6 * a.amax().max(1e-30)))
+            .cholesky()
+            .is_some()
+}
+
+fn bump(counter: &mut u32) {
+    *counter = counter.saturating_add(1);
+}
+
 impl<Model, const N: usize, const M: usize> ExtendedKalmanFilter<Model, N, M>
 where
     Model: EkfModel<N, M>,
@@ -134,8 +180,8 @@ where
     /// and measurement noise `r`.
     ///
     /// # Errors
-    /// [`FilterConfigError`] for a non-finite `x0` or a covariance that is
-    /// not symmetric positive (semi-)definite.
+    /// [`FilterConfigError`]: a non-finite `x0`, or the first covariance
+    /// (`P0`, `Q`, `R`) that is not symmetric positive (semi-)definite.
     pub fn new(
         model: Model,
         x0: SVector<f32, N>,
@@ -146,14 +192,14 @@ where
         if !x0.iter().all(|x| x.is_finite()) {
             return Err(FilterConfigError::InitialState);
         }
-        let definite = |a: SMatrix<f32, N, N>| symmetric(&a) && a.cholesky().is_some();
-        let q_ok = symmetric(&q)
-            && (q + SMatrix::<f32, N, N>::identity() * (1e-6 * q.amax().max(1e-30)))
-                .cholesky()
-                .is_some();
-        let r_ok = symmetric(&r) && r.cholesky().is_some();
-        if !(definite(p0) && q_ok && r_ok) {
-            return Err(FilterConfigError::Covariance);
+        if !definite(&p0) {
+            return Err(FilterConfigError::InitialCovariance);
+        }
+        if !semidefinite(&q) {
+            return Err(FilterConfigError::ProcessNoise);
+        }
+        if !definite(&r) {
+            return Err(FilterConfigError::MeasurementNoise);
         }
         Ok(Self {
             x: model.normalize(x0),
@@ -189,46 +235,114 @@ where
         &self.model
     }
 
-    /// Time update over `dt_s` with input `u`.
-    pub fn predict(&mut self, u: &Model::Input, dt_s: f32) {
+    /// The process noise `Q` (per step).
+    #[must_use]
+    pub fn process_noise(&self) -> &SMatrix<f32, N, N> {
+        &self.q
+    }
+
+    /// The measurement noise `R`.
+    #[must_use]
+    pub fn measurement_noise(&self) -> &SMatrix<f32, M, M> {
+        &self.r
+    }
+
+    /// Sets `Q`.
+    ///
+    /// # Errors
+    /// [`FilterConfigError::ProcessNoise`] (not finite, symmetric and
+    /// positive semi-definite); `Q` is unchanged.
+    pub fn set_process_noise(&mut self, q: SMatrix<f32, N, N>) -> Result<(), FilterConfigError> {
+        if !semidefinite(&q) {
+            return Err(FilterConfigError::ProcessNoise);
+        }
+        self.q = q;
+        Ok(())
+    }
+
+    /// Sets `R`.
+    ///
+    /// # Errors
+    /// [`FilterConfigError::MeasurementNoise`] (not finite, symmetric and
+    /// positive definite); `R` is unchanged.
+    pub fn set_measurement_noise(
+        &mut self,
+        r: SMatrix<f32, M, M>,
+    ) -> Result<(), FilterConfigError> {
+        if !definite(&r) {
+            return Err(FilterConfigError::MeasurementNoise);
+        }
+        self.r = r;
+        Ok(())
+    }
+
+    /// Time update over `dt_s` (finite, ≥ 0) with input `u` (module docs,
+    /// "Bad input").
+    pub fn predict(&mut self, u: &Model::Input, dt_s: f32) -> StepOutcome {
+        if !(dt_s.is_finite() && dt_s >= 0.0) {
+            bump(&mut self.counters.rejected_predictions);
+            return StepOutcome::RejectedInput;
+        }
         let (x, a) = self.model.transition_with_jacobian(&self.x, u, dt_s);
         let x = self.model.normalize(x);
         let p = a * self.p * a.transpose() + self.q;
         if x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite()) {
             self.x = x;
             self.p = (p + p.transpose()) * 0.5;
+            StepOutcome::Applied
         } else {
-            self.counters.rejected_predictions =
-                self.counters.rejected_predictions.saturating_add(1);
+            bump(&mut self.counters.rejected_predictions);
+            StepOutcome::NonFiniteResult
         }
     }
 
-    /// Measurement update with `z`.
-    pub fn update(&mut self, z: &SVector<f32, M>) {
+    /// Measurement update with `z` and the filter's `R`.
+    pub fn update(&mut self, z: &SVector<f32, M>) -> StepOutcome {
+        let r = self.r;
+        self.update_with(z, &r)
+    }
+
+    /// Measurement update with `z` and, for this call only, the
+    /// measurement noise `r` (rejected unless finite, symmetric and
+    /// positive definite).
+    pub fn update_with_noise(
+        &mut self,
+        z: &SVector<f32, M>,
+        r: &SMatrix<f32, M, M>,
+    ) -> StepOutcome {
+        if !definite(r) {
+            bump(&mut self.counters.rejected_updates);
+            return StepOutcome::RejectedInput;
+        }
+        self.update_with(z, r)
+    }
+
+    fn update_with(&mut self, z: &SVector<f32, M>, r: &SMatrix<f32, M, M>) -> StepOutcome {
         if !z.iter().all(|v| v.is_finite()) {
-            self.counters.rejected_updates = self.counters.rejected_updates.saturating_add(1);
-            return;
+            bump(&mut self.counters.rejected_updates);
+            return StepOutcome::RejectedInput;
         }
         let c = self.model.measurement_jacobian(&self.x);
         let innovation = self
             .model
             .measurement_residual(z, &self.model.measure(&self.x));
-        let s = c * self.p * c.transpose() + self.r;
+        let s = c * self.p * c.transpose() + r;
         let Some(s_chol) = s.cholesky() else {
-            self.counters.singular_innovations =
-                self.counters.singular_innovations.saturating_add(1);
-            return;
+            bump(&mut self.counters.singular_innovations);
+            return StepOutcome::SingularInnovation;
         };
         // K = P Cᵀ S⁻¹, i.e. Kᵀ = S⁻¹ C P (S symmetric).
         let gain = s_chol.solve(&(c * self.p)).transpose();
         let x = self.model.normalize(self.x + gain * innovation);
         let i_kc = SMatrix::<f32, N, N>::identity() - gain * c;
-        let p = i_kc * self.p * i_kc.transpose() + gain * self.r * gain.transpose();
+        let p = i_kc * self.p * i_kc.transpose() + gain * r * gain.transpose();
         if x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite()) {
             self.x = x;
             self.p = (p + p.transpose()) * 0.5;
+            StepOutcome::Applied
         } else {
-            self.counters.rejected_updates = self.counters.rejected_updates.saturating_add(1);
+            bump(&mut self.counters.rejected_updates);
+            StepOutcome::NonFiniteResult
         }
     }
 }
@@ -279,7 +393,7 @@ mod tests {
         let r = SMatrix::<f32, 1, 1>::new(0.01);
         assert_eq!(
             ExtendedKalmanFilter::new(Cart, SVector::zeros(), bad, SMatrix::zeros(), r).err(),
-            Some(FilterConfigError::Covariance)
+            Some(FilterConfigError::InitialCovariance)
         );
         let nan = SVector::<f32, 2>::new(f32::NAN, 0.0);
         assert_eq!(
@@ -294,15 +408,16 @@ mod tests {
     #[test]
     fn linear_system_is_the_kalman_filter() {
         let mut f = filter();
-        f.update(&SVector::<f32, 1>::new(1.0));
+        assert_eq!(f.update(&SVector::<f32, 1>::new(1.0)), StepOutcome::Applied);
         // K = 10 / (10 + 0.01); x = K·1.
         let k = 10.0 / 10.01;
         assert!((f.state().x - k).abs() < 1e-6);
         assert!((f.covariance().m11 - 10.0 * 0.01 / 10.01).abs() < 1e-6);
         let mut f = filter();
         for step in 1..=200u16 {
-            f.predict(&(), 0.1);
-            f.update(&SVector::<f32, 1>::new(0.3 * f32::from(step) * 0.1));
+            assert_eq!(f.predict(&(), 0.1), StepOutcome::Applied);
+            let z = SVector::<f32, 1>::new(0.3 * f32::from(step) * 0.1);
+            assert_eq!(f.update(&z), StepOutcome::Applied);
         }
         assert!((f.state().y - 0.3).abs() < 1e-3, "{}", f.state());
     }
@@ -311,8 +426,73 @@ mod tests {
     fn bad_measurements_are_skipped_and_counted() {
         let mut f = filter();
         let before = *f.state();
-        f.update(&SVector::<f32, 1>::new(f32::NAN));
+        assert_eq!(
+            f.update(&SVector::<f32, 1>::new(f32::NAN)),
+            StepOutcome::RejectedInput
+        );
+        assert_eq!(
+            f.update_with_noise(
+                &SVector::<f32, 1>::new(1.0),
+                &SMatrix::<f32, 1, 1>::new(-1.0)
+            ),
+            StepOutcome::RejectedInput
+        );
+        assert_eq!(f.predict(&(), f32::NAN), StepOutcome::RejectedInput);
+        assert_eq!(f.predict(&(), -0.1), StepOutcome::RejectedInput);
+        assert_eq!(f.predict(&(), 1e30), StepOutcome::NonFiniteResult);
         assert_eq!(*f.state(), before);
-        assert_eq!(f.counters().rejected_updates, 1);
+        assert_eq!(f.counters().rejected_updates, 2);
+        assert_eq!(f.counters().rejected_predictions, 3);
+        // S = 0: a measurement with no noise and no uncertainty.
+        let mut sharp = ExtendedKalmanFilter::new(
+            Cart,
+            SVector::zeros(),
+            SMatrix::<f32, 2, 2>::new(1e-30, 0.0, 0.0, 1.0),
+            SMatrix::zeros(),
+            SMatrix::<f32, 1, 1>::new(1e-30),
+        )
+        .unwrap();
+        assert!(
+            sharp
+                .set_measurement_noise(SMatrix::<f32, 1, 1>::new(0.0))
+                .is_err()
+        );
+        let z = SVector::<f32, 1>::new(1.0);
+        let zero_p = SMatrix::<f32, 2, 2>::new(0.0, 0.0, 0.0, 1.0);
+        sharp.p = zero_p;
+        sharp.r = SMatrix::zeros();
+        assert_eq!(sharp.update(&z), StepOutcome::SingularInnovation);
+        assert_eq!(sharp.counters().singular_innovations, 1);
+    }
+
+    /// A per-call `R` is the filter's `R` for that call; `Q` and `R` can be
+    /// set, and are checked as at construction.
+    #[test]
+    fn per_call_and_settable_noise() {
+        let z = SVector::<f32, 1>::new(1.0);
+        let wide = SMatrix::<f32, 1, 1>::new(4.0);
+        let mut a = filter();
+        let mut b = filter();
+        assert_eq!(a.update_with_noise(&z, &wide), StepOutcome::Applied);
+        assert_eq!(b.set_measurement_noise(wide), Ok(()));
+        assert_eq!(b.update(&z), StepOutcome::Applied);
+        assert_eq!((a.state(), a.covariance()), (b.state(), b.covariance()));
+        assert_eq!(*a.measurement_noise(), SMatrix::<f32, 1, 1>::new(0.01));
+        let q = SMatrix::<f32, 2, 2>::new(1e-3, 0.0, 0.0, 2e-3);
+        assert_eq!(a.set_process_noise(q), Ok(()));
+        assert_eq!(*a.process_noise(), q);
+        assert_eq!(
+            a.set_process_noise(-q),
+            Err(FilterConfigError::ProcessNoise)
+        );
+        assert_eq!(
+            a.set_measurement_noise(SMatrix::<f32, 1, 1>::new(f32::NAN)),
+            Err(FilterConfigError::MeasurementNoise)
+        );
+        assert_eq!(*a.process_noise(), q);
+        let before = *a.covariance();
+        assert_eq!(a.predict(&(), 0.1), StepOutcome::Applied);
+        let f = SMatrix::<f32, 2, 2>::new(1.0, 0.1, 0.0, 1.0);
+        assert!((a.covariance() - (f * before * f.transpose() + q)).amax() < 1e-5);
     }
 }

@@ -83,8 +83,12 @@ impl Filter {
     pub(super) fn predict(&mut self, u: &BodyVelocity, h: f32) {
         match self {
             Self::Exact => {}
-            Self::Ekf3(f) => f.predict(u, h),
-            Self::Ekf5(f) => f.predict(u, h),
+            Self::Ekf3(f) => {
+                f.predict(u, h);
+            }
+            Self::Ekf5(f) => {
+                f.predict(u, h);
+            }
             Self::Ukf3(f) => {
                 f.predict(u, h);
             }

@@ -472,6 +472,23 @@ pub struct UkfSpec {
     /// `P0` diagonal (default [`UKF_INITIAL_VARIANCE`]).
     #[serde(default = "defaults::ukf_initial_variance")]
     pub initial_variance: [f64; 5],
+    /// `form = "covariance"` (default) or `"square_root"`: which form of
+    /// the core's UKF runs (issue 17; the square-root form needs `β ≥ α²`).
+    #[serde(default)]
+    pub form: UkfFormSpec,
+}
+
+/// The form of the core's UKF (`wmr_core::filters::ukf::UkfForm`). The
+/// covariance form is the default: the square-root form did not do better
+/// on either scenario (docs/paper-004.md) and costs more.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UkfFormSpec {
+    /// `P` propagated (FilterPy's equations, Joseph-type update).
+    #[default]
+    Covariance,
+    /// Its Cholesky factor (Van der Merwe & Wan 2001).
+    SquareRoot,
 }
 
 impl Default for UkfSpec {
@@ -481,6 +498,7 @@ impl Default for UkfSpec {
             beta: defaults::beta(),
             kappa: 0.0,
             initial_variance: UKF_INITIAL_VARIANCE,
+            form: UkfFormSpec::Covariance,
         }
     }
 }

@@ -6,7 +6,7 @@ use wmr_core::filters::ekf::ExtendedKalmanFilter;
 use wmr_core::filters::particle_filter::{
     ParticleFilter, ParticleFilterConfig, ParticleFilterError,
 };
-use wmr_core::filters::ukf::{MerweScaledSigmaPoints, UkfError, UnscentedKalmanFilter};
+use wmr_core::filters::ukf::{MerweScaledSigmaPoints, UkfError, UkfForm, UnscentedKalmanFilter};
 use wmr_core::geometry::Pose;
 use wmr_papers::slip_tracking::{
     AdaptiveVelocityController, P_MAX, PiecewiseReference, PoseModel, PoseWheelModel,
@@ -16,7 +16,7 @@ use wmr_papers::slip_tracking::{
 use crate::scenario::{ScenarioError, non_negative, positive};
 
 use super::filter::{Filter, PARTICLES, diag, first};
-use super::scenario::{Controller, Estimator, MAX_SEGMENTS, SlipScenario};
+use super::scenario::{Controller, Estimator, MAX_SEGMENTS, SlipScenario, UkfFormSpec};
 
 fn finite(field: &str, v: f64) -> Result<f64, ScenarioError> {
     if v.is_finite() {
@@ -85,6 +85,10 @@ fn ukf_field(e: UkfError) -> ScenarioError {
         UkfError::InitialCovariance => ("filter.ukf.initial_variance", "refused"),
         UkfError::ProcessNoise => ("filter.process_noise", "refused"),
         UkfError::MeasurementNoise => ("measurement.variance", "refused"),
+        UkfError::SquareRootBeta => (
+            "filter.ukf.beta",
+            "must be ≥ alpha² for form = \"square_root\"",
+        ),
         _ => ("filter.ukf", "refused"),
     };
     ScenarioError::invalid(field, format!("{what} (the core's UKF: {e})"))
@@ -292,6 +296,10 @@ impl SlipScenario {
         let q = non_negative_array("filter.process_noise", &f.process_noise)?;
         let p0_ukf = positive_array("filter.ukf.initial_variance", &f.ukf.initial_variance)?;
         let (alpha, beta, kappa) = (f.ukf.alpha as f32, f.ukf.beta as f32, f.ukf.kappa as f32);
+        let form = match f.ukf.form {
+            UkfFormSpec::Covariance => UkfForm::Covariance,
+            UkfFormSpec::SquareRoot => UkfForm::SquareRoot,
+        };
         let pf = &f.particle_filter;
         if pf.particles != PARTICLES {
             return Err(ScenarioError::invalid(
@@ -351,6 +359,7 @@ impl SlipScenario {
             diag(first::<3>(q)).into(),
             diag(first::<3>(r)).into(),
         )
+        .and_then(|f| f.with_form(form))
         .map_err(ukf_field)?;
         let ukf5 = UnscentedKalmanFilter::<_, 5, 5, 11>::new(
             PoseWheelModel,
@@ -360,6 +369,7 @@ impl SlipScenario {
             diag(q).into(),
             diag(r).into(),
         )
+        .and_then(|f| f.with_form(form))
         .map_err(ukf_field)?;
         let pf3 = ParticleFilter::<_, 3, 3, PARTICLES>::new(
             PoseModel,

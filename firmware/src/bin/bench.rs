@@ -97,7 +97,9 @@ mod on_target {
     use wmr_core::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
     use wmr_core::filters::ekf::{EkfModel, ExtendedKalmanFilter};
     use wmr_core::filters::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
-    use wmr_core::filters::ukf::{MerweScaledSigmaPoints, UkfModel, UnscentedKalmanFilter};
+    use wmr_core::filters::ukf::{
+        MerweScaledSigmaPoints, UkfForm, UkfModel, UnscentedKalmanFilter,
+    };
     use wmr_core::geometry::{BodyVelocity, DiffDriveGeometry, Pose, Vec2, WheelSpeeds};
     use wmr_core::math;
     use wmr_core::odometry::{OdometryStep, WrappingCounter};
@@ -748,10 +750,11 @@ mod on_target {
             paper_004_fix(arc)
         }
         fn bench_predict(&mut self, (u, dt_s): &(BodyVelocity, f32)) {
-            self.predict(u, *dt_s);
+            // Counted in the filter's counters (`bench_health`).
+            let _outcome = self.predict(u, *dt_s);
         }
         fn bench_update(&mut self, z: &SVector<f32, N>) {
-            self.update(z);
+            let _outcome = self.update(z);
         }
         fn bench_position(&self) -> Vec2 {
             position_of(self.state())
@@ -1064,6 +1067,51 @@ mod on_target {
             "ukf5",
             ["ukf5_predict", "ukf5_update"],
             &mut ukf5,
+            scenario_2,
+            MAX_FILTER_RMS_ERROR_M,
+        );
+        // The square-root form (issue 17) of the same two filters.
+        let mut srukf3 = built(
+            MerweScaledSigmaPoints::paper().and_then(|points| {
+                UnscentedKalmanFilter::<_, 3, 3, 7>::new(
+                    PoseModel,
+                    points,
+                    head(&x1),
+                    diagonal(UKF_INITIAL_VARIANCE),
+                    diagonal(q),
+                    diagonal(r),
+                )?
+                .with_form(UkfForm::SquareRoot)
+            }),
+            "square-root UKF (N = 3) refused",
+        );
+        bench_filter(
+            cal,
+            "srukf3",
+            ["srukf3_predict", "srukf3_update"],
+            &mut srukf3,
+            scenario_1,
+            MAX_FILTER_RMS_ERROR_M,
+        );
+        let mut srukf5 = built(
+            MerweScaledSigmaPoints::paper().and_then(|points| {
+                UnscentedKalmanFilter::<_, 5, 5, 11>::new(
+                    PoseWheelModel,
+                    points,
+                    x2,
+                    diagonal(UKF_INITIAL_VARIANCE),
+                    diagonal(q),
+                    diagonal(r),
+                )?
+                .with_form(UkfForm::SquareRoot)
+            }),
+            "square-root UKF (N = 5) refused",
+        );
+        bench_filter(
+            cal,
+            "srukf5",
+            ["srukf5_predict", "srukf5_update"],
+            &mut srukf5,
             scenario_2,
             MAX_FILTER_RMS_ERROR_M,
         );

@@ -63,7 +63,7 @@
 //! 5×5 Cholesky per step and per fix, and `Q` from the EKF's
 //! linearisation: see the bench table in docs/firmware.md.
 
-use nalgebra::{Matrix2, SMatrix, SVector, Vector2};
+use nalgebra::{Matrix2, SVector, Vector2};
 
 use crate::estimation::fusion::config::PoseFilterConfig;
 use crate::estimation::fusion::gate::{
@@ -71,8 +71,7 @@ use crate::estimation::fusion::gate::{
 };
 use crate::estimation::fusion::odometry_noise::{linearise_odometry, odometry_transition};
 use crate::filters::ukf::{
-    MerweScaledSigmaPoints, UkfModel, UnscentedKalmanFilter, residual_with_angles,
-    unscented_mean_with_angles,
+    AngleComponents, MerweScaledSigmaPoints, UkfModel, UnscentedKalmanFilter,
 };
 use crate::math;
 use crate::odometry::OdometryStep;
@@ -118,16 +117,9 @@ impl UkfModel<5, 2> for OdometryPoseModel {
         Vector2::new(x.x, x.y)
     }
 
-    fn state_residual(&self, a: &PoseState, b: &PoseState) -> PoseState {
-        residual_with_angles(a, b, &HEADING)
-    }
-
-    fn state_mean<const S: usize>(
-        &self,
-        sigmas: &SMatrix<f32, 5, S>,
-        weights: &SVector<f32, S>,
-    ) -> PoseState {
-        unscented_mean_with_angles(sigmas, weights, &HEADING)
+    fn angles(&self) -> AngleComponents<5, 2> {
+        const ANGLES: AngleComponents<5, 2> = AngleComponents::from_indices(&HEADING, &[]);
+        ANGLES
     }
 }
 
