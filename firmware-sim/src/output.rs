@@ -218,13 +218,14 @@ pub fn format_summary(s: &Summary) -> String {
             }
             let _ = writeln!(
                 o,
-                "faults        counts: firmware {}, host {}; outages {} timeouts {} silence reports {} (+{} lost) resent ticks {} nacks {} stale answers {}",
+                "faults        counts: firmware {}, host {}; outages {} timeouts {} silence reports {} (+{} lost, motors stopped after at most {} ms) resent ticks {} nacks {} stale answers {}",
                 verdict(&r.firmware_expected, f),
                 verdict(&r.host_expected, l),
                 r.outages,
                 f.timeouts,
                 r.silence_reports,
                 r.silence_reports_lost,
+                r.longest_silence_before_stop_ms,
                 r.resent_ticks,
                 r.nacks,
                 r.stale_answers

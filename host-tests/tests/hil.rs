@@ -499,7 +499,13 @@ fn firmware_reacts_to_bad_configuration_corrupt_frames_and_silence() {
     std::thread::sleep(Duration::from_millis(400));
     match target.receive().unwrap() {
         TargetMessage::LinkSilent { motors, silent_ms } => {
-            assert_eq!(silent_ms, wmr_link::LINK_TIMEOUT_MS);
+            // At the first poll past the timeout (later only if QEMU was
+            // not scheduled then), and during the silence.
+            println!("motors stopped after {silent_ms} ms of silence");
+            assert!(
+                (wmr_link::LINK_TIMEOUT_MS..400).contains(&silent_ms),
+                "stopped after {silent_ms} ms"
+            );
             assert!(motors.iter().all(|m| m.duty == 0), "{motors:?}");
         }
         other => panic!("expected LinkSilent, got {other:?}"),

@@ -17,8 +17,9 @@
 //!   lock-step the simulator is the clock, which makes the run
 //!   deterministic whatever QEMU's speed. (The real board's tick comes from
 //!   a hardware timer; see `board::blackpill`.)
-//! - **SysTick** (core clock, 1 ms) times the link: after
-//!   [`LINK_TIMEOUT_MS`] without a valid frame while a run is configured,
+//! - **SysTick** (core clock, free-running: [`SilenceTimer`]) times the
+//!   link: after [`LINK_TIMEOUT_MS`] without a valid frame while a run is
+//!   configured,
 //!   the firmware counts a timeout, stops the motors, as a robot must
 //!   when its sensors go silent, and reports it (`LinkSilent`, with the
 //!   motors). It drives again on the next tick frame.
@@ -109,23 +110,60 @@ impl HostLink {
     }
 }
 
-/// A 1 ms time base from SysTick.
-struct Millis {
-    syst: SYST,
+/// Milliseconds of link silence from SysTick, by differences of its 24-bit
+/// down-counter at full reload (2^24 cycles, 99.9 ms at 168 MHz): a poll
+/// of the link that comes late, because QEMU was not scheduled for a
+/// while, still counts every millisecond that passed, as long as polls
+/// are less than 99.9 ms apart. (Counting one millisecond per wrap flag,
+/// at a 1 ms reload, missed every wrap but one in such a gap: a loaded
+/// machine let 68 of 345 outages of 200 ms go unnoticed.) QEMU derives the
+/// counter from the host clock.
+struct SilenceTimer {
+    /// The counter at the last restart or poll.
+    last: u32,
+    /// Cycles polled and not yet a whole millisecond.
+    cycles: u32,
+    /// Whole milliseconds since the last restart.
+    ms: u32,
 }
 
-impl Millis {
+/// SysTick's reload: the counter's full 24 bits.
+const SYST_RELOAD: u32 = 0x00FF_FFFF;
+/// Core cycles per millisecond.
+const CYCLES_PER_MS: u32 = CORE_CLOCK_HZ / 1000;
+
+impl SilenceTimer {
     fn new(mut syst: SYST) -> Self {
         syst.set_clock_source(SystClkSource::Core);
-        syst.set_reload(CORE_CLOCK_HZ / 1000 - 1);
+        syst.set_reload(SYST_RELOAD);
         syst.clear_current();
         syst.enable_counter();
-        Self { syst }
+        Self {
+            last: SYST::get_current(),
+            cycles: 0,
+            ms: 0,
+        }
     }
 
-    /// Whether a millisecond passed since the last call that said so.
-    fn elapsed(&mut self) -> bool {
-        self.syst.has_wrapped()
+    /// Starts counting from 0 ms (a valid frame arrived).
+    fn restart(&mut self) {
+        self.last = SYST::get_current();
+        self.cycles = 0;
+        self.ms = 0;
+    }
+
+    /// Milliseconds since the last restart, saturating.
+    fn silent_ms(&mut self) -> u32 {
+        let now = SYST::get_current();
+        // A down-counter: the cycles since the last poll, modulo 2^24.
+        let elapsed = self.last.wrapping_sub(now) & SYST_RELOAD;
+        self.last = now;
+        // At most 2^24 + CYCLES_PER_MS: no overflow.
+        self.cycles += elapsed;
+        let whole = self.cycles / CYCLES_PER_MS;
+        self.cycles -= whole * CYCLES_PER_MS;
+        self.ms = self.ms.saturating_add(whole);
+        self.ms
     }
 }
 
@@ -168,7 +206,7 @@ pub fn run() -> ! {
         defmt::error!("the link's host files are missing (start it with `firmware-sim hil`)");
         fail()
     };
-    let mut millis = Millis::new(cp.SYST);
+    let mut silence = SilenceTimer::new(cp.SYST);
     let Some(bus) = cortex_m::singleton!(: ProxyBus = ProxyBus::new()) else {
         fail()
     };
@@ -192,7 +230,6 @@ pub fn run() -> ! {
         },
     );
 
-    let mut silent_ms: u32 = 0;
     let mut stopped_for_silence = false;
     loop {
         if let Some(byte) = link.read_byte() {
@@ -208,7 +245,7 @@ pub fn run() -> ! {
                     send(&mut link, &mut tx, TargetMessage::Nack);
                 }
                 Some(Ok(message)) => {
-                    silent_ms = 0;
+                    silence.restart();
                     if stopped_for_silence {
                         if worth_logging(rx.counters().timeouts) {
                             defmt::info!("link back");
@@ -237,8 +274,8 @@ pub fn run() -> ! {
                     }
                 }
             }
-        } else if millis.elapsed() && session.is_configured() && !stopped_for_silence {
-            silent_ms = silent_ms.saturating_add(1);
+        } else if session.is_configured() && !stopped_for_silence {
+            let silent_ms = silence.silent_ms();
             if silent_ms >= LINK_TIMEOUT_MS {
                 rx.note_timeout();
                 let report = session.link_silent(silent_ms);
