@@ -59,6 +59,27 @@ fn run_writes_outputs_and_prints_the_summary() {
     assert!(!dir.path().join("run.png").exists());
 }
 
+/// `firmware-sim run` with no scenario: the default one (paper 001's RFID
+/// figure-eight, 480 s), whole, with its plot, as a new user runs it first.
+#[test]
+fn the_default_scenario_runs_end_to_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = sim()
+        .arg("run")
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let text = stdout_of_success(&out);
+    assert!(text.contains("figure_eight_rfid"), "{text}");
+    let csv = std::fs::read_to_string(dir.path().join("run.csv")).unwrap();
+    // A header and one record per 10 ms tick of the 480 s run.
+    assert_eq!(csv.lines().count(), 1 + 48_000, "{}", csv.lines().count());
+    assert!(dir.path().join("summary.json").exists());
+    let png = std::fs::metadata(dir.path().join("run.png")).unwrap();
+    assert!(png.len() > 10_000, "plot of {} B", png.len());
+}
+
 #[test]
 fn scenarios_are_listed_and_shown() {
     let text = stdout_of_success(&sim().arg("scenarios").output().unwrap());

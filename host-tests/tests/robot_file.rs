@@ -231,10 +231,15 @@ fn the_blackpill_robot_file_is_the_boards_default() {
     let _ = SpecError::NotInThisBuild;
 }
 
-/// Builds the Black Pill firmware with `image` in flash.
+/// Builds the Black Pill firmware with `image` in flash, into
+/// `WMR_FIRMWARE_TARGET_DIR` if set (`cargo xtask ci` gives its own, where
+/// the firmware's dependencies are built), else `target/robot-firmware`.
 fn build_blackpill_with(image: &Path) -> PathBuf {
     let root = workspace_root();
-    let dir = root.join("target").join("robot-firmware");
+    let dir = std::env::var_os("WMR_FIRMWARE_TARGET_DIR").map_or_else(
+        || root.join("target").join("robot-firmware"),
+        |dir| root.join(dir),
+    );
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let status = Command::new(cargo)
         .current_dir(&root)

@@ -175,15 +175,18 @@ fn ci() -> Result {
         .find(|(board, _)| *board == "qemu")
         .map(|(_, elf)| elf.display().to_string())
         .ok_or("no QEMU-board firmware")?;
-    let fusion_elf = build_fusion_firmware()?.display().to_string();
+    let variants = build_hil_variants()?;
+    // The robot-file test builds the Black Pill firmware with a robot's
+    // image into xtask's target directory too (only the firmware crate is
+    // compiled again).
+    let firmware_target_dir = target::target_dir().display().to_string();
+    let mut test_env = vec![
+        ("WMR_FIRMWARE_ELF", qemu_elf.as_str()),
+        ("WMR_FIRMWARE_TARGET_DIR", firmware_target_dir.as_str()),
+    ];
+    test_env.extend(variants.iter().map(|(var, elf)| (*var, elf.as_str())));
     step("tests (workspace, HIL under QEMU)", || {
-        cargo(
-            &["test", "--workspace", "--all-targets"],
-            &[
-                ("WMR_FIRMWARE_ELF", &qemu_elf),
-                ("WMR_FUSION_FIRMWARE_ELF", &fusion_elf),
-            ],
-        )
+        cargo(&["test", "--workspace", "--all-targets"], &test_env)
     })?;
     // The workspace test run unifies features (the simulator and the tests
     // turn every core feature on), so the core's default-feature paths
@@ -225,21 +228,6 @@ fn ci() -> Result {
                 "--no-deps",
             ],
             &[("RUSTDOCFLAGS", "-D warnings")],
-        )
-    })?;
-    step("default scenario end to end", || {
-        cargo(
-            &[
-                "run",
-                "--release",
-                "-p",
-                "firmware-sim",
-                "--",
-                "run",
-                "--out",
-                "target/ci/default-scenario",
-            ],
-            &[],
         )
     })?;
     // Gates: a figure over its budget in firmware/budgets.toml fails CI.
@@ -293,29 +281,57 @@ fn build_firmware() -> std::result::Result<Vec<(&'static str, std::path::PathBuf
     Ok(elfs)
 }
 
-/// The QEMU board with the fusion estimator's EKF and UKF (features
-/// `fusion-ukf`, which implies `fusion-ekf`) for the HIL test of the UKF
-/// in the firmware, copied to `target/firmware/wmr-firmware-qemu-fusion.elf`.
-/// Over the flash budget (docs/firmware.md), so not a board of its own.
-fn build_fusion_firmware() -> std::result::Result<std::path::PathBuf, String> {
-    let mut built = Vec::new();
-    step("build firmware qemu + fusion-ukf (release)", || {
-        built = target::Build {
-            bins: &["wmr-firmware"],
-            no_default_features: true,
-            features: &["board-qemu", "fusion-ukf"],
-            env: &[],
-        }
-        .run("firmware-qemu-fusion")?;
-        Ok(())
-    })?;
-    let built = built.first().ok_or("no ELF built")?;
-    let elf = target::workspace_root()
-        .join("target")
-        .join("firmware")
-        .join("wmr-firmware-qemu-fusion.elf");
-    std::fs::copy(built, &elf).map_err(|e| format!("{}: {e}", built.display()))?;
-    Ok(elf)
+/// The QEMU-board builds of the HIL tests beside the default one: the
+/// environment variable that gives each test its ELF, the build's label
+/// and its features. Built here, in xtask's target directory whose
+/// dependencies the default build compiled, rather than by the tests, each
+/// in a target directory of its own from scratch.
+const HIL_VARIANTS: [(&str, &str, &[&str]); 2] = [
+    // Over the flash budget (docs/firmware.md), so not a board of its own:
+    // the fusion estimator's EKF and UKF (`fusion-ukf` implies
+    // `fusion-ekf`).
+    (
+        "WMR_FUSION_FIRMWARE_ELF",
+        "qemu-fusion",
+        &["board-qemu", "fusion-ukf"],
+    ),
+    // Paper 003's wheel-speed observer in the speed loops.
+    (
+        "WMR_SPEED_OBSERVER_FIRMWARE_ELF",
+        "qemu-speed-observer",
+        &["board-qemu", "wheel-speed-observer"],
+    ),
+];
+
+/// Builds each of [`HIL_VARIANTS`], copied to
+/// `target/firmware/wmr-firmware-<label>.elf`; returns the environment
+/// variable and ELF path of each.
+fn build_hil_variants() -> std::result::Result<Vec<(&'static str, String)>, String> {
+    let mut elfs = Vec::new();
+    for (variable, label, features) in HIL_VARIANTS {
+        let mut built = Vec::new();
+        step(
+            &format!("build firmware {} (release)", features.join(" + ")),
+            || {
+                built = target::Build {
+                    bins: &["wmr-firmware"],
+                    no_default_features: true,
+                    features,
+                    env: &[],
+                }
+                .run(&format!("firmware-{label}"))?;
+                Ok(())
+            },
+        )?;
+        let built = built.first().ok_or("no ELF built")?;
+        let elf = target::workspace_root()
+            .join("target")
+            .join("firmware")
+            .join(format!("wmr-firmware-{label}.elf"));
+        std::fs::copy(built, &elf).map_err(|e| format!("{}: {e}", built.display()))?;
+        elfs.push((variable, elf.display().to_string()));
+    }
+    Ok(elfs)
 }
 
 /// flip-link, the firmware's linker (`.cargo/config.toml`), installed with
