@@ -78,9 +78,9 @@ where
     /// The square-root form's lower factor `L` of `P` (`P = L Lᵀ`); zero
     /// in the covariance form.
     pub(super) factor: SMatrix<f32, N, N>,
-    /// `√Q` (lower, [`semidefinite_factor`]).
+    /// `√Q` (lower, [`semidefinite_factor`]); zero in the covariance form.
     pub(super) q_factor: SMatrix<f32, N, N>,
-    /// `√R`.
+    /// `√R`; zero in the covariance form.
     pub(super) r_factor: SMatrix<f32, M, M>,
 }
 
@@ -135,8 +135,9 @@ where
             counters: UkfCounters::default(),
             form: UkfForm::Covariance,
             factor: SMatrix::zeros(),
-            q_factor: semidefinite_factor(&symmetrize(&q)),
-            r_factor: semidefinite_factor(&symmetrize(&r)),
+            // Only the square-root form uses them (`with_form`).
+            q_factor: SMatrix::zeros(),
+            r_factor: SMatrix::zeros(),
         })
     }
 
@@ -147,18 +148,24 @@ where
     /// [`UkfError::SquareRootBeta`]: the square-root form needs `β ≥ α²`
     /// (module docs, "Square-root form"); the filter is not built.
     pub fn with_form(self, form: UkfForm) -> Result<Self, UkfError> {
-        let factor = match form {
-            UkfForm::Covariance => SMatrix::zeros(),
+        let (factor, q_factor, r_factor) = match form {
+            UkfForm::Covariance => (SMatrix::zeros(), SMatrix::zeros(), SMatrix::zeros()),
             UkfForm::SquareRoot => {
                 if self.points.centre_term().is_none() {
                     return Err(UkfError::SquareRootBeta);
                 }
-                lower_factor(&self.p).ok_or(UkfError::InitialCovariance)?
+                (
+                    lower_factor(&self.p).ok_or(UkfError::InitialCovariance)?,
+                    semidefinite_factor(&self.q),
+                    semidefinite_factor(&self.r),
+                )
             }
         };
         Ok(Self {
             form,
             factor,
+            q_factor,
+            r_factor,
             ..self
         })
     }
@@ -265,7 +272,11 @@ where
             return Err(UkfError::ProcessNoise);
         }
         self.q = symmetrize(&q);
-        self.q_factor = semidefinite_factor(&self.q);
+        // The covariance form never reads √Q: a 5×5 factor per step was
+        // 15 % of the fusion UKF's predict.
+        if self.form == UkfForm::SquareRoot {
+            self.q_factor = semidefinite_factor(&self.q);
+        }
         Ok(())
     }
 
@@ -279,7 +290,9 @@ where
             return Err(UkfError::MeasurementNoise);
         }
         self.r = symmetrize(&r);
-        self.r_factor = semidefinite_factor(&self.r);
+        if self.form == UkfForm::SquareRoot {
+            self.r_factor = semidefinite_factor(&self.r);
+        }
         Ok(())
     }
 
@@ -393,7 +406,7 @@ where
     /// `update(z)` (module docs), on the last predict's `σf`.
     pub fn update(&mut self, z: &SVector<f32, M>) -> StepOutcome {
         let (r, r_factor) = (self.r, self.r_factor);
-        self.update_with(z, &r, &r_factor)
+        self.update_with(z, &r, Some(&r_factor))
     }
 
     /// The measurement update with `z` and, for this call only, the
@@ -408,8 +421,11 @@ where
             bump(&mut self.counters.rejected_inputs);
             return StepOutcome::RejectedInput;
         }
+        // Its factor only if the square-root form needs it (`correct`):
+        // the covariance form does not, and a 2×2 factor per fix was half
+        // the fusion UKF's update cost.
         let r = symmetrize(r);
-        self.update_with(z, &r, &semidefinite_factor(&r))
+        self.update_with(z, &r, None)
     }
 
     /// The measurement update with component `index` (`< M`) of the
@@ -449,7 +465,7 @@ where
         let innovation = SVector::<f32, 1>::new(innovation);
         let r_factor = SMatrix::<f32, 1, 1>::new(crate::math::sqrt(r));
         let r = SMatrix::<f32, 1, 1>::new(r);
-        match self.correct(&sigmas_f, reused, &dz, &innovation, (&r, &r_factor)) {
+        match self.correct(&sigmas_f, reused, &dz, &innovation, (&r, Some(&r_factor))) {
             Ok((gain, s)) => {
                 self.innovation = SVector::zeros();
                 self.innovation_covariance = SMatrix::zeros();
@@ -473,7 +489,7 @@ where
         &mut self,
         z: &SVector<f32, M>,
         r: &SMatrix<f32, M, M>,
-        r_factor: &SMatrix<f32, M, M>,
+        r_factor: Option<&SMatrix<f32, M, M>>,
     ) -> StepOutcome {
         if !all_finite(z) {
             bump(&mut self.counters.rejected_inputs);
@@ -610,8 +626,9 @@ where
 
     /// The correction from the measurement deviations `dz`
     /// ([`Self::measurement_deviations`]) of the points `sigmas_f`
-    /// (columns) and the innovation, with noise `r` and its factor (`K`
-    /// measured components): `S`, `P_xz`, the gain, and `x, P` updated in
+    /// (columns) and the innovation, with noise `r` and its factor if known
+    /// (`K` measured components; the square-root form factors `r` when it
+    /// is not given, the covariance form never needs it): `S`, `P_xz`, the gain, and `x, P` updated in
     /// the filter's form. `reused`: the points are the predict's, whose
     /// covariance lacks `Q`. Returns the gain and `S`, or the outcome of a
     /// failure (counted).
@@ -621,12 +638,13 @@ where
         reused: bool,
         dz: &SMatrix<f32, K, S>,
         innovation: &SVector<f32, K>,
-        (r, r_factor): (&SMatrix<f32, K, K>, &SMatrix<f32, K, K>),
+        (r, r_factor): (&SMatrix<f32, K, K>, Option<&SMatrix<f32, K, K>>),
     ) -> Result<(SMatrix<f32, N, K>, SMatrix<f32, K, K>), StepOutcome> {
         let corrected = match self.form {
             UkfForm::Covariance => self.correct_covariance(sigmas_f, reused, dz, innovation, r),
             UkfForm::SquareRoot => {
-                self.correct_square_root(sigmas_f, reused, dz, innovation, r_factor)
+                let r_factor = r_factor.copied().unwrap_or_else(|| semidefinite_factor(r));
+                self.correct_square_root(sigmas_f, reused, dz, innovation, &r_factor)
             }
         };
         let (x, p, factor, gain, s) = match corrected {
