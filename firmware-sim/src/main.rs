@@ -154,6 +154,10 @@ enum Command {
         /// Override the noise seed.
         #[arg(long)]
         seed: Option<u64>,
+        /// Override the particle filter's particle count: 100 (the
+        /// paper's), 300 or 1000 (`filter.particle_filter.particles`).
+        #[arg(long)]
+        particles: Option<usize>,
         /// Override the duration, s.
         #[arg(long)]
         duration_s: Option<f64>,
@@ -442,6 +446,7 @@ fn real_main() -> anyhow::Result<()> {
             scenario,
             estimator,
             seed,
+            particles,
             duration_s,
             out,
             no_plot,
@@ -453,6 +458,9 @@ fn real_main() -> anyhow::Result<()> {
             }
             if let Some(s) = seed {
                 scenario.seed = s;
+            }
+            if let Some(p) = particles {
+                scenario.filter.particle_filter.particles = p;
             }
             if let Some(d) = duration_s {
                 scenario.duration_s = d;

@@ -166,7 +166,8 @@ fn random_slip_with_the_cell_edge_constraint() {
 /// (`host_tests::ENSEMBLE_OFFSETS_M`), max / mean with the f32 kernels
 /// [libm's sinf/cosf]: EKF 0.0177 [0.0222] / 0.0013 [0.0014] and 0.0175
 /// [0.0205] / 0.0021 [0.0023] m, UKF 0.0068 / 0.0008 and 0.0067 [0.0070]
-/// / 0.0019 m. The EKF's spread is wide (0.0044–0.0256 m on the unicycle):
+/// / 0.0019 m (at 3931685; today 0.0067 / 0.0008 and 0.0077 / 0.0019 m,
+/// docs/fusion.md). The EKF's spread is wide (0.0044–0.0256 m on the unicycle):
 /// the single run this test asserted before (0.0045 m, bound 0.006) was
 /// one of its best starts.
 #[test]
@@ -424,7 +425,9 @@ fn sparse_reader_range_mode() {
 fn the_ukf_and_the_particle_filter_as_the_pilots_estimator() {
     // (kind, scenario, bounds on the ensemble's median max / mean);
     // medians over 32 starts, m, with the f32 kernels [libm's sinf/cosf]:
-    // UKF 0.0065 [0.0063] / 0.0008 and 0.0069 / 0.0019; particle filter
+    // UKF 0.0065 [0.0063] / 0.0008 and 0.0067 / 0.0019 (0.0063 and 0.0069
+    // with FilterPy's update before the Joseph-type one, docs/fusion.md);
+    // particle filter
     // 0.0479 [0.0573] / 0.0046 [0.0052] and 0.0638 [0.0619] / 0.0056
     // [0.0055], spread over 0.011–0.20 m (the EKF, above: 0.0053 / 0.0005
     // and 0.0051 / 0.0016). The particle filter's full-stack bounds were

@@ -64,7 +64,7 @@
 //!
 //! # Files
 //! By job, each using only those above it: `filter` (the estimator of a
-//! run, [`PARTICLES`]), `scenario` (the paper's constants, the TOML tables
+//! run, [`PARTICLES`], [`PARTICLE_COUNTS`]), `scenario` (the paper's constants, the TOML tables
 //! with their defaults, the embedded scenarios), `validate`
 //! ([`SlipScenario::validate`] and what a run needs), `summary` (records
 //! and statistics), `run` ([`run`]), `output` ([`write_outputs`]: files
@@ -86,7 +86,7 @@ mod validate;
 #[cfg(test)]
 mod tests;
 
-pub use filter::PARTICLES;
+pub use filter::{PARTICLE_COUNTS, PARTICLES};
 pub use output::{SlipFiles, write_outputs};
 pub use run::run;
 pub use scenario::{

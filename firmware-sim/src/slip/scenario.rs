@@ -135,7 +135,8 @@ pub enum Estimator {
     /// The core's UKF (paper: α = 0.01, β = 2, κ = 0) on noisy
     /// measurements.
     Ukf,
-    /// The core's particle filter ([`PARTICLES`] particles) on noisy
+    /// The core's particle filter ([`PARTICLES`] particles unless the
+    /// scenario asks for another of [`PARTICLE_COUNTS`](super::PARTICLE_COUNTS)) on noisy
     /// measurements.
     ParticleFilter,
 }
@@ -507,7 +508,8 @@ impl Default for UkfSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParticleFilterSpec {
-    /// Must be [`PARTICLES`] (a const generic of the core's filter).
+    /// One of [`PARTICLE_COUNTS`](super::PARTICLE_COUNTS) (a const generic of the core's filter;
+    /// default [`PARTICLES`], the paper's 100).
     #[serde(default = "defaults::particles")]
     pub particles: usize,
     /// Process noise per step, standard deviations (default

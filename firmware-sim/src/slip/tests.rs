@@ -98,3 +98,28 @@ fn more_reference_segments_than_the_limit_are_refused() {
     let e = s.validate().unwrap_err();
     assert_eq!(e.field(), Some("reference.segments[1].start_s"), "{e}");
 }
+
+/// Each built-in particle count runs (a short run, both scenarios) and
+/// gives its own particles: the estimates differ between counts, and the
+/// default is the paper's 100.
+#[test]
+fn every_built_in_particle_count_runs() {
+    assert_eq!(PARTICLES, 100);
+    for controller in ["velocity", "torque"] {
+        let mut estimates = Vec::new();
+        for count in PARTICLE_COUNTS {
+            let mut s = minimal(controller);
+            s.estimator = Estimator::ParticleFilter;
+            s.duration_s = 1.0;
+            s.filter.particle_filter.particles = count;
+            s.validate().unwrap();
+            let result = run(&s).unwrap();
+            assert_eq!(result.summary.non_finite_records, 0, "{controller} {count}");
+            estimates.push(result.records.last().map(|r| r.estimate_error_m).unwrap());
+        }
+        assert!(
+            estimates.windows(2).all(|w| w[0] != w[1]),
+            "{controller}: {estimates:?}"
+        );
+    }
+}

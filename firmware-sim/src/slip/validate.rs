@@ -3,9 +3,7 @@
 //! the estimator).
 
 use wmr_core::filters::ekf::ExtendedKalmanFilter;
-use wmr_core::filters::particle_filter::{
-    ParticleFilter, ParticleFilterConfig, ParticleFilterError,
-};
+use wmr_core::filters::particle_filter::{ParticleFilterConfig, ParticleFilterError};
 use wmr_core::filters::ukf::{MerweScaledSigmaPoints, UkfError, UkfForm, UnscentedKalmanFilter};
 use wmr_core::geometry::Pose;
 use wmr_papers::slip_tracking::{
@@ -15,7 +13,7 @@ use wmr_papers::slip_tracking::{
 
 use crate::scenario::{ScenarioError, non_negative, positive};
 
-use super::filter::{Filter, PARTICLES, diag, first};
+use super::filter::{Filter, PARTICLE_COUNTS, Particles, diag, first};
 use super::scenario::{Controller, Estimator, MAX_SEGMENTS, SlipScenario, UkfFormSpec};
 
 fn finite(field: &str, v: f64) -> Result<f64, ScenarioError> {
@@ -301,15 +299,19 @@ impl SlipScenario {
             UkfFormSpec::SquareRoot => UkfForm::SquareRoot,
         };
         let pf = &f.particle_filter;
-        if pf.particles != PARTICLES {
-            return Err(ScenarioError::invalid(
+        let count_refused = || {
+            ScenarioError::invalid(
                 "filter.particle_filter.particles",
                 format!(
-                    "must be {PARTICLES} (got {}): the particle count is a const generic of \
-                     the core's ParticleFilter, fixed when the simulator is built",
+                    "must be one of {PARTICLE_COUNTS:?} (got {}): the particle count is a \
+                     const generic of the core's ParticleFilter, built into the simulator for \
+                     these counts only",
                     pf.particles
                 ),
-            ));
+            )
+        };
+        if !PARTICLE_COUNTS.contains(&pf.particles) {
+            return Err(count_refused());
         }
         let process_std =
             non_negative_array("filter.particle_filter.process_std", &pf.process_std)?;
@@ -371,27 +373,31 @@ impl SlipScenario {
         )
         .and_then(|f| f.with_form(form))
         .map_err(ukf_field)?;
-        let pf3 = ParticleFilter::<_, 3, 3, PARTICLES>::new(
+        let pf3 = Particles::<_, 3>::new(
+            pf.particles,
             PoseModel,
             ParticleFilterConfig::new(first::<3>(process_std).into(), first::<3>(std_r).into())
                 .and_then(|c| c.with_collapse_gate(gate))
                 .and_then(|c| c.with_regularization(regularization))
                 .map_err(pf_field)?,
-            first::<3>(x0).into(),
-            first::<3>(prior).into(),
+            first::<3>(x0),
+            first::<3>(prior),
             self.seed,
         )
+        .ok_or_else(count_refused)?
         .map_err(pf_field)?;
-        let pf5 = ParticleFilter::<_, 5, 5, PARTICLES>::new(
+        let pf5 = Particles::<_, 5>::new(
+            pf.particles,
             PoseWheelModel,
             ParticleFilterConfig::new(process_std.into(), std_r.into())
                 .and_then(|c| c.with_collapse_gate(gate))
                 .and_then(|c| c.with_regularization(regularization))
                 .map_err(pf_field)?,
-            x0.into(),
-            prior.into(),
+            x0,
+            prior,
             self.seed,
         )
+        .ok_or_else(count_refused)?
         .map_err(pf_field)?;
         Ok(match (self.estimator, self.controller) {
             (Estimator::Exact, _) => Filter::Exact,
@@ -399,8 +405,8 @@ impl SlipScenario {
             (Estimator::Ekf, Controller::Torque) => Filter::Ekf5(ekf5),
             (Estimator::Ukf, Controller::Velocity) => Filter::Ukf3(ukf3),
             (Estimator::Ukf, Controller::Torque) => Filter::Ukf5(ukf5),
-            (Estimator::ParticleFilter, Controller::Velocity) => Filter::Pf3(Box::new(pf3)),
-            (Estimator::ParticleFilter, Controller::Torque) => Filter::Pf5(Box::new(pf5)),
+            (Estimator::ParticleFilter, Controller::Velocity) => Filter::Pf3(pf3),
+            (Estimator::ParticleFilter, Controller::Torque) => Filter::Pf5(pf5),
         })
     }
 }
