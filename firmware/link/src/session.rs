@@ -10,7 +10,7 @@ use wmr_core::pilot::spec::SpecError;
 use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
 use crate::{
     Configure, Diagnostics, Finished, HostMessage, LinkCounters, MotorOutput, PROTOCOL_VERSION,
-    Refusal, TargetMessage, TickOutput,
+    Refusal, TargetMessage, TickOutput, telemetry,
 };
 
 /// The robot a HIL session runs: the core's [`Robot`] on proxy devices.
@@ -32,6 +32,10 @@ pub struct Session<'a> {
     last_answer: Option<TickOutput>,
     repeated_ticks: u32,
     stale_ticks: u32,
+    /// Telemetry decimation of the run (`Configure::telemetry_every_ticks`).
+    telemetry_every_ticks: u16,
+    /// The record of the tick just run, if it is one to emit.
+    telemetry: Option<telemetry::Record>,
 }
 
 impl<'a> Session<'a> {
@@ -45,7 +49,27 @@ impl<'a> Session<'a> {
             last_answer: None,
             repeated_ticks: 0,
             stale_ticks: 0,
+            telemetry_every_ticks: 0,
+            telemetry: None,
         }
+    }
+
+    /// The telemetry start of the run just configured (`None`: telemetry
+    /// off, or no run): for the board to log once.
+    #[must_use]
+    pub fn telemetry_start(&self) -> Option<telemetry::Start> {
+        let robot = self.robot.as_ref()?;
+        (self.telemetry_every_ticks != 0).then(|| telemetry::Start {
+            every_ticks: self.telemetry_every_ticks,
+            period_s: robot.pilot().tracker().config().clock().period_s(),
+        })
+    }
+
+    /// The telemetry record of the tick the last [`Self::handle`] ran, if
+    /// the decimation emits it (taken: a resent tick, answered from the
+    /// cache, has none).
+    pub fn take_telemetry(&mut self) -> Option<telemetry::Record> {
+        self.telemetry.take()
     }
 
     /// Whether a configuration was accepted.
@@ -86,6 +110,15 @@ impl<'a> Session<'a> {
                 (Some(robot), _) => {
                     self.bus.load(input);
                     let out = robot.tick();
+                    self.telemetry =
+                        telemetry::is_emitted(out.pilot.tracker.tick, self.telemetry_every_ticks)
+                            .then(|| {
+                                telemetry::Record::of(
+                                    &out,
+                                    robot.counters(),
+                                    robot.pilot().tracker().counters(),
+                                )
+                            });
                     self.ticks = self.ticks.saturating_add(1);
                     let t = &out.pilot.tracker;
                     let answer = TickOutput {
@@ -181,6 +214,8 @@ impl<'a> Session<'a> {
                 ));
                 self.ticks = 0;
                 self.last_answer = None;
+                self.telemetry_every_ticks = c.telemetry_every_ticks;
+                self.telemetry = None;
                 TargetMessage::Configured
             }
         }
@@ -244,6 +279,7 @@ mod tests {
                 columns: 21,
             },
             pwm_max_duty: 1000,
+            telemetry_every_ticks: 0,
         }
     }
 

@@ -268,6 +268,15 @@ pub fn run() -> ! {
                         _ => {}
                     }
                     send(&mut link, &mut tx, answer);
+                    // Telemetry after the answer: the host is not kept
+                    // waiting for the log.
+                    if let Some(record) = session.take_telemetry() {
+                        crate::telemetry::record(&record);
+                    } else if let (TargetMessage::Configured, Some(start)) =
+                        (answer, session.telemetry_start())
+                    {
+                        crate::telemetry::start(start);
+                    }
                     if done {
                         defmt::info!("finished; peak stack {} B", crate::stack::peak_bytes());
                         debug::exit(EXIT_SUCCESS);
