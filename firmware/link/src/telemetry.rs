@@ -23,6 +23,8 @@
 use wmr_core::pilot::robot::{RobotCounters, RobotTick};
 use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 
+use crate::TickOutput;
+
 /// Version of the text form; bump when a field is added, removed or moved.
 pub const FORMAT_VERSION: u32 = 1;
 
@@ -119,11 +121,6 @@ impl Record {
             | flag(out.pilot.drive.accel_limited, FLAG_ACCEL_LIMITED)
             | flag(out.pilot.encoder_halt, FLAG_ENCODER_HALT)
             | flag(out.motor_fault.is_some(), FLAG_MOTOR_FAULT);
-        let device_faults = robot
-            .left_encoder_errors
-            .saturating_add(robot.right_encoder_errors)
-            .saturating_add(robot.unknown_tags)
-            .saturating_add(robot.motor_faults);
         Self {
             tick: t.tick,
             mode: mode_code(t.mode),
@@ -135,9 +132,78 @@ impl Record {
             duty: [out.pilot.left.signed(), out.pilot.right.signed()],
             ticks_since_fix: t.ticks_since_fix,
             fixes_used: tracker.fixes_used,
-            device_faults,
+            device_faults: device_faults(robot),
         }
     }
+}
+
+/// What a [`Record`] has beyond the link's [`TickOutput`]: the QEMU
+/// board's session builds its records from its answer and these
+/// ([`Record::of_answer`]), equal to [`Record::of`] (tested).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Extra {
+    /// The tracker's tick index.
+    pub tick: u32,
+    /// The pilot's signed duties.
+    pub duty: [f32; 2],
+    /// Ticks since the last valid fix.
+    pub ticks_since_fix: u32,
+    /// `FLAG_ENCODER_HALT | FLAG_MOTOR_FAULT` bits.
+    pub flags: u8,
+}
+
+impl Extra {
+    /// The extras of tick `out`.
+    #[must_use]
+    pub fn of(out: &RobotTick) -> Self {
+        let flag = |on: bool, bit: u8| if on { bit } else { 0 };
+        Self {
+            tick: out.pilot.tracker.tick,
+            duty: [out.pilot.left.signed(), out.pilot.right.signed()],
+            ticks_since_fix: out.pilot.tracker.ticks_since_fix,
+            flags: flag(out.pilot.encoder_halt, FLAG_ENCODER_HALT)
+                | flag(out.motor_fault.is_some(), FLAG_MOTOR_FAULT),
+        }
+    }
+}
+
+impl Record {
+    /// The record of a tick from the link's answer to it and the
+    /// [`Extra`]s, with the robot's and tracker's counters after it.
+    #[must_use]
+    pub fn of_answer(
+        answer: &TickOutput,
+        extra: Extra,
+        robot: RobotCounters,
+        tracker: TrackerCounters,
+    ) -> Self {
+        let flag = |on: bool, bit: u8| if on { bit } else { 0 };
+        Self {
+            tick: extra.tick,
+            mode: mode_code(answer.mode),
+            flags: flag(answer.fix, FLAG_FIX)
+                | flag(answer.speed_limited, FLAG_SPEED_LIMITED)
+                | flag(answer.accel_limited, FLAG_ACCEL_LIMITED)
+                | extra.flags,
+            reference_m: answer.reference_m,
+            position_m: answer.position_m,
+            heading: answer.heading,
+            command: answer.command,
+            duty: extra.duty,
+            ticks_since_fix: extra.ticks_since_fix,
+            fixes_used: tracker.fixes_used,
+            device_faults: device_faults(robot),
+        }
+    }
+}
+
+/// Both encoders' failed reads, unknown tags and failed motor writes.
+fn device_faults(robot: RobotCounters) -> u32 {
+    robot
+        .left_encoder_errors
+        .saturating_add(robot.right_encoder_errors)
+        .saturating_add(robot.unknown_tags)
+        .saturating_add(robot.motor_faults)
 }
 
 /// Whether tick `tick` is emitted at a decimation of `every_ticks`.

@@ -267,14 +267,13 @@ pub fn run() -> ! {
                         }
                         _ => {}
                     }
+                    let configured = matches!(answer, TargetMessage::Configured);
                     send(&mut link, &mut tx, answer);
                     // Telemetry after the answer: the host is not kept
                     // waiting for the log.
-                    if let Some(record) = session.take_telemetry() {
-                        crate::telemetry::record(&record);
-                    } else if let (TargetMessage::Configured, Some(start)) =
-                        (answer, session.telemetry_start())
-                    {
+                    if let Some(record) = session.telemetry() {
+                        crate::telemetry::record(record);
+                    } else if let Some(start) = session.telemetry_start().filter(|_| configured) {
                         crate::telemetry::start(start);
                     }
                     if done {
