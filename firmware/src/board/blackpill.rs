@@ -67,7 +67,9 @@
 //! - **Logs**: defmt over RTT: a status line and the fault counters every
 //!   [`LOG_EVERY_TICKS`] ticks (1 s), the stack high-water mark once at
 //!   [`STACK_LOG_AT_TICK`] (10 s), tracker mode changes, encoder halts,
-//!   overruns. The heartbeat LED toggles every 0.5 s while the loop runs.
+//!   overruns; a telemetry record every [`TELEMETRY_EVERY_TICKS`] ticks
+//!   (`crate::telemetry`, docs/firmware.md "Telemetry"). The heartbeat LED
+//!   toggles every 0.5 s while the loop runs.
 //!
 //! # Faults
 //!
