@@ -51,6 +51,9 @@
 //!   parallel, convergence and error statistics, their files, shards of
 //!   the runs for other machines and their merge. Uses
 //!   `scenario`, `report`, `simulation`, `output`.
+//! * [`telemetry`]: a firmware's telemetry log (`firmware-sim plot`) back
+//!   into `run.csv`, `summary.json` and `run.png`. Uses `report`,
+//!   `output`.
 //! * [`slip`]: paper 004's tracked robot under slip with the adaptive
 //!   controllers and the EKF, UKF or particle filter (`firmware-sim slip`),
 //!   a second application with its own schema. Uses `scenario` (its error
@@ -76,6 +79,7 @@ pub mod simulation;
 pub mod slip;
 pub mod sweep;
 pub mod tags;
+pub mod telemetry;
 
 pub use report::{Record, RunResult, Summary};
 pub use scenario::{EMBEDDED, Scenario, ScenarioError, Setup};

@@ -80,6 +80,32 @@ enum Command {
         /// Do not render run.png.
         #[arg(long)]
         no_plot: bool,
+        /// A telemetry record on the firmware's log every N ticks (0:
+        /// none); `firmware-sim plot OUT/firmware.log` reads them back.
+        #[arg(long, value_name = "N", default_value_t = firmware_sim::hil::DEFAULT_TELEMETRY_EVERY_TICKS)]
+        telemetry_every: u16,
+        /// Also copy the decoded firmware log (OUT/firmware.log) to FILE.
+        #[arg(long, value_name = "FILE")]
+        firmware_log: Option<PathBuf>,
+    },
+    /// Turn a firmware's telemetry log (`firmware-sim hil`'s
+    /// OUT/firmware.log, or what `probe-rs run` printed for the Black
+    /// Pill) into run.csv, summary.json and run.png. A log has no ground
+    /// truth: the plant's columns are empty and no error statistics are
+    /// computed; a decimated log gives a decimated run.csv.
+    Plot {
+        /// The decoded log (text); with `--elf`, the raw defmt bytes.
+        log: PathBuf,
+        /// Output directory (default: out/<log file stem>-plot).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The firmware ELF: LOG is raw defmt (e.g. OUT/firmware.defmt),
+        /// decoded with its format table first.
+        #[arg(long)]
+        elf: Option<PathBuf>,
+        /// Do not render run.png.
+        #[arg(long)]
+        no_plot: bool,
     },
     /// Monte Carlo sweep: run seeded variations of a scenario (what its
     /// `[sweep]` table names; without one, starts within 10 m of the
@@ -348,6 +374,8 @@ fn real_main() -> anyhow::Result<()> {
             timeout_s,
             link_faults,
             no_plot,
+            telemetry_every,
+            firmware_log,
         } => {
             let mut scenario = match scenario {
                 None => Scenario::embedded("figure_eight_rfid_full_stack_fusion_ekf")?,
@@ -371,17 +399,26 @@ fn real_main() -> anyhow::Result<()> {
                 log: Some(out.join("firmware.defmt")),
                 answer_timeout: std::time::Duration::from_secs_f64(timeout_s),
                 faults: link_faults.map(LinkFaultSpec::soak),
+                telemetry_every_ticks: telemetry_every,
             };
             let bar = progress_bar(&scenario, 0.0)?;
             let run = run_hil(&scenario, &options, |done, _| bar.set_position(done));
             bar.finish_and_clear();
             let run = run?;
             let files = write_all(&out, &run.result, !no_plot)?;
+            if let Some(copy) = &firmware_log {
+                std::fs::copy(out.join("firmware.log"), copy).map_err(|e| {
+                    anyhow::anyhow!("copying the firmware log to {}: {e}", copy.display())
+                })?;
+            }
             out!("{}", format_summary(&run.result.summary));
             outln!(
                 "firmware      {} (log: {})",
                 run.firmware.display(),
-                out.join("firmware.log").display()
+                firmware_log
+                    .as_deref()
+                    .unwrap_or(&out.join("firmware.log"))
+                    .display()
             );
             outln!(
                 "wrote         {}, {}{}",
@@ -391,6 +428,39 @@ fn real_main() -> anyhow::Result<()> {
                     .plot
                     .map(|p| format!(", {}", p.display()))
                     .unwrap_or_default()
+            );
+            Ok(())
+        }
+        Command::Plot {
+            log,
+            out,
+            elf,
+            no_plot,
+        } => {
+            let text = match &elf {
+                Some(elf) => firmware_sim::hil::decode_defmt_log(elf, &log)?,
+                None => std::fs::read_to_string(&log)
+                    .map_err(|e| anyhow::anyhow!("reading {}: {e}", log.display()))?,
+            };
+            let run = firmware_sim::telemetry::read_log(&text, &log)?;
+            let out = out.unwrap_or_else(|| {
+                let stem = log
+                    .file_stem()
+                    .map_or_else(|| "log".into(), |s| s.to_string_lossy());
+                PathBuf::from("out").join(format!("{stem}-plot"))
+            });
+            let files = firmware_sim::telemetry::write_log_run(&out, &run, !no_plot)?;
+            out!(
+                "{}",
+                firmware_sim::telemetry::format_log_summary(&run.summary)
+            );
+            outln!(
+                "wrote         {}",
+                files
+                    .iter()
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
             );
             Ok(())
         }

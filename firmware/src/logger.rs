@@ -97,7 +97,10 @@ unsafe impl defmt::Logger for Logger {
             // Not taken: nothing to release.
             0 => {}
             1 => {
-                STATE.with_frame(|encoder, sink| encoder.end_frame(|b| sink.write(b)));
+                STATE.with_frame(|encoder, sink| {
+                    encoder.end_frame(|b| sink.write(b));
+                    sink.end_frame();
+                });
                 // SAFETY: written by the `acquire` that set depth 1.
                 let restore = unsafe { STATE.restore.get().read() };
                 STATE.depth.store(0, Ordering::Relaxed);
@@ -118,28 +121,55 @@ unsafe impl defmt::Logger for Logger {
 mod sink {
     use cortex_m_semihosting::hio::{self, HostStream};
 
+    /// Bytes gathered before one semihosting write (defmt's encoder hands
+    /// over one byte at a time, and a semihosting call costs a trap to
+    /// QEMU: a telemetry record of about 60 bytes was 60 calls).
+    const BUF_SIZE: usize = 128;
+
     pub struct Sink {
         stdout: Option<HostStream>,
+        buf: [u8; BUF_SIZE],
+        len: usize,
     }
 
     impl Sink {
         pub const fn new() -> Self {
-            Self { stdout: None }
+            Self {
+                stdout: None,
+                buf: [0; BUF_SIZE],
+                len: 0,
+            }
         }
 
-        /// Writes `bytes`; a failure to open or write loses them (there is
-        /// nowhere to report it).
+        /// Buffers `bytes`, writing the buffer out whenever it fills.
         pub fn write(&mut self, bytes: &[u8]) {
+            for &b in bytes {
+                if let Some(slot) = self.buf.get_mut(self.len) {
+                    *slot = b;
+                    self.len += 1;
+                }
+                if self.len >= BUF_SIZE {
+                    self.flush();
+                }
+            }
+        }
+
+        /// A frame is complete: out it goes (a log line is never held back).
+        pub fn end_frame(&mut self) {
+            self.flush();
+        }
+
+        /// Writes the buffer out; a failure to open or write loses it
+        /// (there is nowhere to report it).
+        pub fn flush(&mut self) {
             if self.stdout.is_none() {
                 self.stdout = hio::hstdout().ok();
             }
-            if let Some(stdout) = &mut self.stdout {
+            if let (Some(stdout), Some(bytes)) = (&mut self.stdout, self.buf.get(..self.len)) {
                 let _ = stdout.write_all(bytes);
             }
+            self.len = 0;
         }
-
-        /// Semihosting writes are synchronous.
-        pub fn flush(&mut self) {}
     }
 }
 
@@ -265,6 +295,9 @@ mod sink {
                 bytes = rest;
             }
         }
+
+        /// Bytes go to the ring as they come: nothing to do.
+        pub fn end_frame(&mut self) {}
 
         /// Waits until the host has read everything (blocking mode only).
         pub fn flush(&mut self) {

@@ -19,6 +19,8 @@ mod board;
 mod logger;
 #[cfg(target_os = "none")]
 mod stack;
+#[cfg(target_os = "none")]
+mod telemetry;
 
 #[cfg(all(
     target_os = "none",

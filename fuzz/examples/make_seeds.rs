@@ -105,6 +105,7 @@ fn main() {
             columns: 21,
         },
         pwm_max_duty: 1000,
+        telemetry_every_ticks: 1,
     });
     let tick = HostMessage::Tick(TickInput {
         tick: 3,

@@ -158,6 +158,7 @@ impl Harness<'_> {
                 0 => u.arbitrary()?,
                 _ => 1000,
             },
+            telemetry_every_ticks: u.arbitrary()?,
         }))
     }
 

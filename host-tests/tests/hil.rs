@@ -76,6 +76,7 @@ fn options() -> HilOptions {
         log: None,
         answer_timeout: Duration::from_secs(20),
         faults: None,
+        telemetry_every_ticks: firmware_sim::hil::DEFAULT_TELEMETRY_EVERY_TICKS,
     }
 }
 
@@ -332,6 +333,107 @@ fn a_faulty_link_loses_no_tick_and_every_fault_is_counted() {
         report.firmware_link.timeouts,
         faults.silence_reports + faults.silence_reports_lost
     );
+}
+
+/// Telemetry (issue 18 item 5): a HIL run's own firmware log, read back
+/// by `firmware-sim plot`'s reader, gives that run's estimate, reference,
+/// command, mode, fix and time columns of `run.csv` exactly, cell for
+/// cell, every tick (20 s, a record every tick); decimated by 7, every
+/// seventh row of them; nothing skipped or missing. The duties are the
+/// pilot's, before the PWM's quantization: within one step of the
+/// driver's.
+#[test]
+fn the_firmware_log_gives_the_hil_runs_columns_exactly() {
+    let mut scenario = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    scenario.duration_s = 20.0;
+    scenario.transient_s = 0.0;
+    let dir = workspace_root()
+        .join("target")
+        .join(format!("hil-telemetry-{}", std::process::id()));
+    let pwm_max_duty = firmware_sim::simulation::hil_configuration(&scenario.validate().unwrap())
+        .unwrap()
+        .pwm_max_duty;
+    for every in [1_u16, 7] {
+        let raw = dir.join(format!("firmware-{every}.defmt"));
+        std::fs::create_dir_all(&dir).unwrap();
+        let hil = run_hil(
+            &scenario,
+            &HilOptions {
+                log: Some(raw.clone()),
+                telemetry_every_ticks: every,
+                ..options()
+            },
+            |_, _| {},
+        )
+        .unwrap();
+        let text = std::fs::read_to_string(raw.with_extension("log")).unwrap();
+        let log = firmware_sim::telemetry::read_log(&text, &raw).unwrap();
+        let s = &log.summary;
+        println!("telemetry every {every}: {s:?}");
+        assert_eq!(s.every_ticks, every);
+        assert_eq!(
+            (s.skipped_lines, s.missing_records, s.out_of_order_records),
+            (0, 0, 0)
+        );
+        assert_eq!((s.malformed_defmt_frames, s.earlier_runs), (0, 0));
+        assert!(!s.ground_truth);
+        // Both as run.csv writes them.
+        let out = dir.join(format!("plot-{every}"));
+        firmware_sim::telemetry::write_log_run(&out, &log, false).unwrap();
+        let hil_dir = dir.join(format!("hil-{every}"));
+        firmware_sim::output::write_all(&hil_dir, &hil.result, false).unwrap();
+        // Numbers, booleans and mode names: no quoted cells.
+        let read = |path: std::path::PathBuf| {
+            let text = std::fs::read_to_string(path).unwrap();
+            let mut lines = text
+                .lines()
+                .map(|l| l.split(',').map(str::to_owned).collect::<Vec<String>>());
+            let header = lines.next().unwrap();
+            (header, lines.collect::<Vec<_>>())
+        };
+        let (plot_header, plot_rows) = read(out.join("run.csv"));
+        let (hil_header, hil_rows) = read(hil_dir.join("run.csv"));
+        assert_eq!(plot_header, hil_header, "the same columns");
+        let hil_rows: Vec<_> = hil_rows.into_iter().step_by(usize::from(every)).collect();
+        assert_eq!(plot_rows.len(), hil_rows.len());
+        assert_eq!(
+            plot_rows.len(),
+            scenario_ticks(&scenario).div_ceil(u32::from(every)) as usize
+        );
+        let column = |name: &str| plot_header.iter().position(|h| h == name).unwrap();
+        let exact = [
+            "tick",
+            "t_s",
+            "ref_x_m",
+            "ref_y_m",
+            "est_x_m",
+            "est_y_m",
+            "est_cos",
+            "est_sin",
+            "est_theta_rad",
+            "v_cmd_m_s",
+            "omega_cmd_rad_s",
+            "fix",
+            "mode",
+        ];
+        let truth = ["x_m", "y_m", "theta_rad", "heading_error_rad", "error_m"];
+        let step = 1.0 / f64::from(pwm_max_duty);
+        for (p, h) in plot_rows.iter().zip(&hil_rows) {
+            for name in exact {
+                let i = column(name);
+                assert_eq!(p[i], h[i], "{name} at tick {}", h[0]);
+            }
+            for name in truth {
+                assert_eq!(p[column(name)], "", "{name}: a log has no truth");
+            }
+            for name in ["left_duty", "right_duty"] {
+                let i = column(name);
+                let (a, b): (f64, f64) = (p[i].parse().unwrap(), h[i].parse().unwrap());
+                assert!((a - b).abs() <= step, "{name} at tick {}: {a} vs {b}", h[0]);
+            }
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// The tick of the first record where a host run and a firmware run

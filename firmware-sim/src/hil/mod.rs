@@ -40,7 +40,7 @@ pub use faults::{ExpectedCounters, InjectedFaults, LinkFaultReport, LinkFaultSpe
 pub use firmware::{
     FIRMWARE_TARGET, build_firmware, build_firmware_with, decode_defmt_log, workspace_root,
 };
-pub use qemu::{HilOptions, QEMU, QemuTarget};
+pub use qemu::{DEFAULT_TELEMETRY_EVERY_TICKS, HilOptions, QEMU, QemuTarget};
 
 /// A run through the firmware.
 #[derive(Debug, Clone)]
@@ -88,7 +88,10 @@ pub fn run_hil(
     progress: impl FnMut(u64, u64),
 ) -> anyhow::Result<HilRun> {
     let setup = scenario.validate()?;
-    let configure = hil_configuration(&setup)?;
+    let configure = wmr_link::Configure {
+        telemetry_every_ticks: options.telemetry_every_ticks,
+        ..hil_configuration(&setup)?
+    };
     let firmware = match &options.firmware {
         Some(path) => path.clone(),
         None => build_firmware_with(None, &firmware_features(&configure.pilot))?,

@@ -48,7 +48,14 @@ pub struct HilOptions {
     pub answer_timeout: Duration,
     /// Seeded faults on the link during the ticks (`None`: a clean link).
     pub faults: Option<LinkFaultSpec>,
+    /// A telemetry record on the firmware's log every this many ticks (0:
+    /// none): `Configure::telemetry_every_ticks`.
+    pub telemetry_every_ticks: u16,
 }
+
+/// [`HilOptions::telemetry_every_ticks`] by default: every tick, so that
+/// `firmware-sim plot` of a HIL run's log gives all its rows.
+pub const DEFAULT_TELEMETRY_EVERY_TICKS: u16 = 1;
 
 impl Default for HilOptions {
     fn default() -> Self {
@@ -57,6 +64,7 @@ impl Default for HilOptions {
             log: None,
             answer_timeout: Duration::from_secs(10),
             faults: None,
+            telemetry_every_ticks: DEFAULT_TELEMETRY_EVERY_TICKS,
         }
     }
 }

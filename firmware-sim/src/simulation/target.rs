@@ -49,6 +49,8 @@ pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
         pilot: pilot_spec,
         grid: TagGridSpec::of(floor.grid()),
         pwm_max_duty,
+        // Off: the caller asks for telemetry (`HilOptions`).
+        telemetry_every_ticks: 0,
     })
 }
 

@@ -63,6 +63,7 @@
 pub mod image;
 pub mod proxy;
 pub mod session;
+pub mod telemetry;
 
 use serde::{Deserialize, Serialize};
 use wmr_core::devices::RfidCounters;
@@ -76,8 +77,8 @@ use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 /// `TrackerSpec::sensors`; 7: `RfidCounters::backlogged_polls` in the
 /// diagnostics; 8: `Nack`, `LinkSilent`, stale frames and repeated ticks;
 /// 9: `SensorSpec::antenna_offset_m`; 10: `DriveSpec::speed_observer`,
-/// the wheel-speed observer).
-pub const PROTOCOL_VERSION: u16 = 10;
+/// the wheel-speed observer; 11: `Configure::telemetry_every_ticks`).
+pub const PROTOCOL_VERSION: u16 = 11;
 
 /// Silence on the link, while configured, after which the firmware stops
 /// the motors, ms (five 10 ms control periods).
@@ -133,6 +134,9 @@ pub struct Configure {
     pub grid: TagGridSpec,
     /// Full-scale PWM duty the motor proxies report in, steps.
     pub pwm_max_duty: u16,
+    /// A telemetry record on the firmware's defmt log every this many
+    /// ticks (`tick % n == 0`; 0: none): [`telemetry`].
+    pub telemetry_every_ticks: u16,
 }
 
 /// What the devices show at one control tick.
@@ -784,6 +788,7 @@ mod tests {
                 columns: 130,
             },
             pwm_max_duty: 1000,
+            telemetry_every_ticks: 1,
         })
     }
 

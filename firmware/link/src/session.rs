@@ -10,7 +10,7 @@ use wmr_core::pilot::spec::SpecError;
 use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
 use crate::{
     Configure, Diagnostics, Finished, HostMessage, LinkCounters, MotorOutput, PROTOCOL_VERSION,
-    Refusal, TargetMessage, TickOutput,
+    Refusal, TargetMessage, TickOutput, telemetry,
 };
 
 /// The robot a HIL session runs: the core's [`Robot`] on proxy devices.
@@ -32,6 +32,10 @@ pub struct Session<'a> {
     last_answer: Option<TickOutput>,
     repeated_ticks: u32,
     stale_ticks: u32,
+    /// Telemetry decimation of the run (`Configure::telemetry_every_ticks`).
+    telemetry_every_ticks: u16,
+    /// The record of the tick just run, if it is one to emit.
+    telemetry: Option<telemetry::Record>,
 }
 
 impl<'a> Session<'a> {
@@ -45,7 +49,29 @@ impl<'a> Session<'a> {
             last_answer: None,
             repeated_ticks: 0,
             stale_ticks: 0,
+            telemetry_every_ticks: 0,
+            telemetry: None,
         }
+    }
+
+    /// The telemetry start of the run just configured (`None`: telemetry
+    /// off, or no run): for the board to log once.
+    #[must_use]
+    pub fn telemetry_start(&self) -> Option<telemetry::Start> {
+        let robot = self.robot.as_ref()?;
+        (self.telemetry_every_ticks != 0).then(|| telemetry::Start {
+            every_ticks: self.telemetry_every_ticks,
+            period_s: robot.pilot().tracker().config().clock().period_s(),
+        })
+    }
+
+    /// The telemetry record of the tick the last [`Self::handle`] ran, if
+    /// the decimation emits it (a resent tick, answered from the cache,
+    /// has none). By reference: the board's run loop, on the stack's
+    /// deepest path, holds no copy.
+    #[must_use]
+    pub fn telemetry(&self) -> Option<&telemetry::Record> {
+        self.telemetry.as_ref()
     }
 
     /// Whether a configuration was accepted.
@@ -63,6 +89,7 @@ impl<'a> Session<'a> {
         link: LinkCounters,
         peak_stack_bytes: impl FnOnce() -> u32,
     ) -> (TargetMessage, bool) {
+        self.telemetry = None;
         match message {
             HostMessage::Configure(c) => (self.configure(c), false),
             HostMessage::Tick(input) => match (self.robot.as_mut(), self.last_answer) {
@@ -86,6 +113,9 @@ impl<'a> Session<'a> {
                 (Some(robot), _) => {
                     self.bus.load(input);
                     let out = robot.tick();
+                    // A few scalars, not `&out`: taking the tick's address
+                    // kept all of it in this (inlined, deepest) frame.
+                    let extra = telemetry::Extra::of(&out);
                     self.ticks = self.ticks.saturating_add(1);
                     let t = &out.pilot.tracker;
                     let answer = TickOutput {
@@ -102,6 +132,13 @@ impl<'a> Session<'a> {
                         accel_limited: out.pilot.drive.accel_limited,
                     };
                     self.last_answer = Some(answer);
+                    note_telemetry(
+                        &mut self.telemetry,
+                        self.telemetry_every_ticks,
+                        &self.last_answer,
+                        extra,
+                        robot,
+                    );
                     (TargetMessage::Ticked(answer), false)
                 }
             },
@@ -181,9 +218,34 @@ impl<'a> Session<'a> {
                 ));
                 self.ticks = 0;
                 self.last_answer = None;
+                self.telemetry_every_ticks = c.telemetry_every_ticks;
+                self.telemetry = None;
                 TargetMessage::Configured
             }
         }
+    }
+}
+
+/// Puts the record of the tick just answered in `slot` if the decimation
+/// emits it. Not inlined: the record is built in this frame, not in the
+/// frame of [`Session::handle`], which is on the stack's deepest path.
+#[inline(never)]
+fn note_telemetry(
+    slot: &mut Option<telemetry::Record>,
+    every_ticks: u16,
+    answer: &Option<TickOutput>,
+    extra: telemetry::Extra,
+    robot: &ProxyRobot<'_>,
+) {
+    if let Some(answer) = answer
+        && telemetry::is_emitted(extra.tick, every_ticks)
+    {
+        *slot = Some(telemetry::Record::of_answer(
+            answer,
+            extra,
+            robot.counters(),
+            robot.pilot().tracker().counters(),
+        ));
     }
 }
 
@@ -244,6 +306,7 @@ mod tests {
                 columns: 21,
             },
             pwm_max_duty: 1000,
+            telemetry_every_ticks: 0,
         }
     }
 
@@ -291,6 +354,76 @@ mod tests {
         };
         assert_eq!((finished.ticks, finished.peak_stack_bytes), (1, 1234));
         assert_eq!(finished.counters.rfid.frames_ok, 1);
+    }
+
+    /// The session's telemetry (built from its answer, [`Record::of_answer`])
+    /// is [`Record::of`] of the same robot's tick, every third tick from
+    /// tick 0, none for a resent tick; the start says the decimation and
+    /// the period.
+    ///
+    /// [`Record::of_answer`]: telemetry::Record::of_answer
+    /// [`Record::of`]: telemetry::Record::of
+    #[test]
+    fn telemetry_is_the_robots_tick_every_nth_tick() {
+        let bus = ProxyBus::new();
+        let mut s = Session::new(&bus);
+        let link = LinkCounters::default();
+        let c = Configure {
+            telemetry_every_ticks: 3,
+            ..configure()
+        };
+        assert_eq!(s.telemetry_start(), None, "not configured");
+        s.handle(&HostMessage::Configure(c), link, || 0);
+        assert_eq!(
+            s.telemetry_start(),
+            Some(telemetry::Start {
+                every_ticks: 3,
+                period_s: 0.01
+            })
+        );
+        // The same robot, ticked directly.
+        let twin_bus = ProxyBus::new();
+        twin_bus.reset(c.pwm_max_duty);
+        let motor = |side| {
+            MotorDriver::new(
+                twin_bus.pwm(side),
+                twin_bus.direction_pin(side),
+                MotorWiring::default(),
+            )
+        };
+        let mut twin = Robot::new(
+            Pilot::new(c.pilot.build().unwrap()).unwrap(),
+            (twin_bus.encoder(Side::Left), twin_bus.encoder(Side::Right)),
+            (motor(Side::Left), motor(Side::Right)),
+            wmr_core::devices::RfidReader::new(twin_bus.uart()),
+            c.grid.build().unwrap(),
+        );
+        let mut emitted = std::vec::Vec::new();
+        for k in 0..12_u32 {
+            let frame = encode_frame(TagGrid::id(10, 10 + u16::from(k % 2 == 1)));
+            let input = TickInput {
+                tick: k,
+                left_count: Some(7 * k),
+                right_count: (k != 5).then_some(9 * k),
+                uart: heapless::Vec::from_slice(&frame).unwrap(),
+            };
+            s.handle(&HostMessage::Tick(input.clone()), link, || 0);
+            twin_bus.load(&input);
+            let out = twin.tick();
+            let expected =
+                telemetry::Record::of(&out, twin.counters(), twin.pilot().tracker().counters());
+            match s.telemetry() {
+                Some(r) => {
+                    assert_eq!(std::format!("{r:?}"), std::format!("{expected:?}"));
+                    emitted.push(r.tick);
+                }
+                None => assert!(k % 3 != 0, "tick {k} not emitted"),
+            }
+            // Resent: answered from the cache, no record.
+            s.handle(&HostMessage::Tick(input), link, || 0);
+            assert_eq!(s.telemetry(), None);
+        }
+        assert_eq!(emitted, [0, 3, 6, 9]);
     }
 
     #[test]

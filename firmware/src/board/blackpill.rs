@@ -67,7 +67,9 @@
 //! - **Logs**: defmt over RTT: a status line and the fault counters every
 //!   [`LOG_EVERY_TICKS`] ticks (1 s), the stack high-water mark once at
 //!   [`STACK_LOG_AT_TICK`] (10 s), tracker mode changes, encoder halts,
-//!   overruns. The heartbeat LED toggles every 0.5 s while the loop runs.
+//!   overruns; a telemetry record every [`TELEMETRY_EVERY_TICKS`] ticks
+//!   (`crate::telemetry`, docs/firmware.md "Telemetry"). The heartbeat LED
+//!   toggles every 0.5 s while the loop runs.
 //!
 //! # Faults
 //!
@@ -134,6 +136,7 @@ use wmr_core::pilot::robot::{Robot, RobotTick};
 use wmr_core::pilot::spec::{DriveSpec, PilotSpec, SpecError, TrackerSpec, TrajectorySpec};
 use wmr_core::pilot::tracker::{TrackerConfig, TrackerMode};
 use wmr_core::pilot::{Pilot, PilotConfig};
+use wmr_link::telemetry::{self, Start};
 
 use devices::{Encoder, LineErrors, RfidPump, RfidUart};
 use embedded_hal::pwm::SetDutyCycle;
@@ -260,6 +263,11 @@ pub const WATCHDOG_MS: u32 = 50;
 
 /// Ticks between two status logs (1 s).
 pub const LOG_EVERY_TICKS: u32 = 100;
+
+/// A telemetry record on the RTT log every this many ticks (10: 10 Hz at
+/// the 10 ms tick, about 0.6 KB/s of RTT; 0: none). `crate::telemetry`
+/// and docs/firmware.md, "Telemetry".
+pub const TELEMETRY_EVERY_TICKS: u16 = 10;
 
 /// The tick at which the stack high-water mark is logged, once (10 s in,
 /// when every code path of the tick has run). Finding it scans the unused
@@ -497,11 +505,24 @@ pub fn run() -> ! {
 
     let cycles_per_us = (sysclk_hz / 1_000_000).max(1);
     let mut stats = LoopStats::default();
+    if TELEMETRY_EVERY_TICKS != 0 {
+        crate::telemetry::start(Start {
+            every_ticks: TELEMETRY_EVERY_TICKS,
+            period_s: robot.pilot().tracker().config().clock().period_s(),
+        });
+    }
     loop {
         let overrun = wait_for_tick(&mut tick_timer, &mut pump);
         let started = DWT::cycle_count();
         let step = robot.tick();
         watchdog.feed();
+        if telemetry::is_emitted(step.pilot.tracker.tick, TELEMETRY_EVERY_TICKS) {
+            crate::telemetry::record(&telemetry::Record::of(
+                &step,
+                robot.counters(),
+                robot.pilot().tracker().counters(),
+            ));
+        }
 
         stats.ticks = stats.ticks.wrapping_add(1);
         if overrun {

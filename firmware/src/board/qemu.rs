@@ -29,7 +29,9 @@
 //!   duplicate, or overtaken by a newer one) are dropped and counted, never
 //!   used. A resent tick is answered again, not run twice (`Session`).
 //! - **Logs** go out with defmt over semihosting (QEMU's stdout; decode with
-//!   the firmware ELF), through the firmware's own logger (`crate::logger`). The run ends on the host's `Finish`: the firmware
+//!   the firmware ELF), through the firmware's own logger (`crate::logger`),
+//!   with a telemetry record every `Configure::telemetry_every_ticks` ticks
+//!   (`crate::telemetry`). The run ends on the host's `Finish`: the firmware
 //!   answers with its stack high-water mark and exits through semihosting.
 
 mod host_file;
@@ -267,7 +269,15 @@ pub fn run() -> ! {
                         }
                         _ => {}
                     }
+                    let configured = matches!(answer, TargetMessage::Configured);
                     send(&mut link, &mut tx, answer);
+                    // Telemetry after the answer: the host is not kept
+                    // waiting for the log.
+                    if let Some(record) = session.telemetry() {
+                        crate::telemetry::record(record);
+                    } else if let Some(start) = session.telemetry_start().filter(|_| configured) {
+                        crate::telemetry::start(start);
+                    }
                     if done {
                         defmt::info!("finished; peak stack {} B", crate::stack::peak_bytes());
                         debug::exit(EXIT_SUCCESS);
