@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use crate::report::{Record, RunResult, Summary};
@@ -252,8 +253,8 @@ pub fn format_summary(s: &Summary) -> String {
     o
 }
 
-/// Image size, px.
-const SIZE: (u32, u32) = (1800, 820);
+/// Image size, px (of every two-panel plot of the crate).
+pub(crate) const SIZE: (u32, u32) = (1800, 820);
 /// The plots' font family (shared by every plot of the crate).
 pub(crate) const FONT: &str = "sans-serif";
 
@@ -316,24 +317,19 @@ pub(crate) fn equal_axes(
     (cx - hx..cx + hx, cy - hy..cy + hy)
 }
 
-fn trajectory_panel(
-    area: &DrawingArea<BitMapBackend<'_>, Shift>,
-    result: &RunResult,
-) -> anyhow::Result<()> {
-    let records = &result.records;
-    let area = area
-        .titled(
-            &format!("{}: trajectory", result.summary.scenario),
-            (FONT, 24),
-        )
-        .map_err(plot_err)?;
+/// A plan-view chart on `area`, x and y in metres with equal axes, framing
+/// the finite ones of `points` with a 5 % margin (or the square ±1 m if
+/// none is finite), its mesh drawn.
+pub(crate) fn plan_chart<'a, 'b>(
+    area: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    points: impl IntoIterator<Item = (f64, f64)>,
+) -> anyhow::Result<ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>>
+{
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for r in records {
-        for (x, y) in [(r.x_m, r.y_m), (r.ref_x_m, r.ref_y_m)] {
-            if x.is_finite() && y.is_finite() {
-                lo = [lo[0].min(x), lo[1].min(y)];
-                hi = [hi[0].max(x), hi[1].max(y)];
-            }
+    for (x, y) in points {
+        if x.is_finite() && y.is_finite() {
+            lo = [lo[0].min(x), lo[1].min(y)];
+            hi = [hi[0].max(x), hi[1].max(y)];
         }
     }
     if !(lo[0].is_finite() && lo[1].is_finite()) {
@@ -352,8 +348,7 @@ fn trajectory_panel(
         pw,
         ph,
     );
-
-    let mut chart = ChartBuilder::on(&area)
+    let mut chart = ChartBuilder::on(area)
         .margin(margin)
         .x_label_area_size(x_label)
         .y_label_area_size(y_label)
@@ -367,23 +362,66 @@ fn trajectory_panel(
         .axis_desc_style((FONT, 18))
         .draw()
         .map_err(plot_err)?;
+    Ok(chart)
+}
+
+/// Draws `points` as a line of `color`, `width` px wide, with `label` in
+/// the legend (a 2 px stroke of the same colour).
+pub(crate) fn draw_line<'a, DB, X, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    points: impl IntoIterator<Item = (f64, f64)>,
+    color: RGBColor,
+    width: u32,
+    label: impl Into<String>,
+) -> anyhow::Result<()>
+where
+    DB: DrawingBackend + 'a,
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
+    chart
+        .draw_series(LineSeries::new(
+            points,
+            ShapeStyle::from(&color).stroke_width(width),
+        ))
+        .map_err(plot_err)?
+        .label(label)
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+    Ok(())
+}
+
+fn trajectory_panel(
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    result: &RunResult,
+) -> anyhow::Result<()> {
+    let records = &result.records;
+    let area = area
+        .titled(
+            &format!("{}: trajectory", result.summary.scenario),
+            (FONT, 24),
+        )
+        .map_err(plot_err)?;
+    let mut chart = plan_chart(
+        &area,
+        records
+            .iter()
+            .flat_map(|r| [(r.x_m, r.y_m), (r.ref_x_m, r.ref_y_m)]),
+    )?;
     let step = (records.len() / 20_000).max(1);
-    chart
-        .draw_series(LineSeries::new(
-            records.iter().step_by(step).map(|r| (r.ref_x_m, r.ref_y_m)),
-            ShapeStyle::from(&RED).stroke_width(2),
-        ))
-        .map_err(plot_err)?
-        .label("reference")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
-    chart
-        .draw_series(LineSeries::new(
-            records.iter().step_by(step).map(|r| (r.x_m, r.y_m)),
-            ShapeStyle::from(&BLUE).stroke_width(1),
-        ))
-        .map_err(plot_err)?
-        .label("robot (true)")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    draw_line(
+        &mut chart,
+        records.iter().step_by(step).map(|r| (r.ref_x_m, r.ref_y_m)),
+        RED,
+        2,
+        "reference",
+    )?;
+    draw_line(
+        &mut chart,
+        records.iter().step_by(step).map(|r| (r.x_m, r.y_m)),
+        BLUE,
+        1,
+        "robot (true)",
+    )?;
     if let (Some(first), Some(last)) = (records.first(), records.last()) {
         chart
             .draw_series([
@@ -462,35 +500,32 @@ fn error_panel(
             });
     }
     let step = (records.len() / 20_000).max(1);
-    chart
-        .draw_series(LineSeries::new(
-            records
-                .iter()
-                .step_by(step)
-                .map(|r| (r.t_s, r.error_m.clamp(floor, ceil))),
-            ShapeStyle::from(&BLUE).stroke_width(1),
-        ))
-        .map_err(plot_err)?
-        .label("tracking error")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    draw_line(
+        &mut chart,
+        records
+            .iter()
+            .step_by(step)
+            .map(|r| (r.t_s, r.error_m.clamp(floor, ceil))),
+        BLUE,
+        1,
+        "tracking error",
+    )?;
     if s.max_error_m.is_finite() && s.max_error_m > 0.0 {
         let t0 = s.transient_s.min(t_end);
-        chart
-            .draw_series(LineSeries::new(
-                [(t0, s.max_error_m), (t_end, s.max_error_m)],
-                ShapeStyle::from(&RED).stroke_width(1),
-            ))
-            .map_err(plot_err)?
-            .label(format!("max after transient {:.4} m", s.max_error_m))
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
-        chart
-            .draw_series(LineSeries::new(
-                [(t0, s.mean_error_m), (t_end, s.mean_error_m)],
-                ShapeStyle::from(&GREEN).stroke_width(1),
-            ))
-            .map_err(plot_err)?
-            .label(format!("mean after transient {:.4} m", s.mean_error_m))
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREEN.stroke_width(2)));
+        draw_line(
+            &mut chart,
+            [(t0, s.max_error_m), (t_end, s.max_error_m)],
+            RED,
+            1,
+            format!("max after transient {:.4} m", s.max_error_m),
+        )?;
+        draw_line(
+            &mut chart,
+            [(t0, s.mean_error_m), (t_end, s.mean_error_m)],
+            GREEN,
+            1,
+            format!("mean after transient {:.4} m", s.mean_error_m),
+        )?;
     }
     draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 16)?;
     Ok(())

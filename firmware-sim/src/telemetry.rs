@@ -32,7 +32,7 @@ use wmr_link::telemetry::{
     mode_of_code, parse_line,
 };
 
-use crate::output::{FONT, draw_legend, equal_axes, plot_err};
+use crate::output::{FONT, SIZE, draw_legend, draw_line, plan_chart, plot_err};
 use crate::report::{Mode, ModeTicks};
 
 /// One row of a log's `run.csv`: a simulated run's columns
@@ -405,9 +405,6 @@ pub fn format_log_summary(s: &LogSummary) -> String {
     o
 }
 
-/// Image size, px.
-const SIZE: (u32, u32) = (1800, 820);
-
 /// The estimate against the reference (left, equal axes) and the commands
 /// over time (right).
 fn plot_log(path: &Path, run: &LogRun) -> anyhow::Result<()> {
@@ -419,61 +416,27 @@ fn plot_log(path: &Path, run: &LogRun) -> anyhow::Result<()> {
     let left = left
         .titled("telemetry: estimate and reference", (FONT, 24))
         .map_err(plot_err)?;
-    let points = records
-        .iter()
-        .flat_map(|r| [Some((r.ref_x_m, r.ref_y_m)), r.est_x_m.zip(r.est_y_m)])
-        .flatten()
-        .filter(|(x, y)| x.is_finite() && y.is_finite());
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for (x, y) in points {
-        lo = [lo[0].min(x), lo[1].min(y)];
-        hi = [hi[0].max(x), hi[1].max(y)];
-    }
-    if !(lo[0].is_finite() && lo[1].is_finite()) {
-        lo = [-1.0; 2];
-        hi = [1.0; 2];
-    }
-    let (margin, x_label, y_label) = (15_u32, 45_u32, 60_u32);
-    let (w, h) = left.dim_in_pixel();
-    let pw = f64::from(w.saturating_sub(2 * margin + y_label).max(1));
-    let ph = f64::from(h.saturating_sub(2 * margin + x_label).max(1));
-    let pad = 0.05 * (hi[0] - lo[0]).max(hi[1] - lo[1]).max(0.1);
-    let (x_axis, y_axis) = equal_axes(
-        (lo[0] - pad, hi[0] + pad),
-        (lo[1] - pad, hi[1] + pad),
-        pw,
-        ph,
-    );
-    let mut chart = ChartBuilder::on(&left)
-        .margin(margin)
-        .x_label_area_size(x_label)
-        .y_label_area_size(y_label)
-        .build_cartesian_2d(x_axis, y_axis)
-        .map_err(plot_err)?;
-    chart
-        .configure_mesh()
-        .x_desc("x [m]")
-        .y_desc("y [m]")
-        .label_style((FONT, 16))
-        .axis_desc_style((FONT, 18))
-        .draw()
-        .map_err(plot_err)?;
-    chart
-        .draw_series(LineSeries::new(
-            records.iter().map(|r| (r.ref_x_m, r.ref_y_m)),
-            ShapeStyle::from(&RED).stroke_width(2),
-        ))
-        .map_err(plot_err)?
-        .label("reference")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
-    chart
-        .draw_series(LineSeries::new(
-            records.iter().filter_map(|r| r.est_x_m.zip(r.est_y_m)),
-            ShapeStyle::from(&BLUE).stroke_width(1),
-        ))
-        .map_err(plot_err)?
-        .label("estimate (the firmware's; no ground truth in a log)")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    let mut chart = plan_chart(
+        &left,
+        records
+            .iter()
+            .flat_map(|r| [Some((r.ref_x_m, r.ref_y_m)), r.est_x_m.zip(r.est_y_m)])
+            .flatten(),
+    )?;
+    draw_line(
+        &mut chart,
+        records.iter().map(|r| (r.ref_x_m, r.ref_y_m)),
+        RED,
+        2,
+        "reference",
+    )?;
+    draw_line(
+        &mut chart,
+        records.iter().filter_map(|r| r.est_x_m.zip(r.est_y_m)),
+        BLUE,
+        1,
+        "estimate (the firmware's; no ground truth in a log)",
+    )?;
     draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 16)?;
 
     let right = right
@@ -505,22 +468,20 @@ fn plot_log(path: &Path, run: &LogRun) -> anyhow::Result<()> {
         .axis_desc_style((FONT, 18))
         .draw()
         .map_err(plot_err)?;
-    chart
-        .draw_series(LineSeries::new(
-            records.iter().map(|r| (r.t_s, r.v_cmd_m_s)),
-            ShapeStyle::from(&BLUE).stroke_width(1),
-        ))
-        .map_err(plot_err)?
-        .label("v [m/s]")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
-    chart
-        .draw_series(LineSeries::new(
-            records.iter().map(|r| (r.t_s, r.omega_cmd_rad_s)),
-            ShapeStyle::from(&GREEN).stroke_width(1),
-        ))
-        .map_err(plot_err)?
-        .label("ω [rad/s]")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREEN.stroke_width(2)));
+    draw_line(
+        &mut chart,
+        records.iter().map(|r| (r.t_s, r.v_cmd_m_s)),
+        BLUE,
+        1,
+        "v [m/s]",
+    )?;
+    draw_line(
+        &mut chart,
+        records.iter().map(|r| (r.t_s, r.omega_cmd_rad_s)),
+        GREEN,
+        1,
+        "ω [rad/s]",
+    )?;
     draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 16)?;
     root.present().map_err(plot_err)?;
     Ok(())
