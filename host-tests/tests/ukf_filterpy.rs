@@ -197,31 +197,41 @@ struct Deviation {
     steps: usize,
 }
 
-fn run<Model, const M: usize>(fixture: &Fixture, model: Model) -> Deviation
+/// The worst deviations of the `f32` filter in `form` from FilterPy over
+/// `fixture`: an `N`-state model with input `(a, ω)` or `(v, ω)` whose
+/// component 2 is the heading, `S = 2N + 1` points. Each record is a
+/// predict's input or an update's `z`, then FilterPy's `x` and the upper
+/// triangle of its `P` (row by row).
+fn run<Model, const N: usize, const M: usize, const S: usize>(
+    fixture: &Fixture,
+    model: Model,
+    form: UkfForm,
+) -> Deviation
 where
-    Model: UkfModel<3, M, Input = [f32; 2]>,
+    Model: UkfModel<N, M, Input = [f32; 2]>,
 {
-    let points = MerweScaledSigmaPoints::<3, 7>::new(
+    let points = MerweScaledSigmaPoints::<N, S>::new(
         fixture.scalar("alpha"),
         fixture.scalar("beta"),
         fixture.scalar("kappa"),
     )
     .expect("fixture weights");
     let dt = fixture.scalar("dt");
-    let x0 = V3::from_row_slice(&fixture.f32s("x0"));
     let mut ukf = UnscentedKalmanFilter::new(
         model,
         points,
-        x0,
-        fixture.matrix::<3>("P0"),
-        fixture.matrix::<3>("Q"),
+        SVector::<f32, N>::from_row_slice(&fixture.f32s("x0")),
+        fixture.matrix::<N>("P0"),
+        fixture.matrix::<N>("Q"),
         fixture.matrix::<M>("R"),
     )
+    .and_then(|f| f.with_form(form))
     .expect("fixture filter");
+    let upper_entries = N * (N + 1) / 2;
     let mut dev = Deviation::default();
     for (step, (kind, values)) in fixture.records.iter().enumerate() {
         let width = if kind == "predict" { 2 } else { M };
-        assert_eq!(values.len(), width + 3 + 6, "record {step}");
+        assert_eq!(values.len(), width + N + upper_entries, "record {step}");
         let data: Vec<f32> = values[..width]
             .iter()
             .map(|t| t.parse().expect("an f32"))
@@ -236,18 +246,18 @@ where
             ukf.update(&SVector::<f32, M>::from_row_slice(&data))
         };
         assert_eq!(outcome, StepOutcome::Applied, "record {step} ({kind})");
-        let (x_ref, p_upper) = reference.split_at(3);
-        let mut p_ref = SMatrix::<f64, 3, 3>::zeros();
+        let (x_ref, p_upper) = reference.split_at(N);
+        let mut p_ref = SMatrix::<f64, N, N>::zeros();
         let mut upper = p_upper.iter();
-        for i in 0..3 {
-            for j in i..3 {
-                let v = *upper.next().expect("six entries");
+        for i in 0..N {
+            for j in i..N {
+                let v = *upper.next().expect("the upper triangle");
                 p_ref[(i, j)] = v;
                 p_ref[(j, i)] = v;
             }
         }
         let (x, p) = (ukf.state(), ukf.covariance());
-        for i in 0..3 {
+        for i in 0..N {
             let mut d = f64::from(x[i]) - x_ref[i];
             if i == 2 {
                 d = (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
@@ -259,7 +269,7 @@ where
                 dev.state_sigma = sigma;
                 dev.worst_step = step;
             }
-            for j in 0..3 {
+            for j in 0..N {
                 let scale = (p_ref[(i, i)] * p_ref[(j, j)]).sqrt();
                 let e = (f64::from(p[(i, j)]) - p_ref[(i, j)]).abs() / scale;
                 dev.covariance = dev.covariance.max(e);
@@ -287,7 +297,7 @@ fn landmarks_alpha_half_matches_filterpy() {
     let model = Landmarks {
         marks: [[m[0], m[1]], [m[2], m[3]]],
     };
-    let dev = run::<_, 4>(&fixture, model);
+    let dev = run::<_, 3, 4, 7>(&fixture, model, UkfForm::Covariance);
     report("landmarks (α = 0.5)", &dev);
     assert_eq!(dev.steps, 200);
     // Measured 2.4e-5 σ and 1.8e-5 (tolerances: module docs).
@@ -299,7 +309,7 @@ fn landmarks_alpha_half_matches_filterpy() {
 #[test]
 fn scenario1_alpha_001_matches_filterpy() {
     let fixture = Fixture::read("scenario1.txt");
-    let dev = run::<_, 3>(&fixture, Scenario1 { angles: true });
+    let dev = run::<_, 3, 3, 7>(&fixture, Scenario1 { angles: true }, UkfForm::Covariance);
     report("scenario 1 (α = 0.01, angle hooks)", &dev);
     assert_eq!(dev.steps, 500);
     // Measured 0.061 σ and 2.2e-3: f32 rounding amplified by Σ|Wᵢ| = 1e4
@@ -313,7 +323,7 @@ fn scenario1_alpha_001_matches_filterpy() {
 fn scenario1_default_hooks_matches_filterpy() {
     let fixture = Fixture::read("scenario1_plain.txt");
     assert_eq!(fixture.matrix::<3>("P0"), M3::identity() * 10.0);
-    let dev = run::<_, 3>(&fixture, Scenario1 { angles: false });
+    let dev = run::<_, 3, 3, 7>(&fixture, Scenario1 { angles: false }, UkfForm::Covariance);
     report("scenario 1 (α = 0.01, default hooks, P0 = 10 I)", &dev);
     assert_eq!(dev.steps, 500);
     // Measured 0.048 σ and 1.4e-2 (P_ψψ low by up to 1.4 % with ψ at 4.9
@@ -359,7 +369,7 @@ impl UkfModel<4, 4> for RangeBearing4 {
 }
 
 /// The worst deviations of the `f32` filter in `form` from FilterPy over
-/// the four-state fixture, as in [`run`].
+/// the four-state fixture ([`run`]).
 fn run_range_bearing4(form: UkfForm) -> Deviation {
     const TEXT: &str = include_str!("../fixtures/ukf/range_bearing4.txt");
     let fixture = Fixture::parse(TEXT);
@@ -367,74 +377,7 @@ fn run_range_bearing4(form: UkfForm) -> Deviation {
     let model = RangeBearing4 {
         marks: [[m[0], m[1]], [m[2], m[3]]],
     };
-    let points = MerweScaledSigmaPoints::<4, 9>::new(
-        fixture.scalar("alpha"),
-        fixture.scalar("beta"),
-        fixture.scalar("kappa"),
-    )
-    .expect("fixture weights");
-    let dt = fixture.scalar("dt");
-    let mut ukf = UnscentedKalmanFilter::new(
-        model,
-        points,
-        SVector::<f32, 4>::from_row_slice(&fixture.f32s("x0")),
-        fixture.matrix::<4>("P0"),
-        fixture.matrix::<4>("Q"),
-        fixture.matrix::<4>("R"),
-    )
-    .and_then(|f| f.with_form(form))
-    .expect("fixture filter");
-    let mut dev = Deviation::default();
-    for (step, (kind, values)) in fixture.records.iter().enumerate() {
-        let width = if kind == "predict" { 2 } else { 4 };
-        assert_eq!(values.len(), width + 4 + 10, "record {step}");
-        let data: Vec<f32> = values[..width]
-            .iter()
-            .map(|t| t.parse().expect("an f32"))
-            .collect();
-        let reference: Vec<f64> = values[width..]
-            .iter()
-            .map(|t| t.parse().expect("an f64"))
-            .collect();
-        let outcome = if kind == "predict" {
-            ukf.predict(&[data[0], data[1]], dt)
-        } else {
-            ukf.update(&SVector::<f32, 4>::from_row_slice(&data))
-        };
-        assert_eq!(outcome, StepOutcome::Applied, "record {step} ({kind})");
-        let (x_ref, p_upper) = reference.split_at(4);
-        let mut p_ref = SMatrix::<f64, 4, 4>::zeros();
-        let mut upper = p_upper.iter();
-        for i in 0..4 {
-            for j in i..4 {
-                let v = *upper.next().expect("ten entries");
-                p_ref[(i, j)] = v;
-                p_ref[(j, i)] = v;
-            }
-        }
-        let (x, p) = (ukf.state(), ukf.covariance());
-        for i in 0..4 {
-            let mut d = f64::from(x[i]) - x_ref[i];
-            if i == 2 {
-                d = (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                    - std::f64::consts::PI;
-            }
-            let sigma = d.abs() / p_ref[(i, i)].sqrt();
-            dev.state_abs = dev.state_abs.max(d.abs());
-            if sigma > dev.state_sigma {
-                dev.state_sigma = sigma;
-                dev.worst_step = step;
-            }
-            for j in 0..4 {
-                let scale = (p_ref[(i, i)] * p_ref[(j, j)]).sqrt();
-                let e = (f64::from(p[(i, j)]) - p_ref[(i, j)]).abs() / scale;
-                dev.covariance = dev.covariance.max(e);
-            }
-        }
-        dev.steps += 1;
-    }
-    assert_eq!(ukf.counters(), Default::default());
-    dev
+    run::<_, 4, 4, 9>(&fixture, model, form)
 }
 
 /// Both forms against FilterPy on the four-state range-and-bearing case
