@@ -47,32 +47,6 @@ pub(super) fn is_noise_covariance<const K: usize>(a: &SMatrix<f32, K, K>) -> boo
         .is_some()
 }
 
-/// A measurement correction of either form, before it is checked and
-/// kept: the posterior `x, P`, the factor of `P` (the square-root form's;
-/// the covariance form passes the filter's unchanged), the gain and `S`,
-/// for `K` measured components.
-pub(super) struct Correction<const N: usize, const K: usize> {
-    pub(super) x: SVector<f32, N>,
-    pub(super) p: SMatrix<f32, N, N>,
-    pub(super) factor: SMatrix<f32, N, N>,
-    pub(super) gain: SMatrix<f32, N, K>,
-    pub(super) s: SMatrix<f32, K, K>,
-}
-
-/// An update's points ([`UnscentedKalmanFilter::measurement_sigmas`]).
-struct UpdatePoints<const N: usize, const M: usize, const S: usize> {
-    /// The state points: the last predict's `σf`, or drawn from `(x, P)`.
-    sigmas_f: SMatrix<f32, N, S>,
-    /// They were drawn from a repaired covariance.
-    repaired: bool,
-    /// They are the predict's, whose covariance leaves out `Q`.
-    reused: bool,
-    /// Their images under `h`.
-    sigmas_h: SMatrix<f32, M, S>,
-    /// The mean of the images.
-    z_mean: SVector<f32, M>,
-}
-
 /// The unscented Kalman filter of the module docs for a model with `N`
 /// states and `M` measurements; `S` must be `2N + 1` (checked by
 /// [`MerweScaledSigmaPoints::new`]).
@@ -470,28 +444,28 @@ where
             bump(&mut self.counters.rejected_inputs);
             return StepOutcome::RejectedInput;
         }
-        let points = match self.measurement_sigmas() {
-            Ok(points) => points,
+        let (sigmas_f, repaired, reused, sigmas_h, z_mean) = match self.measurement_sigmas() {
+            Ok(drawn) => drawn,
             Err(outcome) => return outcome,
         };
-        let dz = self.measurement_deviations(&points.sigmas_h, &points.z_mean, |d| {
+        let dz = self.measurement_deviations(&sigmas_h, &z_mean, |d| {
             SVector::<f32, 1>::new(d.get(index).copied().unwrap_or(f32::NAN))
         });
-        let mut full_z = points.z_mean;
+        let mut full_z = z_mean;
         if let Some(component) = full_z.get_mut(index) {
             *component = z;
         }
         let innovation = self
             .model
             .angles()
-            .measurement_residual(&full_z, &points.z_mean)
+            .measurement_residual(&full_z, &z_mean)
             .get(index)
             .copied()
             .unwrap_or(f32::NAN);
         let innovation = SVector::<f32, 1>::new(innovation);
         let r_factor = SMatrix::<f32, 1, 1>::new(crate::math::sqrt(r));
         let r = SMatrix::<f32, 1, 1>::new(r);
-        match self.correct(&points, &dz, &innovation, (&r, Some(&r_factor))) {
+        match self.correct(&sigmas_f, reused, &dz, &innovation, (&r, Some(&r_factor))) {
             Ok((gain, s)) => {
                 self.innovation = SVector::zeros();
                 self.innovation_covariance = SMatrix::zeros();
@@ -505,7 +479,7 @@ where
                 if let Some(mut column) = self.gain.columns_mut(index, 1).column_iter_mut().next() {
                     column.copy_from(&gain);
                 }
-                Self::outcome(points.repaired)
+                Self::outcome(repaired)
             }
             Err(outcome) => outcome,
         }
@@ -521,18 +495,18 @@ where
             bump(&mut self.counters.rejected_inputs);
             return StepOutcome::RejectedInput;
         }
-        let points = match self.measurement_sigmas() {
-            Ok(points) => points,
+        let (sigmas_f, repaired, reused, sigmas_h, z_mean) = match self.measurement_sigmas() {
+            Ok(drawn) => drawn,
             Err(outcome) => return outcome,
         };
-        let dz = self.measurement_deviations(&points.sigmas_h, &points.z_mean, |d| d);
-        let innovation = self.model.angles().measurement_residual(z, &points.z_mean);
-        match self.correct(&points, &dz, &innovation, (r, r_factor)) {
+        let dz = self.measurement_deviations(&sigmas_h, &z_mean, |d| d);
+        let innovation = self.model.angles().measurement_residual(z, &z_mean);
+        match self.correct(&sigmas_f, reused, &dz, &innovation, (r, r_factor)) {
             Ok((gain, s)) => {
                 self.innovation = innovation;
                 self.innovation_covariance = s;
                 self.gain = gain;
-                Self::outcome(points.repaired)
+                Self::outcome(repaired)
             }
             Err(outcome) => outcome,
         }
@@ -617,9 +591,22 @@ where
     }
 
     /// The update's points: the last predict's `σf` if still fresh (else
-    /// drawn from `(x, P)`), with their images under `h` and the mean of
-    /// those.
-    fn measurement_sigmas(&mut self) -> Result<UpdatePoints<N, M, S>, StepOutcome> {
+    /// drawn from `(x, P)`), whether they were repaired, whether they are
+    /// the predict's (which leave out `Q`), their images under `h` and
+    /// the mean of those.
+    #[allow(clippy::type_complexity)]
+    fn measurement_sigmas(
+        &mut self,
+    ) -> Result<
+        (
+            SMatrix<f32, N, S>,
+            bool,
+            bool,
+            SMatrix<f32, M, S>,
+            SVector<f32, M>,
+        ),
+        StepOutcome,
+    > {
         let reused = self.sigmas_f_fresh && !self.redraw_for_update;
         let (sigmas_f, repaired) = if reused {
             (self.sigmas_f, false)
@@ -634,45 +621,33 @@ where
             .model
             .angles()
             .measurement_mean(&sigmas_h, &self.points.mean_weights());
-        Ok(UpdatePoints {
-            sigmas_f,
-            repaired,
-            reused,
-            sigmas_h,
-            z_mean,
-        })
+        Ok((sigmas_f, repaired, reused, sigmas_h, z_mean))
     }
 
     /// The correction from the measurement deviations `dz`
-    /// ([`Self::measurement_deviations`]) of the update's `points` and the
-    /// innovation, with noise `r` and its factor if known (`K` measured
-    /// components; the square-root form factors `r` when it is not given,
-    /// the covariance form never needs it): `S`, `P_xz`, the gain, and
-    /// `x, P` updated in the filter's form. Returns the gain and `S`, or
-    /// the outcome of a failure (counted).
+    /// ([`Self::measurement_deviations`]) of the points `sigmas_f`
+    /// (columns) and the innovation, with noise `r` and its factor if known
+    /// (`K` measured components; the square-root form factors `r` when it
+    /// is not given, the covariance form never needs it): `S`, `P_xz`, the gain, and `x, P` updated in
+    /// the filter's form. `reused`: the points are the predict's, whose
+    /// covariance lacks `Q`. Returns the gain and `S`, or the outcome of a
+    /// failure (counted).
     fn correct<const K: usize>(
         &mut self,
-        points: &UpdatePoints<N, M, S>,
+        sigmas_f: &SMatrix<f32, N, S>,
+        reused: bool,
         dz: &SMatrix<f32, K, S>,
         innovation: &SVector<f32, K>,
         (r, r_factor): (&SMatrix<f32, K, K>, Option<&SMatrix<f32, K, K>>),
     ) -> Result<(SMatrix<f32, N, K>, SMatrix<f32, K, K>), StepOutcome> {
         let corrected = match self.form {
-            UkfForm::Covariance => {
-                self.correct_covariance(&points.sigmas_f, points.reused, dz, innovation, r)
-            }
+            UkfForm::Covariance => self.correct_covariance(sigmas_f, reused, dz, innovation, r),
             UkfForm::SquareRoot => {
                 let r_factor = r_factor.copied().unwrap_or_else(|| semidefinite_factor(r));
-                self.correct_square_root(&points.sigmas_f, points.reused, dz, innovation, &r_factor)
+                self.correct_square_root(sigmas_f, reused, dz, innovation, &r_factor)
             }
         };
-        let Correction {
-            x,
-            p,
-            factor,
-            gain,
-            s,
-        } = match corrected {
+        let (x, p, factor, gain, s) = match corrected {
             Ok(corrected) => corrected,
             Err(outcome) => {
                 bump(match outcome {
@@ -701,6 +676,7 @@ where
     /// The covariance form's correction (module docs, "Measurement
     /// update"): FilterPy's `S`, `P_xz` and gain, and the Joseph-type
     /// `P = Σᵢ Wᵢᶜ eᵢ eᵢᵀ + K R Kᵀ (+ Q)`, `eᵢ = r(σfᵢ, x⁻) − K dzᵢ`.
+    #[allow(clippy::type_complexity)]
     fn correct_covariance<const K: usize>(
         &self,
         sigmas_f: &SMatrix<f32, N, S>,
@@ -708,7 +684,16 @@ where
         dz: &SMatrix<f32, K, S>,
         innovation: &SVector<f32, K>,
         r: &SMatrix<f32, K, K>,
-    ) -> Result<Correction<N, K>, StepOutcome> {
+    ) -> Result<
+        (
+            SVector<f32, N>,
+            SMatrix<f32, N, N>,
+            SMatrix<f32, N, N>,
+            SMatrix<f32, N, K>,
+            SMatrix<f32, K, K>,
+        ),
+        StepOutcome,
+    > {
         let mut s = *r;
         let mut cross = SMatrix::<f32, N, K>::zeros();
         let mut dx = SMatrix::<f32, N, S>::zeros();
@@ -749,12 +734,6 @@ where
             let e = SVector::<f32, N>::from(*e);
             p += e * e.transpose() * w;
         }
-        Ok(Correction {
-            x,
-            p: symmetrize(&p),
-            factor: self.factor,
-            gain,
-            s,
-        })
+        Ok((x, symmetrize(&p), self.factor, gain, s))
     }
 }

@@ -5,7 +5,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::factor::{add_columns, outer};
-use super::filter::{Correction, UnscentedKalmanFilter};
+use super::filter::UnscentedKalmanFilter;
 use super::{StepOutcome, UkfModel};
 
 impl<Model, const N: usize, const M: usize, const S: usize> UnscentedKalmanFilter<Model, N, M, S>
@@ -19,6 +19,7 @@ where
     /// term: `L Lᵀ = P⁻ − K S Kᵀ`, built by rank-one updates only (where
     /// the paper downdates `L⁻` by the columns of `K S_y`, eq. 27, which
     /// in `f32` fails when a variance falls by orders of magnitude).
+    #[allow(clippy::type_complexity)]
     pub(super) fn correct_square_root<const K: usize>(
         &self,
         sigmas_f: &SMatrix<f32, N, S>,
@@ -26,7 +27,16 @@ where
         dz: &SMatrix<f32, K, S>,
         innovation: &SVector<f32, K>,
         r_factor: &SMatrix<f32, K, K>,
-    ) -> Result<Correction<N, K>, StepOutcome> {
+    ) -> Result<
+        (
+            SVector<f32, N>,
+            SMatrix<f32, N, N>,
+            SMatrix<f32, N, N>,
+            SMatrix<f32, N, K>,
+            SMatrix<f32, K, K>,
+        ),
+        StepOutcome,
+    > {
         let dx = self.centred_state_deviations(sigmas_f, &self.x);
         let s_factor = self.points.centred_factor(*r_factor, dz);
         let cross = self.points.centred_cross(&dx, dz);
@@ -52,12 +62,6 @@ where
         };
         let mut factor = self.points.centred_factor(base, &(dx - gain * dz));
         add_columns(&mut factor, &(gain * r_factor), 1.0);
-        Ok(Correction {
-            x,
-            p: outer(&factor),
-            factor,
-            gain,
-            s: outer(&s_factor),
-        })
+        Ok((x, outer(&factor), factor, gain, outer(&s_factor)))
     }
 }
