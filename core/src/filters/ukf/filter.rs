@@ -47,6 +47,23 @@ pub(super) fn is_noise_covariance<const K: usize>(a: &SMatrix<f32, K, K>) -> boo
         .is_some()
 }
 
+/// Either form's measurement correction, before it is checked and kept:
+/// the posterior `x, P`, the factor of `P` (the square-root form's; the
+/// covariance form passes the filter's unchanged), the gain and `S`, for
+/// `K` measured components; or the outcome of a failure. A tuple behind an
+/// alias rather than a struct: a struct cost the three-state update 7-10 %
+/// more instructions on the Cortex-M4 (d197056).
+pub(super) type Corrected<const N: usize, const K: usize> = Result<
+    (
+        SVector<f32, N>,
+        SMatrix<f32, N, N>,
+        SMatrix<f32, N, N>,
+        SMatrix<f32, N, K>,
+        SMatrix<f32, K, K>,
+    ),
+    StepOutcome,
+>;
+
 /// The unscented Kalman filter of the module docs for a model with `N`
 /// states and `M` measurements; `S` must be `2N + 1` (checked by
 /// [`MerweScaledSigmaPoints::new`]).
@@ -676,7 +693,6 @@ where
     /// The covariance form's correction (module docs, "Measurement
     /// update"): FilterPy's `S`, `P_xz` and gain, and the Joseph-type
     /// `P = Σᵢ Wᵢᶜ eᵢ eᵢᵀ + K R Kᵀ (+ Q)`, `eᵢ = r(σfᵢ, x⁻) − K dzᵢ`.
-    #[allow(clippy::type_complexity)]
     fn correct_covariance<const K: usize>(
         &self,
         sigmas_f: &SMatrix<f32, N, S>,
@@ -684,16 +700,7 @@ where
         dz: &SMatrix<f32, K, S>,
         innovation: &SVector<f32, K>,
         r: &SMatrix<f32, K, K>,
-    ) -> Result<
-        (
-            SVector<f32, N>,
-            SMatrix<f32, N, N>,
-            SMatrix<f32, N, N>,
-            SMatrix<f32, N, K>,
-            SMatrix<f32, K, K>,
-        ),
-        StepOutcome,
-    > {
+    ) -> Corrected<N, K> {
         let mut s = *r;
         let mut cross = SMatrix::<f32, N, K>::zeros();
         let mut dx = SMatrix::<f32, N, S>::zeros();

@@ -5,7 +5,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::factor::{add_columns, outer};
-use super::filter::UnscentedKalmanFilter;
+use super::filter::{Corrected, UnscentedKalmanFilter};
 use super::{StepOutcome, UkfModel};
 
 impl<Model, const N: usize, const M: usize, const S: usize> UnscentedKalmanFilter<Model, N, M, S>
@@ -19,7 +19,6 @@ where
     /// term: `L Lᵀ = P⁻ − K S Kᵀ`, built by rank-one updates only (where
     /// the paper downdates `L⁻` by the columns of `K S_y`, eq. 27, which
     /// in `f32` fails when a variance falls by orders of magnitude).
-    #[allow(clippy::type_complexity)]
     pub(super) fn correct_square_root<const K: usize>(
         &self,
         sigmas_f: &SMatrix<f32, N, S>,
@@ -27,16 +26,7 @@ where
         dz: &SMatrix<f32, K, S>,
         innovation: &SVector<f32, K>,
         r_factor: &SMatrix<f32, K, K>,
-    ) -> Result<
-        (
-            SVector<f32, N>,
-            SMatrix<f32, N, N>,
-            SMatrix<f32, N, N>,
-            SMatrix<f32, N, K>,
-            SMatrix<f32, K, K>,
-        ),
-        StepOutcome,
-    > {
+    ) -> Corrected<N, K> {
         let dx = self.centred_state_deviations(sigmas_f, &self.x);
         let s_factor = self.points.centred_factor(*r_factor, dz);
         let cross = self.points.centred_cross(&dx, dz);
