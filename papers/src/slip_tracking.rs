@@ -725,6 +725,11 @@ macro_rules! pose_model_filters {
             fn input_is_valid(&self, u: &BodyVelocity) -> bool {
                 u.is_finite()
             }
+
+            /// `h(x) = x`, the heading's residual wrapped, `σ_q` additive.
+            fn measures_state(&self) -> bool {
+                true
+            }
         }
 
         impl UkfModel<$n, $n> for $model {

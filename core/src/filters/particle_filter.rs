@@ -138,15 +138,60 @@
 //! its single closest particle. Without regularization (the default) an
 //! update is one stage, bit for bit as before.
 //!
+//! # The optimal proposal (opt-in)
+//! With [`ParticleFilterConfig::with_proposal`]`(`[`Proposal::Optimal`]`)`
+//! the particles are drawn from the optimal importance density
+//! `p(x_k | x_{k−1}⁽ⁱ⁾, y_k)` instead of the transition prior (Doucet,
+//! Godsill & Andrieu 2000, *On sequential Monte Carlo sampling methods for
+//! Bayesian filtering*, Stat. Comput. 10:197–208, §II.D; with the
+//! resampling between weighting and drawing it is the fully adapted
+//! auxiliary particle filter of Pitt & Shephard 1999, *Filtering via
+//! simulation: auxiliary particle filters*, JASA 94:590–599). It is
+//! closed-form when the measurement is the state plus Gaussian noise
+//! (`h(x) = x`, `M = N`: the model says so with
+//! [`ParticleModel::measures_state`], or [`ParticleFilter::new`] refuses
+//! the setting) and the process noise is the additive diagonal `σ_q` of
+//! the module's system. Per component, with `q = σ_q²`, `r = σ_r²`,
+//! `f⁽ⁱ⁾ = f(x_{k−1}⁽ⁱ⁾, u)` and the residual `e⁽ⁱ⁾ = y − f⁽ⁱ⁾` (heading
+//! components wrapped by the model's residual):
+//! ```text
+//! w_k⁽ⁱ⁾ ∝ w_{k−1}⁽ⁱ⁾ N(y; f⁽ⁱ⁾, Q + R),   ln: −½ Σ_j e_j² / (q_j + r_j)   (weights)
+//! x̂_k = Σ_i w̃⁽ⁱ⁾ m⁽ⁱ⁾,   m⁽ⁱ⁾ = f⁽ⁱ⁾ + K ∘ e⁽ⁱ⁾,   K = q / (q + r)     (estimate)
+//! resample if the effective sample size is below the threshold
+//! x_k⁽ⁱ⁾ = m⁽ⁱ⁾ + √(K r) ∘ ξ⁽ⁱ⁾,  ξ ~ N(0, I)                          (draw)
+//! ```
+//! (`K r = q r/(q + r)`, the posterior variance of one component; a
+//! component with `σ_r = +∞` gets `K = 0` and the prior's `σ_q`). The
+//! weight does not depend on where the particle lands, so a process noise
+//! far wider than the measurement noise (scenario 2 of paper 004: wheel
+//! speeds moved by the torques by several rad/s per step, measured to
+//! 0.1 rad/s) no longer scatters the particles where the likelihood is
+//! nil. [`ParticleFilter::predict`] therefore only moves the particles to
+//! `f⁽ⁱ⁾` and leaves the draw pending (the estimate is their weighted
+//! mean, the predicted mean, and [`ParticleFilter::covariance`] adds `Q`);
+//! the next [`ParticleFilter::update`] weights and draws as above, and a
+//! second prediction without an update in between first draws the
+//! pending noise from the prior (no measurement came). The prior
+//! `N(x̄_0, diag(σ_0²))` is handled the same way: the filter starts with
+//! every particle at `x̄_0` and the draw pending with `σ_0` in place of
+//! `σ_q`, so a first update draws from the exact posterior `p(x_0 | y_0)`
+//! (all weights equal) rather than weighting a sparse cloud by a sharp
+//! likelihood. An update that finds no draw pending (a second update on
+//! the same step, or after a collapse) is the prior proposal's. Progressive correction does
+//! not apply (the likelihood is applied in one stage); regularization, if
+//! configured, follows the resampling before the draw. With the default
+//! [`Proposal::Prior`] nothing of this runs, bit for bit.
+//!
 //! # Memory
 //! Two particle arrays (the set and the resampling/prediction buffer),
 //! `2·P·N·4` bytes, the weights and the log-likelihoods `8P`, and
-//! `17N + 8M + 68` bytes of
-//! configuration, estimate, angle flags, generator and counters (rounded
+//! `21N + 8M + 72` bytes of
+//! configuration, estimate, angle flags, the optimal proposal's pending
+//! spread, generator and counters (rounded
 //! up to a multiple of 4), plus the model. Measured (`size_of`, the same on
 //! a 32-bit MCU as on the host: every field is 4-byte aligned) with a
-//! zero-sized model, `P = 100`: **3 344 B** for `N = M = 3` (scenario 1 of
-//! the paper) and **4 996 B** for `N = M = 5` (scenario 2): keep the filter
+//! zero-sized model, `P = 100`: **3 360 B** for `N = M = 3` (scenario 1 of
+//! the paper) and **5 020 B** for `N = M = 5` (scenario 2): keep the filter
 //! in a `static` or a task's state rather than on a small stack. A
 //! prediction calls the model's `transition` `P` times and draws up to
 //! `N·P` Gaussians (`N·P/2` `ln`, `sqrt`, `sin`, `cos`); an update calls
@@ -219,6 +264,21 @@ const STAGE_NATS: f32 = 2.0;
 /// 2⁻²⁴: one step of a 24-bit uniform draw.
 const UNIT_24: f32 = 1.0 / 16_777_216.0;
 
+/// How the particles of a step are drawn (module docs, "The optimal
+/// proposal").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Proposal {
+    /// The transition prior `p(x_k | x_{k−1})`: `f(x) + σ_q ∘ ξ`, weighted
+    /// by the likelihood (the paper's; the default).
+    #[default]
+    Prior,
+    /// The optimal importance density `p(x_k | x_{k−1}, y_k)` for a model
+    /// that measures its state ([`ParticleModel::measures_state`]).
+    Optimal,
+}
+
 /// A system for the [`ParticleFilter`]: `x_k = f(x_{k−1}, u, h) + w`,
 /// `y = h(x) + v`, with the noises given by the [`ParticleFilterConfig`].
 pub trait ParticleModel<const N: usize, const M: usize> {
@@ -259,6 +319,16 @@ pub trait ParticleModel<const N: usize, const M: usize> {
     fn input_is_valid(&self, u: &Self::Input) -> bool {
         let _ = u;
         true
+    }
+
+    /// Whether the measurement is the state itself, component for
+    /// component (`M = N`, `h(x) = x`, and [`Self::measurement_residual`]
+    /// the difference with the angles wrapped), and the process noise the
+    /// additive `σ_q` of the default [`Self::sample_transition`] (default:
+    /// `false`). Only then may the filter use [`Proposal::Optimal`], whose
+    /// draw is computed from `f` and the noises rather than by the model.
+    fn measures_state(&self) -> bool {
+        false
     }
 
     /// One particle's step with its process noise, drawing standard
@@ -317,6 +387,9 @@ pub enum ParticleFilterError {
     PriorStd,
     /// `P = 0`: a filter needs at least one particle.
     NoParticles,
+    /// [`Proposal::Optimal`] for a model that does not measure its state
+    /// ([`ParticleModel::measures_state`], `M = N`).
+    Proposal,
 }
 
 impl core::fmt::Display for ParticleFilterError {
@@ -331,6 +404,7 @@ impl core::fmt::Display for ParticleFilterError {
             Self::PriorMean => "the prior mean must be finite",
             Self::PriorStd => "each prior standard deviation must be finite and ≥ 0",
             Self::NoParticles => "the particle count P must be ≥ 1",
+            Self::Proposal => "the optimal proposal needs a model whose measurement is its state (ParticleModel::measures_state, M = N)",
         })
     }
 }
@@ -348,6 +422,7 @@ pub struct ParticleFilterConfig<const N: usize, const M: usize> {
     recovery_std: Option<SVector<f32, N>>,
     collapse_gate: f32,
     regularization: f32,
+    proposal: Proposal,
 }
 
 impl<const N: usize, const M: usize> ParticleFilterConfig<N, M> {
@@ -383,6 +458,7 @@ impl<const N: usize, const M: usize> ParticleFilterConfig<N, M> {
             recovery_std: None,
             collapse_gate: DEFAULT_COLLAPSE_GATE,
             regularization: 0.0,
+            proposal: Proposal::Prior,
         })
     }
 
@@ -461,6 +537,21 @@ impl<const N: usize, const M: usize> ParticleFilterConfig<N, M> {
             regularization: scale,
             ..self
         })
+    }
+
+    /// Draws the particles from `proposal` (default [`Proposal::Prior`];
+    /// module docs, "The optimal proposal"). [`ParticleFilter::new`]
+    /// refuses [`Proposal::Optimal`] for a model that does not measure its
+    /// state.
+    #[must_use]
+    pub fn with_proposal(self, proposal: Proposal) -> Self {
+        Self { proposal, ..self }
+    }
+
+    /// How the particles are drawn.
+    #[must_use]
+    pub fn proposal(&self) -> Proposal {
+        self.proposal
     }
 
     /// The regularization bandwidth as a multiple of the optimal one (0:
@@ -706,6 +797,12 @@ where
     estimate: SVector<f32, N>,
     noise: Noise,
     counters: ParticleFilterCounters,
+    /// [`Proposal::Optimal`]: the particles are `f(x_{k−1})` (or, before
+    /// the first update, the prior mean), their noise still to draw
+    /// (module docs, "The optimal proposal").
+    draw_pending: bool,
+    /// The standard deviations of that noise: `σ_q`, or the prior's.
+    pending_std: SVector<f32, N>,
 }
 
 impl<Model, const N: usize, const M: usize, const P: usize> ParticleFilter<Model, N, M, P>
@@ -722,7 +819,8 @@ where
     /// [`ParticleFilterError::NoParticles`] for `P = 0`,
     /// [`ParticleFilterError::PriorMean`] for a non-finite mean,
     /// [`ParticleFilterError::PriorStd`] for a negative or non-finite
-    /// spread.
+    /// spread, [`ParticleFilterError::Proposal`] for
+    /// [`Proposal::Optimal`] with a model that does not measure its state.
     pub fn new(
         model: Model,
         config: ParticleFilterConfig<N, M>,
@@ -738,6 +836,9 @@ where
         }
         if !non_negative(&prior_std) {
             return Err(ParticleFilterError::PriorStd);
+        }
+        if config.proposal == Proposal::Optimal && !(M == N && model.measures_state()) {
+            return Err(ParticleFilterError::Proposal);
         }
         let bandwidth = if config.regularization > 0.0 {
             config.regularization * optimal_bandwidth(N, P)
@@ -769,8 +870,15 @@ where
             estimate: mean,
             noise: Noise::new(seed),
             counters: ParticleFilterCounters::default(),
+            draw_pending: false,
+            pending_std: prior_std,
         };
-        filter.redraw(&prior_std);
+        if filter.config.proposal == Proposal::Optimal {
+            // The first update draws from p(x_0 | y_0) (module docs).
+            filter.draw_pending = true;
+        } else {
+            filter.redraw(&prior_std);
+        }
         Ok(filter)
     }
 
@@ -797,7 +905,9 @@ where
     /// The weighted covariance `Σ w̃⁽ⁱ⁾ d⁽ⁱ⁾ d⁽ⁱ⁾ᵀ` of the particles as they
     /// are now (after a resampling: of the resampled set) about
     /// [`Self::estimate`], `d = x⁽ⁱ⁾ − x̂` with angle components wrapped to
-    /// (−π, π] (for angles: a small-spread approximation). State units
+    /// (−π, π] (for angles: a small-spread approximation), plus
+    /// `diag(σ_q²)` while a draw of the optimal proposal is pending
+    /// (between a prediction and its update). State units
     /// squared. If the spread overflows `f32` (deviations beyond about
     /// 10¹⁹ state units, after absurd but finite inputs) the result is
     /// `f32::MAX · I`: finite, and as uncertain as `f32` can say.
@@ -807,6 +917,13 @@ where
         for (x, &w) in self.particles.iter().zip(self.weights.iter()) {
             let d = self.deviation(x, &self.estimate);
             covariance += (d * d.transpose()) * w;
+        }
+        if self.draw_pending {
+            for (i, &sigma) in self.pending_std.iter().enumerate() {
+                if let Some(c) = covariance.get_mut((i, i)) {
+                    *c += sigma * sigma;
+                }
+            }
         }
         if covariance.iter().all(|c| c.is_finite()) {
             covariance
@@ -864,18 +981,34 @@ where
     /// the weights stay, and the estimate becomes the predicted mean.
     /// Skipped and counted for a non-finite or negative `dt_s`, an input
     /// the model refuses, or one that leaves no particle finite.
+    ///
+    /// With [`Proposal::Optimal`] the particles move to `f(x, u, dt_s)`
+    /// only, and the update draws their noise (module docs, "The optimal
+    /// proposal"); a draw still pending from the previous prediction (no
+    /// update came) is first made from the prior, `σ_q ∘ ξ`.
     pub fn predict(&mut self, u: &Model::Input, dt_s: f32) {
         if !(dt_s.is_finite() && dt_s >= 0.0 && self.model.input_is_valid(u)) {
             self.reject();
             return;
         }
+        let optimal = self.config.proposal == Proposal::Optimal;
+        if optimal && self.draw_pending {
+            let spread = self.pending_std;
+            for x in self.particles.iter_mut() {
+                self.noise.perturb(x, &spread, &self.angles);
+            }
+            self.draw_pending = false;
+        }
         let mut dropped = 0_usize;
         let noise = &mut self.noise;
         let mut gaussian = || noise.gaussian();
         for (x, next) in self.particles.iter().zip(self.buffer.iter_mut()) {
-            let mut moved =
+            let mut moved = if optimal {
+                self.model.transition(x, u, dt_s)
+            } else {
                 self.model
-                    .sample_transition(x, u, dt_s, &self.config.process_std, &mut gaussian);
+                    .sample_transition(x, u, dt_s, &self.config.process_std, &mut gaussian)
+            };
             if finite(&moved) {
                 for (value, &angle) in moved.iter_mut().zip(self.angles.iter()) {
                     if angle {
@@ -914,6 +1047,8 @@ where
                 return;
             }
         }
+        self.draw_pending = optimal;
+        self.pending_std = self.config.process_std;
         self.refresh_estimate();
     }
 
@@ -924,6 +1059,11 @@ where
     /// the threshold. A non-finite `z` is skipped and counted; a collapse is
     /// recovered from as the module docs say.
     pub fn update(&mut self, z: &SVector<f32, M>) {
+        if self.draw_pending {
+            let std = self.config.measurement_std;
+            self.update_optimal(z, &std);
+            return;
+        }
         let inverse_std = self.config.inverse_measurement_std;
         self.update_weights(z, &inverse_std);
     }
@@ -939,6 +1079,10 @@ where
         let valid = std.iter().all(|&s| s > 0.0) && finite(&inverse_std);
         if !valid {
             self.reject();
+            return;
+        }
+        if self.draw_pending {
+            self.update_optimal(z, std);
             return;
         }
         self.update_weights(z, &inverse_std);
@@ -984,7 +1128,78 @@ where
         }
         self.weights = [1.0 / P as f32; P];
         self.estimate = centre;
+        self.draw_pending = false;
         Ok(())
+    }
+
+    /// The update of the optimal proposal (module docs, "The optimal
+    /// proposal"), on particles at `f(x_{k−1})`: weights by
+    /// `N(z; f, Q + R)`, the estimate from the per-particle posterior
+    /// means, resampling on the effective sample size, then the draw.
+    fn update_optimal(&mut self, z: &SVector<f32, M>, std: &SVector<f32, M>) {
+        if !finite(z) {
+            self.reject();
+            return;
+        }
+        // Per component (M = N, checked at construction): the gain
+        // K = q/(q + r), the posterior spread √(K r), and 1/√(q + r) for the
+        // weights; an unmeasured component (r = ∞) keeps the prior's σ_q.
+        let mut gain = SVector::<f32, M>::zeros();
+        let mut spread = SVector::<f32, N>::zeros();
+        let mut inverse_std = SVector::<f32, M>::zeros();
+        let components = gain
+            .iter_mut()
+            .zip(spread.iter_mut())
+            .zip(inverse_std.iter_mut())
+            .zip(self.pending_std.iter().zip(std.iter()));
+        for (((k, s), inv), (&sigma_q, &sigma_r)) in components {
+            let (q, r) = (sigma_q * sigma_q, sigma_r * sigma_r);
+            if r.is_finite() {
+                *k = q / (q + r);
+                *s = math::sqrt(*k * r);
+                *inv = 1.0 / math::sqrt(q + r);
+            } else {
+                *s = sigma_q;
+            }
+        }
+        if !(finite(&gain) && finite(&spread) && finite(&inverse_std)) {
+            self.reject();
+            return;
+        }
+        let (closest, _) = self.log_likelihoods(z, &inverse_std);
+        if !closest.is_finite() || closest > self.config.collapse_gate || !self.weigh(1.0) {
+            self.collapse();
+            return;
+        }
+        self.draw_pending = false;
+        for i in 0..P {
+            let Some(x) = self.particles.get(i).copied() else {
+                break;
+            };
+            let innovation = self.model.measurement_residual(z, &self.model.measure(&x));
+            let mut mean = x;
+            for ((value, &e), &k) in mean.iter_mut().zip(innovation.iter()).zip(gain.iter()) {
+                *value += k * e;
+            }
+            for (value, &angle) in mean.iter_mut().zip(self.angles.iter()) {
+                if angle {
+                    *value = math::wrap_angle(*value);
+                }
+            }
+            if finite(&mean)
+                && let Some(slot) = self.particles.get_mut(i)
+            {
+                *slot = mean;
+            }
+        }
+        self.refresh_estimate();
+        let threshold = self.config.resample_fraction * P as f32;
+        if self.effective_sample_size() < threshold {
+            self.resample();
+        }
+        for x in self.particles.iter_mut() {
+            self.noise.perturb(x, &spread, &self.angles);
+        }
     }
 
     fn update_weights(&mut self, z: &SVector<f32, M>, inverse_std: &SVector<f32, M>) {
@@ -1156,13 +1371,15 @@ where
         self.counters.collapses = self.counters.collapses.saturating_add(1);
     }
 
-    /// Every particle `x̂ + σ ∘ ξ`, equal weights; the estimate is kept.
+    /// Every particle `x̂ + σ ∘ ξ`, equal weights; the estimate is kept
+    /// (and no draw is pending).
     fn redraw(&mut self, spread: &SVector<f32, N>) {
         for x in self.particles.iter_mut() {
             *x = self.estimate;
             self.noise.perturb(x, spread, &self.angles);
         }
         self.weights = [1.0 / P as f32; P];
+        self.draw_pending = false;
     }
 
     fn reject(&mut self) {
@@ -1250,6 +1467,9 @@ mod tests {
         fn input_is_valid(&self, u: &f32) -> bool {
             u.is_finite()
         }
+        fn measures_state(&self) -> bool {
+            true
+        }
     }
 
     /// [`Walk`] without input screening.
@@ -1333,6 +1553,9 @@ mod tests {
         fn input_is_valid(&self, u: &(f32, f32)) -> bool {
             u.0.is_finite() && u.1.is_finite()
         }
+        fn measures_state(&self) -> bool {
+            true
+        }
     }
 
     /// Scenario 2's sizes: pose and two wheel speeds.
@@ -1396,11 +1619,16 @@ mod tests {
     }
 
     fn unicycle(seed: u64) -> ParticleFilter<Unicycle, 3, 3, 100> {
+        unicycle_drawing_from(seed, Proposal::Prior)
+    }
+
+    fn unicycle_drawing_from(seed: u64, proposal: Proposal) -> ParticleFilter<Unicycle, 3, 3, 100> {
         let config = ParticleFilterConfig::new(
             Vector3::new(0.02, 0.02, 0.02),
             Vector3::new(0.1f32.sqrt(), 0.1f32.sqrt(), 0.2f32.sqrt()),
         )
-        .unwrap();
+        .unwrap()
+        .with_proposal(proposal);
         ParticleFilter::new(
             Unicycle,
             config,
@@ -1535,12 +1763,14 @@ mod tests {
         );
     }
 
-    #[test]
-    fn random_walk_converges_like_the_kalman_filter() {
-        let (q, r) = (0.1f32, 0.5f32);
+    /// The particle filter against the exact Kalman filter on a random
+    /// walk with `σ_q = q`, `σ_r = r` for 500 steps from 5 ± √10 (the truth
+    /// starts at 0): its RMS error, the Kalman filter's, RMS(PF − KF), the
+    /// Kalman filter's final σ and the PF's worst error after step 50.
+    fn against_the_kalman_filter(q: f32, r: f32, proposal: Proposal) -> (f64, f64, f64, f64, f32) {
         let mut world = Noise::new(2024);
         let mut truth = 0.0f32;
-        let mut pf = walk(1, walk_config(q, r));
+        let mut pf = walk(1, walk_config(q, r).with_proposal(proposal));
         // The exact answer for this linear-Gaussian case.
         let (mut kf, mut kf_var) = (5.0f64, 10.0f64);
         let (mut pf_sq, mut kf_sq, mut gap_sq, mut n) = (0.0f64, 0.0f64, 0.0f64, 0);
@@ -1566,18 +1796,145 @@ mod tests {
         let rms = |s: f64| (s / f64::from(n)).sqrt();
         let (pf_rms, kf_rms, gap_rms) = (rms(pf_sq), rms(kf_sq), rms(gap_sq));
         println!(
-            "random walk (q 0.1, r 0.5, 500 steps, from 5 ± √10 to 0): PF RMS error {pf_rms:.4}, \
-             KF RMS error {kf_rms:.4}, KF σ {:.4}, RMS(PF − KF) {gap_rms:.4}, worst PF error {worst:.4}, \
-             resamplings {}",
+            "random walk (q {q}, r {r}, {proposal:?}, 500 steps, from 5 ± √10 to 0): PF RMS error \
+             {pf_rms:.4}, KF RMS error {kf_rms:.4}, KF σ {:.4}, RMS(PF − KF) {gap_rms:.4}, worst PF \
+             error {worst:.4}, resamplings {}, collapses {}",
             kf_var.sqrt(),
-            pf.resamplings()
+            pf.resamplings(),
+            pf.collapses()
         );
+        assert!(all_finite(&pf));
+        (pf_rms, kf_rms, gap_rms, kf_var.sqrt(), worst)
+    }
+
+    #[test]
+    fn random_walk_converges_like_the_kalman_filter() {
+        let (pf_rms, kf_rms, gap_rms, kf_sigma, worst) =
+            against_the_kalman_filter(0.1, 0.5, Proposal::Prior);
         assert!(pf_rms < 1.15 * kf_rms);
-        assert!(gap_rms < 0.3 * kf_var.sqrt());
+        assert!(gap_rms < 0.3 * kf_sigma);
         // Over 30 seeds: PF/KF RMS ratio 0.97–1.04, RMS(PF − KF) 0.11–0.20 σ,
         // worst error 2.5–4.1 σ (the KF's own worst is of the same order).
-        assert!(worst < 5.0 * kf_var.sqrt() as f32);
+        assert!(worst < 5.0 * kf_sigma as f32);
+    }
+
+    #[test]
+    fn the_optimal_proposal_converges_like_the_kalman_filter() {
+        let (pf_rms, kf_rms, gap_rms, kf_sigma, worst) =
+            against_the_kalman_filter(0.1, 0.5, Proposal::Optimal);
+        assert!(pf_rms < 1.15 * kf_rms);
+        assert!(gap_rms < 0.3 * kf_sigma);
+        assert!(worst < 5.0 * kf_sigma as f32);
+    }
+
+    /// Paper 004's wheel speeds: a process noise 50 times the measurement
+    /// noise. The prior scatters 100 particles over ±5 where the likelihood
+    /// is ±0.1 wide; the optimal proposal draws each one where the
+    /// measurement puts it.
+    #[test]
+    fn the_optimal_proposal_follows_a_process_noise_far_wider_than_the_measurement() {
+        let (prior_rms, kf_rms, _, kf_sigma, _) =
+            against_the_kalman_filter(5.0, 0.1, Proposal::Prior);
+        let (optimal_rms, _, gap_rms, _, worst) =
+            against_the_kalman_filter(5.0, 0.1, Proposal::Optimal);
+        assert!(optimal_rms < 1.15 * kf_rms);
+        assert!(gap_rms < 0.3 * kf_sigma);
+        assert!(worst < 5.0 * kf_sigma as f32);
+        assert!(prior_rms > 1.5 * optimal_rms);
+    }
+
+    #[test]
+    fn the_optimal_proposal_needs_a_model_that_measures_its_state() {
+        /// [`Walk`] without saying that it measures its state.
+        struct Opaque;
+        impl ParticleModel<1, 1> for Opaque {
+            type Input = f32;
+            fn transition(&self, x: &Vector1<f32>, u: &f32, dt_s: f32) -> Vector1<f32> {
+                Walk.transition(x, u, dt_s)
+            }
+            fn measure(&self, x: &Vector1<f32>) -> Vector1<f32> {
+                *x
+            }
+        }
+        let config = walk_config(0.1, 0.5);
+        let (mean, std) = (Vector1::new(0.0), Vector1::new(1.0));
+        let refused = ParticleFilter::<Opaque, 1, 1, 10>::new(
+            Opaque,
+            config.with_proposal(Proposal::Optimal),
+            mean,
+            std,
+            1,
+        );
+        assert_eq!(refused.err(), Some(ParticleFilterError::Proposal));
+        assert!(ParticleFilter::<Opaque, 1, 1, 10>::new(Opaque, config, mean, std, 1).is_ok());
+        assert_eq!(config.proposal(), Proposal::Prior);
+    }
+
+    /// The first update draws from `p(x_0 | y_0)`, the prior's Gaussian
+    /// times the likelihood: the estimate is its mean, the particles have
+    /// equal weights and its spread.
+    #[test]
+    fn the_optimal_proposal_starts_from_the_exact_posterior() {
+        let (q, r) = (0.1f32, 0.5f32);
+        let mut pf: ParticleFilter<Walk, 1, 1, 1000> = ParticleFilter::new(
+            Walk,
+            walk_config(q, r).with_proposal(Proposal::Optimal),
+            Vector1::new(5.0),
+            Vector1::new(PRIOR_STD),
+            7,
+        )
+        .unwrap();
+        // Pending: every particle at the prior mean, the covariance the prior's.
+        assert!(pf.particles().iter().all(|x| x[0] == 5.0));
+        assert!((pf.covariance()[0] - 10.0).abs() < 1e-4);
+        pf.update(&Vector1::new(1.0));
+        let gain = 10.0 / (10.0 + r * r);
+        let mean = 5.0 + gain * (1.0 - 5.0);
+        let variance = gain * r * r;
+        // f32 sums over 1,000 particles.
+        assert!(
+            (pf.estimate()[0] - mean).abs() < 1e-4,
+            "{} against {mean}",
+            pf.estimate()[0]
+        );
+        assert!(pf.weights().iter().all(|&w| (w - 1e-3).abs() < 1e-7));
+        let spread = pf.covariance()[0];
+        println!(
+            "first update: estimate {} (exact {mean}), variance {spread} (exact {variance})",
+            pf.estimate()[0]
+        );
+        // 1,000 draws: the sample variance is within ±10 % (2.2 standard errors).
+        assert!((spread / variance - 1.0).abs() < 0.1);
         assert_eq!(pf.collapses(), 0);
+    }
+
+    /// A prediction with no update since the last one draws the pending
+    /// noise from the prior before moving on.
+    #[test]
+    fn the_optimal_proposal_draws_a_missed_updates_noise_from_the_prior() {
+        let mut pf = walk(3, walk_config(0.5, 0.1).with_proposal(Proposal::Optimal));
+        pf.update(&Vector1::new(5.0));
+        let after_update = pf.covariance()[0];
+        pf.predict(&1.0, 0.1);
+        // Moved by f only; the covariance says the draw is pending.
+        assert!((pf.estimate()[0] - 5.1).abs() < 0.05);
+        // About the moved mean instead of the update's estimate: equal but
+        // for the sample mean's offset, ≈ (√(K r²/P))² = 1e-4.
+        let pending = pf.covariance()[0];
+        assert!(
+            (pending - (after_update + 0.25)).abs() < 1e-3,
+            "{pending} against {after_update} + 0.25"
+        );
+        pf.predict(&1.0, 0.1);
+        // The first step's noise drawn (0.5 per step over 100 particles),
+        // the second's pending.
+        let drawn = pf.covariance()[0] - 0.25;
+        println!(
+            "after two predictions: drawn variance {drawn} (expected ≈ {})",
+            after_update + 0.25
+        );
+        assert!(drawn > 0.15 && drawn < 0.4);
+        assert_eq!(pf.rejected_inputs(), 0);
     }
 
     #[test]
@@ -2015,8 +2372,8 @@ mod tests {
         let three = core::mem::size_of::<ParticleFilter<Unicycle, 3, 3, 100>>();
         let five = core::mem::size_of::<ParticleFilter<FiveStates, 5, 5, 100>>();
         println!("P = 100: {three} B for N = M = 3, {five} B for N = M = 5");
-        assert_eq!(three, 3344);
-        assert_eq!(five, 4996);
+        assert_eq!(three, 3360);
+        assert_eq!(five, 5020);
     }
 
     /// An `f32` that is often non-finite or absurd.
@@ -2041,7 +2398,8 @@ mod tests {
             steps in proptest::collection::vec((wild(), wild(), wild(), wild()), 1..40),
             seed in any::<u64>(),
         ) {
-            let mut f = unicycle(seed);
+            let proposal = if seed % 2 == 0 { Proposal::Prior } else { Proposal::Optimal };
+            let mut f = unicycle_drawing_from(seed, proposal);
             for &(v, dt, x, heading) in &steps {
                 f.predict(&(v, 0.3), dt.abs().min(1.0));
                 f.update(&Vector3::new(x, -x, heading));

@@ -92,9 +92,9 @@ pub use run::run;
 pub use scenario::{
     Controller, DURATION_S, EMBEDDED_SLIP, Estimator, FilterSpec, GainsSpec, INITIAL_VARIANCE,
     InitialState, MAX_SEGMENTS, MEASUREMENT_VARIANCE, MeasurementSpec, PARTICLE_PROCESS_STD,
-    PARTICLE_REGULARIZATION, PERIOD_S, PROCESS_NOISE, ParticleFilterSpec, ReferenceSpec, RobotSpec,
-    SLIP_RATIO, SLIP_WINDOW_S, SegmentSpec, SlipScenario, SlipStep, UKF_INITIAL_VARIANCE,
-    UkfFormSpec, UkfSpec, WindowsSpec, embedded_slip_source, slip_ratio,
+    PARTICLE_REGULARIZATION, PERIOD_S, PROCESS_NOISE, ParticleFilterSpec, ProposalSpec,
+    ReferenceSpec, RobotSpec, SLIP_RATIO, SLIP_WINDOW_S, SegmentSpec, SlipScenario, SlipStep,
+    UKF_INITIAL_VARIANCE, UkfFormSpec, UkfSpec, WindowsSpec, embedded_slip_source, slip_ratio,
 };
 pub use summary::{
     DIVERGED_TRACKING_ERROR_M, SlipEstimateWindow, SlipRecord, SlipResult, SlipSummary,

@@ -524,6 +524,24 @@ pub struct ParticleFilterSpec {
     /// of the optimal one (default [`PARTICLE_REGULARIZATION`]; 0: off).
     #[serde(default = "defaults::regularization")]
     pub regularization: f64,
+    /// How the particles are drawn: `prior` (the paper's transition
+    /// prior, default) or `optimal` (the optimal importance density,
+    /// closed-form here because every state is measured; core
+    /// `particle_filter` docs).
+    #[serde(default)]
+    pub proposal: ProposalSpec,
+}
+
+/// The particle filter's proposal (`wmr_core::filters::particle_filter::Proposal`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ProposalSpec {
+    /// `f(x) + σ_q ξ`, weighted by the likelihood (the paper's).
+    #[default]
+    Prior,
+    /// `p(x_k | x_{k−1}, y_k)`, weighted by `N(y; f(x), Q + R)`
+    /// (Doucet, Godsill & Andrieu 2000).
+    Optimal,
 }
 
 impl Default for ParticleFilterSpec {
@@ -533,6 +551,7 @@ impl Default for ParticleFilterSpec {
             process_std: defaults::particle_process_std(),
             collapse_gate: defaults::collapse_gate(),
             regularization: defaults::regularization(),
+            proposal: ProposalSpec::Prior,
         }
     }
 }

@@ -3,7 +3,7 @@
 //! the estimator).
 
 use wmr_core::filters::ekf::ExtendedKalmanFilter;
-use wmr_core::filters::particle_filter::{ParticleFilterConfig, ParticleFilterError};
+use wmr_core::filters::particle_filter::{ParticleFilterConfig, ParticleFilterError, Proposal};
 use wmr_core::filters::ukf::{MerweScaledSigmaPoints, UkfError, UkfForm, UnscentedKalmanFilter};
 use wmr_core::geometry::Pose;
 use wmr_papers::slip_tracking::{
@@ -14,7 +14,9 @@ use wmr_papers::slip_tracking::{
 use crate::scenario::{ScenarioError, non_negative, positive};
 
 use super::filter::{Filter, PARTICLE_COUNTS, Particles, diag, first};
-use super::scenario::{Controller, Estimator, MAX_SEGMENTS, SlipScenario, UkfFormSpec};
+use super::scenario::{
+    Controller, Estimator, MAX_SEGMENTS, ProposalSpec, SlipScenario, UkfFormSpec,
+};
 
 fn finite(field: &str, v: f64) -> Result<f64, ScenarioError> {
     if v.is_finite() {
@@ -100,6 +102,7 @@ fn pf_field(e: ParticleFilterError) -> ScenarioError {
         ParticleFilterError::Regularization => "filter.particle_filter.regularization",
         ParticleFilterError::PriorStd => "filter.initial_variance",
         ParticleFilterError::PriorMean => "initial",
+        ParticleFilterError::Proposal => "filter.particle_filter.proposal",
         _ => "filter.particle_filter",
     };
     ScenarioError::invalid(field, format!("refused by the core's particle filter: {e}"))
@@ -331,6 +334,10 @@ impl SlipScenario {
             ));
         }
         let regularization = regularization as f32;
+        let proposal = match pf.proposal {
+            ProposalSpec::Prior => Proposal::Prior,
+            ProposalSpec::Optimal => Proposal::Optimal,
+        };
         let prior = p0.map(f32::sqrt);
         let x0 = x0.map(|x| x as f32);
         let ekf_field =
@@ -379,6 +386,7 @@ impl SlipScenario {
             ParticleFilterConfig::new(first::<3>(process_std).into(), first::<3>(std_r).into())
                 .and_then(|c| c.with_collapse_gate(gate))
                 .and_then(|c| c.with_regularization(regularization))
+                .map(|c| c.with_proposal(proposal))
                 .map_err(pf_field)?,
             first::<3>(x0),
             first::<3>(prior),
@@ -392,6 +400,7 @@ impl SlipScenario {
             ParticleFilterConfig::new(process_std.into(), std_r.into())
                 .and_then(|c| c.with_collapse_gate(gate))
                 .and_then(|c| c.with_regularization(regularization))
+                .map(|c| c.with_proposal(proposal))
                 .map_err(pf_field)?,
             x0,
             prior,
