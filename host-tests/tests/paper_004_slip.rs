@@ -116,17 +116,39 @@ fn scenario_2_gaussian_filters() {
     }
 }
 
-/// The particle filter (100 particles, regularized: issue 17) in scenario
-/// 1: it tracks the robot (estimate error ≤ 0.2 m, tracking error ≤ 0.27 m
-/// RMS). Its start transient still pushes `p̂` up through law (7) (worst
-/// seed of 1–5: 0.95 above 4/3 during the slip, the EKF's 0.25).
+/// The particle filter (100 particles, regularized, the optimal proposal:
+/// issue 17) in scenario 1: it tracks the robot about as the EKF does.
+/// Its noisier estimates push `p̂` up through law (7) a little more than
+/// the EKF's (worst seed of 1–5: 0.46 above 4/3 during the slip, the
+/// EKF's 0.25).
 #[test]
 fn scenario_1_particle_filter() {
     let w = worst(Scenario::Velocity, Estimator::ParticleFilter);
-    // Measured (regularized): 0.122, 0.094, 0.134 m; estimate error ≤ 0.074 m
-    // (unregularized: 0.182, 0.174, 0.264 m; 0.196 m).
+    // Measured: 0.167, 0.087, 0.097 m; estimate error ≤ 0.087 m (the
+    // prior proposal with σ_q = (0.01, 0.01, 0.02): 0.122, 0.094, 0.134 m;
+    // 0.074 m; unregularized: 0.182, 0.174, 0.264 m; 0.196 m).
     assert!(w.before < 0.2 && w.during < 0.2 && w.after < 0.3, "{w:?}");
     assert!(w.estimate_error < 0.22, "{w:?}");
+}
+
+/// The particle filter (as in scenario 1) in scenario 2, within the EKF's
+/// tracking bounds of [`scenario_2_gaussian_filters`]: with the optimal
+/// proposal it tracks as the Gaussian filters do, and `p̂` reaches
+/// 1/(1 − 0.25) (its worst seed 0.152 away during the slip, the EKF's
+/// 0.110; the mean over seeds 1–20 is in [`the_particle_filter_matches_the_ekf`]).
+#[test]
+fn scenario_2_particle_filter() {
+    let w = worst(Scenario::Torque, Estimator::ParticleFilter);
+    // Measured: 0.115, 0.046, 0.076 m; |p̂ − 4/3| during ≤ 0.152, after
+    // ≤ 1.146; estimate error ≤ 0.064 m (the prior proposal: 4 of seeds
+    // 1–5 diverged unregularized; regularized, the mean RMS before the slip
+    // over seeds 1–20 was 0.50 m).
+    assert!(w.before < 0.18 && w.during < 0.07 && w.after < 0.1, "{w:?}");
+    assert!(
+        w.slip_estimate_error < 0.17 && w.slip_estimate_after < 1.15,
+        "{w:?}"
+    );
+    assert!(w.estimate_error < 0.09, "{w:?}");
 }
 
 /// The particle filter's runs are reproducible from the seed.
@@ -189,28 +211,61 @@ fn diverged_runs_are_flagged() {
     }
 }
 
-/// Issue 17, item 1: the regularized particle filter (N = 100) diverges in
-/// no seed of 1–20 in either scenario (before: 11 of 20 in scenario 2).
-/// Measured (`firmware-sim slip … --estimator particle_filter --seed S`):
-/// the worst position RMS over the windows against the EKF's is 1.69×
-/// (scenario 1) and 16.5× (scenario 2), and the mean `p̂` during the slip
-/// 2.16 and 1.96: the issue's 1.5× and ±0.15 targets are not met
-/// (docs/paper-004.md).
+/// Issue 17, item 1: the particle filter with the paper's N = 100, the
+/// optimal proposal and the scenario files' process noise, against the
+/// EKF over seeds 1–20 of both scenarios: no run diverges, the position
+/// RMS is within 1.5× the EKF's in every window of every seed, and the
+/// mean `p̂` during the slip is within 0.15 of 4/3 in scenario 2. In
+/// scenario 1 the EKF's own `p̂` is 0.21 above 4/3 (law (7) under the
+/// paper's measurement noise), so there the particle filter's is asserted
+/// within 0.15 of the EKF's.
+///
+/// Measured (`python3 tools/slip_pf_table.py paper_004_{velocity,torque}
+/// --particles 100 --seeds 1 20`): worst ratio 1.35 and 1.24, mean `p̂`
+/// 1.641 (EKF 1.547) and 1.427 (EKF 1.388). With the prior proposal (the
+/// paper's) and the same noise, scenario 2's worst ratio is 53.3; with its
+/// old noise 16.5 (docs/paper-004.md).
 #[test]
-fn the_particle_filter_diverges_in_no_seed() {
+fn the_particle_filter_matches_the_ekf() {
     for scenario in [Scenario::Velocity, Scenario::Torque] {
+        let (mut worst_ratio, mut pf_p, mut ekf_p) = (0.0_f64, 0.0_f64, 0.0_f64);
         for seed in 1..=20 {
-            let s = firmware_sim::slip::run(&host_tests::paper_004::slip_scenario(
-                scenario,
-                Estimator::ParticleFilter,
-                seed,
-            ))
-            .expect("the embedded scenario runs")
-            .summary;
+            let summary = |estimator| {
+                firmware_sim::slip::run(&host_tests::paper_004::slip_scenario(
+                    scenario, estimator, seed,
+                ))
+                .expect("the embedded scenario runs")
+                .summary
+            };
+            let (pf, ekf) = (summary(Estimator::ParticleFilter), summary(Estimator::Ekf));
             assert!(
-                !s.diverged && s.non_finite_records == 0 && s.tracking_error_max_m < 2.0,
-                "{scenario:?} seed {seed}: {s:?}"
+                !pf.diverged && pf.non_finite_records == 0 && pf.tracking_error_max_m < 2.0,
+                "{scenario:?} seed {seed}: {pf:?}"
             );
+            assert!(!ekf.diverged, "{scenario:?} seed {seed}: {ekf:?}");
+            for (p, e) in pf.tracking.iter().zip(ekf.tracking.iter()) {
+                let (p, e) = (
+                    p.position_error_rms_m.expect("a window with samples"),
+                    e.position_error_rms_m.expect("a window with samples"),
+                );
+                worst_ratio = worst_ratio.max(p / e);
+            }
+            let during = |s: &firmware_sim::slip::SlipSummary| {
+                s.slip_estimate[0]
+                    .mean_slip_estimate
+                    .expect("a window with samples")
+            };
+            pf_p += during(&pf) / 20.0;
+            ekf_p += during(&ekf) / 20.0;
+        }
+        println!(
+            "{scenario:?}, seeds 1-20: worst PF/EKF position RMS ratio {worst_ratio:.3}, mean p̂ \
+             during the slip {pf_p:.3} (EKF {ekf_p:.3})"
+        );
+        assert!(worst_ratio <= 1.5, "{scenario:?}: {worst_ratio}");
+        match scenario {
+            Scenario::Torque => assert!((pf_p - SLIP_P).abs() <= 0.15, "{pf_p}"),
+            Scenario::Velocity => assert!((pf_p - ekf_p).abs() <= 0.15, "{pf_p} {ekf_p}"),
         }
     }
 }

@@ -22,16 +22,24 @@ pub const SLIP_RATIO: f64 = 0.25;
 /// plant has none); with `Q = 0` the filters stop listening to the
 /// measurements.
 pub const PROCESS_NOISE: [f64; 5] = [1e-5, 1e-5, 1e-5, 1e-2, 1e-2];
-/// The particle filter's process noise per step (standard deviations). The
-/// EKF's `Q` (0.003 per step) leaves 100 particles too few distinct ones
-/// after resampling (the cloud cannot follow a heading error back); of the
-/// spreads tried (0.003–0.03) this one tracked best in scenario 1.
+/// The particle filter's process noise per step (standard deviations),
+/// chosen with the optimal proposal ([`ProposalSpec::Optimal`], the
+/// default) over seeds 1–20 of both scenarios (docs/paper-004.md): of the
+/// pose spreads tried (position 0.005–0.02 m, heading 0.002–0.02 rad) this
+/// one gave the smallest worst ratio to the EKF in both. A smaller heading
+/// spread (0.002–0.004) or the EKF's own `Q` (0.003 everywhere) lets the
+/// cloud lag the robot (3 of 20 seeds diverged at 0.002); a larger one
+/// (0.02, the prior proposal's old choice with 0.01 m) gives noisier
+/// estimates, which law (7) turns into a higher `p̂`.
 ///
-/// The wheel speeds' 5 rad/s (was 0.5): scenario 2's torques move a wheel
-/// by up to 8.6 rad/s in one 5 ms step, which a random walk of 0.5 cannot
-/// reach (17σ); with 0.5, 5 of seeds 1–20 diverged even regularized, with
-/// 5 none (issue 17). Scenario 1 uses the first three entries.
-pub const PARTICLE_PROCESS_STD: [f32; 5] = [0.01, 0.01, 0.02, 5.0, 5.0];
+/// The wheel speeds' 5 rad/s: scenario 2's torques move a wheel by up to
+/// 8.6 rad/s in one 5 ms step, which a random walk of 0.5 cannot reach
+/// (17σ). With the prior proposal that spread leaves 100 particles sparse
+/// around the 0.1 rad/s measurement (worst ratio to the EKF 16.5); the
+/// optimal proposal draws them where the measurement puts them (0.3, 1 and
+/// 5 rad/s gave worst ratios 2.41, 1.31 and 1.24). Scenario 1 uses the
+/// first three entries.
+pub const PARTICLE_PROCESS_STD: [f32; 5] = [0.005, 0.005, 0.007, 5.0, 5.0];
 /// The particle filter's regularization after resampling: the kernel
 /// bandwidth as a multiple of Musso, Oudjane & Le Gland's optimal one
 /// (core `particle_filter` docs; also turns on progressive correction).
@@ -524,10 +532,10 @@ pub struct ParticleFilterSpec {
     /// of the optimal one (default [`PARTICLE_REGULARIZATION`]; 0: off).
     #[serde(default = "defaults::regularization")]
     pub regularization: f64,
-    /// How the particles are drawn: `prior` (the paper's transition
-    /// prior, default) or `optimal` (the optimal importance density,
-    /// closed-form here because every state is measured; core
-    /// `particle_filter` docs).
+    /// How the particles are drawn: `optimal` (the optimal importance
+    /// density, closed-form here because every state is measured; core
+    /// `particle_filter` docs; the default, issue 17) or `prior` (the
+    /// paper's transition prior).
     #[serde(default)]
     pub proposal: ProposalSpec,
 }
@@ -537,10 +545,10 @@ pub struct ParticleFilterSpec {
 #[serde(rename_all = "snake_case")]
 pub enum ProposalSpec {
     /// `f(x) + σ_q ξ`, weighted by the likelihood (the paper's).
-    #[default]
     Prior,
     /// `p(x_k | x_{k−1}, y_k)`, weighted by `N(y; f(x), Q + R)`
-    /// (Doucet, Godsill & Andrieu 2000).
+    /// (Doucet, Godsill & Andrieu 2000; the default: docs/paper-004.md).
+    #[default]
     Optimal,
 }
 
@@ -551,7 +559,7 @@ impl Default for ParticleFilterSpec {
             process_std: defaults::particle_process_std(),
             collapse_gate: defaults::collapse_gate(),
             regularization: defaults::regularization(),
-            proposal: ProposalSpec::Prior,
+            proposal: ProposalSpec::Optimal,
         }
     }
 }
@@ -688,7 +696,7 @@ mod defaults {
         // `PARTICLE_PROCESS_STD` as decimals, not `f64::from` of its `f32`s
         // (the file form prints them as written; a test checks that they
         // round to the constant).
-        [0.01, 0.01, 0.02, 5.0, 5.0]
+        [0.005, 0.005, 0.007, 5.0, 5.0]
     }
     pub fn collapse_gate() -> f64 {
         f64::INFINITY
