@@ -89,15 +89,29 @@ const MATH: [(&str, &str); 7] = [
 
 /// Paper 004's filters: the bench's name and the row label. Each has the
 /// stages `<name>_predict` and `<name>_update`.
-const FILTERS: [(&str, &str); 11] = [
+const FILTERS: [(&str, &str); 13] = [
     ("ekf3", "EKF, N = M = 3 (`PoseModel`)"),
     ("ekf5", "EKF, N = M = 5 (`PoseWheelModel`)"),
     ("ukf3", "UKF, N = M = 3 (7 sigma points)"),
     ("ukf5", "UKF, N = M = 5 (11 sigma points)"),
     ("srukf3", "square-root UKF, N = M = 3"),
     ("srukf5", "square-root UKF, N = M = 5"),
-    ("pf3", "particle filter, N = M = 3, 100 particles"),
-    ("pf5", "particle filter, N = M = 5, 100 particles"),
+    (
+        "pf3",
+        "particle filter, N = M = 3, 100 particles (prior proposal)",
+    ),
+    (
+        "pf5",
+        "particle filter, N = M = 5, 100 particles (prior proposal)",
+    ),
+    (
+        "pf3o",
+        "particle filter, N = M = 3, 100 particles (optimal proposal, regularized: the slip scenarios')",
+    ),
+    (
+        "pf5o",
+        "particle filter, N = M = 5, 100 particles (optimal proposal, regularized: the slip scenarios')",
+    ),
     ("fusion_ekf", "fusion EKF (`PoseEkf`: odometry, 2-D fix)"),
     ("fusion_ukf", "fusion UKF (`PoseUkf`: odometry, 2-D fix)"),
     (
@@ -694,12 +708,12 @@ done
         let md = markdown(&[r]);
         assert!(
             md.contains(
-                "| particle filter, N = M = 3, 100 particles: predict | 936 442 (933 347–938 829) |"
+                "| particle filter, N = M = 3, 100 particles (prior proposal): predict | 936 442 (933 347–938 829) |"
             ),
             "{md}"
         );
         assert!(
-            md.contains("| particle filter, N = M = 3, 100 particles | 2 928 B | 328 B / 352 B | 0.043 m (61 resamplings in 601 updates) |"),
+            md.contains("| particle filter, N = M = 3, 100 particles (prior proposal) | 2 928 B | 328 B / 352 B | 0.043 m (61 resamplings in 601 updates) |"),
             "{md}"
         );
         assert!(

@@ -994,9 +994,7 @@ where
         let optimal = self.config.proposal == Proposal::Optimal;
         if optimal && self.draw_pending {
             let spread = self.pending_std;
-            for x in self.particles.iter_mut() {
-                self.noise.perturb(x, &spread, &self.angles);
-            }
+            self.diffuse(&spread);
             self.draw_pending = false;
         }
         let mut dropped = 0_usize;
@@ -1197,8 +1195,14 @@ where
         if self.effective_sample_size() < threshold {
             self.resample();
         }
+        self.diffuse(&spread);
+    }
+
+    /// Every particle `x + σ ∘ ξ` (angles wrapped): the optimal proposal's
+    /// draws.
+    fn diffuse(&mut self, spread: &SVector<f32, N>) {
         for x in self.particles.iter_mut() {
-            self.noise.perturb(x, &spread, &self.angles);
+            self.noise.perturb(x, spread, &self.angles);
         }
     }
 

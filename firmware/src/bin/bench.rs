@@ -38,7 +38,9 @@
 //! 4. times paper 004's nonlinear filters, a predict then an update each
 //!    5 ms step, each call in its own `#[inline(never)]` function: the EKF,
 //!    the UKF (`MerweScaledSigmaPoints::paper()`) and the particle filter
-//!    (100 particles) on `PoseModel` (N = M = 3, scenario 1) and on
+//!    (100 particles; `pf3`/`pf5` with the paper's prior proposal,
+//!    `pf3o`/`pf5o` with the slip scenarios' optimal proposal and
+//!    regularization) on `PoseModel` (N = M = 3, scenario 1) and on
 //!    `PoseWheelModel` (N = M = 5, scenario 2), set up as
 //!    `host_tests::paper_004` sets them up, while paper 004's tracked robot
 //!    drives an arc (0.5 m/s, 0.25 rad/s) and its whole state is measured
@@ -96,7 +98,9 @@ mod on_target {
     };
     use wmr_core::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
     use wmr_core::filters::ekf::{EkfModel, ExtendedKalmanFilter};
-    use wmr_core::filters::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
+    use wmr_core::filters::particle_filter::{
+        ParticleFilter, ParticleFilterConfig, ParticleModel, Proposal,
+    };
     use wmr_core::filters::ukf::{
         MerweScaledSigmaPoints, UkfForm, UkfModel, UnscentedKalmanFilter,
     };
@@ -1116,12 +1120,63 @@ mod on_target {
             MAX_FILTER_RMS_ERROR_M,
         );
 
-        let process_std = SVector::from(PARTICLE_PROCESS_STD);
+        let prior = [
+            ("pf3", ["pf3_predict", "pf3_update"]),
+            ("pf5", ["pf5_predict", "pf5_update"]),
+        ];
+        bench_particle_filters(cal, prior, &PRIOR_PROPOSAL, [scenario_1, scenario_2]);
+        let optimal = [
+            ("pf3o", ["pf3o_predict", "pf3o_update"]),
+            ("pf5o", ["pf5o_predict", "pf5o_update"]),
+        ];
+        bench_particle_filters(cal, optimal, &OPTIMAL_PROPOSAL, [scenario_1, scenario_2]);
+    }
+
+    /// A particle-filter setting of the bench.
+    struct ParticleSetting {
+        process_std: [f32; 5],
+        /// Regularization bandwidth scale (0: off).
+        regularization: f32,
+        proposal: Proposal,
+    }
+
+    /// The prior proposal (the paper's), unregularized, the process noise
+    /// of before issue 17: the rows `pf3`, `pf5`.
+    const PRIOR_PROPOSAL: ParticleSetting = ParticleSetting {
+        process_std: PARTICLE_PROCESS_STD,
+        regularization: 0.0,
+        proposal: Proposal::Prior,
+    };
+
+    /// The slip scenario files' setting since issue 17 (firmware-sim
+    /// `slip::PARTICLE_PROCESS_STD`, `PARTICLE_REGULARIZATION`, the optimal
+    /// proposal; docs/paper-004.md): the rows `pf3o`, `pf5o`.
+    const OPTIMAL_PROPOSAL: ParticleSetting = ParticleSetting {
+        process_std: [0.005, 0.005, 0.007, 5.0, 5.0],
+        regularization: 1.0,
+        proposal: Proposal::Optimal,
+    };
+
+    /// Paper 004's particle filter (100 particles) on both models with
+    /// `setting`, benchmarked as `names[0]` (N = 3, from `starts[0]`) and
+    /// `names[1]` (N = 5, from `starts[1]`), each a filter's name and its stages';
+    /// both filters live in this frame.
+    #[inline(never)]
+    fn bench_particle_filters(
+        cal: Calibration,
+        names: [(&'static str, [&'static str; 2]); 2],
+        setting: &ParticleSetting,
+        [scenario_1, scenario_2]: [Pose; 2],
+    ) {
+        let (x1, x2) = (Arc::new(scenario_1).state(), Arc::new(scenario_2).state());
+        let process_std = SVector::from(setting.process_std);
         let measurement_std = SVector::from(MEASUREMENT_VARIANCE.map(math::sqrt));
         let prior_std = SVector::from(INITIAL_VARIANCE.map(math::sqrt));
         let mut pf3 = built(
             ParticleFilterConfig::new(head(&process_std), head(&measurement_std))
                 .and_then(|c| c.with_collapse_gate(f32::INFINITY))
+                .and_then(|c| c.with_regularization(setting.regularization))
+                .map(|c| c.with_proposal(setting.proposal))
                 .and_then(|config| {
                     ParticleFilter::<_, 3, 3, PARTICLES>::new(
                         PoseModel,
@@ -1133,10 +1188,11 @@ mod on_target {
                 }),
             "particle filter (N = 3) refused",
         );
+        let [(name3, stages3), (name5, stages5)] = names;
         bench_filter(
             cal,
-            "pf3",
-            ["pf3_predict", "pf3_update"],
+            name3,
+            stages3,
             &mut pf3,
             scenario_1,
             MAX_FILTER_RMS_ERROR_M,
@@ -1144,6 +1200,8 @@ mod on_target {
         let mut pf5 = built(
             ParticleFilterConfig::new(process_std, measurement_std)
                 .and_then(|c| c.with_collapse_gate(f32::INFINITY))
+                .and_then(|c| c.with_regularization(setting.regularization))
+                .map(|c| c.with_proposal(setting.proposal))
                 .and_then(|config| {
                     ParticleFilter::<_, 5, 5, PARTICLES>::new(
                         PoseWheelModel,
@@ -1157,8 +1215,8 @@ mod on_target {
         );
         bench_filter(
             cal,
-            "pf5",
-            ["pf5_predict", "pf5_update"],
+            name5,
+            stages5,
             &mut pf5,
             scenario_2,
             MAX_FILTER_RMS_ERROR_M,
