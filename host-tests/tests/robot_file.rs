@@ -323,3 +323,136 @@ fn the_flashed_configuration_is_the_simulators() {
         );
     }
 }
+
+/// A robot on `floor` (the `[floor]` table's body) with its reader in
+/// `mode` (8 cm read radius in `range` mode), tracking a 1 m circle for 60 s: the scenario file, in `dir`.
+fn circle_robot(dir: &Path, name: &str, mode: &str, floor: &str) -> PathBuf {
+    let example = std::fs::read_to_string(robots().join("example.toml")).unwrap();
+    let grid = "kind = \"grid\"\nspacing_m = 0.1\noffset_m = [0.0, 0.0]";
+    assert!(example.contains(grid) && example.contains("mode = \"paper\""));
+    let robot = example.replace(grid, floor).replace(
+        "mode = \"paper\"",
+        &format!("mode = \"{mode}\"\nread_radius_m = 0.08"),
+    );
+    std::fs::write(dir.join(format!("{name}.toml")), robot).unwrap();
+    let scenario = format!(
+        "name = \"{name}\"\nduration_s = 60.0\ntransient_s = 10.0\nrobot = \"{name}.toml\"\n\n\
+         [reference]\nkind = \"circle\"\nradius_m = 1.0\nrate_rad_s = 0.2\n\n\
+         [initial]\nx_m = 1.02\ny_m = -0.01\nheading_rad = 1.5707963267948966\n"
+    );
+    let file = dir.join(format!("{name}-scenario.toml"));
+    std::fs::write(&file, scenario).unwrap();
+    file
+}
+
+/// `run.csv` and `summary.json` of `result`, the summary without its
+/// scenario name and wall time.
+fn outputs(dir: &Path, result: &firmware_sim::RunResult) -> (Vec<u8>, String) {
+    std::fs::create_dir_all(dir).unwrap();
+    let (csv, json) = (dir.join("run.csv"), dir.join("summary.json"));
+    firmware_sim::output::write_csv(&csv, &result.records).unwrap();
+    firmware_sim::output::write_summary(&json, &result.summary).unwrap();
+    let summary = std::fs::read_to_string(json).unwrap();
+    let summary: Vec<&str> = summary
+        .lines()
+        .filter(|l| !l.contains("\"scenario\":") && !l.contains("\"wall_time_s\":"))
+        .collect();
+    assert!(summary.len() > 20, "a summary");
+    (std::fs::read(csv).unwrap(), summary.join("\n"))
+}
+
+/// Issue 18: a tag-map floor (`floor.kind = "tag_map"`, arbitrary ids) that
+/// lays out the tags of a grid runs as that grid: the reader reads the
+/// same tag (nearest; within the read radius in `range` mode) and the
+/// robot resolves the map's id to the same position, so `run.csv` (which
+/// has no ids) is the same byte for byte, and so is `summary.json` (tag
+/// count, reader and core counters included). The grid's spacing,
+/// 12.5 cm, and lattice are exact in `f32` and `f64`, so the map's
+/// positions are the grid's to the bit.
+#[test]
+fn a_tag_map_floor_runs_as_the_grid_it_lays_out() {
+    use firmware_sim::scenario::PositionSetup;
+    use firmware_sim::tags::Floor;
+    use wmr_core::devices::TagGrid;
+    use wmr_core::geometry::Vec2;
+
+    let dir = temp_dir("tag-map-as-grid");
+    for mode in ["paper", "range"] {
+        let grid_file = circle_robot(
+            &dir,
+            &format!("grid-{mode}"),
+            mode,
+            "kind = \"grid\"\nspacing_m = 0.125",
+        );
+        let grid = Scenario::from_file(&grid_file).unwrap();
+        let PositionSetup::Reader(Floor::Grid(floor), _) = grid.validate().unwrap().position else {
+            panic!("a grid reader")
+        };
+        let (lo, _) = floor.bounds();
+        let mut csv = String::from("id,x_m,y_m\n");
+        let mut n = 0_u64;
+        for row in 0..floor.grid().rows() {
+            for column in 0..floor.grid().columns() {
+                let (x, y) = (
+                    lo[0] + f64::from(column) * 0.125,
+                    lo[1] + f64::from(row) * 0.125,
+                );
+                let at = floor.grid().position(TagGrid::id(row, column)).unwrap();
+                assert_eq!(at, Vec2::new(x as f32, y as f32), "exact lattice");
+                // Arbitrary, distinct 40-bit ids (an odd multiplier is a
+                // bijection modulo 2^40).
+                let id = (n.wrapping_mul(0x9E37_79B9) + 0x0001_2345_6789) & TagId::MASK;
+                csv += &format!("{id:#x},{x},{y}\n");
+                n += 1;
+            }
+        }
+        std::fs::write(dir.join(format!("map-{mode}.csv")), csv).unwrap();
+        let map_file = circle_robot(
+            &dir,
+            &format!("map-{mode}"),
+            mode,
+            &format!("kind = \"tag_map\"\nfile = \"map-{mode}.csv\""),
+        );
+        let map = Scenario::from_file(&map_file).unwrap();
+        assert_eq!(map.floor_tags.len(), floor.len());
+        let a = run(&grid, |_, _| {}).unwrap();
+        let b = run(&map, |_, _| {}).unwrap();
+        let (csv_a, summary_a) = outputs(&dir.join(format!("out-grid-{mode}")), &a);
+        let (csv_b, summary_b) = outputs(&dir.join(format!("out-map-{mode}")), &b);
+        assert!(csv_a == csv_b, "{mode}: run.csv differs");
+        assert!(summary_a == summary_b, "{mode}:\n{summary_a}\n{summary_b}");
+        // Not a vacuous run: the reader read map tags, the robot knew them.
+        let rfid = b.summary.rfid.unwrap();
+        assert!(rfid.frames_ok > 100, "{mode}: {} frames", rfid.frames_ok);
+        assert_eq!(rfid.unknown_tags, 0, "{mode}");
+        assert!(
+            b.summary.rms_error_m < 0.1,
+            "{mode}: {}",
+            b.summary.rms_error_m
+        );
+    }
+}
+
+/// The example tag-map robot (`robots/surveyed.toml`, 364 surveyed tags
+/// with arbitrary ids) tracks its circle on the map's fixes, and the HIL
+/// link, which carries a tag grid only, refuses it naming why.
+#[test]
+fn the_surveyed_robot_tracks_on_its_tag_map() {
+    let scenario = Scenario::from_file(&robots().join("circle_surveyed.toml")).unwrap();
+    assert_eq!(scenario.floor_tags.len(), 364);
+    let result = run(&scenario, |_, _| {}).unwrap();
+    let rfid = result.summary.rfid.unwrap();
+    assert!(rfid.frames_ok > 1000, "{} frames", rfid.frames_ok);
+    assert_eq!(rfid.unknown_tags, 0);
+    assert_eq!(result.summary.floor_tags, Some(364));
+    // Tracking after the transient within 1 cm (4.5 mm rms when written).
+    assert!(
+        result.summary.rms_error_m < 0.01,
+        "{}",
+        result.summary.rms_error_m
+    );
+    let e = firmware_sim::simulation::hil_configuration(&scenario.validate().unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("tag grid") && e.contains("tag_map"), "{e}");
+}

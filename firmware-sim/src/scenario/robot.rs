@@ -18,6 +18,14 @@
 //! one of them (other than at its default) is refused, naming the key. The
 //! robot's position source is its reader on its floor, without injected
 //! faults.
+//!
+//! A tag-map floor becomes the scenario's `[[floor_tags]]` rows (the
+//! resolved scenario is self-contained): the simulated reader reads the
+//! map's tag nearest to the antenna (within `read_radius_m` in `range`
+//! mode, the grid's rule) and reports its id; the robot resolves it
+//! through the core's `TagMap` (`crate::tags::MapFloor`), counting ids it
+//! does not know (`rfid.unknown_tags`). The HIL link carries a tag grid
+//! only: `firmware-sim hil` refuses a tag map.
 
 use std::path::Path;
 
@@ -29,8 +37,8 @@ use wmr_link::image;
 use super::defaults;
 use super::error::ScenarioError;
 use super::schema::{
-    ControllerSpec, DriveSpec, FailsafeSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
-    ReferenceSpec, Scenario,
+    ControllerSpec, DriveSpec, FailsafeSpec, FloorTagSpec, ObserverSpec, PlantSpec, PositionSpec,
+    ReaderModeSpec, ReferenceSpec, Scenario,
 };
 
 /// A robot file's top level.
@@ -337,6 +345,7 @@ impl Robot {
             plant: PlantSpec::default(),
             drive: None,
             position: PositionSpec::default(),
+            floor_tags: Vec::new(),
             failsafe: FailsafeSpec::default(),
             measurement: super::MeasurementSpec::default(),
             sweep: None,
@@ -363,9 +372,18 @@ impl Robot {
                 margin_m,
                 extent_m,
             } => (spacing_m, offset_m, margin_m, extent_m),
-            // Refused by `Scenario::resolve_robot` before it gets here.
+            // Not a grid: `floor_tags` is the floor (the grid keys unused).
             FloorSpec::TagMap { .. } => (0.0, [0.0; 2], 0.0, None),
         };
+        scenario.floor_tags = self
+            .tags
+            .iter()
+            .map(|t| FloorTagSpec {
+                id: t.id.0,
+                x_m: t.x_m,
+                y_m: t.y_m,
+            })
+            .collect();
         let reader = r.reader;
         scenario.position = PositionSpec::Reader {
             spacing_m,
@@ -421,9 +439,8 @@ impl Scenario {
     /// robot (to name its file in validation errors: [`Robot::name_in`]).
     ///
     /// # Errors
-    /// The robot file cannot be read or parsed, a tag-map floor (which the
-    /// simulator does not lay out yet), or a robot table also given in the
-    /// scenario.
+    /// The robot file cannot be read or parsed, or a robot table also
+    /// given in the scenario.
     pub fn resolve_robot(&mut self, dir: Option<&Path>) -> Result<Option<Robot>, ScenarioError> {
         let Some(source) = self.robot.take() else {
             return Ok(None);
@@ -443,14 +460,6 @@ impl Scenario {
             }
             RobotSource::Inline(file) => Robot::new(*file, "[robot]".to_owned(), dir)?,
         };
-        if !robot.tags.is_empty() {
-            return Err(robot_error(
-                &robot.path,
-                "floor.kind",
-                "the simulator lays out tag grids only: a tag map can be flashed \
-                 (`cargo xtask firmware --robot`), not simulated yet",
-            ));
-        }
         if !matches!(robot.file.plant, PlantSpec::DiffDrive { .. }) {
             return Err(robot_error(
                 &robot.path,
@@ -470,6 +479,7 @@ impl Scenario {
             ("estimator", self.estimator != EstimatorSpec::default()),
             ("failsafe", self.failsafe != FailsafeSpec::default()),
             ("position", self.position != PositionSpec::default()),
+            ("floor_tags", !self.floor_tags.is_empty()),
         ];
         if let Some((key, _)) = given.iter().find(|(_, given)| *given) {
             return Err(ScenarioError::invalid(
@@ -571,8 +581,8 @@ impl Robot {
                 ),
             ));
         }
-        let floor = if self.tags.is_empty() {
-            FlashFloor::Grid(TagGridSpec::of(floor.grid()))
+        let floor = if let (true, Some(grid)) = (self.tags.is_empty(), floor.grid()) {
+            FlashFloor::Grid(TagGridSpec::of(grid.grid()))
         } else {
             pilot.tracker.sensors.tag_spacing_m = 0.0;
             pilot.build().map_err(|e| {

@@ -52,6 +52,15 @@ pub struct Scenario {
     /// Where the position measurement comes from.
     #[serde(default)]
     pub position: PositionSpec,
+    /// The floor of a robot whose floor is a tag map (`floor.kind =
+    /// "tag_map"`), as `[[floor_tags]]` rows `id`, `x_m`, `y_m`: filled in
+    /// from the robot's map when the scenario names the robot, so that the
+    /// resolved scenario (a sweep run's `scenario.toml`, a shard's
+    /// manifest) is self-contained. Given, the reader
+    /// (`position.kind = "reader"` only) reads these tags and the robot
+    /// looks the ids up in them; `position`'s grid keys are not used.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub floor_tags: Vec<FloorTagSpec>,
     /// What the tracker does when fixes stop.
     #[serde(default)]
     pub failsafe: FailsafeSpec,
@@ -70,6 +79,18 @@ pub struct Scenario {
     /// scenario's, which must then be left out.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub robot: Option<RobotSource>,
+}
+
+/// One tag of a tag-map floor (`[[floor_tags]]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FloorTagSpec {
+    /// The id the reader reports (40 bits).
+    pub id: u64,
+    /// Position, m.
+    pub x_m: f64,
+    /// Position, m.
+    pub y_m: f64,
 }
 
 /// The reference trajectory.
