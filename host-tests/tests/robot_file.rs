@@ -152,6 +152,27 @@ fn errors_name_the_file_the_key_and_the_reason() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("`observer`") && e.contains("robot"), "{e}");
+    // A position key other than the reader's faults is the robot's.
+    for (table, key) in [
+        (
+            "kind = \"reader\"\nspacing_m = 0.2\nseed = 3",
+            "position.spacing_m",
+        ),
+        ("kind = \"reader\"\nmode = \"range\"", "position.mode"),
+        ("kind = \"nearest_tag\"", "position.kind"),
+    ] {
+        let scenario = std::fs::read_to_string(robots().join("figure_eight.toml")).unwrap()
+            + "\n[position]\n"
+            + table
+            + "\n";
+        let e = Scenario::from_toml_str_in(&scenario, file.parent())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("`{key}`")) && e.contains("robot"),
+            "{e}"
+        );
+    }
     // A tag map: 40-bit ids, no duplicates.
     let map = dir.join("tags.csv");
     std::fs::write(&map, "id,x_m,y_m\n1,0,0\n1,1,1\n").unwrap();
@@ -455,4 +476,60 @@ fn the_surveyed_robot_tracks_on_its_tag_map() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("tag grid") && e.contains("tag_map"), "{e}");
+}
+
+/// Issue 18: reader faults are the experiment's. A scenario naming its
+/// robot keeps `position`'s fault keys, and they change the counters
+/// exactly as in the same scenario with the robot written inline
+/// (`figure_eight_rfid_full_stack`): same records, same reader and core
+/// counters, bit for bit, and not those of the run without faults.
+#[test]
+fn reader_faults_in_a_scenario_naming_its_robot_are_kept() {
+    let faults = "\n[position]\nkind = \"reader\"\ncorrupt_byte_probability = 0.01\n\
+                  drop_frame_probability = 0.2\nseed = 7\n";
+    let text = std::fs::read_to_string(robots().join("figure_eight.toml")).unwrap();
+    let mut named = Scenario::from_toml_str_in(&(text.clone() + faults), Some(&robots())).unwrap();
+    let mut clean = Scenario::from_toml_str_in(&text, Some(&robots())).unwrap();
+    let mut inline = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    let firmware_sim::scenario::PositionSpec::Reader {
+        corrupt_byte_probability,
+        drop_frame_probability,
+        seed,
+        ..
+    } = &mut inline.position
+    else {
+        panic!("a reader")
+    };
+    (*corrupt_byte_probability, *drop_frame_probability, *seed) = (0.01, 0.2, 7);
+    for s in [&mut named, &mut clean, &mut inline] {
+        s.duration_s = 60.0;
+        s.transient_s = 10.0;
+    }
+    assert_eq!(named.position, inline.position);
+    let (a, b, c) = (
+        run(&named, |_, _| {}).unwrap(),
+        run(&inline, |_, _| {}).unwrap(),
+        run(&clean, |_, _| {}).unwrap(),
+    );
+    let (ra, rb, rc) = (
+        a.summary.rfid.unwrap(),
+        b.summary.rfid.unwrap(),
+        c.summary.rfid.unwrap(),
+    );
+    assert_eq!(ra, rb);
+    assert!(a.records == b.records, "the records differ");
+    // The faults did something: frames dropped, bytes corrupted, bad
+    // checksums, none of which the clean run has.
+    assert!(ra.reader.frames_dropped > 100, "{ra:?}");
+    assert!(ra.reader.bytes_corrupted > 100, "{ra:?}");
+    assert!(ra.bad_checksum + ra.malformed > 0, "{ra:?}");
+    assert_eq!(
+        (
+            rc.reader.frames_dropped,
+            rc.reader.bytes_corrupted,
+            rc.bad_checksum
+        ),
+        (0, 0, 0)
+    );
+    assert!(ra.frames_ok < rc.frames_ok);
 }

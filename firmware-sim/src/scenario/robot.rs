@@ -16,8 +16,21 @@
 //! the scenario file) or embeds it (`[robot]` with the same keys). The
 //! robot's tables then replace the scenario's: a scenario that also gives
 //! one of them (other than at its default) is refused, naming the key. The
-//! robot's position source is its reader on its floor, without injected
-//! faults.
+//! robot's position source is its reader on its floor.
+//!
+//! Faults injected into the reader's link are the experiment's, not the
+//! robot's: a scenario naming a robot keeps them, written as in a scenario
+//! without one, in its `[position]` table with `kind = "reader"` and only
+//! the fault keys `corrupt_byte_probability`, `drop_frame_probability` and
+//! `seed` (any other `position` key is the robot's: refused, naming it):
+//!
+//! ```toml
+//! robot = "example.toml"
+//! [position]
+//! kind = "reader"
+//! drop_frame_probability = 0.2
+//! seed = 7
+//! ```
 //!
 //! A tag-map floor becomes the scenario's `[[floor_tags]]` rows (the
 //! resolved scenario is self-contained): the simulated reader reads the
@@ -153,6 +166,99 @@ pub struct MappedTag {
     pub x_m: f64,
     /// Position, m.
     pub y_m: f64,
+}
+
+/// The faults a scenario injects into its robot's reader link (the
+/// scenario's `position.corrupt_byte_probability`,
+/// `position.drop_frame_probability` and `position.seed`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReaderFaults {
+    /// Probability that a byte arrives with a flipped bit.
+    pub corrupt_byte_probability: f64,
+    /// Probability that a frame is lost.
+    pub drop_frame_probability: f64,
+    /// Seed of the fault RNG.
+    pub seed: u64,
+}
+
+impl Default for ReaderFaults {
+    /// None (the seed at its default).
+    fn default() -> Self {
+        Self {
+            corrupt_byte_probability: 0.0,
+            drop_frame_probability: 0.0,
+            seed: defaults::seed(),
+        }
+    }
+}
+
+impl ReaderFaults {
+    /// The fault keys of a scenario's `position` table; the error names
+    /// the first other key given (other than at its default), which is the
+    /// robot's. `Exact` (no `[position]` table) is no fault.
+    fn of_scenario(position: &PositionSpec, robot: &str) -> Result<Self, ScenarioError> {
+        let PositionSpec::Reader {
+            corrupt_byte_probability,
+            drop_frame_probability,
+            seed,
+            ..
+        } = *position
+        else {
+            return match position {
+                PositionSpec::Exact => Ok(Self::default()),
+                _ => Err(ScenarioError::invalid(
+                    "position.kind",
+                    format!(
+                        "the scenario's robot ({robot}) reads its own floor: a scenario naming \
+                         a robot gives only kind = \"reader\" and the reader's fault keys"
+                    ),
+                )),
+            };
+        };
+        let faults = Self {
+            corrupt_byte_probability,
+            drop_frame_probability,
+            seed,
+        };
+        let mut rest = *position;
+        Self::default().write_into(&mut rest);
+        let reader = PositionSpec::reader_defaults();
+        if rest != reader {
+            // Name the first key that differs (both are plain tables).
+            let table = |p: &PositionSpec| toml::Table::try_from(p).unwrap_or_default();
+            let (given, default) = (table(&rest), table(&reader));
+            let key = given
+                .iter()
+                .find(|(k, v)| default.get(*k) != Some(*v))
+                .or_else(|| default.iter().find(|(k, _)| !given.contains_key(*k)))
+                .map_or_else(|| "position".to_owned(), |(k, _)| format!("position.{k}"));
+            return Err(ScenarioError::invalid(
+                &key,
+                format!(
+                    "the scenario's robot ({robot}) sets it: remove it from the scenario (a \
+                     scenario naming a robot keeps only the reader's fault keys \
+                     corrupt_byte_probability, drop_frame_probability and seed)"
+                ),
+            ));
+        }
+        Ok(faults)
+    }
+
+    /// Writes these faults into `position`'s fault keys (a reader's;
+    /// nothing otherwise).
+    fn write_into(self, position: &mut PositionSpec) {
+        if let PositionSpec::Reader {
+            corrupt_byte_probability,
+            drop_frame_probability,
+            seed,
+            ..
+        } = position
+        {
+            *corrupt_byte_probability = self.corrupt_byte_probability;
+            *drop_frame_probability = self.drop_frame_probability;
+            *seed = self.seed;
+        }
+    }
 }
 
 /// A robot file as loaded: its tables and, for a tag-map floor, the map.
@@ -351,12 +457,12 @@ impl Robot {
             sweep: None,
             robot: None,
         };
-        self.fill(&mut scenario);
+        self.fill(&mut scenario, ReaderFaults::default());
         scenario
     }
 
-    /// Puts the robot's tables into `scenario`.
-    fn fill(&self, scenario: &mut Scenario) {
+    /// Puts the robot's tables into `scenario`, its reader with `faults`.
+    fn fill(&self, scenario: &mut Scenario, faults: ReaderFaults) {
         let r = &self.file;
         scenario.period_s = r.period_s;
         scenario.plant = r.plant;
@@ -396,9 +502,9 @@ impl Robot {
             antenna_offset_compensated: true,
             baud: reader.baud,
             repeat_interval_s: reader.repeat_interval_s,
-            corrupt_byte_probability: 0.0,
-            drop_frame_probability: 0.0,
-            seed: defaults::seed(),
+            corrupt_byte_probability: faults.corrupt_byte_probability,
+            drop_frame_probability: faults.drop_frame_probability,
+            seed: faults.seed,
         };
     }
 
@@ -478,7 +584,6 @@ impl Scenario {
             ("observer", self.observer != ObserverSpec::default()),
             ("estimator", self.estimator != EstimatorSpec::default()),
             ("failsafe", self.failsafe != FailsafeSpec::default()),
-            ("position", self.position != PositionSpec::default()),
             ("floor_tags", !self.floor_tags.is_empty()),
         ];
         if let Some((key, _)) = given.iter().find(|(_, given)| *given) {
@@ -490,7 +595,8 @@ impl Scenario {
                 ),
             ));
         }
-        robot.fill(self);
+        let faults = ReaderFaults::of_scenario(&self.position, &robot.path)?;
+        robot.fill(self, faults);
         Ok(Some(robot))
     }
 }

@@ -76,7 +76,9 @@ pub struct Scenario {
     /// robot file's, `firmware-sim schema`). Its tables (`period_s`,
     /// `plant`, `drive`, `controller`, `observer`, `estimator`,
     /// `failsafe`, and `position` from its reader and floor) replace the
-    /// scenario's, which must then be left out.
+    /// scenario's, which must then be left out, except the reader's fault
+    /// keys (the experiment's): `[position]` with `kind = "reader"` and
+    /// only `corrupt_byte_probability`, `drop_frame_probability`, `seed`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub robot: Option<RobotSource>,
 }
@@ -558,16 +560,41 @@ pub enum PositionSpec {
         /// too, as fast as the line carries frames.
         #[serde(default = "defaults::repeat_interval_s")]
         repeat_interval_s: f64,
-        /// Probability that a byte arrives with a flipped bit.
+        /// Probability that a byte arrives with a flipped bit (a fault
+        /// key: a scenario naming a robot keeps it).
         #[serde(default)]
         corrupt_byte_probability: f64,
-        /// Probability that a frame is lost.
+        /// Probability that a frame is lost (a fault key: a scenario
+        /// naming a robot keeps it).
         #[serde(default)]
         drop_frame_probability: f64,
-        /// Seed of the fault RNG.
+        /// Seed of the fault RNG (a fault key: a scenario naming a robot
+        /// keeps it).
         #[serde(default = "defaults::seed")]
         seed: u64,
     },
+}
+
+impl PositionSpec {
+    /// `kind = "reader"` with every other key at its default.
+    #[must_use]
+    pub fn reader_defaults() -> Self {
+        Self::Reader {
+            spacing_m: defaults::spacing_m(),
+            offset_m: [0.0; 2],
+            margin_m: defaults::margin_m(),
+            extent_m: None,
+            mode: ReaderModeSpec::default(),
+            read_radius_m: defaults::read_radius_m(),
+            antenna_offset_m: 0.0,
+            antenna_offset_compensated: defaults::yes(),
+            baud: defaults::baud(),
+            repeat_interval_s: defaults::repeat_interval_s(),
+            corrupt_byte_probability: 0.0,
+            drop_frame_probability: 0.0,
+            seed: defaults::seed(),
+        }
+    }
 }
 
 /// What the tracker does when fixes stop.
