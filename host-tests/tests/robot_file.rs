@@ -109,6 +109,18 @@ fn errors_name_the_file_the_key_and_the_reason() {
             "reader",
             "antenna",
         ),
+        (
+            "every_ticks = 10",
+            "every_ticks = 0",
+            "telemetry.every_ticks",
+            "must be 1 to 65535 ticks (got 0)",
+        ),
+        (
+            "every_ticks = 10",
+            "every_ticks = 65536",
+            "telemetry.every_ticks",
+            "must be 1 to 65535 ticks (got 65536)",
+        ),
     ];
     for (from, to, key, reason) in cases {
         assert!(example.contains(from), "{from}");
@@ -205,6 +217,8 @@ fn the_blackpill_robot_file_is_the_boards_default() {
         .flash_image()
         .unwrap();
     let p = image.pilot;
+    // TELEMETRY_EVERY_TICKS.
+    assert_eq!(image.telemetry_every_ticks, 10);
     assert_eq!(p.tracker.period_s, 0.01);
     assert_eq!(p.tracker.gains, [0.11, 0.11, 0.1]);
     assert_eq!(p.tracker.observer_gain_per_m, 0.6);
@@ -296,9 +310,24 @@ fn build_blackpill_with(image: &Path) -> PathBuf {
 /// same pilot spec and the same tags as what `firmware-sim` parses.
 #[test]
 fn the_flashed_configuration_is_the_simulators() {
-    let robot = Robot::from_file(&robots().join("blackpill.toml")).unwrap();
-    let expected = robot.flash_image().unwrap();
+    // The Black Pill's robot with its telemetry at 25 ticks (not the
+    // board's constant 10): the image carries the robot file's.
     let dir = temp_dir("flash");
+    let text = std::fs::read_to_string(robots().join("blackpill.toml")).unwrap();
+    assert!(text.contains("every_ticks = 10"));
+    std::fs::write(
+        dir.join("blackpill.toml"),
+        text.replace("every_ticks = 10", "every_ticks = 25"),
+    )
+    .unwrap();
+    std::fs::copy(
+        robots().join("blackpill_tags.csv"),
+        dir.join("blackpill_tags.csv"),
+    )
+    .unwrap();
+    let robot = Robot::from_file(&dir.join("blackpill.toml")).unwrap();
+    let expected = robot.flash_image().unwrap();
+    assert_eq!(expected.telemetry_every_ticks, 25);
     let image_file = dir.join("blackpill.robot");
     std::fs::write(&image_file, &expected.bytes).unwrap();
     let elf = std::fs::read(build_blackpill_with(&image_file)).unwrap();
@@ -323,6 +352,7 @@ fn the_flashed_configuration_is_the_simulators() {
     let (bytes, image) = &decoded[0];
     assert_eq!(*bytes, expected.bytes.as_slice());
     assert_eq!(image.pilot, expected.pilot);
+    assert_eq!(image.telemetry_every_ticks, 25);
     assert!(image.pilot.build().is_ok());
     let ImageFloor::Map(tags) = image.floor else {
         panic!("a tag map")
@@ -532,4 +562,36 @@ fn reader_faults_in_a_scenario_naming_its_robot_are_kept() {
         (0, 0, 0)
     );
     assert!(ra.frames_ok < rc.frames_ok);
+}
+
+/// Issue 18: `firmware-sim hil` records telemetry every
+/// `telemetry.every_ticks` of the scenario's robot unless
+/// `--telemetry-every` says otherwise; without a robot (or `[telemetry]`),
+/// every tick, as before.
+#[test]
+fn hil_telemetry_defaults_to_the_robots() {
+    use firmware_sim::hil::{DEFAULT_TELEMETRY_EVERY_TICKS, default_telemetry_every_ticks};
+    let named = Scenario::from_file(&robots().join("figure_eight.toml")).unwrap();
+    assert_eq!(default_telemetry_every_ticks(&named).unwrap(), 10);
+    let text = std::fs::read_to_string(robots().join("example.toml")).unwrap();
+    let dir = temp_dir("telemetry");
+    std::fs::write(
+        dir.join("example.toml"),
+        text.replace("every_ticks = 10", "every_ticks = 4"),
+    )
+    .unwrap();
+    let scenario = std::fs::read_to_string(robots().join("figure_eight.toml")).unwrap();
+    let four = Scenario::from_toml_str_in(&scenario, Some(&dir)).unwrap();
+    assert_eq!(default_telemetry_every_ticks(&four).unwrap(), 4);
+    // A scenario may not set the robot's telemetry.
+    let e =
+        Scenario::from_toml_str_in(&(scenario + "\n[telemetry]\nevery_ticks = 2\n"), Some(&dir))
+            .unwrap_err()
+            .to_string();
+    assert!(e.contains("`telemetry`") && e.contains("robot"), "{e}");
+    let plain = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    assert_eq!(
+        default_telemetry_every_ticks(&plain).unwrap(),
+        DEFAULT_TELEMETRY_EVERY_TICKS
+    );
 }

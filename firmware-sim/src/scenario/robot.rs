@@ -51,7 +51,7 @@ use super::defaults;
 use super::error::ScenarioError;
 use super::schema::{
     ControllerSpec, DriveSpec, FailsafeSpec, FloorTagSpec, ObserverSpec, PlantSpec, PositionSpec,
-    ReaderModeSpec, ReferenceSpec, Scenario,
+    ReaderModeSpec, ReferenceSpec, Scenario, TelemetrySpec,
 };
 
 /// A robot file's top level.
@@ -93,6 +93,11 @@ pub struct RobotFile {
     pub reader: ReaderSpec,
     /// The floor's tags.
     pub floor: FloorSpec,
+    /// The firmware's telemetry records (`every_ticks`, default 10): the
+    /// flashed Black Pill's decimation and `firmware-sim hil`'s default of
+    /// `--telemetry-every`.
+    #[serde(default)]
+    pub telemetry: TelemetrySpec,
 }
 
 /// The robot's RFID reader (the keys of a scenario's `position.kind =
@@ -453,6 +458,7 @@ impl Robot {
             position: PositionSpec::default(),
             floor_tags: Vec::new(),
             failsafe: FailsafeSpec::default(),
+            telemetry: None,
             measurement: super::MeasurementSpec::default(),
             sweep: None,
             robot: None,
@@ -471,6 +477,7 @@ impl Robot {
         scenario.observer = r.observer;
         scenario.estimator = r.estimator;
         scenario.failsafe = r.failsafe;
+        scenario.telemetry = Some(r.telemetry);
         let (spacing_m, offset_m, margin_m, extent_m) = match r.floor {
             FloorSpec::Grid {
                 spacing_m,
@@ -514,7 +521,7 @@ impl Robot {
         let (head, rest) = field.split_once('.').unwrap_or((field, ""));
         let robot_key = match head {
             "period_s" | "plant" | "drive" | "controller" | "observer" | "estimator"
-            | "failsafe" => return Some(field.to_owned()),
+            | "failsafe" | "telemetry" => return Some(field.to_owned()),
             "position" => match rest {
                 "spacing_m" | "offset_m" | "margin_m" | "extent_m" => format!("floor.{rest}"),
                 "" => "reader".to_owned(),
@@ -584,6 +591,7 @@ impl Scenario {
             ("observer", self.observer != ObserverSpec::default()),
             ("estimator", self.estimator != EstimatorSpec::default()),
             ("failsafe", self.failsafe != FailsafeSpec::default()),
+            ("telemetry", self.telemetry.is_some()),
             ("floor_tags", !self.floor_tags.is_empty()),
         ];
         if let Some((key, _)) = given.iter().find(|(_, given)| *given) {
@@ -625,6 +633,8 @@ pub struct FlashImage {
     pub pilot: PilotSpec,
     /// The floor.
     pub floor: FlashFloor,
+    /// A telemetry record every this many ticks (`telemetry.every_ticks`).
+    pub telemetry_every_ticks: u16,
     /// The encoded image ([`wmr_link::image`]).
     pub bytes: Vec<u8>,
 }
@@ -658,6 +668,7 @@ impl Robot {
                 margin_m: defaults::margin_m(),
                 extent_m: None,
             };
+            stand_in.tags.clear();
         }
         let scenario = stand_in.scenario(reference, FLASH_GRID_REFERENCE_S);
         let setup = scenario.validate().map_err(|e| self.name_in(e))?;
@@ -710,12 +721,18 @@ impl Robot {
             FlashFloor::Grid(grid) => image::ImageFloorSpec::Grid(*grid),
             FlashFloor::Map(tags) => image::ImageFloorSpec::Map(tags),
         };
-        let len = image::encode(&pilot, &encoded, &mut bytes)
+        let telemetry_every_ticks = self
+            .file
+            .telemetry
+            .every_ticks()
+            .map_err(|e| self.name_in(e))?;
+        let len = image::encode(&pilot, telemetry_every_ticks, &encoded, &mut bytes)
             .map_err(|e| robot_error(&self.path, "floor", e.to_string()))?;
         bytes.truncate(len);
         Ok(FlashImage {
             pilot,
             floor,
+            telemetry_every_ticks,
             bytes,
         })
     }

@@ -64,6 +64,11 @@ pub struct Scenario {
     /// What the tracker does when fixes stop.
     #[serde(default)]
     pub failsafe: FailsafeSpec,
+    /// The firmware's telemetry decimation: the default of `firmware-sim
+    /// hil --telemetry-every` (without it, 1). Filled in from the robot
+    /// file's `[telemetry]` when the scenario names a robot.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub telemetry: Option<TelemetrySpec>,
     /// Noise and misses on the position fix (`exact` and `nearest_tag`
     /// sources).
     #[serde(default, skip_serializing_if = "MeasurementSpec::is_default")]
@@ -81,6 +86,43 @@ pub struct Scenario {
     /// only `corrupt_byte_probability`, `drop_frame_probability`, `seed`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub robot: Option<RobotSource>,
+}
+
+/// The firmware's telemetry record stream (`[telemetry]`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TelemetrySpec {
+    /// A telemetry record every this many control ticks, 1 to 65535 (the
+    /// Black Pill's default, `TELEMETRY_EVERY_TICKS`: 10, 10 Hz at 10 ms).
+    #[serde(default = "defaults::telemetry_every_ticks")]
+    pub every_ticks: u64,
+}
+
+impl Default for TelemetrySpec {
+    fn default() -> Self {
+        Self {
+            every_ticks: defaults::telemetry_every_ticks(),
+        }
+    }
+}
+
+impl TelemetrySpec {
+    /// The decimation, checked: 1 to 65535 (the link's and the image's
+    /// `u16`; 0 would be no telemetry).
+    ///
+    /// # Errors
+    /// [`super::ScenarioError::Invalid`] naming `telemetry.every_ticks`.
+    pub fn every_ticks(&self) -> Result<u16, super::ScenarioError> {
+        u16::try_from(self.every_ticks)
+            .ok()
+            .filter(|n| *n >= 1)
+            .ok_or_else(|| {
+                super::ScenarioError::invalid(
+                    "telemetry.every_ticks",
+                    format!("must be 1 to 65535 ticks (got {})", self.every_ticks),
+                )
+            })
+    }
 }
 
 /// One tag of a tag-map floor (`[[floor_tags]]`).

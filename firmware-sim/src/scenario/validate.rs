@@ -344,6 +344,9 @@ impl Scenario {
             ));
         }
         let ticks = ticks as u32;
+        if let Some(telemetry) = &self.telemetry {
+            telemetry.every_ticks()?;
+        }
 
         let trajectory_spec = self.reference.spec()?;
         let trajectory = trajectory_spec.build().map_err(|e| {
