@@ -8,9 +8,12 @@
 //! (`[drive]`, with `[drive.speed_observer]`), law and gains
 //! (`[controller]`), paper 001's observer (`[observer]`), the estimator
 //! (`[estimator]`), the failsafe (`[failsafe]`), its RFID reader
-//! (`[reader]`) and the floor it runs on (`[floor]`: a tag grid, or a tag
-//! map file of `id,x_m,y_m` rows). Every key means what the scenario key
-//! of the same name means, and the same code checks it.
+//! (`[reader]`), the floor it runs on (`[floor]`: a tag grid, or a tag
+//! map file of `id,x_m,y_m` rows) and its firmware's telemetry decimation
+//! (`[telemetry] every_ticks`, default 10: the flashed Black Pill's, and
+//! `firmware-sim hil`'s default of `--telemetry-every`). Every key means
+//! what the scenario key of the same name means, and the same code checks
+//! it.
 //!
 //! A scenario names its robot (`robot = "robots/example.toml"`, relative to
 //! the scenario file) or embeds it (`[robot]` with the same keys). The
