@@ -26,7 +26,7 @@ use embedded_hal::pwm::{self, SetDutyCycle};
 use wmr_core::devices::{QuadratureCounter, TagId, encode_frame};
 
 use crate::plant::PlantPose;
-use crate::tags::FloorTags;
+use crate::tags::Floor;
 
 // ---------------------------------------------------------------------------
 // Motors: PWM + direction pin.
@@ -423,7 +423,7 @@ pub struct ReaderModelCounters {
 #[derive(Debug)]
 pub struct VirtualRfidReader {
     config: ReaderConfig,
-    floor: FloorTags,
+    floor: Floor,
     line: Rc<RefCell<SerialLine>>,
     /// Line idle from this time on, s.
     busy_until_s: f64,
@@ -436,7 +436,7 @@ pub struct VirtualRfidReader {
 impl VirtualRfidReader {
     /// A reader over `floor`, and the UART at the other end of its line.
     #[must_use]
-    pub fn new(config: ReaderConfig, floor: FloorTags) -> (Self, VirtualUart) {
+    pub fn new(config: ReaderConfig, floor: Floor) -> (Self, VirtualUart) {
         let line = Rc::new(RefCell::new(SerialLine::default()));
         let uart = VirtualUart {
             line: Rc::clone(&line),
@@ -576,8 +576,10 @@ mod tests {
     use wmr_core::devices::{RfidReader, TagLocator};
     use wmr_core::odometry::WrappingCounter;
 
-    fn floor() -> FloorTags {
-        FloorTags::covering(0.1, [0.0, 0.0], [-1.0, -1.0], [1.0, 1.0]).unwrap()
+    use crate::tags::FloorTags;
+
+    fn floor() -> Floor {
+        Floor::Grid(FloorTags::covering(0.1, [0.0, 0.0], [-1.0, -1.0], [1.0, 1.0]).unwrap())
     }
 
     #[test]

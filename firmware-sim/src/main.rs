@@ -82,8 +82,10 @@ enum Command {
         no_plot: bool,
         /// A telemetry record on the firmware's log every N ticks (0:
         /// none); `firmware-sim plot OUT/firmware.log` reads them back.
-        #[arg(long, value_name = "N", default_value_t = firmware_sim::hil::DEFAULT_TELEMETRY_EVERY_TICKS)]
-        telemetry_every: u16,
+        /// Default: the scenario's `telemetry.every_ticks` (its robot
+        /// file's, when it names one), else 1 (every tick).
+        #[arg(long, value_name = "N")]
+        telemetry_every: Option<u16>,
         /// Also copy the decoded firmware log (OUT/firmware.log) to FILE.
         #[arg(long, value_name = "FILE")]
         firmware_log: Option<PathBuf>,
@@ -340,9 +342,10 @@ fn real_main() -> anyhow::Result<()> {
                 FlashFloor::Map(tags) => format!("tag map of {} tags", tags.len()),
             };
             outln!(
-                "{}: {} B image ({floor}) -> {}",
+                "{}: {} B image ({floor}, telemetry every {} ticks) -> {}",
                 robot.display(),
                 image.bytes.len(),
+                image.telemetry_every_ticks,
                 out.display()
             );
             // Read by `cargo xtask firmware --robot`.
@@ -399,7 +402,10 @@ fn real_main() -> anyhow::Result<()> {
                 log: Some(out.join("firmware.defmt")),
                 answer_timeout: std::time::Duration::from_secs_f64(timeout_s),
                 faults: link_faults.map(LinkFaultSpec::soak),
-                telemetry_every_ticks: telemetry_every,
+                telemetry_every_ticks: match telemetry_every {
+                    Some(n) => n,
+                    None => firmware_sim::hil::default_telemetry_every_ticks(&scenario)?,
+                },
             };
             let bar = progress_bar(&scenario, 0.0)?;
             let run = run_hil(&scenario, &options, |done, _| bar.set_position(done));

@@ -1,4 +1,6 @@
-//! The simulated floor: a regular grid of RFID tags.
+//! The simulated floor: a regular grid of RFID tags ([`FloorTags`]), or a
+//! robot file's surveyed tags with arbitrary ids ([`MapFloor`]); a reader
+//! sees either as a [`Floor`].
 //!
 //! Tags lie at `offset + (i·spacing, j·spacing)` for integers `i, j`, over a
 //! rectangle that covers the scenario. Ids use the core's grid encoding
@@ -7,7 +9,9 @@
 //! plus the one thing the robot never does: finding the tag nearest to a
 //! point (O(1), by rounding to the grid).
 
-use wmr_core::devices::{TagGrid, TagGridError, TagId, TagLocator};
+use std::sync::Arc;
+
+use wmr_core::devices::{TagGrid, TagGridError, TagId, TagLocator, TagMap, TagMapError};
 use wmr_core::geometry::Vec2;
 
 /// Why a floor grid could not be laid.
@@ -174,6 +178,151 @@ impl TagLocator for FloorTags {
     }
 }
 
+/// Most tags a [`MapFloor`] holds: the flash image's table
+/// (`scenario::robot::MAX_MAPPED_TAGS`).
+pub const MAX_MAP_TAGS: usize = 4096;
+
+/// The robot's table of a tag-map floor: the core's [`TagMap`] (binary
+/// search over sorted ids, `f32` positions: the lookup the Black Pill's
+/// image table makes, `wmr_link::image::ImageTags`).
+pub type MapTable = TagMap<MAX_MAP_TAGS>;
+
+/// A floor of surveyed tags with arbitrary ids (a robot file's
+/// `floor.kind = "tag_map"`).
+///
+/// The reader model sees each tag at its surveyed position (`f64`); the
+/// robot resolves the id it reads through [`MapTable`], the position
+/// rounded to `f32` as in the firmware's flash table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapFloor {
+    /// `(id, [x, y])`, m, sorted by id.
+    tags: Vec<(TagId, [f64; 2])>,
+    table: Box<MapTable>,
+}
+
+impl MapFloor {
+    /// The floor of `tags` (`(id, [x, y])`, m, any order).
+    ///
+    /// # Errors
+    /// The core's [`TagMap`] refusal: more than [`MAX_MAP_TAGS`] tags, a
+    /// duplicate id or a position that is not finite in `f32`; or no tags
+    /// ([`TagMapError::Full`] is never returned for that: `None` is).
+    pub fn new(tags: &[(TagId, [f64; 2])]) -> Result<Option<Self>, TagMapError> {
+        if tags.is_empty() {
+            return Ok(None);
+        }
+        let mut table = Box::new(MapTable::new());
+        for &(id, [x, y]) in tags {
+            table.insert(id, Vec2::new(x as f32, y as f32))?;
+        }
+        let mut tags = tags.to_vec();
+        tags.sort_by_key(|t| t.0.0);
+        Ok(Some(Self { tags, table }))
+    }
+
+    /// Number of tags.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.tags.len()
+    }
+
+    /// Whether there are none (never: [`Self::new`] refuses an empty map).
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.tags.is_empty()
+    }
+
+    /// The robot's table.
+    #[must_use]
+    pub fn table(&self) -> &MapTable {
+        &self.table
+    }
+
+    /// The tag nearest to `(x_m, y_m)` (Euclidean; of equally near tags the
+    /// lowest id), as [`FloorTags::nearest`] finds it on a grid.
+    #[must_use]
+    pub fn nearest(&self, x_m: f64, y_m: f64) -> FloorTag {
+        let mut best: Option<(TagId, f64)> = None;
+        for &(id, [tx, ty]) in &self.tags {
+            let d = (tx - x_m).hypot(ty - y_m);
+            if best.is_none_or(|(_, b)| d < b) {
+                best = Some((id, d));
+            }
+        }
+        let (id, distance_m) = best.unwrap_or((TagId(0), f64::INFINITY));
+        FloorTag {
+            id,
+            position: self.table.position(id).unwrap_or_default(),
+            distance_m,
+        }
+    }
+}
+
+/// The floor a reader sees and the robot looks its ids up in: a grid or a
+/// tag map.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Floor {
+    /// A regular grid, ids in the core's grid encoding.
+    Grid(FloorTags),
+    /// Surveyed tags with arbitrary ids (shared: one per scenario).
+    Map(Arc<MapFloor>),
+}
+
+impl Floor {
+    /// The tag nearest to `(x_m, y_m)`.
+    #[must_use]
+    pub fn nearest(&self, x_m: f64, y_m: f64) -> FloorTag {
+        match self {
+            Self::Grid(grid) => grid.nearest(x_m, y_m),
+            Self::Map(map) => map.nearest(x_m, y_m),
+        }
+    }
+
+    /// Number of tags on the floor.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        match self {
+            Self::Grid(grid) => grid.len(),
+            Self::Map(map) => map.len(),
+        }
+    }
+
+    /// Whether the floor has no tags (never).
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The grid's spacing, m (`None` for a tag map).
+    #[must_use]
+    pub fn spacing_m(&self) -> Option<f64> {
+        match self {
+            Self::Grid(grid) => Some(grid.spacing_m()),
+            Self::Map(_) => None,
+        }
+    }
+
+    /// The grid (`None` for a tag map).
+    #[must_use]
+    pub fn grid(&self) -> Option<&FloorTags> {
+        match self {
+            Self::Grid(grid) => Some(grid),
+            Self::Map(_) => None,
+        }
+    }
+}
+
+impl TagLocator for Floor {
+    /// The core's grid or the core's tag map: what the robot's firmware
+    /// looks the id up in.
+    fn locate(&self, id: TagId) -> Option<Vec2> {
+        match self {
+            Self::Grid(grid) => grid.locate(id),
+            Self::Map(map) => map.table().position(id),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -215,5 +364,48 @@ mod tests {
             FloorTags::covering(1e-4, [0.0; 2], [0.0; 2], [10.0; 2]),
             Err(FloorError::TooLarge { .. })
         ));
+    }
+
+    #[test]
+    fn a_map_finds_what_the_grid_finds() {
+        // The grid's tags under other ids: the same nearest tag, distance
+        // and position everywhere.
+        let grid = FloorTags::covering(0.1, [0.0, 0.0], [-0.5, -0.3], [0.5, 0.3]).unwrap();
+        let tags: Vec<(TagId, [f64; 2])> = (0..grid.grid().rows())
+            .flat_map(|row| (0..grid.grid().columns()).map(move |column| (row, column)))
+            .enumerate()
+            .map(|(n, (row, column))| {
+                let p = grid.grid().position(TagGrid::id(row, column)).unwrap();
+                (TagId(1000 - n as u64), [f64::from(p.x), f64::from(p.y)])
+            })
+            .collect();
+        let map = MapFloor::new(&tags).unwrap().unwrap();
+        assert_eq!(map.len(), grid.len());
+        for (x, y) in [(0.26, -0.04), (-0.49, 0.29), (0.013, 0.151), (3.0, -4.0)] {
+            let (g, m) = (grid.nearest(x, y), map.nearest(x, y));
+            assert_eq!(g.position, m.position, "at ({x}, {y})");
+            assert!((g.distance_m - m.distance_m).abs() < 1e-6);
+            assert_eq!(
+                Floor::Map(Arc::new(map.clone())).locate(m.id),
+                Some(m.position)
+            );
+        }
+        assert_eq!(Floor::Map(Arc::new(map)).locate(TagId(1001)), None);
+    }
+
+    #[test]
+    fn a_bad_map_is_refused_by_the_core() {
+        let t = |id, x| (TagId(id), [x, 0.0]);
+        assert_eq!(MapFloor::new(&[]), Ok(None));
+        assert_eq!(
+            MapFloor::new(&[t(1, 0.0), t(1, 1.0)]),
+            Err(TagMapError::DuplicateId)
+        );
+        assert_eq!(
+            MapFloor::new(&[t(1, 1e300)]),
+            Err(TagMapError::NonFinitePosition)
+        );
+        let many: Vec<_> = (0..=MAX_MAP_TAGS as u64).map(|i| t(i, 0.0)).collect();
+        assert_eq!(MapFloor::new(&many), Err(TagMapError::Full));
     }
 }

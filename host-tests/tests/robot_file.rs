@@ -109,6 +109,18 @@ fn errors_name_the_file_the_key_and_the_reason() {
             "reader",
             "antenna",
         ),
+        (
+            "every_ticks = 10",
+            "every_ticks = 0",
+            "telemetry.every_ticks",
+            "must be 1 to 65535 ticks (got 0)",
+        ),
+        (
+            "every_ticks = 10",
+            "every_ticks = 65536",
+            "telemetry.every_ticks",
+            "must be 1 to 65535 ticks (got 65536)",
+        ),
     ];
     for (from, to, key, reason) in cases {
         assert!(example.contains(from), "{from}");
@@ -152,6 +164,27 @@ fn errors_name_the_file_the_key_and_the_reason() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("`observer`") && e.contains("robot"), "{e}");
+    // A position key other than the reader's faults is the robot's.
+    for (table, key) in [
+        (
+            "kind = \"reader\"\nspacing_m = 0.2\nseed = 3",
+            "position.spacing_m",
+        ),
+        ("kind = \"reader\"\nmode = \"range\"", "position.mode"),
+        ("kind = \"nearest_tag\"", "position.kind"),
+    ] {
+        let scenario = std::fs::read_to_string(robots().join("figure_eight.toml")).unwrap()
+            + "\n[position]\n"
+            + table
+            + "\n";
+        let e = Scenario::from_toml_str_in(&scenario, file.parent())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("`{key}`")) && e.contains("robot"),
+            "{e}"
+        );
+    }
     // A tag map: 40-bit ids, no duplicates.
     let map = dir.join("tags.csv");
     std::fs::write(&map, "id,x_m,y_m\n1,0,0\n1,1,1\n").unwrap();
@@ -184,6 +217,8 @@ fn the_blackpill_robot_file_is_the_boards_default() {
         .flash_image()
         .unwrap();
     let p = image.pilot;
+    // TELEMETRY_EVERY_TICKS.
+    assert_eq!(image.telemetry_every_ticks, 10);
     assert_eq!(p.tracker.period_s, 0.01);
     assert_eq!(p.tracker.gains, [0.11, 0.11, 0.1]);
     assert_eq!(p.tracker.observer_gain_per_m, 0.6);
@@ -275,9 +310,24 @@ fn build_blackpill_with(image: &Path) -> PathBuf {
 /// same pilot spec and the same tags as what `firmware-sim` parses.
 #[test]
 fn the_flashed_configuration_is_the_simulators() {
-    let robot = Robot::from_file(&robots().join("blackpill.toml")).unwrap();
-    let expected = robot.flash_image().unwrap();
+    // The Black Pill's robot with its telemetry at 25 ticks (not the
+    // board's constant 10): the image carries the robot file's.
     let dir = temp_dir("flash");
+    let text = std::fs::read_to_string(robots().join("blackpill.toml")).unwrap();
+    assert!(text.contains("every_ticks = 10"));
+    std::fs::write(
+        dir.join("blackpill.toml"),
+        text.replace("every_ticks = 10", "every_ticks = 25"),
+    )
+    .unwrap();
+    std::fs::copy(
+        robots().join("blackpill_tags.csv"),
+        dir.join("blackpill_tags.csv"),
+    )
+    .unwrap();
+    let robot = Robot::from_file(&dir.join("blackpill.toml")).unwrap();
+    let expected = robot.flash_image().unwrap();
+    assert_eq!(expected.telemetry_every_ticks, 25);
     let image_file = dir.join("blackpill.robot");
     std::fs::write(&image_file, &expected.bytes).unwrap();
     let elf = std::fs::read(build_blackpill_with(&image_file)).unwrap();
@@ -302,6 +352,7 @@ fn the_flashed_configuration_is_the_simulators() {
     let (bytes, image) = &decoded[0];
     assert_eq!(*bytes, expected.bytes.as_slice());
     assert_eq!(image.pilot, expected.pilot);
+    assert_eq!(image.telemetry_every_ticks, 25);
     assert!(image.pilot.build().is_ok());
     let ImageFloor::Map(tags) = image.floor else {
         panic!("a tag map")
@@ -322,4 +373,225 @@ fn the_flashed_configuration_is_the_simulators() {
             Some(wmr_core::geometry::Vec2::new(*x, *y))
         );
     }
+}
+
+/// A robot on `floor` (the `[floor]` table's body) with its reader in
+/// `mode` (8 cm read radius in `range` mode), tracking a 1 m circle for 60 s: the scenario file, in `dir`.
+fn circle_robot(dir: &Path, name: &str, mode: &str, floor: &str) -> PathBuf {
+    let example = std::fs::read_to_string(robots().join("example.toml")).unwrap();
+    let grid = "kind = \"grid\"\nspacing_m = 0.1\noffset_m = [0.0, 0.0]";
+    assert!(example.contains(grid) && example.contains("mode = \"paper\""));
+    let robot = example.replace(grid, floor).replace(
+        "mode = \"paper\"",
+        &format!("mode = \"{mode}\"\nread_radius_m = 0.08"),
+    );
+    std::fs::write(dir.join(format!("{name}.toml")), robot).unwrap();
+    let scenario = format!(
+        "name = \"{name}\"\nduration_s = 60.0\ntransient_s = 10.0\nrobot = \"{name}.toml\"\n\n\
+         [reference]\nkind = \"circle\"\nradius_m = 1.0\nrate_rad_s = 0.2\n\n\
+         [initial]\nx_m = 1.02\ny_m = -0.01\nheading_rad = 1.5707963267948966\n"
+    );
+    let file = dir.join(format!("{name}-scenario.toml"));
+    std::fs::write(&file, scenario).unwrap();
+    file
+}
+
+/// `run.csv` and `summary.json` of `result`, the summary without its
+/// scenario name and wall time.
+fn outputs(dir: &Path, result: &firmware_sim::RunResult) -> (Vec<u8>, String) {
+    std::fs::create_dir_all(dir).unwrap();
+    let (csv, json) = (dir.join("run.csv"), dir.join("summary.json"));
+    firmware_sim::output::write_csv(&csv, &result.records).unwrap();
+    firmware_sim::output::write_summary(&json, &result.summary).unwrap();
+    let summary = std::fs::read_to_string(json).unwrap();
+    let summary: Vec<&str> = summary
+        .lines()
+        .filter(|l| !l.contains("\"scenario\":") && !l.contains("\"wall_time_s\":"))
+        .collect();
+    assert!(summary.len() > 20, "a summary");
+    (std::fs::read(csv).unwrap(), summary.join("\n"))
+}
+
+/// Issue 18: a tag-map floor (`floor.kind = "tag_map"`, arbitrary ids) that
+/// lays out the tags of a grid runs as that grid: the reader reads the
+/// same tag (nearest; within the read radius in `range` mode) and the
+/// robot resolves the map's id to the same position, so `run.csv` (which
+/// has no ids) is the same byte for byte, and so is `summary.json` (tag
+/// count, reader and core counters included). The grid's spacing,
+/// 12.5 cm, and lattice are exact in `f32` and `f64`, so the map's
+/// positions are the grid's to the bit.
+#[test]
+fn a_tag_map_floor_runs_as_the_grid_it_lays_out() {
+    use firmware_sim::scenario::PositionSetup;
+    use firmware_sim::tags::Floor;
+    use wmr_core::devices::TagGrid;
+    use wmr_core::geometry::Vec2;
+
+    let dir = temp_dir("tag-map-as-grid");
+    for mode in ["paper", "range"] {
+        let grid_file = circle_robot(
+            &dir,
+            &format!("grid-{mode}"),
+            mode,
+            "kind = \"grid\"\nspacing_m = 0.125",
+        );
+        let grid = Scenario::from_file(&grid_file).unwrap();
+        let PositionSetup::Reader(Floor::Grid(floor), _) = grid.validate().unwrap().position else {
+            panic!("a grid reader")
+        };
+        let (lo, _) = floor.bounds();
+        let mut csv = String::from("id,x_m,y_m\n");
+        let mut n = 0_u64;
+        for row in 0..floor.grid().rows() {
+            for column in 0..floor.grid().columns() {
+                let (x, y) = (
+                    lo[0] + f64::from(column) * 0.125,
+                    lo[1] + f64::from(row) * 0.125,
+                );
+                let at = floor.grid().position(TagGrid::id(row, column)).unwrap();
+                assert_eq!(at, Vec2::new(x as f32, y as f32), "exact lattice");
+                // Arbitrary, distinct 40-bit ids (an odd multiplier is a
+                // bijection modulo 2^40).
+                let id = (n.wrapping_mul(0x9E37_79B9) + 0x0001_2345_6789) & TagId::MASK;
+                csv += &format!("{id:#x},{x},{y}\n");
+                n += 1;
+            }
+        }
+        std::fs::write(dir.join(format!("map-{mode}.csv")), csv).unwrap();
+        let map_file = circle_robot(
+            &dir,
+            &format!("map-{mode}"),
+            mode,
+            &format!("kind = \"tag_map\"\nfile = \"map-{mode}.csv\""),
+        );
+        let map = Scenario::from_file(&map_file).unwrap();
+        assert_eq!(map.floor_tags.len(), floor.len());
+        let a = run(&grid, |_, _| {}).unwrap();
+        let b = run(&map, |_, _| {}).unwrap();
+        let (csv_a, summary_a) = outputs(&dir.join(format!("out-grid-{mode}")), &a);
+        let (csv_b, summary_b) = outputs(&dir.join(format!("out-map-{mode}")), &b);
+        assert!(csv_a == csv_b, "{mode}: run.csv differs");
+        assert!(summary_a == summary_b, "{mode}:\n{summary_a}\n{summary_b}");
+        // Not a vacuous run: the reader read map tags, the robot knew them.
+        let rfid = b.summary.rfid.unwrap();
+        assert!(rfid.frames_ok > 100, "{mode}: {} frames", rfid.frames_ok);
+        assert_eq!(rfid.unknown_tags, 0, "{mode}");
+        assert!(
+            b.summary.rms_error_m < 0.1,
+            "{mode}: {}",
+            b.summary.rms_error_m
+        );
+    }
+}
+
+/// The example tag-map robot (`robots/surveyed.toml`, 364 surveyed tags
+/// with arbitrary ids) tracks its circle on the map's fixes, and the HIL
+/// link, which carries a tag grid only, refuses it naming why.
+#[test]
+fn the_surveyed_robot_tracks_on_its_tag_map() {
+    let scenario = Scenario::from_file(&robots().join("circle_surveyed.toml")).unwrap();
+    assert_eq!(scenario.floor_tags.len(), 364);
+    let result = run(&scenario, |_, _| {}).unwrap();
+    let rfid = result.summary.rfid.unwrap();
+    assert!(rfid.frames_ok > 1000, "{} frames", rfid.frames_ok);
+    assert_eq!(rfid.unknown_tags, 0);
+    assert_eq!(result.summary.floor_tags, Some(364));
+    // Tracking after the transient within 1 cm (4.5 mm rms when written).
+    assert!(
+        result.summary.rms_error_m < 0.01,
+        "{}",
+        result.summary.rms_error_m
+    );
+    let e = firmware_sim::simulation::hil_configuration(&scenario.validate().unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("tag grid") && e.contains("tag_map"), "{e}");
+}
+
+/// Issue 18: reader faults are the experiment's. A scenario naming its
+/// robot keeps `position`'s fault keys, and they change the counters
+/// exactly as in the same scenario with the robot written inline
+/// (`figure_eight_rfid_full_stack`): same records, same reader and core
+/// counters, bit for bit, and not those of the run without faults.
+#[test]
+fn reader_faults_in_a_scenario_naming_its_robot_are_kept() {
+    let faults = "\n[position]\nkind = \"reader\"\ncorrupt_byte_probability = 0.01\n\
+                  drop_frame_probability = 0.2\nseed = 7\n";
+    let text = std::fs::read_to_string(robots().join("figure_eight.toml")).unwrap();
+    let mut named = Scenario::from_toml_str_in(&(text.clone() + faults), Some(&robots())).unwrap();
+    let mut clean = Scenario::from_toml_str_in(&text, Some(&robots())).unwrap();
+    let mut inline = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    let firmware_sim::scenario::PositionSpec::Reader {
+        corrupt_byte_probability,
+        drop_frame_probability,
+        seed,
+        ..
+    } = &mut inline.position
+    else {
+        panic!("a reader")
+    };
+    (*corrupt_byte_probability, *drop_frame_probability, *seed) = (0.01, 0.2, 7);
+    for s in [&mut named, &mut clean, &mut inline] {
+        s.duration_s = 60.0;
+        s.transient_s = 10.0;
+    }
+    assert_eq!(named.position, inline.position);
+    let (a, b, c) = (
+        run(&named, |_, _| {}).unwrap(),
+        run(&inline, |_, _| {}).unwrap(),
+        run(&clean, |_, _| {}).unwrap(),
+    );
+    let (ra, rb, rc) = (
+        a.summary.rfid.unwrap(),
+        b.summary.rfid.unwrap(),
+        c.summary.rfid.unwrap(),
+    );
+    assert_eq!(ra, rb);
+    assert!(a.records == b.records, "the records differ");
+    // The faults did something: frames dropped, bytes corrupted, bad
+    // checksums, none of which the clean run has.
+    assert!(ra.reader.frames_dropped > 100, "{ra:?}");
+    assert!(ra.reader.bytes_corrupted > 100, "{ra:?}");
+    assert!(ra.bad_checksum + ra.malformed > 0, "{ra:?}");
+    assert_eq!(
+        (
+            rc.reader.frames_dropped,
+            rc.reader.bytes_corrupted,
+            rc.bad_checksum
+        ),
+        (0, 0, 0)
+    );
+    assert!(ra.frames_ok < rc.frames_ok);
+}
+
+/// Issue 18: `firmware-sim hil` records telemetry every
+/// `telemetry.every_ticks` of the scenario's robot unless
+/// `--telemetry-every` says otherwise; without a robot (or `[telemetry]`),
+/// every tick, as before.
+#[test]
+fn hil_telemetry_defaults_to_the_robots() {
+    use firmware_sim::hil::{DEFAULT_TELEMETRY_EVERY_TICKS, default_telemetry_every_ticks};
+    let named = Scenario::from_file(&robots().join("figure_eight.toml")).unwrap();
+    assert_eq!(default_telemetry_every_ticks(&named).unwrap(), 10);
+    let text = std::fs::read_to_string(robots().join("example.toml")).unwrap();
+    let dir = temp_dir("telemetry");
+    std::fs::write(
+        dir.join("example.toml"),
+        text.replace("every_ticks = 10", "every_ticks = 4"),
+    )
+    .unwrap();
+    let scenario = std::fs::read_to_string(robots().join("figure_eight.toml")).unwrap();
+    let four = Scenario::from_toml_str_in(&scenario, Some(&dir)).unwrap();
+    assert_eq!(default_telemetry_every_ticks(&four).unwrap(), 4);
+    // A scenario may not set the robot's telemetry.
+    let e =
+        Scenario::from_toml_str_in(&(scenario + "\n[telemetry]\nevery_ticks = 2\n"), Some(&dir))
+            .unwrap_err()
+            .to_string();
+    assert!(e.contains("`telemetry`") && e.contains("robot"), "{e}");
+    let plain = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    assert_eq!(
+        default_telemetry_every_ticks(&plain).unwrap(),
+        DEFAULT_TELEMETRY_EVERY_TICKS
+    );
 }

@@ -7,7 +7,8 @@
 //! fails here, naming the file, key and reason), the tag map's capacity
 //! checked, and the image written (`wmr_link::image`). The firmware's
 //! `build.rs` then includes the image (`WMR_ROBOT_IMAGE`), which replaces
-//! the board's compiled-in `PILOT` and tag table. The cargo features the
+//! the board's compiled-in `PILOT`, tag table and telemetry decimation
+//! (`TELEMETRY_EVERY_TICKS`: the robot file's `[telemetry] every_ticks`). The cargo features the
 //! robot needs (the wheel-speed observer, the fusion estimator's UKF or
 //! particle filter) are the ones `robot-image` prints.
 

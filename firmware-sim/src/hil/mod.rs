@@ -75,6 +75,20 @@ pub fn firmware_features(pilot: &PilotSpec) -> Vec<&'static str> {
     features
 }
 
+/// The telemetry decimation of a HIL run of `scenario` when none is asked
+/// for (`firmware-sim hil` without `--telemetry-every`): the scenario's
+/// `telemetry.every_ticks` (its robot file's, when it names one), else
+/// [`DEFAULT_TELEMETRY_EVERY_TICKS`].
+///
+/// # Errors
+/// `telemetry.every_ticks` out of range (not 1 to 65535).
+pub fn default_telemetry_every_ticks(scenario: &Scenario) -> anyhow::Result<u16> {
+    Ok(match &scenario.telemetry {
+        Some(t) => t.every_ticks()?,
+        None => DEFAULT_TELEMETRY_EVERY_TICKS,
+    })
+}
+
 /// Runs `scenario` with its control tick in the firmware under QEMU (built
 /// with the [`firmware_features`] it needs, unless `options.firmware`
 /// names an ELF).

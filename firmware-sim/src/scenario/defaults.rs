@@ -102,3 +102,7 @@ pub fn decel_m_s2() -> f64 {
 pub fn yes() -> bool {
     true
 }
+/// The Black Pill's `TELEMETRY_EVERY_TICKS` (`firmware/src/board/blackpill.rs`).
+pub fn telemetry_every_ticks() -> u64 {
+    10
+}

@@ -51,9 +51,9 @@ mod tests;
 pub use error::ScenarioError;
 pub(crate) use error::{non_negative, positive};
 pub use schema::{
-    ControllerKind, ControllerSpec, DriveSpec, DynamicsSpec, FailsafeSpec, InitialSpec,
-    MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec, ReferenceSpec,
-    Scenario, SpeedObserverSpec,
+    ControllerKind, ControllerSpec, DriveSpec, DynamicsSpec, FailsafeSpec, FloorTagSpec,
+    InitialSpec, MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
+    ReferenceSpec, Scenario, SpeedObserverSpec,
 };
 pub use sweep_spec::{
     DEFAULT_EXACT_THRESHOLD_M, DEFAULT_HOLD_FRACTION, DEFAULT_START_RADIUS_M,

@@ -8,16 +8,40 @@
 //! (`[drive]`, with `[drive.speed_observer]`), law and gains
 //! (`[controller]`), paper 001's observer (`[observer]`), the estimator
 //! (`[estimator]`), the failsafe (`[failsafe]`), its RFID reader
-//! (`[reader]`) and the floor it runs on (`[floor]`: a tag grid, or a tag
-//! map file of `id,x_m,y_m` rows). Every key means what the scenario key
-//! of the same name means, and the same code checks it.
+//! (`[reader]`), the floor it runs on (`[floor]`: a tag grid, or a tag
+//! map file of `id,x_m,y_m` rows) and its firmware's telemetry decimation
+//! (`[telemetry] every_ticks`, default 10: the flashed Black Pill's, and
+//! `firmware-sim hil`'s default of `--telemetry-every`). Every key means
+//! what the scenario key of the same name means, and the same code checks
+//! it.
 //!
 //! A scenario names its robot (`robot = "robots/example.toml"`, relative to
 //! the scenario file) or embeds it (`[robot]` with the same keys). The
 //! robot's tables then replace the scenario's: a scenario that also gives
 //! one of them (other than at its default) is refused, naming the key. The
-//! robot's position source is its reader on its floor, without injected
-//! faults.
+//! robot's position source is its reader on its floor.
+//!
+//! Faults injected into the reader's link are the experiment's, not the
+//! robot's: a scenario naming a robot keeps them, written as in a scenario
+//! without one, in its `[position]` table with `kind = "reader"` and only
+//! the fault keys `corrupt_byte_probability`, `drop_frame_probability` and
+//! `seed` (any other `position` key is the robot's: refused, naming it):
+//!
+//! ```toml
+//! robot = "example.toml"
+//! [position]
+//! kind = "reader"
+//! drop_frame_probability = 0.2
+//! seed = 7
+//! ```
+//!
+//! A tag-map floor becomes the scenario's `[[floor_tags]]` rows (the
+//! resolved scenario is self-contained): the simulated reader reads the
+//! map's tag nearest to the antenna (within `read_radius_m` in `range`
+//! mode, the grid's rule) and reports its id; the robot resolves it
+//! through the core's `TagMap` (`crate::tags::MapFloor`), counting ids it
+//! does not know (`rfid.unknown_tags`). The HIL link carries a tag grid
+//! only: `firmware-sim hil` refuses a tag map.
 
 use std::path::Path;
 
@@ -29,8 +53,8 @@ use wmr_link::image;
 use super::defaults;
 use super::error::ScenarioError;
 use super::schema::{
-    ControllerSpec, DriveSpec, FailsafeSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
-    ReferenceSpec, Scenario,
+    ControllerSpec, DriveSpec, FailsafeSpec, FloorTagSpec, ObserverSpec, PlantSpec, PositionSpec,
+    ReaderModeSpec, ReferenceSpec, Scenario, TelemetrySpec,
 };
 
 /// A robot file's top level.
@@ -72,6 +96,11 @@ pub struct RobotFile {
     pub reader: ReaderSpec,
     /// The floor's tags.
     pub floor: FloorSpec,
+    /// The firmware's telemetry records (`every_ticks`, default 10): the
+    /// flashed Black Pill's decimation and `firmware-sim hil`'s default of
+    /// `--telemetry-every`.
+    #[serde(default)]
+    pub telemetry: TelemetrySpec,
 }
 
 /// The robot's RFID reader (the keys of a scenario's `position.kind =
@@ -145,6 +174,99 @@ pub struct MappedTag {
     pub x_m: f64,
     /// Position, m.
     pub y_m: f64,
+}
+
+/// The faults a scenario injects into its robot's reader link (the
+/// scenario's `position.corrupt_byte_probability`,
+/// `position.drop_frame_probability` and `position.seed`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReaderFaults {
+    /// Probability that a byte arrives with a flipped bit.
+    pub corrupt_byte_probability: f64,
+    /// Probability that a frame is lost.
+    pub drop_frame_probability: f64,
+    /// Seed of the fault RNG.
+    pub seed: u64,
+}
+
+impl Default for ReaderFaults {
+    /// None (the seed at its default).
+    fn default() -> Self {
+        Self {
+            corrupt_byte_probability: 0.0,
+            drop_frame_probability: 0.0,
+            seed: defaults::seed(),
+        }
+    }
+}
+
+impl ReaderFaults {
+    /// The fault keys of a scenario's `position` table; the error names
+    /// the first other key given (other than at its default), which is the
+    /// robot's. `Exact` (no `[position]` table) is no fault.
+    fn of_scenario(position: &PositionSpec, robot: &str) -> Result<Self, ScenarioError> {
+        let PositionSpec::Reader {
+            corrupt_byte_probability,
+            drop_frame_probability,
+            seed,
+            ..
+        } = *position
+        else {
+            return match position {
+                PositionSpec::Exact => Ok(Self::default()),
+                _ => Err(ScenarioError::invalid(
+                    "position.kind",
+                    format!(
+                        "the scenario's robot ({robot}) reads its own floor: a scenario naming \
+                         a robot gives only kind = \"reader\" and the reader's fault keys"
+                    ),
+                )),
+            };
+        };
+        let faults = Self {
+            corrupt_byte_probability,
+            drop_frame_probability,
+            seed,
+        };
+        let mut rest = *position;
+        Self::default().write_into(&mut rest);
+        let reader = PositionSpec::reader_defaults();
+        if rest != reader {
+            // Name the first key that differs (both are plain tables).
+            let table = |p: &PositionSpec| toml::Table::try_from(p).unwrap_or_default();
+            let (given, default) = (table(&rest), table(&reader));
+            let key = given
+                .iter()
+                .find(|(k, v)| default.get(*k) != Some(*v))
+                .or_else(|| default.iter().find(|(k, _)| !given.contains_key(*k)))
+                .map_or_else(|| "position".to_owned(), |(k, _)| format!("position.{k}"));
+            return Err(ScenarioError::invalid(
+                &key,
+                format!(
+                    "the scenario's robot ({robot}) sets it: remove it from the scenario (a \
+                     scenario naming a robot keeps only the reader's fault keys \
+                     corrupt_byte_probability, drop_frame_probability and seed)"
+                ),
+            ));
+        }
+        Ok(faults)
+    }
+
+    /// Writes these faults into `position`'s fault keys (a reader's;
+    /// nothing otherwise).
+    fn write_into(self, position: &mut PositionSpec) {
+        if let PositionSpec::Reader {
+            corrupt_byte_probability,
+            drop_frame_probability,
+            seed,
+            ..
+        } = position
+        {
+            *corrupt_byte_probability = self.corrupt_byte_probability;
+            *drop_frame_probability = self.drop_frame_probability;
+            *seed = self.seed;
+        }
+    }
 }
 
 /// A robot file as loaded: its tables and, for a tag-map floor, the map.
@@ -337,17 +459,19 @@ impl Robot {
             plant: PlantSpec::default(),
             drive: None,
             position: PositionSpec::default(),
+            floor_tags: Vec::new(),
             failsafe: FailsafeSpec::default(),
+            telemetry: None,
             measurement: super::MeasurementSpec::default(),
             sweep: None,
             robot: None,
         };
-        self.fill(&mut scenario);
+        self.fill(&mut scenario, ReaderFaults::default());
         scenario
     }
 
-    /// Puts the robot's tables into `scenario`.
-    fn fill(&self, scenario: &mut Scenario) {
+    /// Puts the robot's tables into `scenario`, its reader with `faults`.
+    fn fill(&self, scenario: &mut Scenario, faults: ReaderFaults) {
         let r = &self.file;
         scenario.period_s = r.period_s;
         scenario.plant = r.plant;
@@ -356,6 +480,7 @@ impl Robot {
         scenario.observer = r.observer;
         scenario.estimator = r.estimator;
         scenario.failsafe = r.failsafe;
+        scenario.telemetry = Some(r.telemetry);
         let (spacing_m, offset_m, margin_m, extent_m) = match r.floor {
             FloorSpec::Grid {
                 spacing_m,
@@ -363,9 +488,18 @@ impl Robot {
                 margin_m,
                 extent_m,
             } => (spacing_m, offset_m, margin_m, extent_m),
-            // Refused by `Scenario::resolve_robot` before it gets here.
+            // Not a grid: `floor_tags` is the floor (the grid keys unused).
             FloorSpec::TagMap { .. } => (0.0, [0.0; 2], 0.0, None),
         };
+        scenario.floor_tags = self
+            .tags
+            .iter()
+            .map(|t| FloorTagSpec {
+                id: t.id.0,
+                x_m: t.x_m,
+                y_m: t.y_m,
+            })
+            .collect();
         let reader = r.reader;
         scenario.position = PositionSpec::Reader {
             spacing_m,
@@ -378,9 +512,9 @@ impl Robot {
             antenna_offset_compensated: true,
             baud: reader.baud,
             repeat_interval_s: reader.repeat_interval_s,
-            corrupt_byte_probability: 0.0,
-            drop_frame_probability: 0.0,
-            seed: defaults::seed(),
+            corrupt_byte_probability: faults.corrupt_byte_probability,
+            drop_frame_probability: faults.drop_frame_probability,
+            seed: faults.seed,
         };
     }
 
@@ -390,7 +524,7 @@ impl Robot {
         let (head, rest) = field.split_once('.').unwrap_or((field, ""));
         let robot_key = match head {
             "period_s" | "plant" | "drive" | "controller" | "observer" | "estimator"
-            | "failsafe" => return Some(field.to_owned()),
+            | "failsafe" | "telemetry" => return Some(field.to_owned()),
             "position" => match rest {
                 "spacing_m" | "offset_m" | "margin_m" | "extent_m" => format!("floor.{rest}"),
                 "" => "reader".to_owned(),
@@ -421,9 +555,8 @@ impl Scenario {
     /// robot (to name its file in validation errors: [`Robot::name_in`]).
     ///
     /// # Errors
-    /// The robot file cannot be read or parsed, a tag-map floor (which the
-    /// simulator does not lay out yet), or a robot table also given in the
-    /// scenario.
+    /// The robot file cannot be read or parsed, or a robot table also
+    /// given in the scenario.
     pub fn resolve_robot(&mut self, dir: Option<&Path>) -> Result<Option<Robot>, ScenarioError> {
         let Some(source) = self.robot.take() else {
             return Ok(None);
@@ -443,14 +576,6 @@ impl Scenario {
             }
             RobotSource::Inline(file) => Robot::new(*file, "[robot]".to_owned(), dir)?,
         };
-        if !robot.tags.is_empty() {
-            return Err(robot_error(
-                &robot.path,
-                "floor.kind",
-                "the simulator lays out tag grids only: a tag map can be flashed \
-                 (`cargo xtask firmware --robot`), not simulated yet",
-            ));
-        }
         if !matches!(robot.file.plant, PlantSpec::DiffDrive { .. }) {
             return Err(robot_error(
                 &robot.path,
@@ -469,7 +594,8 @@ impl Scenario {
             ("observer", self.observer != ObserverSpec::default()),
             ("estimator", self.estimator != EstimatorSpec::default()),
             ("failsafe", self.failsafe != FailsafeSpec::default()),
-            ("position", self.position != PositionSpec::default()),
+            ("telemetry", self.telemetry.is_some()),
+            ("floor_tags", !self.floor_tags.is_empty()),
         ];
         if let Some((key, _)) = given.iter().find(|(_, given)| *given) {
             return Err(ScenarioError::invalid(
@@ -480,7 +606,8 @@ impl Scenario {
                 ),
             ));
         }
-        robot.fill(self);
+        let faults = ReaderFaults::of_scenario(&self.position, &robot.path)?;
+        robot.fill(self, faults);
         Ok(Some(robot))
     }
 }
@@ -509,6 +636,8 @@ pub struct FlashImage {
     pub pilot: PilotSpec,
     /// The floor.
     pub floor: FlashFloor,
+    /// A telemetry record every this many ticks (`telemetry.every_ticks`).
+    pub telemetry_every_ticks: u16,
     /// The encoded image ([`wmr_link::image`]).
     pub bytes: Vec<u8>,
 }
@@ -542,6 +671,7 @@ impl Robot {
                 margin_m: defaults::margin_m(),
                 extent_m: None,
             };
+            stand_in.tags.clear();
         }
         let scenario = stand_in.scenario(reference, FLASH_GRID_REFERENCE_S);
         let setup = scenario.validate().map_err(|e| self.name_in(e))?;
@@ -571,8 +701,8 @@ impl Robot {
                 ),
             ));
         }
-        let floor = if self.tags.is_empty() {
-            FlashFloor::Grid(TagGridSpec::of(floor.grid()))
+        let floor = if let (true, Some(grid)) = (self.tags.is_empty(), floor.grid()) {
+            FlashFloor::Grid(TagGridSpec::of(grid.grid()))
         } else {
             pilot.tracker.sensors.tag_spacing_m = 0.0;
             pilot.build().map_err(|e| {
@@ -594,12 +724,18 @@ impl Robot {
             FlashFloor::Grid(grid) => image::ImageFloorSpec::Grid(*grid),
             FlashFloor::Map(tags) => image::ImageFloorSpec::Map(tags),
         };
-        let len = image::encode(&pilot, &encoded, &mut bytes)
+        let telemetry_every_ticks = self
+            .file
+            .telemetry
+            .every_ticks()
+            .map_err(|e| self.name_in(e))?;
+        let len = image::encode(&pilot, telemetry_every_ticks, &encoded, &mut bytes)
             .map_err(|e| robot_error(&self.path, "floor", e.to_string()))?;
         bytes.truncate(len);
         Ok(FlashImage {
             pilot,
             floor,
+            telemetry_every_ticks,
             bytes,
         })
     }

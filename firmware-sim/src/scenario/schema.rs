@@ -52,9 +52,23 @@ pub struct Scenario {
     /// Where the position measurement comes from.
     #[serde(default)]
     pub position: PositionSpec,
+    /// The floor of a robot whose floor is a tag map (`floor.kind =
+    /// "tag_map"`), as `[[floor_tags]]` rows `id`, `x_m`, `y_m`: filled in
+    /// from the robot's map when the scenario names the robot, so that the
+    /// resolved scenario (a sweep run's `scenario.toml`, a shard's
+    /// manifest) is self-contained. Given, the reader
+    /// (`position.kind = "reader"` only) reads these tags and the robot
+    /// looks the ids up in them; `position`'s grid keys are not used.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub floor_tags: Vec<FloorTagSpec>,
     /// What the tracker does when fixes stop.
     #[serde(default)]
     pub failsafe: FailsafeSpec,
+    /// The firmware's telemetry decimation: the default of `firmware-sim
+    /// hil --telemetry-every` (without it, 1). Filled in from the robot
+    /// file's `[telemetry]` when the scenario names a robot.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub telemetry: Option<TelemetrySpec>,
     /// Noise and misses on the position fix (`exact` and `nearest_tag`
     /// sources).
     #[serde(default, skip_serializing_if = "MeasurementSpec::is_default")]
@@ -67,9 +81,60 @@ pub struct Scenario {
     /// robot file's, `firmware-sim schema`). Its tables (`period_s`,
     /// `plant`, `drive`, `controller`, `observer`, `estimator`,
     /// `failsafe`, and `position` from its reader and floor) replace the
-    /// scenario's, which must then be left out.
+    /// scenario's, which must then be left out, except the reader's fault
+    /// keys (the experiment's): `[position]` with `kind = "reader"` and
+    /// only `corrupt_byte_probability`, `drop_frame_probability`, `seed`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub robot: Option<RobotSource>,
+}
+
+/// The firmware's telemetry record stream (`[telemetry]`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TelemetrySpec {
+    /// A telemetry record every this many control ticks, 1 to 65535 (the
+    /// Black Pill's default, `TELEMETRY_EVERY_TICKS`: 10, 10 Hz at 10 ms).
+    #[serde(default = "defaults::telemetry_every_ticks")]
+    pub every_ticks: u64,
+}
+
+impl Default for TelemetrySpec {
+    fn default() -> Self {
+        Self {
+            every_ticks: defaults::telemetry_every_ticks(),
+        }
+    }
+}
+
+impl TelemetrySpec {
+    /// The decimation, checked: 1 to 65535 (the link's and the image's
+    /// `u16`; 0 would be no telemetry).
+    ///
+    /// # Errors
+    /// [`super::ScenarioError::Invalid`] naming `telemetry.every_ticks`.
+    pub fn every_ticks(&self) -> Result<u16, super::ScenarioError> {
+        u16::try_from(self.every_ticks)
+            .ok()
+            .filter(|n| *n >= 1)
+            .ok_or_else(|| {
+                super::ScenarioError::invalid(
+                    "telemetry.every_ticks",
+                    format!("must be 1 to 65535 ticks (got {})", self.every_ticks),
+                )
+            })
+    }
+}
+
+/// One tag of a tag-map floor (`[[floor_tags]]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FloorTagSpec {
+    /// The id the reader reports (40 bits).
+    pub id: u64,
+    /// Position, m.
+    pub x_m: f64,
+    /// Position, m.
+    pub y_m: f64,
 }
 
 /// The reference trajectory.
@@ -537,16 +602,41 @@ pub enum PositionSpec {
         /// too, as fast as the line carries frames.
         #[serde(default = "defaults::repeat_interval_s")]
         repeat_interval_s: f64,
-        /// Probability that a byte arrives with a flipped bit.
+        /// Probability that a byte arrives with a flipped bit (a fault
+        /// key: a scenario naming a robot keeps it).
         #[serde(default)]
         corrupt_byte_probability: f64,
-        /// Probability that a frame is lost.
+        /// Probability that a frame is lost (a fault key: a scenario
+        /// naming a robot keeps it).
         #[serde(default)]
         drop_frame_probability: f64,
-        /// Seed of the fault RNG.
+        /// Seed of the fault RNG (a fault key: a scenario naming a robot
+        /// keeps it).
         #[serde(default = "defaults::seed")]
         seed: u64,
     },
+}
+
+impl PositionSpec {
+    /// `kind = "reader"` with every other key at its default.
+    #[must_use]
+    pub fn reader_defaults() -> Self {
+        Self::Reader {
+            spacing_m: defaults::spacing_m(),
+            offset_m: [0.0; 2],
+            margin_m: defaults::margin_m(),
+            extent_m: None,
+            mode: ReaderModeSpec::default(),
+            read_radius_m: defaults::read_radius_m(),
+            antenna_offset_m: 0.0,
+            antenna_offset_compensated: defaults::yes(),
+            baud: defaults::baud(),
+            repeat_interval_s: defaults::repeat_interval_s(),
+            corrupt_byte_probability: 0.0,
+            drop_frame_probability: 0.0,
+            seed: defaults::seed(),
+        }
+    }
 }
 
 /// What the tracker does when fixes stop.

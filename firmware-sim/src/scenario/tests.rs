@@ -480,3 +480,11 @@ fn old_estimator_and_law_keys_name_their_new_keys() {
         assert!(e.contains(new), "{old}: {e}");
     }
 }
+
+/// `PositionSpec::reader_defaults` is what `kind = "reader"` alone reads as
+/// (what a scenario naming a robot compares its `[position]` with).
+#[test]
+fn reader_defaults_are_the_readers_serde_defaults() {
+    let parsed: PositionSpec = toml::from_str("kind = \"reader\"").unwrap();
+    assert_eq!(parsed, PositionSpec::reader_defaults());
+}

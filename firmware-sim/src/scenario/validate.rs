@@ -17,7 +17,11 @@ use wmr_core::reference::Trajectory;
 
 use crate::devices::{EncoderGlitches, LinkFaults, ReaderConfig, ReaderMode};
 use crate::plant::{DiffDriveParams, LoadTorque, PlantPose, WheelDynamics};
-use crate::tags::FloorTags;
+use std::sync::Arc;
+
+use wmr_core::devices::TagId;
+
+use crate::tags::{Floor, FloorTags, MapFloor};
 
 use super::defaults;
 use super::error::{ScenarioError, finite, non_negative, positive, probability};
@@ -58,18 +62,18 @@ pub enum PlantSetup {
 }
 
 /// The validated position source.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum PositionSetup {
     /// True position every tick.
     Exact,
     /// Nearest tag every tick, no reader.
     NearestTag(FloorTags),
-    /// Virtual reader + UART + the core's parser and tag grid.
-    Reader(FloorTags, ReaderConfig),
+    /// Virtual reader + UART + the core's parser and tag grid or map.
+    Reader(Floor, ReaderConfig),
 }
 
 /// A validated scenario: the core's configurations and the simulator's models.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Setup {
     /// Control ticks to run.
     pub ticks: u32,
@@ -269,6 +273,12 @@ impl Scenario {
             // No tags: the fusion estimator is refused above.
             PositionSpec::Exact => (0.0, 0.0),
         };
+        // A tag map has no grid spacing (as in the robot's flash image).
+        let spacing_m = if self.floor_tags.is_empty() {
+            spacing_m
+        } else {
+            0.0
+        };
         let (track_width_m, floor_m2) = match self.plant {
             PlantSpec::DiffDrive {
                 wheel_radius_m,
@@ -334,6 +344,9 @@ impl Scenario {
             ));
         }
         let ticks = ticks as u32;
+        if let Some(telemetry) = &self.telemetry {
+            telemetry.every_ticks()?;
+        }
 
         let trajectory_spec = self.reference.spec()?;
         let trajectory = trajectory_spec.build().map_err(|e| {
@@ -608,6 +621,12 @@ impl Scenario {
                 FloorTags::covering(spacing_m, offset_m, min, max)
                     .map_err(|e| ScenarioError::invalid("position.extent_m", e.to_string()))
             };
+        if !self.floor_tags.is_empty() && !matches!(self.position, PositionSpec::Reader { .. }) {
+            return Err(ScenarioError::invalid(
+                "floor_tags",
+                "a tag map is read by a reader: position.kind = \"reader\"",
+            ));
+        }
         match self.position {
             PositionSpec::Exact => Ok(PositionSetup::Exact),
             PositionSpec::NearestTag {
@@ -634,7 +653,30 @@ impl Scenario {
                 drop_frame_probability,
                 seed,
             } => {
-                let floor = floor(spacing_m, offset_m, margin_m, extent_m)?;
+                let floor = if self.floor_tags.is_empty() {
+                    Floor::Grid(floor(spacing_m, offset_m, margin_m, extent_m)?)
+                } else {
+                    let tags: Vec<_> = self
+                        .floor_tags
+                        .iter()
+                        .map(|t| (TagId(t.id), [t.x_m, t.y_m]))
+                        .collect();
+                    if let Some(t) = self.floor_tags.iter().find(|t| t.id > TagId::MASK) {
+                        return Err(ScenarioError::invalid(
+                            "floor_tags",
+                            format!("id {:#x} is wider than the reader's 40 bits", t.id),
+                        ));
+                    }
+                    let map = MapFloor::new(&tags)
+                        .map_err(|e| {
+                            ScenarioError::invalid(
+                                "floor_tags",
+                                format!("refused by the core's tag map: {e}"),
+                            )
+                        })?
+                        .ok_or_else(|| ScenarioError::invalid("floor_tags", "no tags"))?;
+                    Floor::Map(Arc::new(map))
+                };
                 let mode = match mode {
                     ReaderModeSpec::Paper => ReaderMode::Paper,
                     ReaderModeSpec::Range => ReaderMode::Range {
@@ -853,17 +895,16 @@ impl SweepPlan {
             }
             ObserverStart::Zero | ObserverStart::UnitDisc => {}
         }
-        let spacing_m = match setup.position {
+        let spacing_m = match &setup.position {
             PositionSetup::Exact => None,
-            PositionSetup::NearestTag(floor) | PositionSetup::Reader(floor, _) => {
-                Some(floor.spacing_m())
-            }
+            PositionSetup::NearestTag(floor) => Some(floor.spacing_m()),
+            PositionSetup::Reader(floor, _) => floor.spacing_m(),
         };
         let tag_offset_cell_m = match (spec.tag_offset, spacing_m) {
             (Some(true), None) => {
                 return Err(ScenarioError::invalid(
                     "sweep.tag_offset",
-                    "position.kind = \"exact\" has no tags to offset",
+                    "position.kind = \"exact\" and a tag-map floor have no tag grid to offset",
                 ));
             }
             (Some(false), _) => None,

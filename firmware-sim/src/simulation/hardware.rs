@@ -22,7 +22,7 @@ pub(super) type SimRobot = Robot<
     VirtualMotor,
     VirtualMotor,
     VirtualUart,
-    wmr_core::devices::TagGrid,
+    crate::tags::Floor,
 >;
 
 /// The diff-drive body and its virtual devices' plant-side handles.

@@ -20,7 +20,7 @@ use crate::devices::{
 use crate::plant::{PlantPose, Unicycle, wrap_angle};
 use crate::report::{Mode, Record};
 use crate::scenario::{ControllerKind, PlantSetup, PositionSetup, Setup};
-use crate::tags::FloorTags;
+use crate::tags::Floor;
 
 use super::hardware::{Devices, Hardware, SimRobot};
 use super::sources::FixSource;
@@ -77,7 +77,7 @@ pub(super) enum Rig<'t> {
         hw: Hardware,
         robot: SimRobot,
         reader: VirtualRfidReader,
-        floor: FloorTags,
+        floor: Floor,
     },
     /// Diff drive + the core's Pilot (exact / nearest-tag source).
     Pilot {
@@ -94,7 +94,7 @@ pub(super) enum Rig<'t> {
         drivers: [(VirtualPwm, VirtualDirectionPin); 2],
         reader: VirtualRfidReader,
         uart: VirtualUart,
-        floor: FloorTags,
+        floor: Floor,
         target: &'t mut dyn TargetLink,
         last: Diagnostics,
         pwm_refusals: u32,
@@ -114,7 +114,7 @@ impl<'t> Rig<'t> {
                 ..
             },
             PositionSetup::Reader(floor, config),
-        ) = (setup.plant, setup.position)
+        ) = (setup.plant, setup.position.clone())
         else {
             anyhow::bail!("not a diff-drive reader scenario");
         };
@@ -133,7 +133,7 @@ impl<'t> Rig<'t> {
             )
         };
         let drivers = [driver(&hw.signals.0), driver(&hw.signals.1)];
-        let (reader, uart) = VirtualRfidReader::new(config, floor);
+        let (reader, uart) = VirtualRfidReader::new(config, floor.clone());
         Ok(Self::Remote {
             hw,
             encoders: devices.encoders,
@@ -193,9 +193,9 @@ impl<'t> Rig<'t> {
                     encoder_glitches,
                 );
                 let pilot = new_pilot(pilot);
-                match setup.position {
+                match &setup.position {
                     PositionSetup::Reader(floor, config) => {
-                        Self::robot(hw, devices, pilot, floor, config)
+                        Self::robot(hw, devices, pilot, floor.clone(), *config)
                     }
                     _ => Self::Pilot {
                         hw,
@@ -213,16 +213,16 @@ impl<'t> Rig<'t> {
         hw: Hardware,
         devices: Devices,
         pilot: Pilot,
-        floor: FloorTags,
+        floor: Floor,
         config: ReaderConfig,
     ) -> Self {
-        let (reader, uart) = VirtualRfidReader::new(config, floor);
+        let (reader, uart) = VirtualRfidReader::new(config, floor.clone());
         let robot = Robot::new(
             pilot,
             devices.encoders,
             devices.motors,
             RfidReader::new(uart),
-            *floor.grid(),
+            floor.clone(),
         );
         Self::Robot {
             hw,

@@ -12,7 +12,7 @@ use crate::devices::{ReaderModelCounters, VirtualRfidReader, VirtualUart};
 use crate::plant::PlantPose;
 use crate::report::{MeasurementReport, RfidReport};
 use crate::scenario::{MeasurementSpec, PositionSetup, Setup};
-use crate::tags::FloorTags;
+use crate::tags::{Floor, FloorTags};
 
 /// Exact, nearest-tag, or reader + UART + core parser + tag grid.
 // One instance per run: the variants' sizes do not matter.
@@ -24,22 +24,22 @@ enum Source {
     Reader {
         model: VirtualRfidReader,
         rfid: RfidReader<VirtualUart>,
-        floor: FloorTags,
+        floor: Floor,
         unknown_tags: u32,
     },
 }
 
 impl Source {
     fn new(setup: &PositionSetup) -> Self {
-        match *setup {
+        match setup {
             PositionSetup::Exact => Self::Exact,
-            PositionSetup::NearestTag(floor) => Self::Nearest(floor),
+            PositionSetup::NearestTag(floor) => Self::Nearest(*floor),
             PositionSetup::Reader(floor, config) => {
-                let (model, uart) = VirtualRfidReader::new(config, floor);
+                let (model, uart) = VirtualRfidReader::new(*config, floor.clone());
                 Self::Reader {
                     model,
                     rfid: RfidReader::new(uart),
-                    floor,
+                    floor: floor.clone(),
                     unknown_tags: 0,
                 }
             }
@@ -76,7 +76,8 @@ impl Source {
     fn floor_tags(&self) -> Option<usize> {
         match self {
             Self::Exact => None,
-            Self::Nearest(f) | Self::Reader { floor: f, .. } => Some(f.len()),
+            Self::Nearest(f) => Some(f.len()),
+            Self::Reader { floor, .. } => Some(floor.len()),
         }
     }
 

@@ -37,11 +37,19 @@ pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
             ..
         },
         PositionSetup::Reader(floor, _),
-    ) = (setup.plant, setup.position)
+    ) = (setup.plant, &setup.position)
     else {
         anyhow::bail!(
             "hardware-in-the-loop runs need plant.kind = \"diff_drive\" and position.kind = \"reader\" \
              (the firmware senses through encoders and the RFID reader's UART only)"
+        );
+    };
+    let Some(floor) = floor.grid() else {
+        anyhow::bail!(
+            "hardware-in-the-loop runs need a tag grid: the HIL link's Configure message carries \
+             the firmware's floor as a grid (TagGridSpec), not a tag map (floor.kind = \"tag_map\"); \
+             simulate the robot with `firmware-sim run` or `sweep`, or flash it with \
+             `cargo xtask firmware --robot FILE`"
         );
     };
     Ok(Configure {

@@ -9,6 +9,7 @@
 //!
 //! ```text
 //! MAGIC (8 bytes) | IMAGE_VERSION u16 | pilot length u16 | pilot (postcard PilotSpec)
+//! | telemetry decimation u16 (a record every N ticks; 0: none)
 //! | floor kind u8: 0 grid, 1 tag map
 //! | grid: postcard TagGridSpec (length u16 first)
 //! | tag map: count u32, then count × (id u64, x f32, y f32), ids strictly increasing
@@ -25,8 +26,9 @@ use wmr_core::pilot::spec::{PilotSpec, SpecError, TagGridSpec};
 
 /// The image's first bytes.
 pub const MAGIC: [u8; 8] = *b"WMRROBOT";
-/// Bump when the layout (or [`PilotSpec`]'s shape) changes.
-pub const IMAGE_VERSION: u16 = 1;
+/// Bump when the layout (or [`PilotSpec`]'s shape) changes (2: the
+/// telemetry decimation).
+pub const IMAGE_VERSION: u16 = 2;
 /// Bytes of one tag record: id `u64`, `x`, `y` `f32`.
 pub const TAG_RECORD_BYTES: usize = 16;
 
@@ -153,6 +155,8 @@ impl TagLocator for ImageTags<'_> {
 pub struct RobotImage<'a> {
     /// The pilot.
     pub pilot: PilotSpec,
+    /// A telemetry record every this many ticks (0: none).
+    pub telemetry_every_ticks: u16,
     /// The floor.
     pub floor: ImageFloor<'a>,
 }
@@ -188,6 +192,7 @@ pub fn decode(bytes: &[u8]) -> Result<RobotImage<'_>, ImageError> {
     let (pilot_len, rest) = u16_at(rest)?;
     let (pilot, rest) = split(rest, usize::from(pilot_len))?;
     let pilot: PilotSpec = postcard::from_bytes(pilot).map_err(|_| ImageError::Encoding)?;
+    let (telemetry_every_ticks, rest) = u16_at(rest)?;
     let (kind, rest) = split(rest, 1)?;
     let floor = match kind {
         [0] => {
@@ -222,7 +227,11 @@ pub fn decode(bytes: &[u8]) -> Result<RobotImage<'_>, ImageError> {
         }
         _ => return Err(ImageError::FloorKind),
     };
-    Ok(RobotImage { pilot, floor })
+    Ok(RobotImage {
+        pilot,
+        telemetry_every_ticks,
+        floor,
+    })
 }
 
 /// The floor to encode.
@@ -237,7 +246,7 @@ pub enum ImageFloorSpec<'a> {
 /// Bytes an image of `tags` mapped tags takes at most.
 #[must_use]
 pub const fn max_image_bytes(tags: usize) -> usize {
-    MAGIC.len() + 2 + 2 + crate::MAX_FRAME_BYTES + 1 + 4 + tags * TAG_RECORD_BYTES
+    MAGIC.len() + 2 + 2 + crate::MAX_FRAME_BYTES + 2 + 1 + 4 + tags * TAG_RECORD_BYTES
 }
 
 struct Writer<'a> {
@@ -269,12 +278,14 @@ impl Writer<'_> {
 
 /// Encodes an image into `out` (at least [`max_image_bytes`] long for the
 /// tag count) and checks it as the firmware will ([`decode`]); returns
-/// its length.
+/// its length. `telemetry_every_ticks`: a telemetry record every this many
+/// ticks (0: none).
 ///
 /// # Errors
 /// [`ImageError::Length`] if `out` is too short, or what [`decode`] finds.
 pub fn encode(
     pilot: &PilotSpec,
+    telemetry_every_ticks: u16,
     floor: &ImageFloorSpec<'_>,
     out: &mut [u8],
 ) -> Result<usize, ImageError> {
@@ -282,6 +293,7 @@ pub fn encode(
     w.put(&MAGIC)?;
     w.put(&IMAGE_VERSION.to_le_bytes())?;
     w.put_postcard(pilot)?;
+    w.put(&telemetry_every_ticks.to_le_bytes())?;
     match floor {
         ImageFloorSpec::Grid(grid) => {
             w.put(&[0])?;
@@ -335,9 +347,10 @@ mod tests {
             (TagId(TagId::MASK), [0.0, -1.0]),
         ];
         let mut buf = [0_u8; max_image_bytes(3)];
-        let n = encode(&spec(), &ImageFloorSpec::Map(&tags), &mut buf).unwrap();
+        let n = encode(&spec(), 7, &ImageFloorSpec::Map(&tags), &mut buf).unwrap();
         let image = decode(&buf[..n]).unwrap();
         assert_eq!(image.pilot, spec());
+        assert_eq!(image.telemetry_every_ticks, 7);
         let ImageFloor::Map(map) = image.floor else {
             panic!("a map")
         };
@@ -353,7 +366,7 @@ mod tests {
         assert_eq!(decode(&bad[..n]), Err(ImageError::Magic));
         let unsorted = [tags[1], tags[0]];
         assert_eq!(
-            encode(&spec(), &ImageFloorSpec::Map(&unsorted), &mut buf),
+            encode(&spec(), 7, &ImageFloorSpec::Map(&unsorted), &mut buf),
             Err(ImageError::Tags)
         );
         for len in 0..n {
@@ -370,7 +383,7 @@ mod tests {
             columns: 120,
         };
         let mut buf = [0_u8; max_image_bytes(0)];
-        let n = encode(&spec(), &ImageFloorSpec::Grid(grid), &mut buf).unwrap();
+        let n = encode(&spec(), 10, &ImageFloorSpec::Grid(grid), &mut buf).unwrap();
         let image = decode(&buf[..n]).unwrap();
         assert_eq!(image.floor, ImageFloor::Grid(grid.build().unwrap()));
     }

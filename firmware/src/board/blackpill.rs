@@ -68,7 +68,8 @@
 //!   [`LOG_EVERY_TICKS`] ticks (1 s), the stack high-water mark once at
 //!   [`STACK_LOG_AT_TICK`] (10 s), tracker mode changes, encoder halts,
 //!   overruns; a telemetry record every [`TELEMETRY_EVERY_TICKS`] ticks
-//!   (`crate::telemetry`, docs/firmware.md "Telemetry"). The heartbeat LED
+//!   (a robot image's `telemetry.every_ticks`; `crate::telemetry`,
+//!   docs/firmware.md "Telemetry"). The heartbeat LED
 //!   toggles every 0.5 s while the loop runs.
 //!
 //! # Faults
@@ -158,10 +159,12 @@ type BoardTags = wmr_link::image::ImageFloor<'static>;
 #[cfg(wmr_robot_image)]
 static ROBOT_IMAGE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/robot.bin"));
 
-/// The robot image's pilot, floor and control period (µs), checked for
-/// this board as [`TICK_US`] is at compile time.
+/// The robot image's pilot, floor, control period (µs), checked for
+/// this board as [`TICK_US`] is at compile time, and telemetry decimation
+/// (the robot file's `telemetry.every_ticks`, in place of
+/// [`TELEMETRY_EVERY_TICKS`]).
 #[cfg(wmr_robot_image)]
-fn image_config() -> Result<(PilotSpec, BoardTags, u32), wmr_link::image::ImageError> {
+fn image_config() -> Result<(PilotSpec, BoardTags, u32, u16), wmr_link::image::ImageError> {
     let image = wmr_link::image::decode(ROBOT_IMAGE)?;
     // Saturating: a negative or huge period becomes 0 or u32::MAX, refused.
     let tick_us = (image.pilot.tracker.period_s * 1.0e6 + 0.5) as u32;
@@ -170,7 +173,12 @@ fn image_config() -> Result<(PilotSpec, BoardTags, u32), wmr_link::image::ImageE
     {
         return Err(wmr_link::image::ImageError::Period);
     }
-    Ok((image.pilot, image.floor, tick_us))
+    Ok((
+        image.pilot,
+        image.floor,
+        tick_us,
+        image.telemetry_every_ticks,
+    ))
 }
 
 /// Tags the board knows (for the start-up log).
@@ -266,7 +274,10 @@ pub const LOG_EVERY_TICKS: u32 = 100;
 
 /// A telemetry record on the RTT log every this many ticks (10: 10 Hz at
 /// the 10 ms tick, about 0.6 KB/s of RTT; 0: none). `crate::telemetry`
-/// and docs/firmware.md, "Telemetry".
+/// and docs/firmware.md, "Telemetry". Built with `cargo xtask firmware
+/// --robot FILE`, the robot file's `telemetry.every_ticks` (in the image)
+/// replaces it.
+#[cfg_attr(wmr_robot_image, allow(dead_code))]
 pub const TELEMETRY_EVERY_TICKS: u16 = 10;
 
 /// The tick at which the stack high-water mark is logged, once (10 s in,
@@ -448,9 +459,9 @@ pub fn run() -> ! {
     let rfid = RfidReader::new(RfidUart::new(ring_out, &line_errors));
 
     #[cfg(not(wmr_robot_image))]
-    let (spec, tags, tick_us) = (PILOT, SITE_TAGS, TICK_US);
+    let (spec, tags, tick_us, telemetry_every) = (PILOT, SITE_TAGS, TICK_US, TELEMETRY_EVERY_TICKS);
     #[cfg(wmr_robot_image)]
-    let (spec, tags, tick_us) = match image_config() {
+    let (spec, tags, tick_us, telemetry_every) = match image_config() {
         Ok(config) => config,
         Err(e) => halt(
             Fault::Image(e),
@@ -505,9 +516,9 @@ pub fn run() -> ! {
 
     let cycles_per_us = (sysclk_hz / 1_000_000).max(1);
     let mut stats = LoopStats::default();
-    if TELEMETRY_EVERY_TICKS != 0 {
+    if telemetry_every != 0 {
         crate::telemetry::start(Start {
-            every_ticks: TELEMETRY_EVERY_TICKS,
+            every_ticks: telemetry_every,
             period_s: robot.pilot().tracker().config().clock().period_s(),
         });
     }
@@ -516,7 +527,7 @@ pub fn run() -> ! {
         let started = DWT::cycle_count();
         let step = robot.tick();
         watchdog.feed();
-        if telemetry::is_emitted(step.pilot.tracker.tick, TELEMETRY_EVERY_TICKS) {
+        if telemetry::is_emitted(step.pilot.tracker.tick, telemetry_every) {
             crate::telemetry::record(&telemetry::Record::of(
                 &step,
                 robot.counters(),
