@@ -236,7 +236,9 @@ pub struct FusionSpec {
     /// reader of range `r > 0` ([`SensorSpec`]), where gaps between tags
     /// are normal (eight times `s²/2r`, the mean distance a straight line
     /// runs between the grid's read discs; 3.2 m for a 20 cm grid and a
-    /// 5 cm range), and 0 for a reader of the nearest tag.
+    /// 5 cm range), and 0 for a reader of the nearest tag. On a tag map
+    /// (`SensorSpec::tag_spacing_m` 0) there is no default: `None` is
+    /// refused ([`PoseFilterError::TagMapBlindDistance`]).
     pub max_blind_distance_m: Option<f32>,
     /// Reads of an unchanged tag pull an estimate that left the tag's cell
     /// back to its edge (default off; with `wheel_variance_per_m` near the
@@ -295,8 +297,18 @@ impl FusionSpec {
             self.gate_sigma,
         )
         .map(|filter| filter.with_particle_seed(seed))
-        .and_then(|filter| FusionSettings::new(filter, sensors.tag_spacing_m, self.scale_prior))
-        .and_then(|settings| settings.with_read_radius(sensors.read_radius_m))
+        .and_then(|filter| {
+            // A tag spacing of 0 is a floor without a grid (a tag map).
+            if sensors.tag_spacing_m == 0.0 {
+                if self.max_blind_distance_m.is_none() && sensors.read_radius_m > 0.0 {
+                    return Err(PoseFilterError::TagMapBlindDistance);
+                }
+                FusionSettings::on_tag_map(filter, sensors.read_radius_m, self.scale_prior)
+            } else {
+                FusionSettings::new(filter, sensors.tag_spacing_m, self.scale_prior)
+                    .and_then(|settings| settings.with_read_radius(sensors.read_radius_m))
+            }
+        })
         .and_then(|settings| settings.with_max_blind_distance(self.max_blind_distance_m(sensors)))
         .map(|settings| {
             settings
@@ -979,7 +991,7 @@ mod tests {
         );
         let mut s = paper_spec();
         s.tracker.estimator = EstimatorSpec::Fusion(FusionSpec::default());
-        s.tracker.sensors.tag_spacing_m = 0.0;
+        s.tracker.sensors.tag_spacing_m = -0.1;
         let expected = if cfg!(feature = "fusion-ekf") {
             SpecError::Fusion(crate::estimation::fusion::PoseFilterError::TagSpacing)
         } else {
@@ -995,6 +1007,53 @@ mod tests {
             s.build(),
             Err(SpecError::Pilot(PilotConfigError::EncoderBits))
         );
+    }
+
+    /// A floor without a grid (tag spacing 0: a tag map) takes the fusion
+    /// estimator with a range reader and an explicit blind distance, and
+    /// refuses it otherwise, saying which.
+    #[cfg(feature = "fusion-ekf")]
+    #[test]
+    fn fusion_on_a_tag_map_needs_a_range_reader_and_a_blind_distance() {
+        use crate::estimation::fusion::PoseFilterError;
+        let mut s = paper_spec();
+        s.tracker.estimator = EstimatorSpec::Fusion(FusionSpec::default());
+        s.tracker.sensors.tag_spacing_m = 0.0;
+        // The nearest-tag reader's cells need a grid.
+        assert_eq!(
+            s.build().map(|_| ()),
+            Err(SpecError::Fusion(PoseFilterError::TagMapReader))
+        );
+        s.tracker.sensors.read_radius_m = 0.05;
+        assert_eq!(
+            s.build().map(|_| ()),
+            Err(SpecError::Fusion(PoseFilterError::TagMapBlindDistance))
+        );
+        for limit in [0.0, 3.0] {
+            s.tracker.estimator = EstimatorSpec::Fusion(FusionSpec {
+                max_blind_distance_m: Some(limit),
+                ..FusionSpec::default()
+            });
+            let EstimatorSpec::Fusion(fusion) = s.tracker.estimator else {
+                unreachable!()
+            };
+            let settings = fusion.build(&s.tracker.sensors).unwrap();
+            assert!(!settings.on_grid());
+            assert_eq!(settings.max_blind_distance_m(), limit);
+            assert!(s.build().is_ok());
+        }
+        // Settings on a map cannot be turned into a nearest-tag reader's.
+        let filter = PoseFilterConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap();
+        let on_map = FusionSettings::on_tag_map(filter, 0.05, 0.0).unwrap();
+        assert_eq!(
+            on_map.with_read_radius(0.0),
+            Err(PoseFilterError::TagMapReader)
+        );
+        assert_eq!(
+            FusionSettings::on_tag_map(filter, f32::NAN, 0.0),
+            Err(PoseFilterError::TagMapReader)
+        );
+        assert!(FusionSettings::new(filter, 0.1, 0.0).unwrap().on_grid());
     }
 
     #[test]

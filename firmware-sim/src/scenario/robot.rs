@@ -652,7 +652,9 @@ impl Robot {
     /// # Errors
     /// [`ScenarioError::Robot`] naming the robot file's key: no
     /// `[reference]`, a value the simulator or the core refuses, a tag map
-    /// with the fusion estimator (which needs a grid's spacing).
+    /// with the fusion estimator and a nearest-tag reader (whose cell
+    /// measurements need a grid's spacing) or no
+    /// `estimator.fusion.max_blind_distance_m`.
     pub fn flash_image(&self) -> Result<FlashImage, ScenarioError> {
         let reference = self.file.reference.ok_or_else(|| {
             robot_error(
@@ -709,7 +711,7 @@ impl Robot {
                 robot_error(
                     &self.path,
                     "floor.kind",
-                    format!("a tag map has no grid spacing: refused by the core: {e}"),
+                    format!("on a tag map (no grid spacing), refused by the core: {e}"),
                 )
             })?;
             FlashFloor::Map(

@@ -24,6 +24,13 @@ pub enum PoseFilterError {
     ReadRadius,
     /// Blind-distance limit negative or not finite.
     BlindDistance,
+    /// A floor without a grid (a tag map) with a nearest-tag reader: the
+    /// cell measurements need the grid's spacing, so a tag map needs a
+    /// range reader (read radius > 0).
+    TagMapReader,
+    /// A floor without a grid (a tag map) and no blind-distance limit
+    /// given: its default is derived from the grid's spacing.
+    TagMapBlindDistance,
 }
 
 impl core::fmt::Display for PoseFilterError {
@@ -41,6 +48,15 @@ impl core::fmt::Display for PoseFilterError {
             Self::TagSpacing => "tag_spacing_m must be finite and > 0 m",
             Self::ReadRadius => "read_radius_m must be finite and ≥ 0 m",
             Self::BlindDistance => "max_blind_distance_m must be finite and ≥ 0 m",
+            Self::TagMapReader => {
+                "a tag map (no grid spacing) needs a range reader, read_radius_m > 0 m: \
+                 the nearest-tag reader's cell measurements need a grid's tag_spacing_m"
+            }
+            Self::TagMapBlindDistance => {
+                "max_blind_distance_m must be given on a tag map (its default, 4 s²/r, \
+                 needs a grid's tag spacing s): the distance the robot may drive between \
+                 two tags of its route, or 0 to keep the fix timeout"
+            }
         })
     }
 }

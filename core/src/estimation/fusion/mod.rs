@@ -131,6 +131,49 @@ impl FusionSettings {
         })
     }
 
+    /// The filter on a floor whose tags lie anywhere (a surveyed tag map,
+    /// no grid) and a reader that reports a tag only while the antenna is
+    /// within `read_radius_m` of it (m, > 0), with the prior variance of
+    /// each wheel's scale error. Each pass over a tag is one measurement
+    /// of where the antenna entered the tag's disc
+    /// ([`TagCellTracker::range_measurement`]), which needs no grid; the
+    /// nearest-tag reader's cell measurements do, so it is refused here.
+    /// The failsafe keeps the fix timeout until
+    /// [`Self::with_max_blind_distance`] sets a distance, which a floor
+    /// with gaps between its tags needs (see there).
+    ///
+    /// # Errors
+    /// [`PoseFilterError::TagMapReader`] unless `read_radius_m` is finite
+    /// and > 0, [`PoseFilterError::InitialVariance`].
+    pub fn on_tag_map(
+        filter: PoseFilterConfig,
+        read_radius_m: f32,
+        scale_prior: f32,
+    ) -> Result<Self, PoseFilterError> {
+        if !(read_radius_m.is_finite() && read_radius_m > 0.0) {
+            return Err(PoseFilterError::TagMapReader);
+        }
+        if !(scale_prior.is_finite() && scale_prior >= 0.0) {
+            return Err(PoseFilterError::InitialVariance);
+        }
+        Ok(Self {
+            filter,
+            kind: FusionFilter::Ekf,
+            tag_spacing_m: 0.0,
+            scale_prior,
+            read_radius_m,
+            max_blind_distance_m: 0.0,
+            edge_constraint: false,
+        })
+    }
+
+    /// Whether the floor is a grid (built by [`Self::new`]) rather than a
+    /// tag map ([`Self::on_tag_map`]).
+    #[must_use]
+    pub fn on_grid(&self) -> bool {
+        self.tag_spacing_m > 0.0
+    }
+
     /// Reads of an unchanged tag pull an estimate that has left the tag's
     /// cell back to its edge ([`TagCellTracker::with_edge_constraint`];
     /// nearest-tag reader only; default off). Under random wheel slip,
@@ -197,10 +240,15 @@ impl FusionSettings {
     /// reads.
     ///
     /// # Errors
-    /// [`PoseFilterError::ReadRadius`] unless finite and ≥ 0.
+    /// [`PoseFilterError::ReadRadius`] unless finite and ≥ 0;
+    /// [`PoseFilterError::TagMapReader`] for 0 on a tag map
+    /// ([`Self::on_tag_map`]).
     pub fn with_read_radius(self, read_radius_m: f32) -> Result<Self, PoseFilterError> {
         if !(read_radius_m.is_finite() && read_radius_m >= 0.0) {
             return Err(PoseFilterError::ReadRadius);
+        }
+        if read_radius_m == 0.0 && !self.on_grid() {
+            return Err(PoseFilterError::TagMapReader);
         }
         Ok(Self {
             read_radius_m,
