@@ -214,13 +214,11 @@ impl FusionSettings {
     /// filter (its particles start in the cell rather than spread over a
     /// metre, where a 10 cm cell would hold none of 100).
     fn start_position_variance(&self) -> f32 {
-        match self.kind {
-            #[cfg(feature = "fusion-particle-filter")]
-            FusionFilter::ParticleFilter if self.read_radius_m <= 0.0 => {
-                self.tag_spacing_m * self.tag_spacing_m / 12.0
-            }
-            _ => 1.0,
+        #[cfg(feature = "fusion-particle-filter")]
+        if self.kind == FusionFilter::ParticleFilter && self.read_radius_m <= 0.0 {
+            return self.tag_spacing_m * self.tag_spacing_m / 12.0;
         }
+        1.0
     }
 
     /// The filter's configuration.
@@ -575,17 +573,15 @@ impl RunningFilter {
         tag: Vec2,
         last_step: Vec2,
     ) -> Option<FixOutcome> {
-        match self {
-            #[cfg(feature = "fusion-particle-filter")]
-            Self::ParticleFilter(f) => Some(match cells.cell(tag, last_step) {
+        #[cfg(feature = "fusion-particle-filter")]
+        if let Self::ParticleFilter(f) = self {
+            return Some(match cells.cell(tag, last_step) {
                 Some(cell) => f.correct_cell(&cell),
                 None => FixOutcome::Invalid,
-            }),
-            _ => {
-                let _ = (cells, tag, last_step);
-                None
-            }
+            });
         }
+        let _ = (cells, tag, last_step);
+        None
     }
 
     /// [`PoseFilter::pose`].
