@@ -138,6 +138,27 @@
 //! its single closest particle. Without regularization (the default) an
 //! update is one stage, bit for bit as before.
 //!
+//! # Roughening (opt-in)
+//! With [`ParticleFilterConfig::with_roughening`]`(K)`, every resampling
+//! is followed by the roughening of Gordon, Salmond & Smith 1993 (*Novel
+//! approach to nonlinear/non-Gaussian Bayesian state estimation*, IEE
+//! Proc. F 140(2):107–113, §4): each component `k` of each particle gets
+//! an independent `N(0, σ_k²)` jitter, `σ_k = K E_k P^{−1/d}`, `E_k` the
+//! component's range over the resampled particles (angles: of their
+//! wrapped deviations from the estimate) and `d` the number of components
+//! with a non-zero range (a component all particles share, e.g. a wheel
+//! scale that is not estimated, stays as it is). It needs no covariance
+//! factor (unlike the regularization above), and does not turn on
+//! progressive correction. Off by default, bit for bit as before.
+//!
+//! # A likelihood of the model's own
+//! [`ParticleFilter::update_with_likelihood`] weights the particles by any
+//! `−2 ln p(z | x)` the caller computes (e.g. a quantized measurement:
+//! the indicator of the quantization cell, Karlsson & Gustafsson 2005,
+//! *Particle filtering for quantized sensor information*, EUSIPCO), through
+//! the same weighting, collapse, resampling and regularization as the
+//! Gaussian update.
+//!
 //! # The optimal proposal (opt-in)
 //! With [`ParticleFilterConfig::with_proposal`]`(`[`Proposal::Optimal`]`)`
 //! the particles are drawn from the optimal importance density
@@ -185,13 +206,13 @@
 //! # Memory
 //! Two particle arrays (the set and the resampling/prediction buffer),
 //! `2·P·N·4` bytes, the weights and the log-likelihoods `8P`, and
-//! `21N + 8M + 72` bytes of
+//! `21N + 8M + 76` bytes of
 //! configuration, estimate, angle flags, the optimal proposal's pending
 //! spread, generator and counters (rounded
 //! up to a multiple of 4), plus the model. Measured (`size_of`, the same on
 //! a 32-bit MCU as on the host: every field is 4-byte aligned) with a
-//! zero-sized model, `P = 100`: **3 360 B** for `N = M = 3` (scenario 1 of
-//! the paper) and **5 020 B** for `N = M = 5` (scenario 2): keep the filter
+//! zero-sized model, `P = 100`: **3 364 B** for `N = M = 3` (scenario 1 of
+//! the paper) and **5 024 B** for `N = M = 5` (scenario 2): keep the filter
 //! in a `static` or a task's state rather than on a small stack. A
 //! prediction calls the model's `transition` `P` times and draws up to
 //! `N·P` Gaussians (`N·P/2` `ln`, `sqrt`, `sin`, `cos`); an update calls
@@ -422,6 +443,7 @@ pub struct ParticleFilterConfig<const N: usize, const M: usize> {
     recovery_std: Option<SVector<f32, N>>,
     collapse_gate: f32,
     regularization: f32,
+    roughening: f32,
     proposal: Proposal,
 }
 
@@ -458,6 +480,7 @@ impl<const N: usize, const M: usize> ParticleFilterConfig<N, M> {
             recovery_std: None,
             collapse_gate: DEFAULT_COLLAPSE_GATE,
             regularization: 0.0,
+            roughening: 0.0,
             proposal: Proposal::Prior,
         })
     }
@@ -537,6 +560,31 @@ impl<const N: usize, const M: usize> ParticleFilterConfig<N, M> {
             regularization: scale,
             ..self
         })
+    }
+
+    /// Roughening after every resampling (module docs, "Roughening";
+    /// Gordon, Salmond & Smith 1993): each component of each particle
+    /// jittered by `N(0, (K E_k P^{−1/d})²)`, `E_k` the component's range
+    /// over the resampled particles and `d` the number of components with
+    /// a non-zero range. `K = 0` (the default) turns it off.
+    ///
+    /// # Errors
+    /// [`ParticleFilterError::Regularization`] for a negative or
+    /// non-finite `K`.
+    pub fn with_roughening(self, k: f32) -> Result<Self, ParticleFilterError> {
+        if !(k.is_finite() && k >= 0.0) {
+            return Err(ParticleFilterError::Regularization);
+        }
+        Ok(Self {
+            roughening: k,
+            ..self
+        })
+    }
+
+    /// The roughening constant `K` (0: off).
+    #[must_use]
+    pub fn roughening(&self) -> f32 {
+        self.roughening
     }
 
     /// Draws the particles from `proposal` (default [`Proposal::Prior`];
@@ -766,6 +814,28 @@ pub fn systematic_resample<T: Copy, const P: usize>(
         }
     }
     true
+}
+
+/// `Σ_j (r_j/σ_r,j)²` of the residual of `z` at `x` (`inverse_std` =
+/// `1/σ_r`): twice the Gaussian negative log-likelihood.
+fn gaussian_distance_sq<Model, const N: usize, const M: usize>(
+    model: &Model,
+    z: &SVector<f32, M>,
+    x: &SVector<f32, N>,
+    inverse_std: &SVector<f32, M>,
+) -> f32
+where
+    Model: ParticleModel<N, M>,
+{
+    let residual = model.measurement_residual(z, &model.measure(x));
+    residual
+        .iter()
+        .zip(inverse_std.iter())
+        .map(|(r, inv)| {
+            let n = r * inv;
+            n * n
+        })
+        .sum()
 }
 
 /// Scales the weights to sum 1; `false` if their sum is not finite and
@@ -1090,6 +1160,25 @@ where
         self.update_weights(z, &inverse_std);
     }
 
+    /// [`Self::update`] with a likelihood of the model's own:
+    /// `distance_sq(x)` is `−2 ln p(z | x)` up to a constant, in place of
+    /// the Gaussian `Σ_j (r_j/σ_r,j)²` (e.g. a quantized measurement: 0 in
+    /// the cell the reading names, growing outside it). It goes through the
+    /// same weighting, collapse gate, progressive correction (if
+    /// regularized), resampling and regularization as the Gaussian update.
+    /// A particle whose `distance_sq` is NaN or `+∞` gets weight 0; if no
+    /// particle keeps a finite one the update is a collapse (module docs).
+    /// A draw of the optimal proposal still pending is first made from the
+    /// prior (the likelihood is not Gaussian, so no closed-form draw).
+    pub fn update_with_likelihood(&mut self, distance_sq: impl Fn(&SVector<f32, N>) -> f32) {
+        if self.draw_pending {
+            let spread = self.pending_std;
+            self.diffuse(&spread);
+            self.draw_pending = false;
+        }
+        self.update_weights_by(|_, x| distance_sq(x));
+    }
+
     /// Restarts from `N(mean, covariance)`: every particle is redrawn from
     /// that Gaussian (through the lower Cholesky factor of `covariance`,
     /// after the same symmetrise-and-jitter repair as the UKF's if it is
@@ -1211,11 +1300,17 @@ where
             self.reject();
             return;
         }
+        self.update_weights_by(|model, x| gaussian_distance_sq(model, z, x, inverse_std));
+    }
+
+    /// [`Self::update_weights`] with `distance_sq(model, x)` in place of
+    /// the Gaussian `Σ_j (r_j/σ_r,j)²` (`ℓ = ½ distance_sq`).
+    fn update_weights_by(&mut self, mut distance_sq: impl FnMut(&Model, &SVector<f32, N>) -> f32) {
         // The share of the likelihood still to apply (progressive
         // correction, module docs; one stage without regularization).
         let mut remaining = 1.0_f32;
         for stage in 0..MAX_STAGES {
-            let (closest, spread) = self.log_likelihoods(z, inverse_std);
+            let (closest, spread) = self.log_likelihoods_by(&mut distance_sq);
             if !closest.is_finite() || closest > self.config.collapse_gate {
                 self.collapse();
                 return;
@@ -1248,6 +1343,15 @@ where
         z: &SVector<f32, M>,
         inverse_std: &SVector<f32, M>,
     ) -> (f32, f32) {
+        self.log_likelihoods_by(|model, x| gaussian_distance_sq(model, z, x, inverse_std))
+    }
+
+    /// [`Self::log_likelihoods`] with `distance_sq(model, x)` in place of
+    /// the Gaussian `Σ_j (r_j/σ_r,j)²`.
+    fn log_likelihoods_by(
+        &mut self,
+        mut distance_sq: impl FnMut(&Model, &SVector<f32, N>) -> f32,
+    ) -> (f32, f32) {
         let mut closest = f32::INFINITY;
         let mut weighted = 0.0_f32;
         for ((x, &w), l) in self
@@ -1256,15 +1360,7 @@ where
             .zip(self.weights.iter())
             .zip(self.log_likelihood.iter_mut())
         {
-            let residual = self.model.measurement_residual(z, &self.model.measure(x));
-            let distance_sq: f32 = residual
-                .iter()
-                .zip(inverse_std.iter())
-                .map(|(r, inv)| {
-                    let n = r * inv;
-                    n * n
-                })
-                .sum();
+            let distance_sq = distance_sq(&self.model, x);
             *l = if w >= f32::MIN_POSITIVE && distance_sq.is_finite() {
                 if distance_sq < closest {
                     closest = distance_sq;
@@ -1336,6 +1432,40 @@ where
             if let Some(factor) = factor {
                 self.regularize(&(factor * self.bandwidth));
             }
+            if self.config.roughening > 0.0 {
+                self.roughen();
+            }
+        }
+    }
+
+    /// Roughening (module docs): every particle jittered by
+    /// `K E_k P^{−1/d}` per component, angles by the range of their
+    /// deviations from the estimate.
+    fn roughen(&mut self) {
+        let mut low = SVector::<f32, N>::repeat(f32::INFINITY);
+        let mut high = SVector::<f32, N>::repeat(f32::NEG_INFINITY);
+        for x in &self.particles {
+            let d = self.deviation(x, &self.estimate);
+            low = low.inf(&d);
+            high = high.sup(&d);
+        }
+        let range = high - low;
+        let dimensions = range.iter().filter(|&&e| e > 0.0 && e.is_finite()).count();
+        if dimensions == 0 {
+            return;
+        }
+        // P^{−1/d}.
+        let shrink = math::exp(-math::ln(P as f32) / dimensions as f32);
+        let scale = self.config.roughening * shrink;
+        let spread = range.map(|e| {
+            if e.is_finite() && e > 0.0 {
+                scale * e
+            } else {
+                0.0
+            }
+        });
+        for x in self.particles.iter_mut() {
+            self.noise.perturb(x, &spread, &self.angles);
         }
     }
 
@@ -2365,8 +2495,9 @@ mod tests {
         let three = core::mem::size_of::<ParticleFilter<Unicycle, 3, 3, 100>>();
         let five = core::mem::size_of::<ParticleFilter<FiveStates, 5, 5, 100>>();
         println!("P = 100: {three} B for N = M = 3, {five} B for N = M = 5");
-        assert_eq!(three, 3360);
-        assert_eq!(five, 5020);
+        // +4 B each for the roughening constant (issue 17 item 2).
+        assert_eq!(three, 3364);
+        assert_eq!(five, 5024);
     }
 
     /// An `f32` that is often non-finite or absurd.

@@ -304,7 +304,20 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
     /// Corrects with a position measurement (module docs); counts and
     /// reports what happened to it.
     pub fn correct(&mut self, measurement: &PositionMeasurement) -> FixOutcome {
-        let mut outcome = self.correct_once(measurement, true);
+        self.correct_with(measurement, |core| core.update(measurement))
+    }
+
+    /// [`Self::correct`] with the core's update made by `update` instead of
+    /// [`PoseFilterCore::update`]: the gate, the re-localisation and the
+    /// counters work on `measurement` (a Gaussian), the correction on what
+    /// `update` applies (e.g. the exact likelihood of a tag's cell, whose
+    /// moments `measurement` carries; `false`: it could not be used).
+    pub fn correct_with(
+        &mut self,
+        measurement: &PositionMeasurement,
+        mut update: impl FnMut(&mut Core) -> bool,
+    ) -> FixOutcome {
+        let mut outcome = self.correct_once(measurement, true, &mut update);
         let axes = match measurement {
             PositionMeasurement::Point { .. } | PositionMeasurement::Ellipse { .. } => [true, true],
             PositionMeasurement::X { .. } => [true, false],
@@ -324,7 +337,7 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
             let recover = self.config.recover_after;
             if recover > 0 && longest >= recover {
                 self.widen_to(measurement);
-                outcome = self.correct_once(measurement, false);
+                outcome = self.correct_once(measurement, false, &mut update);
                 if outcome == FixOutcome::Used {
                     self.counters.relocalisations = self.counters.relocalisations.saturating_add(1);
                 }
@@ -388,7 +401,12 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
     /// The gate on the Mahalanobis distance of the innovation (module
     /// docs), computed from the core's mean and covariance (exact for every
     /// filter here: the measurement is linear), then the core's update.
-    fn correct_once(&mut self, measurement: &PositionMeasurement, gate: bool) -> FixOutcome {
+    fn correct_once(
+        &mut self,
+        measurement: &PositionMeasurement,
+        gate: bool,
+        update: &mut impl FnMut(&mut Core) -> bool,
+    ) -> FixOutcome {
         if !measurement.is_finite() {
             return FixOutcome::Invalid;
         }
@@ -405,7 +423,7 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
         if gate && distance2 > threshold {
             return FixOutcome::Gated;
         }
-        if self.core.update(measurement) {
+        if update(&mut self.core) {
             FixOutcome::Used
         } else {
             FixOutcome::Invalid

@@ -256,6 +256,19 @@ impl FusionSettings {
         })
     }
 
+    /// The position variance per axis the filter starts with at the first
+    /// fix, m²: 1 for the EKF and the UKF (the first measurement, the
+    /// uniform cell, then sets it), the cell's own `s²/12` for the particle
+    /// filter (its particles start in the cell rather than spread over a
+    /// metre, where a 10 cm cell would hold none of 100).
+    fn start_position_variance(&self) -> f32 {
+        #[cfg(feature = "fusion-particle-filter")]
+        if self.kind == FusionFilter::ParticleFilter && self.read_radius_m <= 0.0 {
+            return self.tag_spacing_m * self.tag_spacing_m / 12.0;
+        }
+        1.0
+    }
+
     /// The filter's configuration.
     #[must_use]
     pub fn filter(&self) -> &PoseFilterConfig {
@@ -355,7 +368,12 @@ impl FusionEstimator {
                 None => {
                     // Start at the first tag, heading unknown; the first
                     // measurement (the uniform cell) sets the position.
-                    let variances = [1.0, 1.0, PI_SQUARED, self.settings.scale_prior];
+                    let variances = [
+                        self.settings.start_position_variance(),
+                        self.settings.start_position_variance(),
+                        PI_SQUARED,
+                        self.settings.scale_prior,
+                    ];
                     let start = Pose::new(tag.x, tag.y, 0.0);
                     let filter = RunningFilter::new(&self.settings, start, variances)?;
                     self.filter.insert(filter)
@@ -374,12 +392,19 @@ impl FusionEstimator {
             } else {
                 let (sin_theta, cos_theta) = math::sincos(pose.heading_rad);
                 let last_step = Vec2::new(odometry.ds_m * cos_theta, odometry.ds_m * sin_theta);
-                // By reference: the slice iterator has no bounds check (the
-                // by-value iterator of heapless's Vec indexes, with a panic
-                // path).
-                let measurements = self.cells.measurements(tag, last_step, pose.position);
-                for measurement in &measurements {
-                    filter.correct(measurement);
+                // The particle filter takes every read as its cell; the
+                // others the tracker's measurements.
+                if filter
+                    .correct_cell(&mut self.cells, tag, last_step)
+                    .is_none()
+                {
+                    // By reference: the slice iterator has no bounds check
+                    // (the by-value iterator of heapless's Vec indexes, with
+                    // a panic path).
+                    let measurements = self.cells.measurements(tag, last_step, pose.position);
+                    for measurement in &measurements {
+                        filter.correct(measurement);
+                    }
                 }
             }
             let relocalised = filter.counters().relocalisations != relocalisations;
@@ -583,6 +608,28 @@ impl RunningFilter {
     /// [`PoseFilter::correct`].
     pub fn correct(&mut self, measurement: &PositionMeasurement) -> FixOutcome {
         with_filter!(self, f => f.correct(measurement))
+    }
+
+    /// The particle filter: corrects with a read of `tag` as its cell
+    /// ([`TagCellTracker::cell`], the robot having moved by `last_step`
+    /// during the tick) and
+    /// returns what happened to it; the other filters: `None`, nothing
+    /// done (they take the tracker's [`TagCellTracker::measurements`]).
+    pub fn correct_cell(
+        &mut self,
+        cells: &mut TagCellTracker,
+        tag: Vec2,
+        last_step: Vec2,
+    ) -> Option<FixOutcome> {
+        #[cfg(feature = "fusion-particle-filter")]
+        if let Self::ParticleFilter(f) = self {
+            return Some(match cells.cell(tag, last_step) {
+                Some(cell) => f.correct_cell(&cell),
+                None => FixOutcome::Invalid,
+            });
+        }
+        let _ = (cells, tag, last_step);
+        None
     }
 
     /// [`PoseFilter::pose`].
@@ -816,6 +863,41 @@ mod tests {
                 prop_assert!((0..5).all(|i| c[(i, i)] >= 0.0));
             }
         }
+    }
+
+    /// A read as its cell: 0 inside, a Gaussian tail of the softening
+    /// outside, the tick's sweep behind the position forgiven, NaN for a
+    /// non-finite position; every read gives one, a same-tag read counted.
+    #[test]
+    fn reads_become_cells() {
+        let mut cells = TagCellTracker::new(0.1).unwrap();
+        let cell = cells
+            .cell(Vec2::new(0.0, 0.0), Vec2::new(0.0015, 0.0))
+            .unwrap();
+        assert_eq!(cell.half_width_m, 0.05);
+        assert_eq!(cell.distance_sq(0.03, -0.04), 0.0);
+        // 1 mm past the leading edge: within the sweep (read up to a tick
+        // ago); 3 mm past it, 1.5 mm beyond the sweep: (1.5/1)².
+        assert_eq!(cell.distance_sq(0.051, 0.0), 0.0);
+        assert!((cell.distance_sq(0.053, 0.0) - 2.25).abs() < 1e-2);
+        // Behind the trailing edge and beside the cell: no sweep.
+        assert!((cell.distance_sq(-0.052, 0.0) - 4.0).abs() < 1e-2);
+        assert!((cell.distance_sq(0.0, 0.052) - 4.0).abs() < 1e-2);
+        assert!(cell.distance_sq(f32::NAN, 0.0).is_nan());
+        assert!(cell.distance_sq(0.0, f32::INFINITY) > 1e30);
+        assert!(
+            cells
+                .cell(Vec2::new(0.0, 0.0), Vec2::new(0.001, 0.0))
+                .is_some()
+        );
+        assert_eq!(cells.same_tag_reads(), 1);
+        assert!(cells.cell(Vec2::new(0.1, 0.0), Vec2::ZERO).is_some());
+        assert_eq!(cells.same_tag_reads(), 1);
+        assert!(cells.cell(Vec2::new(f32::NAN, 0.0), Vec2::ZERO).is_none());
+        assert!(cells.cell(Vec2::ZERO, Vec2::new(0.0, f32::NAN)).is_none());
+        // A sweep longer than the spacing is clamped to it.
+        let long = cells.cell(Vec2::ZERO, Vec2::new(5.0, -5.0)).unwrap();
+        assert_eq!(long.sweep, Vec2::new(0.1, -0.1));
     }
 
     #[test]

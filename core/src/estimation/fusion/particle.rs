@@ -13,7 +13,8 @@
 //! paper's additive `σ_q` per state component would not.
 //!
 //! # Correction
-//! A fix weights every particle by its Gaussian likelihood with the fix's
+//! (Nearest-tag reads: see "Tag cells" below; this is for the other
+//! measurements.) A fix weights every particle by its Gaussian likelihood with the fix's
 //! own variance ([`ParticleFilter::update_with_std`]; an axis fix leaves
 //! the other axis unmeasured, `σ = ∞`; a fix with correlated noise,
 //! [`PositionMeasurement::Ellipse`], is taken with its marginal variances,
@@ -25,6 +26,34 @@
 //! when the effective sample size falls below `P/2`; the collapse gate is
 //! off (`∞`): a fix the gate let through pulls the weight onto the closest
 //! particles rather than throwing them away.
+//!
+//! # Tag cells (issue 17 item 2)
+//! A nearest-tag read is a quantized measurement, and a Gaussian of the
+//! 1 mm variance of a boundary crossing ([`TagCellTracker::measurements`])
+//! cuts 100 particles down to a few. With a nearest-tag reader the
+//! estimator gives this filter every read as its exact likelihood instead
+//! ([`TagCellTracker::cell`], [`PoseParticleFilter::correct_cell`]): the
+//! indicator that the particle is in the read tag's cell (the square of
+//! side `s` around it), softened at the edges by a Gaussian tail of 1 mm,
+//! with the cell allowed to meet any point of the tick's displacement
+//! behind the particle (a read over the UART is a tick old when it
+//! arrives), [`TagCell::distance_sq`]: a few comparisons per particle, no
+//! transcendental. Every read counts, an unchanged tag too: for a particle
+//! filter "still in this cell" removes the particles that left it, where an
+//! EKF must skip it. This is the particle filter for quantized
+//! measurements of Karlsson & Gustafsson 2005 (*Particle filtering for
+//! quantized sensor information*, EUSIPCO), whose likelihood of a
+//! quantized read is the probability mass of the quantization cell. The
+//! gate, re-localisation and counters of [`crate::estimation::fusion`]
+//! take the cell's moments ([`TagCell::moments`]). The first read starts
+//! the particles in the cell (`s²/12` per axis) rather than a metre wide.
+//!
+//! After every resampling the particles are roughened (Gordon, Salmond &
+//! Smith 1993, *Novel approach to nonlinear/non-Gaussian Bayesian state
+//! estimation*, IEE Proc. F 140(2):107–113, §4:
+//! [`ParticleFilterConfig::with_roughening`], `K` = [`ROUGHENING`]):
+//! without it the cell cuts leave many copies of few headings. Resampling
+//! stays on the effective sample size (below `P/2`).
 //!
 //! # Resets
 //! A heading reset or a re-localisation redraws every particle from the
@@ -41,14 +70,20 @@ use nalgebra::{SVector, Vector2};
 
 use crate::estimation::fusion::config::PoseFilterConfig;
 use crate::estimation::fusion::gate::{
-    PoseCovariance, PoseFilter, PoseFilterCore, PoseState, PositionMeasurement,
+    FixOutcome, PoseCovariance, PoseFilter, PoseFilterCore, PoseState, PositionMeasurement,
 };
 use crate::estimation::fusion::odometry_noise::{
     drive_wheels, odometry_transition, scale_walk_variance, wheel_travels, wheel_variance,
 };
+use crate::estimation::fusion::tag_cells::TagCell;
+#[cfg(doc)]
+use crate::estimation::fusion::tag_cells::TagCellTracker;
 use crate::filters::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
 use crate::math;
 use crate::odometry::OdometryStep;
+
+/// The roughening constant `K` after each resampling (module docs).
+pub const ROUGHENING: f32 = 0.05;
 
 /// Particles of the tracker's particle-filter estimator.
 pub const FUSION_PARTICLES: usize = 100;
@@ -128,6 +163,7 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
         // The noise comes from the model; σ_q and σ_r here are unused.
         let settings = ParticleFilterConfig::new(PoseState::zeros(), Vector2::repeat(1.0))
             .and_then(|c| c.with_collapse_gate(f32::INFINITY))
+            .and_then(|c| c.with_roughening(ROUGHENING))
             .ok()?;
         let prior_std = covariance.diagonal().map(|v| math::sqrt(v.max(0.0)));
         let model = NoisyOdometryModel { config: *config };
@@ -194,12 +230,42 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
     }
 }
 
+impl<const P: usize> ParticleCore<P> {
+    /// Weights every particle by the likelihood of the read cell
+    /// ([`TagCell::distance_sq`]; module docs, "Tag cells"); `false` (and
+    /// nothing changed) for a cell that is not finite with positive sizes.
+    pub fn update_cell(&mut self, cell: &TagCell) -> bool {
+        let valid = cell.centre.is_finite()
+            && cell.sweep.is_finite()
+            && cell.half_width_m.is_finite()
+            && cell.half_width_m > 0.0
+            && cell.edge_std_m.is_finite()
+            && cell.edge_std_m > 0.0;
+        if !valid {
+            return false;
+        }
+        let rejected = self.filter.rejected_inputs();
+        self.filter
+            .update_with_likelihood(|x| cell.distance_sq(x.x, x.y));
+        self.filter.rejected_inputs() == rejected
+    }
+}
+
+impl<const P: usize> PoseParticleFilter<P> {
+    /// Corrects with a read of a tag as its cell (module docs, "Tag
+    /// cells"): gated, counted and re-localised on the cell's moments
+    /// ([`TagCell::moments`]), applied with the cell's likelihood.
+    pub fn correct_cell(&mut self, cell: &TagCell) -> FixOutcome {
+        self.correct_with(&cell.moments(), |core| core.update_cell(cell))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimation::fusion::FixOutcome;
+    use crate::estimation::fusion::TagCellTracker;
     use crate::estimation::fusion::test_support::stays_finite;
-    use crate::geometry::Pose;
+    use crate::geometry::{Pose, Vec2};
     use proptest::prelude::*;
 
     fn config(seed: u64) -> PoseFilterConfig {
@@ -277,7 +343,70 @@ mod tests {
         );
     }
 
+    /// A read as its cell: the particles that left the cell lose their
+    /// weight, the estimate moves into it, and a cell far from every
+    /// particle is gated (its moments' Mahalanobis distance).
+    #[test]
+    fn a_cell_read_keeps_the_particles_in_the_cell() {
+        let mut pf = PoseParticleFilter::<100>::new(
+            config(2),
+            Pose::new(0.04, 0.0, 0.0),
+            [4e-4, 4e-4, 0.01, 0.0],
+        )
+        .unwrap();
+        let mut cells = TagCellTracker::new(0.1).unwrap();
+        let cell = cells
+            .cell(Vec2::new(0.0, 0.0), Vec2::new(0.001, 0.0))
+            .unwrap();
+        assert_eq!(pf.correct_cell(&cell), FixOutcome::Used);
+        let inside = pf
+            .core()
+            .filter()
+            .particles()
+            .iter()
+            .zip(pf.core().filter().weights())
+            // Within 3 σ of the softened edge (roughening may jitter a
+            // copy just past it).
+            .filter(|(x, _)| cell.distance_sq(x.x, x.y) < 9.0)
+            .map(|(_, w)| w)
+            .sum::<f32>();
+        assert!(inside > 0.95, "{inside}");
+        assert!(pf.pose().position.x < 0.05 + 0.001, "{:?}", pf.pose());
+        let far = cells.cell(Vec2::new(1.0, 1.0), Vec2::ZERO).unwrap();
+        assert_eq!(pf.correct_cell(&far), FixOutcome::Gated);
+        let broken = TagCell {
+            edge_std_m: f32::NAN,
+            ..cell
+        };
+        assert_eq!(pf.correct_cell(&broken), FixOutcome::Invalid);
+    }
+
     proptest! {
+        /// Cells of any size, place and softening, finite or not, leave the
+        /// estimate finite and never panic.
+        #[test]
+        fn finite_out_on_any_cell(
+            cells in proptest::collection::vec(
+                (any::<f32>(), -1.0f32..1.0, any::<f32>(), -0.01f32..0.01, any::<f32>()),
+                1..30,
+            ),
+        ) {
+            let mut filter = PoseParticleFilter::<16>::new(config(4), Pose::new(0.0, 0.0, 0.0), [1e-2, 1e-2, 1.0, 0.0]).unwrap();
+            let step = OdometryStep { ds_m: 0.002, dtheta_rad: 0.001, ..OdometryStep::default() };
+            for (x, y, half, sweep, edge) in cells {
+                filter.predict(&step);
+                let cell = TagCell {
+                    centre: Vec2::new(x, y),
+                    half_width_m: half,
+                    sweep: Vec2::new(sweep, -sweep),
+                    edge_std_m: edge,
+                };
+                let _ = filter.correct_cell(&cell);
+                let pose = filter.pose();
+                prop_assert!(pose.position.is_finite() && pose.heading_rad.is_finite());
+            }
+        }
+
         /// Finite or not, no input leaves the estimate non-finite.
         #[test]
         fn finite_out_on_any_input(

@@ -11,6 +11,10 @@
 //! cell; by default they are skipped, and optionally
 //! ([`TagCellTracker::with_edge_constraint`]) they pull an estimate that
 //! has drifted out back to the cell's edge (variance `(s/10)²`).
+//!
+//! A particle filter can take the read as what it is instead, the cell
+//! itself ([`TagCellTracker::cell`], [`TagCell`]), on every read: see
+//! [`crate::estimation::fusion::particle`].
 
 use crate::estimation::fusion::gate::{PI_SQUARED, PositionMeasurement};
 use crate::geometry::Vec2;
@@ -20,6 +24,9 @@ use crate::math;
 /// units of `r²`: `2/3 − π²/16` (docs of
 /// [`TagCellTracker::range_measurement`]).
 const ENTRY_ALONG_VARIANCE: f32 = 2.0 / 3.0 - PI_SQUARED / 16.0;
+
+/// The softening of a cell's edges, m ([`TagCellTracker::cell`]).
+const CELL_EDGE_STD_M: f32 = 1e-3;
 
 /// Turns nearest-tag fixes on a square grid into the measurements they
 /// carry (module docs): the first fix as the uniform cell, then each change
@@ -32,6 +39,75 @@ pub struct TagCellTracker {
     same_tag_reads: u32,
     edge_corrections: u32,
     edges: bool,
+}
+
+/// A nearest-tag read as what it says exactly: the robot was in the read
+/// tag's cell, the square of half-width `half_width_m` around `centre`
+/// (the tag's Voronoi cell on a square grid), at some point of the last
+/// tick's displacement `sweep` (the read may be up to a tick old: a frame
+/// over the UART reaches the robot a tick after it was read), to within
+/// `edge_std_m` at the edges ([`TagCellTracker::cell`]; the particle
+/// filter's likelihood, [`crate::estimation::fusion::particle`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TagCell {
+    /// The read tag, m.
+    pub centre: Vec2,
+    /// Half the tag spacing, m.
+    pub half_width_m: f32,
+    /// The robot's displacement during the last tick, m.
+    pub sweep: Vec2,
+    /// The softening of the cell's edges, m (> 0).
+    pub edge_std_m: f32,
+}
+
+impl TagCell {
+    /// Twice the cell's negative log-likelihood at the position `(x, y)`
+    /// now (nats, up to a constant): per axis, the gap `g` between the
+    /// cell and the span `[p − max(sweep, 0), p − min(sweep, 0)]` the robot
+    /// covered during the tick, `Σ_axis (max(g, 0)/σ_e)²`: 0 if the span
+    /// meets the cell, a Gaussian tail of `σ_e` outside it. NaN for a
+    /// non-finite position (the filter gives such a particle no weight).
+    #[must_use]
+    pub fn distance_sq(&self, x: f32, y: f32) -> f32 {
+        let h = self.half_width_m;
+        let outside = |value: f32, centre: f32, sweep: f32| {
+            let (low, high) = if sweep > 0.0 {
+                (value - sweep, value)
+            } else {
+                (value, value - sweep)
+            };
+            let gap = (low - (centre + h)).max((centre - h) - high);
+            // NaN stays NaN (`max` drops one NaN, not two).
+            if gap > 0.0 || gap.is_nan() {
+                gap / self.edge_std_m
+            } else {
+                0.0
+            }
+        };
+        let dx = outside(x, self.centre.x, self.sweep.x);
+        let dy = outside(y, self.centre.y, self.sweep.y);
+        dx * dx + dy * dy
+    }
+
+    /// The cell as a Gaussian of the same moments, centred half the sweep
+    /// ahead of the tag with variance `h²/3 + sweep²/12 + σ_e²` per axis
+    /// (the uniform square's `(2h)²/12`, the sweep's uniform share): what
+    /// the gate and the re-localisation of
+    /// [`crate::estimation::fusion::gate`] take.
+    #[must_use]
+    pub fn moments(&self) -> PositionMeasurement {
+        let h = self.half_width_m;
+        let e2 = self.edge_std_m * self.edge_std_m;
+        let (sx, sy) = (self.sweep.x, self.sweep.y);
+        PositionMeasurement::Point {
+            position: Vec2::new(self.centre.x + 0.5 * sx, self.centre.y + 0.5 * sy),
+            variance_m2: [
+                h * h / 3.0 + sx * sx / 12.0 + e2,
+                h * h / 3.0 + sy * sy / 12.0 + e2,
+            ],
+        }
+    }
 }
 
 /// At most two measurements from one fix (both axes crossed at once).
@@ -132,6 +208,33 @@ impl TagCellTracker {
                 (along - across) * c * s,
                 along * s * s + across * c * c,
             ],
+        })
+    }
+
+    /// A read of `tag` as its cell ([`TagCell`]), the robot having moved
+    /// by `last_step` during the last tick (from odometry and the current
+    /// heading estimate, as for [`Self::measurements`]; at most a spacing
+    /// per axis), the edges softened by 1 mm (the reader's own position
+    /// error, as for a crossing in [`Self::measurements`]). Every read
+    /// gives one, an unchanged tag included (counted as a same-tag read):
+    /// for a particle filter "still in this cell" is information. `None`
+    /// for a non-finite tag or step.
+    pub fn cell(&mut self, tag: Vec2, last_step: Vec2) -> Option<TagCell> {
+        if !(tag.is_finite() && last_step.is_finite()) {
+            return None;
+        }
+        let s = self.spacing_m;
+        if let Some(last) = self.last_tag.replace(tag)
+            && (tag.x - last.x).abs() <= 0.5 * s
+            && (tag.y - last.y).abs() <= 0.5 * s
+        {
+            self.same_tag_reads = self.same_tag_reads.saturating_add(1);
+        }
+        Some(TagCell {
+            centre: tag,
+            half_width_m: 0.5 * s,
+            sweep: Vec2::new(last_step.x.clamp(-s, s), last_step.y.clamp(-s, s)),
+            edge_std_m: CELL_EDGE_STD_M,
         })
     }
 
