@@ -39,8 +39,9 @@
 //! increasing, so unique, capacity), and refuses a size it cannot hold, a
 //! chunk out of order, a tag past the announced count, or a tag the core
 //! refuses, naming which and why ([`MapRefusal`]); a refused map leaves it
-//! unconfigured. A
-//! chunk sent again (its answer lost) is answered again, not loaded twice.
+//! unconfigured. A chunk sent again (its answer lost) is answered again,
+//! not loaded twice. The configuration goes over a clean link (the
+//! fault injector acts on the ticks only).
 //!
 //! # Faults
 //! A frame that arrives corrupt is dropped and counted, and the firmware
