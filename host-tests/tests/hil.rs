@@ -152,6 +152,96 @@ fn the_wheel_speed_observer_in_the_firmware_runs_exactly_as_on_the_host() {
     );
 }
 
+/// A robot whose floor is a tag map (`robots/circle_surveyed.toml`: 364
+/// surveyed tags with arbitrary 40-bit ids), its map sent over the link
+/// after `Configure` (protocol 12, in chunks): 5 s of its circle give the
+/// host run's records, bit for bit, on fixes the firmware resolved in the
+/// map it loaded (every id read known to it).
+#[test]
+fn a_tag_map_robot_runs_exactly_as_on_the_host() {
+    let path = workspace_root().join("robots").join("circle_surveyed.toml");
+    let mut scenario = Scenario::from_file(&path).unwrap();
+    assert_eq!(scenario.floor_tags.len(), 364);
+    scenario.duration_s = 5.0;
+    scenario.transient_s = 0.0;
+    let s = runs_exactly_as_on_the_host("tag map", &scenario, &options());
+    assert_eq!(s.floor_tags, Some(364));
+    let rfid = s.rfid.expect("rfid counters");
+    let tracker = s.tracker.expect("tracker counters");
+    println!("tag map under HIL: rfid {rfid:?}; tracker {tracker:?}");
+    assert!(rfid.frames_ok > 0, "no tag read: {rfid:?}");
+    assert_eq!(rfid.unknown_tags, 0, "an id the firmware's map lacks");
+    assert!(tracker.fixes_used > 0, "no fix used: {tracker:?}");
+}
+
+/// The firmware refuses a bad tag map, naming the tag and why (here a
+/// duplicate id, which the core's `TagMap` refuses), and a map larger than
+/// it holds; the run is then not configured, and the same map without the
+/// duplicate loads.
+#[test]
+fn the_firmware_refuses_a_bad_tag_map_naming_the_tag() {
+    use wmr_link::{FloorSpec, MAP_CAPACITY, MapChunk, MapRefusal, MapTag};
+    let mut target = QemuTarget::start(&firmware(), &options()).unwrap();
+    let tags: Vec<MapTag> = (0..3)
+        .map(|i| MapTag {
+            id: 0x33_0000_0000 + i,
+            position_m: [0.1 * i as f32, 0.0],
+        })
+        .collect();
+    let announce = |tags: u16| {
+        HostMessage::Configure(wmr_link::Configure {
+            floor: FloorSpec::Map { tags },
+            ..configure()
+        })
+    };
+    let chunk = |tags: &[MapTag]| {
+        HostMessage::MapChunk(MapChunk {
+            first: 0,
+            tags: heapless::Vec::from_slice(tags).unwrap(),
+        })
+    };
+    let capacity = u16::try_from(MAP_CAPACITY).unwrap();
+    assert_eq!(
+        target.exchange(&announce(capacity + 1)).unwrap(),
+        TargetMessage::Refused(Refusal::Map(MapRefusal::Size {
+            tags: capacity + 1,
+            capacity
+        }))
+    );
+    assert_eq!(
+        target.exchange(&announce(3)).unwrap(),
+        TargetMessage::MapLoaded { tags: 0 }
+    );
+    assert_eq!(
+        target
+            .exchange(&chunk(&[tags[0], tags[1], tags[1]]))
+            .unwrap(),
+        TargetMessage::Refused(Refusal::Map(MapRefusal::Tag {
+            index: 2,
+            why: wmr_core::devices::TagMapError::DuplicateId
+        }))
+    );
+    assert_eq!(
+        target.exchange(&tick(0, 0)).unwrap(),
+        TargetMessage::Refused(Refusal::NotConfigured)
+    );
+    assert_eq!(
+        target.exchange(&announce(3)).unwrap(),
+        TargetMessage::MapLoaded { tags: 0 }
+    );
+    assert_eq!(
+        target.exchange(&chunk(&tags)).unwrap(),
+        TargetMessage::Configured
+    );
+    let TargetMessage::Finished(finished) = target.exchange(&HostMessage::Finish).unwrap() else {
+        panic!("no report")
+    };
+    assert!(
+        finished.counters.link.unexpected_messages >= 3,
+        "refusals counted"
+    );
+}
+
 /// The firmware's default scenario (`figure_eight_rfid_full_stack_fusion_ekf`:
 /// the fusion EKF, which every board carries (issue 15, item 4), selected
 /// over the link): 120 s of the full-stack figure-eight, the same records

@@ -505,8 +505,8 @@ fn a_tag_map_floor_runs_as_the_grid_it_lays_out() {
 }
 
 /// The example tag-map robot (`robots/surveyed.toml`, 364 surveyed tags
-/// with arbitrary ids) tracks its circle on the map's fixes, and the HIL
-/// link, which carries a tag grid only, refuses it naming why.
+/// with arbitrary ids) tracks its circle on the map's fixes, and its HIL
+/// configuration announces the map, whose chunks carry every tag.
 #[test]
 fn the_surveyed_robot_tracks_on_its_tag_map() {
     let scenario = Scenario::from_file(&robots().join("circle_surveyed.toml")).unwrap();
@@ -522,10 +522,13 @@ fn the_surveyed_robot_tracks_on_its_tag_map() {
         "{}",
         result.summary.rms_error_m
     );
-    let e = firmware_sim::simulation::hil_configuration(&scenario.validate().unwrap())
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("tag grid") && e.contains("tag_map"), "{e}");
+    // Under HIL the map follows `Configure` in chunks (host-tests/tests/
+    // hil.rs runs it through the firmware).
+    let setup = scenario.validate().unwrap();
+    let configure = firmware_sim::simulation::hil_configuration(&setup).unwrap();
+    assert_eq!(configure.floor, wmr_link::FloorSpec::Map { tags: 364 });
+    let chunks = firmware_sim::simulation::hil_map_chunks(&setup).unwrap();
+    assert_eq!(chunks.iter().map(|c| c.tags.len()).sum::<usize>(), 364);
 }
 
 /// Issue 18: reader faults are the experiment's. A scenario naming its

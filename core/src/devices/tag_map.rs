@@ -11,6 +11,7 @@ use crate::geometry::Vec2;
 /// Why a tag was not added to a [`TagMap`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum TagMapError {
     /// The map holds `N` tags already.
     Full,
@@ -18,6 +19,8 @@ pub enum TagMapError {
     DuplicateId,
     /// A coordinate of the position is NaN or infinite.
     NonFinitePosition,
+    /// [`TagMap::push`]: the id is below the last mapped id.
+    Unsorted,
 }
 
 impl core::fmt::Display for TagMapError {
@@ -26,6 +29,7 @@ impl core::fmt::Display for TagMapError {
             Self::Full => "tag map full",
             Self::DuplicateId => "tag id already in the map",
             Self::NonFinitePosition => "tag position not finite",
+            Self::Unsorted => "tag id below the one before it (ids must increase)",
         })
     }
 }
@@ -80,6 +84,30 @@ impl<const N: usize> TagMap<N> {
         }
     }
 
+    /// Adds a tag whose id is above every mapped id: a map sent or stored
+    /// in increasing id order is built with this, O(1) (no tail to shift,
+    /// so a firmware that builds its map only so links no `memmove`).
+    ///
+    /// # Errors
+    /// [`TagMapError::NonFinitePosition`] if a coordinate is NaN or
+    /// infinite, [`TagMapError::DuplicateId`] if `id` is the last mapped
+    /// id, [`TagMapError::Unsorted`] if it is below it,
+    /// [`TagMapError::Full`] if `N` tags are mapped; checked in that order.
+    /// The map is unchanged on error.
+    pub fn push(&mut self, id: TagId, position: Vec2) -> Result<(), TagMapError> {
+        if !position.is_finite() {
+            return Err(TagMapError::NonFinitePosition);
+        }
+        match self.entries.last() {
+            Some(last) if last.id == id => Err(TagMapError::DuplicateId),
+            Some(last) if last.id > id => Err(TagMapError::Unsorted),
+            _ => self
+                .entries
+                .push(Entry { id, position })
+                .map_err(|_| TagMapError::Full),
+        }
+    }
+
     /// The position of tag `id`, if mapped.
     #[must_use]
     pub fn position(&self, id: TagId) -> Option<Vec2> {
@@ -103,6 +131,12 @@ impl<const N: usize> TagMap<N> {
     #[must_use]
     pub fn is_empty(&self) -> bool {
         self.entries.is_empty()
+    }
+
+    /// Removes every tag, in place (a map of thousands of tags is reused,
+    /// never rebuilt on the stack).
+    pub fn clear(&mut self) {
+        self.entries.clear();
     }
 
     /// Most tags the map can hold (`N`).
@@ -161,6 +195,46 @@ mod tests {
         );
         assert_eq!(m.position(TagId(5)), Some(Vec2::new(1.0, 2.0)));
         assert_eq!(m.len(), 1);
+    }
+
+    /// `push` builds the map `insert` builds from the same increasing ids,
+    /// and refuses what `insert` refuses, an id below the last too,
+    /// leaving the map unchanged.
+    #[test]
+    fn push_appends_increasing_ids_only() {
+        let mut pushed = TagMap::<3>::new();
+        let mut inserted = TagMap::<3>::new();
+        for (id, x) in [(3, 0.5), (9, 1.5), (0x12_3456_789A, -2.0)] {
+            pushed.push(TagId(id), Vec2::new(x, -x)).unwrap();
+            inserted.insert(TagId(id), Vec2::new(x, -x)).unwrap();
+        }
+        assert_eq!(pushed, inserted);
+        let mut m = TagMap::<3>::new();
+        m.push(TagId(5), Vec2::ZERO).unwrap();
+        assert_eq!(m.push(TagId(5), Vec2::ZERO), Err(TagMapError::DuplicateId));
+        assert_eq!(m.push(TagId(4), Vec2::ZERO), Err(TagMapError::Unsorted));
+        assert_eq!(
+            m.push(TagId(6), Vec2::new(f32::NAN, 0.0)),
+            Err(TagMapError::NonFinitePosition)
+        );
+        m.push(TagId(6), Vec2::ZERO).unwrap();
+        m.push(TagId(7), Vec2::ZERO).unwrap();
+        assert_eq!(m.push(TagId(8), Vec2::ZERO), Err(TagMapError::Full));
+        assert_eq!(m.len(), 3);
+        assert_eq!(m.position(TagId(5)), Some(Vec2::ZERO));
+    }
+
+    #[test]
+    fn clear_empties_the_map_for_reuse() {
+        let mut m = TagMap::<2>::new();
+        m.insert(TagId(1), Vec2::ZERO).unwrap();
+        m.insert(TagId(2), Vec2::ZERO).unwrap();
+        m.clear();
+        assert!(m.is_empty());
+        assert_eq!(m.position(TagId(1)), None);
+        m.insert(TagId(2), Vec2::new(1.0, 1.0)).unwrap();
+        m.insert(TagId(1), Vec2::ZERO).unwrap();
+        assert_eq!(m.position(TagId(2)), Some(Vec2::new(1.0, 1.0)));
     }
 
     #[test]

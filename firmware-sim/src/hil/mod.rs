@@ -24,13 +24,12 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, bail, ensure};
+use anyhow::{Context, ensure};
 use wmr_core::pilot::spec::PilotSpec;
-use wmr_link::{HostMessage, TargetMessage};
 
 use crate::report::{HilReport, RunResult};
 use crate::scenario::Scenario;
-use crate::simulation::{hil_configuration, run_with_target};
+use crate::simulation::{hil_configuration, hil_map_chunks, run_with_target};
 
 mod faults;
 mod firmware;
@@ -94,7 +93,8 @@ pub fn default_telemetry_every_ticks(scenario: &Scenario) -> anyhow::Result<u16>
 /// names an ELF).
 ///
 /// # Errors
-/// QEMU missing or failing, the firmware refusing the configuration, not
+/// QEMU missing or failing, the firmware refusing the configuration (or
+/// its tag map), not
 /// answering in time, or answering with corrupt or unexpected frames.
 pub fn run_hil(
     scenario: &Scenario,
@@ -115,12 +115,9 @@ pub fn run_hil(
         "no firmware ELF at {}",
         firmware.display()
     );
+    let map = hil_map_chunks(&setup)?;
     let mut target = QemuTarget::start(&firmware, options)?;
-    match target.exchange(&HostMessage::Configure(configure))? {
-        TargetMessage::Configured => {}
-        TargetMessage::Refused(why) => bail!("the firmware refused the configuration: {why:?}"),
-        other => bail!("unexpected answer to Configure: {other:?}"),
-    }
+    target.configure(configure, &map)?;
     let mut result = run_with_target(scenario, &mut target, progress)?;
     let finished = target
         .finished

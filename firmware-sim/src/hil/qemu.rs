@@ -20,9 +20,9 @@ use anyhow::{Context, bail, ensure};
 use rustix::event::{PollFd, PollFlags, Timespec};
 use rustix::fs::{Mode, OFlags};
 use wmr_link::{
-    Diagnostics, Finished, HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, HostMessage, LinkError,
-    MAX_FRAME_BYTES, PROTOCOL_VERSION, Receiver, Refusal, Sender, TargetMessage, TickInput,
-    TickOutput,
+    Configure, Diagnostics, Finished, HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, HostMessage, LinkError,
+    MAX_FRAME_BYTES, MapChunk, MapRefusal, PROTOCOL_VERSION, Receiver, Refusal, Sender,
+    TargetMessage, TickInput, TickOutput,
 };
 
 use super::faults::{Frame, Injector, LinkFaultReport, LinkFaultSpec, OUTAGE_MS};
@@ -522,6 +522,31 @@ impl QemuTarget {
         self.receive()
     }
 
+    /// Configures the run: `configure`, then, if it announces a tag map,
+    /// `map`'s chunks ([`crate::simulation::hil_map_chunks`]), each sent
+    /// once the firmware has acknowledged the tags before it; the last is
+    /// answered `Configured`.
+    ///
+    /// # Errors
+    /// The firmware refusing the configuration or its map (saying why), or
+    /// answering anything else.
+    pub fn configure(&mut self, configure: Configure, map: &[MapChunk]) -> anyhow::Result<()> {
+        let mut answer = self.exchange(&HostMessage::Configure(configure))?;
+        let mut asked = "Configure".to_owned();
+        for chunk in map {
+            match answer {
+                TargetMessage::MapLoaded { tags } if tags == chunk.first => {}
+                other => return not_configured(&asked, other, map),
+            }
+            answer = self.exchange(&HostMessage::MapChunk(chunk.clone()))?;
+            asked = format!("the map chunk from tag {}", chunk.first);
+        }
+        match answer {
+            TargetMessage::Configured => Ok(()),
+            other => not_configured(&asked, other, map),
+        }
+    }
+
     /// Ends the run: `Finish`, the firmware's report, QEMU's exit.
     ///
     /// # Errors
@@ -604,6 +629,29 @@ impl TargetLink for QemuTarget {
 
     fn finish(&mut self) -> anyhow::Result<Diagnostics> {
         Ok(self.end()?.counters)
+    }
+}
+
+/// The error for an answer to `asked` (a step of the configuration) that
+/// is not the next one expected; a tag of `map` the firmware refused is
+/// named by its id too.
+fn not_configured(asked: &str, answer: TargetMessage, map: &[MapChunk]) -> anyhow::Result<()> {
+    match answer {
+        TargetMessage::Refused(why) => {
+            let id = match why {
+                Refusal::Map(MapRefusal::Tag { index, .. }) => map
+                    .iter()
+                    .flat_map(|c| &c.tags)
+                    .nth(usize::from(index))
+                    .map(|t| format!(" (tag id {:#x})", t.id)),
+                _ => None,
+            };
+            bail!(
+                "the firmware refused the configuration: {why}{} ({why:?})",
+                id.unwrap_or_default()
+            )
+        }
+        other => bail!("unexpected answer to {asked}: {other:?}"),
     }
 }
 

@@ -40,8 +40,11 @@
 //! map's tag nearest to the antenna (within `read_radius_m` in `range`
 //! mode, the grid's rule) and reports its id; the robot resolves it
 //! through the core's `TagMap` (`crate::tags::MapFloor`), counting ids it
-//! does not know (`rfid.unknown_tags`). The HIL link carries a tag grid
-//! only: `firmware-sim hil` refuses a tag map.
+//! does not know (`rfid.unknown_tags`). `firmware-sim hil` runs it too:
+//! the HIL link announces the map in `Configure` and sends it in chunks
+//! (`crate::simulation::hil_map_chunks`), which the firmware loads into
+//! the core's `TagMap` (up to `wmr_link::MAP_CAPACITY` tags, at least
+//! [`MAX_MAPPED_TAGS`]).
 
 use std::path::Path;
 

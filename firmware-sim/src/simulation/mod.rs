@@ -41,7 +41,7 @@ mod summary;
 mod target;
 
 pub use summary::error_stats;
-pub use target::{TargetLink, hil_configuration};
+pub use target::{TargetLink, hil_configuration, hil_map_chunks};
 
 use rig::Rig;
 use summary::summarize;

@@ -2,9 +2,17 @@
 //! firmware under QEMU) answers on, and the configuration it needs.
 
 use wmr_core::pilot::spec::TagGridSpec;
-use wmr_link::{Configure, Diagnostics, TickInput, TickOutput};
+use wmr_link::{
+    Configure, Diagnostics, FloorSpec, MAP_CAPACITY, MAP_CHUNK_TAGS, MapChunk, MapTag, TickInput,
+    TickOutput,
+};
 
 use crate::scenario::{PlantSetup, PositionSetup, Setup};
+use crate::tags::Floor;
+
+// Every tag map a robot file may hold (the Black Pill's flash table) fits
+// the HIL firmware's: a robot runs under HIL whatever its floor.
+const _: () = assert!(crate::tags::MAX_MAP_TAGS <= MAP_CAPACITY);
 
 /// A robot whose control tick runs elsewhere (the firmware under QEMU,
 /// over the HIL link): it gets the devices' readings, answers with what it
@@ -25,10 +33,12 @@ pub trait TargetLink {
 
 /// What the firmware must be configured with to run `setup` (diff-drive
 /// plant with a reader only: the firmware's devices are encoders, motors
-/// and the reader's UART).
+/// and the reader's UART). A tag-map floor is announced
+/// ([`FloorSpec::Map`]); its tags follow in [`hil_map_chunks`].
 ///
 /// # Errors
-/// A scenario whose position source or plant no device delivers.
+/// A scenario whose position source or plant no device delivers, or a tag
+/// map larger than the firmware holds ([`MAP_CAPACITY`]).
 pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
     let (
         PlantSetup::DiffDrive {
@@ -44,25 +54,67 @@ pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
              (the firmware senses through encoders and the RFID reader's UART only)"
         );
     };
-    let Some(floor) = floor.grid() else {
-        anyhow::bail!(
-            "hardware-in-the-loop runs need a tag grid: the HIL link's Configure message carries \
-             the firmware's floor as a grid (TagGridSpec), not a tag map (floor.kind = \"tag_map\"); \
-             simulate the robot with `firmware-sim run` or `sweep`, or flash it with \
-             `cargo xtask firmware --robot FILE`"
-        );
+    let floor = match floor {
+        Floor::Grid(grid) => FloorSpec::Grid(TagGridSpec::of(grid.grid())),
+        Floor::Map(map) => {
+            let tags = u16::try_from(map.len())
+                .ok()
+                .filter(|&n| usize::from(n) <= MAP_CAPACITY);
+            let Some(tags) = tags else {
+                anyhow::bail!(
+                    "a tag map of {} tags: the HIL firmware (QEMU board) holds at most \
+                     {MAP_CAPACITY} (its static table)",
+                    map.len()
+                );
+            };
+            FloorSpec::Map { tags }
+        }
     };
     Ok(Configure {
         protocol: wmr_link::PROTOCOL_VERSION,
         pilot: pilot_spec,
-        grid: TagGridSpec::of(floor.grid()),
+        floor,
         pwm_max_duty,
         // Off: the caller asks for telemetry (`HilOptions`).
         telemetry_every_ticks: 0,
     })
 }
 
-#[cfg(test)]
+/// The tag map the firmware loads after `Configure` to run `setup`, in the
+/// link's chunks (none for a grid): the robot's own table
+/// (`crate::tags::MapTable`, the `f32` positions the host run looks up),
+/// in increasing id order, [`MAP_CHUNK_TAGS`] tags a chunk.
+///
+/// # Errors
+/// As [`hil_configuration`].
+pub fn hil_map_chunks(setup: &Setup) -> anyhow::Result<Vec<MapChunk>> {
+    let FloorSpec::Map { .. } = hil_configuration(setup)?.floor else {
+        return Ok(Vec::new());
+    };
+    let PositionSetup::Reader(Floor::Map(map), _) = &setup.position else {
+        anyhow::bail!("a tag map announced without a tag-map floor");
+    };
+    let tags: Vec<MapTag> = map
+        .table()
+        .iter()
+        .map(|(id, p)| MapTag {
+            id: id.0,
+            position_m: [p.x, p.y],
+        })
+        .collect();
+    tags.chunks(MAP_CHUNK_TAGS)
+        .enumerate()
+        .map(|(i, chunk)| {
+            Ok(MapChunk {
+                // At most `MAP_CAPACITY` tags (checked above): fits.
+                first: u16::try_from(i * MAP_CHUNK_TAGS)?,
+                tags: heapless::Vec::from_slice(chunk)
+                    .map_err(|_| anyhow::anyhow!("a map chunk too long"))?,
+            })
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -95,5 +147,51 @@ mod tests {
             panic!("diff drive")
         };
         assert_eq!(configure.pilot.build().unwrap(), pilot);
+    }
+
+    /// A tag-map robot (`robots/circle_surveyed.toml`) is announced with
+    /// its size, and its chunks carry the host robot's table whole, in
+    /// increasing id order, each starting where the last ended; a grid
+    /// robot's floor is all in `Configure`.
+    #[test]
+    fn a_tag_map_follows_configure_in_chunks() {
+        let path = crate::hil::workspace_root()
+            .join("robots")
+            .join("circle_surveyed.toml");
+        let setup = Scenario::from_file(&path).unwrap().validate().unwrap();
+        let configure = hil_configuration(&setup).unwrap();
+        assert_eq!(configure.floor, FloorSpec::Map { tags: 364 });
+        let chunks = hil_map_chunks(&setup).unwrap();
+        let PositionSetup::Reader(Floor::Map(map), _) = &setup.position else {
+            panic!("a tag map")
+        };
+        let sent: Vec<(u64, [f32; 2])> = chunks
+            .iter()
+            .flat_map(|c| c.tags.iter().map(|t| (t.id, t.position_m)))
+            .collect();
+        let table: Vec<(u64, [f32; 2])> = map
+            .table()
+            .iter()
+            .map(|(id, p)| (id.0, [p.x, p.y]))
+            .collect();
+        assert_eq!(sent, table);
+        assert!(sent.windows(2).all(|w| w[0].0 < w[1].0));
+        let mut next = 0;
+        for chunk in &chunks {
+            assert_eq!(usize::from(chunk.first), next);
+            assert!(!chunk.tags.is_empty());
+            next += chunk.tags.len();
+        }
+        assert_eq!(chunks.len(), 364_usize.div_ceil(MAP_CHUNK_TAGS));
+
+        let grid = Scenario::embedded("figure_eight_rfid_full_stack")
+            .unwrap()
+            .validate()
+            .unwrap();
+        assert!(matches!(
+            hil_configuration(&grid).unwrap().floor,
+            FloorSpec::Grid(_)
+        ));
+        assert!(hil_map_chunks(&grid).unwrap().is_empty());
     }
 }

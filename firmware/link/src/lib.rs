@@ -10,8 +10,12 @@
 //! ```text
 //! firmware                                   host (firmware-sim hil)
 //!    │ ── Hello ─────────────────────────────────► │  after reset
-//!    │ ◄───────────────── Configure{pilot, grid} ─ │
-//!    │ ── Configured | Refused(SpecError) ───────► │
+//!    │ ◄──────────────── Configure{pilot, floor} ─ │
+//!    │ ── Configured | Refused(SpecError) ───────► │  floor: Grid(spec)
+//!    │ ── MapLoaded{0} | Refused(Map(..)) ───────► │  floor: Map{tags: n}
+//!    │ ◄──── MapChunk{first, ≤ MAP_CHUNK_TAGS tags} │  ─┐ ids increasing,
+//!    │ ── MapLoaded{tags so far} | Refused(Map) ─► │   │ until n are
+//!    │      ... (the last chunk: Configured) ...   │  ─┘ loaded
 //!    │ ◄───────── Tick{k, encoder counters, UART bytes}
 //!    │ ── Ticked{k, duties, directions, estimate, drive limits}
 //!    │                 ... once per control tick ...
@@ -21,6 +25,23 @@
 //!
 //! Each side sends the next message only after the answer to the last, so
 //! the run is deterministic whatever the speed of QEMU or of the host.
+//!
+//! # The floor
+//! A tag grid travels in `Configure` ([`FloorSpec::Grid`]). A tag map
+//! (surveyed tags with arbitrary ids, a robot file's `floor.kind =
+//! "tag_map"`) does not fit one frame: `Configure` announces its size
+//! ([`FloorSpec::Map`]), the firmware answers [`TargetMessage::MapLoaded`]
+//! with 0 tags, and the map follows in [`MapChunk`]s of at most
+//! [`MAP_CHUNK_TAGS`] tags in increasing id order, each acknowledged with
+//! the tags loaded so far; the last is answered `Configured`. The firmware
+//! loads the tags into the core's `TagMap` of [`MAP_CAPACITY`] tags, in
+//! place, with its own checks (`TagMap::push`: finite positions, ids
+//! increasing, so unique, capacity), and refuses a size it cannot hold, a
+//! chunk out of order, a tag past the announced count, or a tag the core
+//! refuses, naming which and why ([`MapRefusal`]); a refused map leaves it
+//! unconfigured. A chunk sent again (its answer lost) is answered again,
+//! not loaded twice. The configuration goes over a clean link (the
+//! fault injector acts on the ticks only).
 //!
 //! # Faults
 //! A frame that arrives corrupt is dropped and counted, and the firmware
@@ -66,7 +87,7 @@ pub mod session;
 pub mod telemetry;
 
 use serde::{Deserialize, Serialize};
-use wmr_core::devices::RfidCounters;
+use wmr_core::devices::{RfidCounters, TagMapError};
 use wmr_core::pilot::PilotCounters;
 use wmr_core::pilot::robot::RobotCounters;
 use wmr_core::pilot::spec::{PilotSpec, SpecError, TagGridSpec};
@@ -77,8 +98,23 @@ use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 /// `TrackerSpec::sensors`; 7: `RfidCounters::backlogged_polls` in the
 /// diagnostics; 8: `Nack`, `LinkSilent`, stale frames and repeated ticks;
 /// 9: `SensorSpec::antenna_offset_m`; 10: `DriveSpec::speed_observer`,
-/// the wheel-speed observer; 11: `Configure::telemetry_every_ticks`).
-pub const PROTOCOL_VERSION: u16 = 11;
+/// the wheel-speed observer; 11: `Configure::telemetry_every_ticks`; 12:
+/// `Configure::floor`, a grid or a tag map sent in `MapChunk`s).
+pub const PROTOCOL_VERSION: u16 = 12;
+
+/// Most tags the firmware's tag map holds under HIL (the QEMU board's
+/// static table: 16 B a tag, 64 KiB of its 128 KiB of RAM): the robot
+/// file's own cap (`firmware-sim`'s `scenario::robot::MAX_MAPPED_TAGS`, the
+/// Black Pill's flash table), so that every robot file runs under HIL.
+pub const MAP_CAPACITY: usize = 4096;
+
+/// Tags one [`MapChunk`] carries at most: the most whose chunk is no
+/// larger in RAM than `Configure` (14 × 16 B + its length: 240 of 248 B),
+/// so that [`HostMessage`] does not grow and the firmware's receive path
+/// needs no more stack; its largest frame (every id at its longest
+/// varint, 10 B) is 268 of the [`MAX_FRAME_BYTES`]
+/// (`a_full_map_chunk_fits_a_frame`).
+pub const MAP_CHUNK_TAGS: usize = 14;
 
 /// Silence on the link, while configured, after which the firmware stops
 /// the motors, ms (five 10 ms control periods).
@@ -113,9 +149,11 @@ pub const MAX_UART_BYTES_PER_TICK: usize = 160;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum HostMessage {
-    /// Build the pilot and the tag grid (the firmware validates them with
+    /// Build the pilot and the floor (the firmware validates them with
     /// the core's constructors, as the simulator does).
     Configure(Configure),
+    /// The next tags of the tag map `Configure` announced.
+    MapChunk(MapChunk),
     /// One control tick's device readings.
     Tick(TickInput),
     /// End of run: report and stop.
@@ -130,14 +168,106 @@ pub struct Configure {
     pub protocol: u16,
     /// The pilot.
     pub pilot: PilotSpec,
-    /// The floor-tag grid.
-    pub grid: TagGridSpec,
+    /// The floor the robot looks its tag ids up in.
+    pub floor: FloorSpec,
     /// Full-scale PWM duty the motor proxies report in, steps.
     pub pwm_max_duty: u16,
     /// A telemetry record on the firmware's defmt log every this many
     /// ticks (`tick % n == 0`; 0: none): [`telemetry`].
     pub telemetry_every_ticks: u16,
 }
+
+/// The floor of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FloorSpec {
+    /// A regular grid, ids in the core's grid encoding: all of it here.
+    Grid(TagGridSpec),
+    /// A tag map of `tags` tags (1 to [`MAP_CAPACITY`]), sent next in
+    /// [`MapChunk`]s.
+    Map {
+        /// Tags in the map.
+        tags: u16,
+    },
+}
+
+/// One tag of a tag map.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MapTag {
+    /// The tag's id (as the reader reports it).
+    pub id: u64,
+    /// The tag's position, m, world frame.
+    pub position_m: [f32; 2],
+}
+
+/// Consecutive tags of a tag map, in increasing id order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MapChunk {
+    /// Index of the chunk's first tag in the map (the tags loaded before).
+    pub first: u16,
+    /// The tags.
+    pub tags: heapless::Vec<MapTag, MAP_CHUNK_TAGS>,
+}
+
+/// Why the firmware refused a tag map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum MapRefusal {
+    /// `Configure` announced `tags` tags: none, or more than the firmware
+    /// holds.
+    Size {
+        /// Tags announced.
+        tags: u16,
+        /// Most the firmware holds ([`MAP_CAPACITY`]).
+        capacity: u16,
+    },
+    /// A chunk arrived while no tag map was being loaded.
+    NotLoading,
+    /// A chunk did not start at the next tag to load.
+    OutOfOrder {
+        /// Index of the next tag to load.
+        expected: u16,
+        /// The chunk's first index.
+        first: u16,
+    },
+    /// A chunk went past the tags `Configure` announced.
+    TooMany {
+        /// Tags announced.
+        announced: u16,
+    },
+    /// The core's `TagMap` refused a tag (`TagMap::push`).
+    Tag {
+        /// Index of the tag in the map (the host knows its id).
+        index: u16,
+        /// Why: a non-finite position, an id not above the one before
+        /// (a duplicate, or out of order), the map full.
+        why: TagMapError,
+    },
+}
+
+impl core::fmt::Display for MapRefusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Self::Size { tags, capacity } => write!(
+                f,
+                "Configure announced {tags} tags; the firmware holds 1 to {capacity}"
+            ),
+            Self::NotLoading => f.write_str("a map chunk arrived while no tag map was announced"),
+            Self::OutOfOrder { expected, first } => write!(
+                f,
+                "a map chunk starting at tag {first} arrived; tag {expected} was next"
+            ),
+            Self::TooMany { announced } => {
+                write!(f, "map chunks went past the {announced} tags announced")
+            }
+            Self::Tag { index, why } => write!(f, "tag {index}: {why}"),
+        }
+    }
+}
+
+impl core::error::Error for MapRefusal {}
 
 /// What the devices show at one control tick.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -166,6 +296,13 @@ pub enum TargetMessage {
     Configured,
     /// The configuration was refused (or its protocol version differs).
     Refused(Refusal),
+    /// The tag map `Configure` announced is being loaded: send the tags
+    /// from this index on (0 after `Configure`; the last chunk is
+    /// answered [`Self::Configured`] instead).
+    MapLoaded {
+        /// Tags loaded so far.
+        tags: u16,
+    },
     /// One tick done.
     Ticked(TickOutput),
     /// Answer to [`HostMessage::Finish`].
@@ -191,6 +328,8 @@ pub enum Refusal {
     Protocol(u16),
     /// The core refused the spec.
     Spec(SpecError),
+    /// The tag map was refused (the run is not configured).
+    Map(MapRefusal),
     /// A tick arrived before any configuration.
     NotConfigured,
     /// A tick older than the last one answered (never run late).
@@ -205,6 +344,7 @@ impl core::fmt::Display for Refusal {
         match self {
             Self::Protocol(v) => write!(f, "the firmware speaks link protocol {v}"),
             Self::Spec(e) => write!(f, "the core refused the spec: {e}"),
+            Self::Map(e) => write!(f, "the tag map was refused: {e}"),
             Self::NotConfigured => f.write_str("a tick arrived before any configuration"),
             Self::StaleTick { last_answered } => {
                 write!(
@@ -220,6 +360,7 @@ impl core::error::Error for Refusal {
     fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
         match self {
             Self::Spec(e) => Some(e),
+            Self::Map(e) => Some(e),
             _ => None,
         }
     }
@@ -781,12 +922,12 @@ mod tests {
                 encoder_bits: 16,
                 max_encoder_fault_ticks: 5,
             },
-            grid: TagGridSpec {
+            floor: FloorSpec::Grid(TagGridSpec {
                 origin_m: [-6.0, -6.0],
                 spacing_m: 0.1,
                 rows: 130,
                 columns: 130,
-            },
+            }),
             pwm_max_duty: 1000,
             telemetry_every_ticks: 1,
         })
@@ -817,14 +958,83 @@ mod tests {
         let mut tx = Sender::default();
         let mut rx = Receiver::new();
         let mut out = [0; MAX_FRAME_BYTES];
-        for msg in [configure(), full_tick(), HostMessage::Finish] {
+        let chunk = HostMessage::MapChunk(MapChunk {
+            first: 16,
+            tags: heapless::Vec::from_slice(&[MapTag {
+                id: 0x12_3456_789A,
+                position_m: [1.5, -0.25],
+            }])
+            .unwrap(),
+        });
+        for msg in [configure(), chunk, full_tick(), HostMessage::Finish] {
             let bytes = tx.frame(msg.clone(), &mut out).unwrap().to_vec();
             assert_eq!(bytes.last(), Some(&0));
             assert!(!bytes[..bytes.len() - 1].contains(&0));
             assert_eq!(feed::<HostMessage>(&mut rx, &bytes), vec![Ok(msg)]);
         }
-        assert_eq!(rx.counters().frames_ok, 3);
+        assert_eq!(rx.counters().frames_ok, 4);
         assert_eq!(rx.counters().sequence_gaps, 0);
+    }
+
+    /// The largest chunk (every id and index at its longest varint,
+    /// positions that do not compress) is one frame, and decodes back;
+    /// in RAM it is no larger than `Configure`, the largest message
+    /// before it, so the firmware's receive path needs no more stack.
+    #[test]
+    fn a_full_map_chunk_fits_a_frame() {
+        let tags = (0..MAP_CHUNK_TAGS)
+            .map(|i| MapTag {
+                id: u64::MAX - i as u64,
+                position_m: [f32::MIN_POSITIVE, -f32::MAX],
+            })
+            .collect();
+        let chunk = HostMessage::MapChunk(MapChunk {
+            first: u16::MAX,
+            tags,
+        });
+        let mut out = [0; MAX_FRAME_BYTES];
+        let mut tx = Sender { seq: u32::MAX };
+        let bytes = tx.frame(chunk.clone(), &mut out).unwrap().to_vec();
+        println!("largest map chunk: {} B of {MAX_FRAME_BYTES}", bytes.len());
+        let mut rx = Receiver::new();
+        assert_eq!(feed::<HostMessage>(&mut rx, &bytes), vec![Ok(chunk)]);
+        assert!(core::mem::size_of::<MapChunk>() <= core::mem::size_of::<Configure>());
+        // The capacity and every index fit the messages' u16.
+        assert!(u16::try_from(MAP_CAPACITY).is_ok());
+    }
+
+    /// Every refusal of a map says which tag and why, in words.
+    #[test]
+    fn map_refusals_name_the_tag_and_why() {
+        let said = |r: MapRefusal| Refusal::Map(r).to_string();
+        assert_eq!(
+            said(MapRefusal::Tag {
+                index: 7,
+                why: TagMapError::DuplicateId
+            }),
+            "the tag map was refused: tag 7: tag id already in the map"
+        );
+        assert_eq!(
+            said(MapRefusal::Size {
+                tags: 5000,
+                capacity: 4096
+            }),
+            "the tag map was refused: Configure announced 5000 tags; the firmware holds 1 to 4096"
+        );
+        assert!(
+            said(MapRefusal::Tag {
+                index: 3,
+                why: TagMapError::Unsorted
+            })
+            .contains("ids must increase")
+        );
+        assert!(
+            said(MapRefusal::OutOfOrder {
+                expected: 16,
+                first: 32
+            })
+            .contains("starting at tag 32 arrived; tag 16 was next")
+        );
     }
 
     /// The flat serializer of `Diagnostics` writes what the derived

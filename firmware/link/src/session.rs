@@ -1,17 +1,75 @@
 //! The firmware's side of a HIL run: messages in, the core's robot in the
 //! middle, messages out. Board-independent (the QEMU board feeds it bytes
 //! from its host link), so it is tested on the host too.
+//!
+//! A tag-map floor is loaded into a [`LinkTagMap`] the board lends the
+//! session for its lifetime (the QEMU board's is a static: 64 KiB, never
+//! on the stack), through a `RefCell`: the session fills it in place
+//! between runs, the robot's [`SessionFloor`] looks ids up in it during
+//! one. Both take it with `try_borrow*`, never at once (a lookup holds it
+//! for the binary search only), so neither can fail or panic.
 
-use wmr_core::devices::{MotorDriver, MotorWiring, TagGrid};
+use core::cell::RefCell;
+
+use wmr_core::devices::{MotorDriver, MotorWiring, TagGrid, TagId, TagLocator, TagMap};
+use wmr_core::geometry::Vec2;
 use wmr_core::pilot::Pilot;
 use wmr_core::pilot::robot::Robot;
 use wmr_core::pilot::spec::SpecError;
 
 use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
 use crate::{
-    Configure, Diagnostics, Finished, HostMessage, LinkCounters, MotorOutput, PROTOCOL_VERSION,
-    Refusal, TargetMessage, TickOutput, telemetry,
+    Configure, Diagnostics, Finished, FloorSpec, HostMessage, LinkCounters, MAP_CAPACITY, MapChunk,
+    MapRefusal, MotorOutput, PROTOCOL_VERSION, Refusal, TargetMessage, TickOutput, telemetry,
 };
+
+/// The tag map of a HIL session: the core's, [`MAP_CAPACITY`] tags.
+pub type LinkTagMap = TagMap<MAP_CAPACITY>;
+
+/// The floor a session's robot looks its tag ids up in.
+#[derive(Debug, Clone, Copy)]
+pub enum SessionFloor<'a> {
+    /// A grid, sent whole in `Configure`.
+    Grid(TagGrid),
+    /// The tag map loaded from `MapChunk`s.
+    Map(&'a RefCell<LinkTagMap>),
+}
+
+impl TagLocator for SessionFloor<'_> {
+    fn locate(&self, id: TagId) -> Option<Vec2> {
+        match self {
+            Self::Grid(grid) => grid.position(id),
+            // Never borrowed mutably during a tick (the session loads the
+            // map only between runs); if it were, the tag is unknown.
+            Self::Map(map) => map.try_borrow().ok()?.position(id),
+        }
+    }
+}
+
+/// A tag map being loaded, or loaded, for the run.
+#[derive(Debug, Clone, Copy)]
+struct MapLoad {
+    /// Tags `Configure` announced.
+    announced: u16,
+    /// Tags loaded so far.
+    loaded: u16,
+}
+
+impl MapLoad {
+    /// Whether every announced tag is loaded.
+    fn complete(&self) -> bool {
+        self.loaded == self.announced
+    }
+
+    /// The answer to the chunk that brought the map to `loaded` tags.
+    fn answer(&self) -> TargetMessage {
+        if self.complete() {
+            TargetMessage::Configured
+        } else {
+            TargetMessage::MapLoaded { tags: self.loaded }
+        }
+    }
+}
 
 /// The robot a HIL session runs: the core's [`Robot`] on proxy devices.
 pub type ProxyRobot<'a> = Robot<
@@ -20,12 +78,17 @@ pub type ProxyRobot<'a> = Robot<
     MotorDriver<ProxyPwm<'a>, ProxyPin<'a>>,
     MotorDriver<ProxyPwm<'a>, ProxyPin<'a>>,
     ProxyUart<'a>,
-    TagGrid,
+    SessionFloor<'a>,
 >;
 
 /// A run in progress.
 pub struct Session<'a> {
     bus: &'a ProxyBus,
+    /// The tag map's storage, lent by the board.
+    map: &'a RefCell<LinkTagMap>,
+    /// The tag map of the run (`None`: a grid, or no run).
+    map_load: Option<MapLoad>,
+    /// The robot, from `Configure` on (not run until its map is loaded).
     robot: Option<ProxyRobot<'a>>,
     ticks: u32,
     /// The last tick's answer, sent again if the host resends that tick.
@@ -39,11 +102,14 @@ pub struct Session<'a> {
 }
 
 impl<'a> Session<'a> {
-    /// A session over `bus`, not yet configured.
+    /// A session over `bus`, not yet configured, loading a tag map (if a
+    /// run has one) into `map`.
     #[must_use]
-    pub fn new(bus: &'a ProxyBus) -> Self {
+    pub fn new(bus: &'a ProxyBus, map: &'a RefCell<LinkTagMap>) -> Self {
         Self {
             bus,
+            map,
+            map_load: None,
             robot: None,
             ticks: 0,
             last_answer: None,
@@ -58,7 +124,7 @@ impl<'a> Session<'a> {
     /// off, or no run): for the board to log once.
     #[must_use]
     pub fn telemetry_start(&self) -> Option<telemetry::Start> {
-        let robot = self.robot.as_ref()?;
+        let robot = self.robot.as_ref().filter(|_| self.is_configured())?;
         (self.telemetry_every_ticks != 0).then(|| telemetry::Start {
             every_ticks: self.telemetry_every_ticks,
             period_s: robot.pilot().tracker().config().clock().period_s(),
@@ -74,10 +140,11 @@ impl<'a> Session<'a> {
         self.telemetry.as_ref()
     }
 
-    /// Whether a configuration was accepted.
+    /// Whether a configuration was accepted (its tag map, if it has one,
+    /// loaded whole).
     #[must_use]
     pub fn is_configured(&self) -> bool {
-        self.robot.is_some()
+        self.robot.is_some() && self.map_load.is_none_or(|m| m.complete())
     }
 
     /// Handles one message; `link` are the receiver's counters and
@@ -90,58 +157,62 @@ impl<'a> Session<'a> {
         peak_stack_bytes: impl FnOnce() -> u32,
     ) -> (TargetMessage, bool) {
         self.telemetry = None;
+        let configured = self.is_configured();
         match message {
             HostMessage::Configure(c) => (self.configure(c), false),
-            HostMessage::Tick(input) => match (self.robot.as_mut(), self.last_answer) {
-                (None, _) => (TargetMessage::Refused(Refusal::NotConfigured), false),
-                // The host resent a tick whose answer it lost: the same
-                // answer again; the robot does not run the tick twice.
-                (Some(_), Some(last)) if last.tick == input.tick => {
-                    self.repeated_ticks = self.repeated_ticks.saturating_add(1);
-                    (TargetMessage::Ticked(last), false)
+            HostMessage::MapChunk(chunk) => (self.load_map(chunk), false),
+            HostMessage::Tick(input) => {
+                match (self.robot.as_mut().filter(|_| configured), self.last_answer) {
+                    (None, _) => (TargetMessage::Refused(Refusal::NotConfigured), false),
+                    // The host resent a tick whose answer it lost: the same
+                    // answer again; the robot does not run the tick twice.
+                    (Some(_), Some(last)) if last.tick == input.tick => {
+                        self.repeated_ticks = self.repeated_ticks.saturating_add(1);
+                        (TargetMessage::Ticked(last), false)
+                    }
+                    // Older than the last answer: never run late.
+                    (Some(_), Some(last)) if input.tick < last.tick => {
+                        self.stale_ticks = self.stale_ticks.saturating_add(1);
+                        (
+                            TargetMessage::Refused(Refusal::StaleTick {
+                                last_answered: last.tick,
+                            }),
+                            false,
+                        )
+                    }
+                    (Some(robot), _) => {
+                        self.bus.load(input);
+                        let out = robot.tick();
+                        // A few scalars, not `&out`: taking the tick's address
+                        // kept all of it in this (inlined, deepest) frame.
+                        let extra = telemetry::Extra::of(&out);
+                        self.ticks = self.ticks.saturating_add(1);
+                        let t = &out.pilot.tracker;
+                        let answer = TickOutput {
+                            tick: input.tick,
+                            left: self.bus.motor(Side::Left),
+                            right: self.bus.motor(Side::Right),
+                            mode: t.mode,
+                            reference_m: [t.reference.position.x, t.reference.position.y],
+                            position_m: [t.position.x, t.position.y],
+                            heading: [t.heading.cos_theta, t.heading.sin_theta],
+                            command: [t.command.v_m_s, t.command.omega_rad_s],
+                            fix: out.fix.is_some(),
+                            speed_limited: out.pilot.drive.speed_limited,
+                            accel_limited: out.pilot.drive.accel_limited,
+                        };
+                        self.last_answer = Some(answer);
+                        note_telemetry(
+                            &mut self.telemetry,
+                            self.telemetry_every_ticks,
+                            &self.last_answer,
+                            extra,
+                            robot,
+                        );
+                        (TargetMessage::Ticked(answer), false)
+                    }
                 }
-                // Older than the last answer: never run late.
-                (Some(_), Some(last)) if input.tick < last.tick => {
-                    self.stale_ticks = self.stale_ticks.saturating_add(1);
-                    (
-                        TargetMessage::Refused(Refusal::StaleTick {
-                            last_answered: last.tick,
-                        }),
-                        false,
-                    )
-                }
-                (Some(robot), _) => {
-                    self.bus.load(input);
-                    let out = robot.tick();
-                    // A few scalars, not `&out`: taking the tick's address
-                    // kept all of it in this (inlined, deepest) frame.
-                    let extra = telemetry::Extra::of(&out);
-                    self.ticks = self.ticks.saturating_add(1);
-                    let t = &out.pilot.tracker;
-                    let answer = TickOutput {
-                        tick: input.tick,
-                        left: self.bus.motor(Side::Left),
-                        right: self.bus.motor(Side::Right),
-                        mode: t.mode,
-                        reference_m: [t.reference.position.x, t.reference.position.y],
-                        position_m: [t.position.x, t.position.y],
-                        heading: [t.heading.cos_theta, t.heading.sin_theta],
-                        command: [t.command.v_m_s, t.command.omega_rad_s],
-                        fix: out.fix.is_some(),
-                        speed_limited: out.pilot.drive.speed_limited,
-                        accel_limited: out.pilot.drive.accel_limited,
-                    };
-                    self.last_answer = Some(answer);
-                    note_telemetry(
-                        &mut self.telemetry,
-                        self.telemetry_every_ticks,
-                        &self.last_answer,
-                        extra,
-                        robot,
-                    );
-                    (TargetMessage::Ticked(answer), false)
-                }
-            },
+            }
             HostMessage::Finish => (
                 TargetMessage::Finished(Finished {
                     ticks: self.ticks,
@@ -193,13 +264,40 @@ impl<'a> Session<'a> {
         if c.protocol != PROTOCOL_VERSION {
             return TargetMessage::Refused(Refusal::Protocol(PROTOCOL_VERSION));
         }
+        if let FloorSpec::Map { tags } = c.floor
+            && (tags == 0 || usize::from(tags) > MAP_CAPACITY)
+        {
+            return TargetMessage::Refused(Refusal::Map(MapRefusal::Size {
+                tags,
+                // `MAP_CAPACITY` fits (the link's tests).
+                capacity: u16::try_from(MAP_CAPACITY).unwrap_or(u16::MAX),
+            }));
+        }
         let built = c.pilot.build().and_then(|config| {
             let pilot = Pilot::new(config).map_err(SpecError::Pilot)?;
-            Ok((pilot, c.grid.build()?))
+            let floor = match c.floor {
+                FloorSpec::Grid(grid) => SessionFloor::Grid(grid.build()?),
+                FloorSpec::Map { .. } => SessionFloor::Map(self.map),
+            };
+            Ok((pilot, floor))
         });
         match built {
             Err(e) => TargetMessage::Refused(Refusal::Spec(e)),
-            Ok((pilot, grid)) => {
+            Ok((pilot, floor)) => {
+                // The last run's robot goes before its map is emptied.
+                self.robot = None;
+                self.map_load = match c.floor {
+                    FloorSpec::Grid(_) => None,
+                    FloorSpec::Map { tags } => {
+                        if let Ok(mut map) = self.map.try_borrow_mut() {
+                            map.clear();
+                        }
+                        Some(MapLoad {
+                            announced: tags,
+                            loaded: 0,
+                        })
+                    }
+                };
                 let bus = self.bus;
                 bus.reset(c.pwm_max_duty);
                 let motor = |side| {
@@ -214,15 +312,74 @@ impl<'a> Session<'a> {
                     (bus.encoder(Side::Left), bus.encoder(Side::Right)),
                     (motor(Side::Left), motor(Side::Right)),
                     wmr_core::devices::RfidReader::new(bus.uart()),
-                    grid,
+                    floor,
                 ));
                 self.ticks = 0;
                 self.last_answer = None;
                 self.telemetry_every_ticks = c.telemetry_every_ticks;
                 self.telemetry = None;
-                TargetMessage::Configured
+                match self.map_load {
+                    Some(load) => TargetMessage::MapLoaded { tags: load.loaded },
+                    None => TargetMessage::Configured,
+                }
             }
         }
+    }
+
+    /// Loads a chunk of the announced tag map; a refusal leaves the
+    /// session unconfigured.
+    fn load_map(&mut self, chunk: &MapChunk) -> TargetMessage {
+        match self.load_chunk(chunk) {
+            Ok(answer) => answer,
+            Err(why) => {
+                self.robot = None;
+                self.map_load = None;
+                TargetMessage::Refused(Refusal::Map(why))
+            }
+        }
+    }
+
+    fn load_chunk(&mut self, chunk: &MapChunk) -> Result<TargetMessage, MapRefusal> {
+        let Some(load) = self.map_load.as_mut().filter(|_| self.robot.is_some()) else {
+            return Err(MapRefusal::NotLoading);
+        };
+        // At most `MAP_CHUNK_TAGS`.
+        let n = u16::try_from(chunk.tags.len()).unwrap_or(u16::MAX);
+        // The chunk just loaded, sent again (its answer was lost): the
+        // same answer, nothing loaded twice.
+        if n > 0 && chunk.first.checked_add(n) == Some(load.loaded) {
+            return Ok(load.answer());
+        }
+        if chunk.first != load.loaded {
+            return Err(MapRefusal::OutOfOrder {
+                expected: load.loaded,
+                first: chunk.first,
+            });
+        }
+        if load
+            .loaded
+            .checked_add(n)
+            .is_none_or(|end| end > load.announced)
+        {
+            return Err(MapRefusal::TooMany {
+                announced: load.announced,
+            });
+        }
+        let mut map = self
+            .map
+            .try_borrow_mut()
+            .map_err(|_| MapRefusal::NotLoading)?;
+        for tag in &chunk.tags {
+            let [x, y] = tag.position_m;
+            map.push(TagId(tag.id), Vec2::new(x, y))
+                .map_err(|why| MapRefusal::Tag {
+                    index: load.loaded,
+                    why,
+                })?;
+            // At most `announced` (checked above).
+            load.loaded += 1;
+        }
+        Ok(load.answer())
     }
 }
 
@@ -253,9 +410,53 @@ fn note_telemetry(
 mod tests {
     use super::*;
     use crate::TickInput;
+    use crate::{MAP_CHUNK_TAGS, MapTag};
+    use wmr_core::devices::TagMapError;
     use wmr_core::devices::encode_frame;
     use wmr_core::pilot::spec::{DriveSpec, PilotSpec, TagGridSpec, TrackerSpec, TrajectorySpec};
     use wmr_core::pilot::tracker::TrackerMode;
+
+    /// The grid of [`configure`]: 21 × 21 tags 0.1 m apart around the
+    /// origin.
+    fn grid() -> TagGridSpec {
+        TagGridSpec {
+            origin_m: [-1.0, -1.0],
+            spacing_m: 0.1,
+            rows: 21,
+            columns: 21,
+        }
+    }
+
+    /// Tag `i` of [`map_tags`]: an arbitrary 40-bit id, increasing with
+    /// `i`.
+    fn map_id(i: u16) -> u64 {
+        0x12_0000_0000 + 7919 * u64::from(i)
+    }
+
+    /// `n` tags on the x axis 0.1 m apart from -1 m (tag 12 at 0.2 m),
+    /// ids from [`map_id`].
+    fn map_tags(n: u16) -> std::vec::Vec<MapTag> {
+        (0..n)
+            .map(|i| MapTag {
+                id: map_id(i),
+                position_m: [0.1 * f32::from(i) - 1.0, 0.0],
+            })
+            .collect()
+    }
+
+    fn chunk(first: u16, tags: &[MapTag]) -> HostMessage {
+        HostMessage::MapChunk(MapChunk {
+            first,
+            tags: heapless::Vec::from_slice(tags).unwrap(),
+        })
+    }
+
+    fn map_configure(tags: u16) -> HostMessage {
+        HostMessage::Configure(Configure {
+            floor: FloorSpec::Map { tags },
+            ..configure()
+        })
+    }
 
     pub(crate) fn configure() -> Configure {
         Configure {
@@ -299,12 +500,7 @@ mod tests {
                 encoder_bits: 16,
                 max_encoder_fault_ticks: 5,
             },
-            grid: TagGridSpec {
-                origin_m: [-1.0, -1.0],
-                spacing_m: 0.1,
-                rows: 21,
-                columns: 21,
-            },
+            floor: FloorSpec::Grid(grid()),
             pwm_max_duty: 1000,
             telemetry_every_ticks: 0,
         }
@@ -313,7 +509,8 @@ mod tests {
     #[test]
     fn configure_then_tick_drives_the_proxies() {
         let bus = ProxyBus::new();
-        let mut s = Session::new(&bus);
+        let map = RefCell::new(LinkTagMap::new());
+        let mut s = Session::new(&bus, &map);
         let link = LinkCounters::default();
         let tick = |k, uart: &[u8]| {
             HostMessage::Tick(TickInput {
@@ -366,7 +563,8 @@ mod tests {
     #[test]
     fn telemetry_is_the_robots_tick_every_nth_tick() {
         let bus = ProxyBus::new();
-        let mut s = Session::new(&bus);
+        let map = RefCell::new(LinkTagMap::new());
+        let mut s = Session::new(&bus, &map);
         let link = LinkCounters::default();
         let c = Configure {
             telemetry_every_ticks: 3,
@@ -396,7 +594,7 @@ mod tests {
             (twin_bus.encoder(Side::Left), twin_bus.encoder(Side::Right)),
             (motor(Side::Left), motor(Side::Right)),
             wmr_core::devices::RfidReader::new(twin_bus.uart()),
-            c.grid.build().unwrap(),
+            SessionFloor::Grid(grid().build().unwrap()),
         );
         let mut emitted = std::vec::Vec::new();
         for k in 0..12_u32 {
@@ -426,10 +624,168 @@ mod tests {
         assert_eq!(emitted, [0, 3, 6, 9]);
     }
 
+    /// A tag map announced in `Configure` is loaded chunk by chunk (a
+    /// chunk sent again is answered again, not loaded twice), the run
+    /// starts only when the last tag is in, and the robot then resolves
+    /// the map's arbitrary ids to their positions (an id not in the map is
+    /// counted as unknown). A second map replaces the first whole.
+    #[test]
+    fn a_tag_map_is_loaded_in_chunks_and_the_robot_looks_ids_up_in_it() {
+        let bus = ProxyBus::new();
+        let map = RefCell::new(LinkTagMap::new());
+        let mut s = Session::new(&bus, &map);
+        let link = LinkCounters::default();
+        let tick = |k, id: u64| {
+            HostMessage::Tick(TickInput {
+                tick: k,
+                left_count: Some(0),
+                right_count: Some(0),
+                uart: heapless::Vec::from_slice(&encode_frame(TagId(id))).unwrap(),
+            })
+        };
+        let tags = map_tags(20);
+        let answer = |s: &mut Session<'_>, m: &HostMessage| s.handle(m, link, || 0).0;
+        assert_eq!(
+            answer(&mut s, &map_configure(20)),
+            TargetMessage::MapLoaded { tags: 0 }
+        );
+        assert!(!s.is_configured());
+        assert_eq!(
+            answer(&mut s, &tick(0, map_id(12))),
+            TargetMessage::Refused(Refusal::NotConfigured),
+            "no tick before the whole map"
+        );
+        let k = u16::try_from(MAP_CHUNK_TAGS).unwrap();
+        let first = chunk(0, &tags[..MAP_CHUNK_TAGS]);
+        assert_eq!(answer(&mut s, &first), TargetMessage::MapLoaded { tags: k });
+        // Its answer lost, sent again: the same answer, loaded once.
+        assert_eq!(answer(&mut s, &first), TargetMessage::MapLoaded { tags: k });
+        assert_eq!(map.borrow().len(), MAP_CHUNK_TAGS);
+        let last = chunk(k, &tags[MAP_CHUNK_TAGS..]);
+        assert_eq!(answer(&mut s, &last), TargetMessage::Configured);
+        assert_eq!(answer(&mut s, &last), TargetMessage::Configured);
+        assert!(s.is_configured());
+        assert_eq!(map.borrow().len(), 20);
+
+        let TargetMessage::Ticked(out) = answer(&mut s, &tick(0, map_id(12))) else {
+            panic!("not ticked")
+        };
+        assert!(out.fix);
+        assert!((out.position_m[0] - 0.2).abs() < 1e-6, "{out:?}");
+        assert!(out.position_m[1].abs() < 1e-6, "{out:?}");
+        // A grid id is not in this map.
+        answer(&mut s, &tick(1, TagGrid::id(10, 12).0));
+        let d = s.diagnostics(link);
+        assert_eq!((d.rfid.frames_ok, d.robot.unknown_tags), (2, 1));
+
+        // Another map: the first one's tags are gone.
+        assert_eq!(
+            answer(&mut s, &map_configure(1)),
+            TargetMessage::MapLoaded { tags: 0 }
+        );
+        let other = [MapTag {
+            id: 0xFF_0000_0001,
+            position_m: [0.5, 0.0],
+        }];
+        assert_eq!(answer(&mut s, &chunk(0, &other)), TargetMessage::Configured);
+        assert_eq!(map.borrow().len(), 1);
+        assert_eq!(map.borrow().position(TagId(map_id(12))), None);
+    }
+
+    /// What the core's `TagMap` refuses, and a map out of order, too long,
+    /// unsorted or not announced, is refused naming the tag and why; the
+    /// session is then not configured, and a new `Configure` starts over.
+    #[test]
+    fn a_bad_map_is_refused_naming_the_tag_and_why() {
+        let bus = ProxyBus::new();
+        let map = RefCell::new(LinkTagMap::new());
+        let mut s = Session::new(&bus, &map);
+        let link = LinkCounters::default();
+        let mut answer = |m: &HostMessage| s.handle(m, link, || 0).0;
+        let refused = |why| TargetMessage::Refused(Refusal::Map(why));
+        let capacity = 4096;
+        for tags in [0, 4097] {
+            assert_eq!(
+                answer(&map_configure(tags)),
+                refused(MapRefusal::Size { tags, capacity })
+            );
+        }
+        let tags = map_tags(4);
+        assert_eq!(answer(&chunk(0, &tags)), refused(MapRefusal::NotLoading));
+        let cases: [(&[MapTag], MapRefusal); 4] = [
+            (
+                &[tags[0], tags[1], tags[1]],
+                MapRefusal::Tag {
+                    index: 2,
+                    why: TagMapError::DuplicateId,
+                },
+            ),
+            (
+                &[
+                    tags[0],
+                    MapTag {
+                        position_m: [f32::NAN, 0.0],
+                        ..tags[1]
+                    },
+                ],
+                MapRefusal::Tag {
+                    index: 1,
+                    why: TagMapError::NonFinitePosition,
+                },
+            ),
+            (
+                &[tags[0], tags[2], tags[1]],
+                MapRefusal::Tag {
+                    index: 2,
+                    why: TagMapError::Unsorted,
+                },
+            ),
+            (&tags, MapRefusal::TooMany { announced: 3 }),
+        ];
+        for (sent, why) in cases {
+            assert_eq!(
+                answer(&map_configure(3)),
+                TargetMessage::MapLoaded { tags: 0 }
+            );
+            assert_eq!(answer(&chunk(0, sent)), refused(why));
+            // Not configured: no tick, no more chunks.
+            assert_eq!(
+                answer(&HostMessage::Tick(TickInput {
+                    tick: 0,
+                    left_count: Some(0),
+                    right_count: Some(0),
+                    uart: heapless::Vec::new(),
+                })),
+                TargetMessage::Refused(Refusal::NotConfigured)
+            );
+            assert_eq!(
+                answer(&chunk(3, &tags[3..])),
+                refused(MapRefusal::NotLoading)
+            );
+        }
+        assert_eq!(
+            answer(&map_configure(4)),
+            TargetMessage::MapLoaded { tags: 0 }
+        );
+        assert_eq!(
+            answer(&chunk(2, &tags[2..])),
+            refused(MapRefusal::OutOfOrder {
+                expected: 0,
+                first: 2
+            })
+        );
+        // A grid run after all that.
+        assert_eq!(
+            answer(&HostMessage::Configure(configure())),
+            TargetMessage::Configured
+        );
+    }
+
     #[test]
     fn a_silent_link_stops_the_motors() {
         let bus = ProxyBus::new();
-        let mut s = Session::new(&bus);
+        let map = RefCell::new(LinkTagMap::new());
+        let mut s = Session::new(&bus, &map);
         let link = LinkCounters::default();
         s.handle(&HostMessage::Configure(configure()), link, || 0);
         // Behind the reference with a fix every tick: the robot drives.
@@ -462,7 +818,8 @@ mod tests {
     #[test]
     fn a_resent_tick_is_answered_again_and_an_older_one_refused() {
         let bus = ProxyBus::new();
-        let mut s = Session::new(&bus);
+        let map = RefCell::new(LinkTagMap::new());
+        let mut s = Session::new(&bus, &map);
         let link = LinkCounters::default();
         s.handle(&HostMessage::Configure(configure()), link, || 0);
         let tick = |k: u32, counts: u32| {

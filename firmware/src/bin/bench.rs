@@ -114,7 +114,7 @@ mod on_target {
     use wmr_core::reference::{ReferenceSample, Trajectory};
     use wmr_link::TickInput;
     use wmr_link::proxy::{ProxyBus, Side};
-    use wmr_link::session::ProxyRobot;
+    use wmr_link::session::{ProxyRobot, SessionFloor};
     use wmr_papers::slip_tracking::{PoseModel, PoseWheelModel, TrackedRobot};
 
     /// Math backend this binary was built with.
@@ -1304,7 +1304,7 @@ mod on_target {
             (bus.encoder(Side::Left), bus.encoder(Side::Right)),
             (motor(Side::Left), motor(Side::Right)),
             RfidReader::new(bus.uart()),
-            grid,
+            SessionFloor::Grid(grid),
         )
     }
 

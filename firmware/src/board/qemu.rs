@@ -36,6 +36,8 @@
 
 mod host_file;
 
+use core::cell::RefCell;
+
 use cortex_m::peripheral::SYST;
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
@@ -44,7 +46,7 @@ use host_file::HostFile;
 // this board uses no peripheral of it.
 use stm32f4xx_hal as _;
 use wmr_link::proxy::ProxyBus;
-use wmr_link::session::Session;
+use wmr_link::session::{LinkTagMap, Session};
 use wmr_link::{
     HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, HostMessage, LINK_TIMEOUT_MS, LinkError, MAX_FRAME_BYTES,
     PROTOCOL_VERSION, Receiver, Sender, TargetMessage,
@@ -193,9 +195,11 @@ fn fail() -> ! {
 /// The firmware: serve the link until the host says `Finish`.
 ///
 /// The long-lived state (the proxy bus, the session with its robot, the
-/// link receiver: about 1.9 KB) lives in statics (`cortex_m::singleton!`,
-/// in `.bss`), not in this function's frame, so the stack holds only what
-/// a message's handling needs (docs/firmware.md, "Memory").
+/// link receiver: about 1.9 KB; the tag map a run may load,
+/// `wmr_link::MAP_CAPACITY` tags, 64 KiB) lives in statics
+/// (`cortex_m::singleton!`, in `.bss`), not in this function's frame, so
+/// the stack holds only what a message's handling needs (docs/firmware.md,
+/// "Memory").
 pub fn run() -> ! {
     let Some(cp) = cortex_m::Peripherals::take() else {
         // Only possible if something took them before `main`.
@@ -213,7 +217,14 @@ pub fn run() -> ! {
         fail()
     };
     let bus: &'static ProxyBus = bus;
-    let Some(session) = cortex_m::singleton!(: Session<'static> = Session::new(bus)) else {
+    // Empty (its length 0): built in place, not on the stack (the HIL
+    // tests' peak stack would show 64 KiB).
+    let Some(map) = cortex_m::singleton!(: RefCell<LinkTagMap> = RefCell::new(LinkTagMap::new()))
+    else {
+        fail()
+    };
+    let map: &'static RefCell<LinkTagMap> = map;
+    let Some(session) = cortex_m::singleton!(: Session<'static> = Session::new(bus, map)) else {
         fail()
     };
     let Some(rx) = cortex_m::singleton!(: Receiver = Receiver::new()) else {
