@@ -174,6 +174,26 @@ fn a_tag_map_robot_runs_exactly_as_on_the_host() {
     assert!(tracker.fixes_used > 0, "no fix used: {tracker:?}");
 }
 
+/// The fusion EKF on the same tag-map robot (range reader, 1 m blind
+/// distance: the core's `FusionSettings::on_tag_map`), as the firmware
+/// runs it: 10 s of the circle give the host run's records, bit for bit.
+#[test]
+fn the_fusion_estimator_on_a_tag_map_runs_exactly_as_on_the_host() {
+    let path = workspace_root().join("robots").join("circle_surveyed.toml");
+    let mut scenario = Scenario::from_file(&path).unwrap();
+    scenario.estimator = EstimatorSpec::Fusion(FusionSpec {
+        max_blind_distance_m: Some(1.0),
+        ..FusionSpec::default()
+    });
+    scenario.duration_s = 10.0;
+    scenario.transient_s = 0.0;
+    let s = runs_exactly_as_on_the_host("fusion on a tag map", &scenario, &options());
+    let tracker = s.tracker.expect("tracker counters");
+    println!("fusion EKF on a tag map under HIL: tracker {tracker:?}");
+    assert!(tracker.fixes_used > 10, "{tracker:?}");
+    assert_eq!(tracker.failsafe_entries, 0, "{tracker:?}");
+}
+
 /// The firmware refuses a bad tag map, naming the tag and why (here a
 /// duplicate id, which the core's `TagMap` refuses), and a map larger than
 /// it holds; the run is then not configured, and the same map without the
