@@ -117,18 +117,7 @@ impl FusionSettings {
         if !(tag_spacing_m.is_finite() && tag_spacing_m > 0.0) {
             return Err(PoseFilterError::TagSpacing);
         }
-        if !(scale_prior.is_finite() && scale_prior >= 0.0) {
-            return Err(PoseFilterError::InitialVariance);
-        }
-        Ok(Self {
-            filter,
-            kind: FusionFilter::Ekf,
-            tag_spacing_m,
-            scale_prior,
-            read_radius_m: 0.0,
-            max_blind_distance_m: 0.0,
-            edge_constraint: false,
-        })
+        Self::on_floor(filter, tag_spacing_m, 0.0, scale_prior)
     }
 
     /// The filter on a floor whose tags lie anywhere (a surveyed tag map,
@@ -153,13 +142,24 @@ impl FusionSettings {
         if !(read_radius_m.is_finite() && read_radius_m > 0.0) {
             return Err(PoseFilterError::TagMapReader);
         }
+        Self::on_floor(filter, 0.0, read_radius_m, scale_prior)
+    }
+
+    /// [`Self::new`] and [`Self::on_tag_map`] after their floor's checks:
+    /// the EKF, no blind distance, no edge constraint.
+    fn on_floor(
+        filter: PoseFilterConfig,
+        tag_spacing_m: f32,
+        read_radius_m: f32,
+        scale_prior: f32,
+    ) -> Result<Self, PoseFilterError> {
         if !(scale_prior.is_finite() && scale_prior >= 0.0) {
             return Err(PoseFilterError::InitialVariance);
         }
         Ok(Self {
             filter,
             kind: FusionFilter::Ekf,
-            tag_spacing_m: 0.0,
+            tag_spacing_m,
             scale_prior,
             read_radius_m,
             max_blind_distance_m: 0.0,
