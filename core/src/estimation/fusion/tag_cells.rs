@@ -233,7 +233,10 @@ impl TagCellTracker {
         Some(TagCell {
             centre: tag,
             half_width_m: 0.5 * s,
-            sweep: Vec2::new(last_step.x.clamp(-s, s), last_step.y.clamp(-s, s)),
+            // `max`/`min`, not `clamp`: `clamp` has a panic path (for
+            // bounds the optimiser cannot prove ordered), which the
+            // release firmware must not link.
+            sweep: Vec2::new(last_step.x.max(-s).min(s), last_step.y.max(-s).min(s)),
             edge_std_m: CELL_EDGE_STD_M,
         })
     }
