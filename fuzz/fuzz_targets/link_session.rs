@@ -16,13 +16,16 @@
 
 #![no_main]
 
+use std::cell::RefCell;
+
 use arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
 use wmr_core::devices::TagGrid;
 use wmr_core::devices::encode_frame;
 use wmr_fuzz::{encoder_count, light_pilot_spec, tag_grid_spec};
+use wmr_link::FloorSpec;
 use wmr_link::proxy::{ProxyBus, Side};
-use wmr_link::session::Session;
+use wmr_link::session::{LinkTagMap, Session};
 use wmr_link::{
     Configure, Frame, HostMessage, MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, PROTOCOL_VERSION,
     Receiver, Refusal, Sender, TargetMessage, TickInput, decode, encode,
@@ -41,6 +44,8 @@ struct Harness<'a> {
     firmware_tx: Sender,
     /// Full scale of the last accepted configuration.
     pwm_max_duty: Option<u16>,
+    /// The full-scale duty of a tag map's run while its map loads.
+    loading_duty: Option<u16>,
     counts: (u32, u32),
     tick: u32,
 }
@@ -102,8 +107,42 @@ impl Harness<'_> {
                     TargetMessage::Refused(Refusal::Protocol(PROTOCOL_VERSION))
                 );
             }
+            // A map announced (only an arbitrary payload does: the harness's
+            // own configurations are grids): accepted, the run is unconfigured
+            // until the whole map is in; refused, nothing changes.
+            (
+                HostMessage::Configure(
+                    c @ Configure {
+                        floor: FloorSpec::Map { .. },
+                        ..
+                    },
+                ),
+                _,
+            ) => match answer {
+                TargetMessage::MapLoaded { tags: 0 } => {
+                    assert!(c.pilot.build().is_ok(), "{c:?}");
+                    self.pwm_max_duty = None;
+                    self.loading_duty = Some(c.pwm_max_duty);
+                }
+                TargetMessage::Refused(Refusal::Spec(_) | Refusal::Map(_)) => {}
+                _ => panic!("{c:?} answered with {answer:?}"),
+            },
+            (HostMessage::MapChunk(_), _) => match answer {
+                TargetMessage::MapLoaded { .. } => assert!(self.loading_duty.is_some()),
+                TargetMessage::Configured => {
+                    self.pwm_max_duty = self.loading_duty.take();
+                    assert!(self.pwm_max_duty.is_some());
+                }
+                TargetMessage::Refused(Refusal::Map(_)) => {
+                    // A refused chunk leaves the session unconfigured.
+                    self.pwm_max_duty = None;
+                    self.loading_duty = None;
+                }
+                _ => panic!("{message:?} answered with {answer:?}"),
+            },
             (HostMessage::Configure(c), _) => {
-                let builds = c.pilot.build().is_ok() && c.grid.build().is_ok();
+                let builds = c.pilot.build().is_ok()
+                    && matches!(c.floor, FloorSpec::Grid(grid) if grid.build().is_ok());
                 assert_eq!(
                     answer == TargetMessage::Configured,
                     builds,
@@ -111,6 +150,7 @@ impl Harness<'_> {
                 );
                 if builds {
                     self.pwm_max_duty = Some(c.pwm_max_duty);
+                    self.loading_duty = None;
                 } else {
                     assert!(matches!(answer, TargetMessage::Refused(Refusal::Spec(_))));
                 }
@@ -153,7 +193,7 @@ impl Harness<'_> {
                 PROTOCOL_VERSION
             },
             pilot: light_pilot_spec(u)?,
-            grid: tag_grid_spec(u)?,
+            floor: FloorSpec::Grid(tag_grid_spec(u)?),
             pwm_max_duty: match u.int_in_range(0_u8..=3)? {
                 0 => u.arbitrary()?,
                 _ => 1000,
@@ -203,13 +243,15 @@ impl Harness<'_> {
 }
 
 fn run(u: &mut Unstructured, bus: &ProxyBus) -> Result<()> {
+    let map = RefCell::new(LinkTagMap::new());
     let mut h = Harness {
-        session: Session::new(bus),
+        session: Session::new(bus, &map),
         bus,
         rx: Receiver::new(),
         host_tx: Sender::default(),
         firmware_tx: Sender::default(),
         pwm_max_duty: None,
+        loading_duty: None,
         counts: (0, 0),
         tick: 0,
     };
