@@ -12,7 +12,9 @@
 //! the host decodes to the same message; a tick's PWM duties are within the
 //! configured full scale and its command finite; a configuration is
 //! accepted exactly when the core builds it; a tick before any accepted
-//! configuration is refused; a silent link stops the motors.
+//! configuration is refused; motors without a configured run are stopped;
+//! a map chunk when no map loads changes nothing; a silent link stops the
+//! motors.
 
 #![no_main]
 
@@ -27,8 +29,8 @@ use wmr_link::FloorSpec;
 use wmr_link::proxy::{ProxyBus, Side};
 use wmr_link::session::{LinkTagMap, Session};
 use wmr_link::{
-    Configure, Frame, HostMessage, MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, PROTOCOL_VERSION,
-    Receiver, Refusal, Sender, TargetMessage, TickInput, decode, encode,
+    Configure, Frame, HostMessage, MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, MapRefusal,
+    PROTOCOL_VERSION, Receiver, Refusal, Sender, TargetMessage, TickInput, decode, encode,
 };
 
 /// Operations per input at most.
@@ -133,8 +135,14 @@ impl Harness<'_> {
                     self.pwm_max_duty = self.loading_duty.take();
                     assert!(self.pwm_max_duty.is_some());
                 }
+                // No map loading: refused, and a running robot runs on.
+                TargetMessage::Refused(Refusal::Map(MapRefusal::NotLoading)) => {
+                    assert!(self.loading_duty.is_none());
+                }
                 TargetMessage::Refused(Refusal::Map(_)) => {
-                    // A refused chunk leaves the session unconfigured.
+                    // A chunk refused while a map loads leaves the session
+                    // unconfigured.
+                    assert!(self.loading_duty.is_some());
                     self.pwm_max_duty = None;
                     self.loading_duty = None;
                 }
@@ -179,9 +187,11 @@ impl Harness<'_> {
             }
             _ => panic!("{message:?} answered with {answer:?}"),
         }
-        let full = max(self.pwm_max_duty);
+        // A configured run's motors within its full scale; without one
+        // (never configured, a map loading or refused), stopped.
+        let full = self.pwm_max_duty.map_or(0, |d| d.max(1));
         for side in [Side::Left, Side::Right] {
-            assert!(self.bus.motor(side).duty <= full);
+            assert!(self.bus.motor(side).duty <= full, "{message:?}");
         }
     }
 

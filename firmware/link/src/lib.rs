@@ -39,7 +39,8 @@
 //! increasing, so unique, capacity), and refuses a size it cannot hold, a
 //! chunk out of order, a tag past the announced count, or a tag the core
 //! refuses, naming which and why ([`MapRefusal`]); a refused map leaves it
-//! unconfigured. A chunk sent again (its answer lost) is answered again,
+//! unconfigured with its motors stopped. A chunk when no map is loading is
+//! refused and changes nothing (a running robot runs on). A chunk sent again (its answer lost) is answered again,
 //! not loaded twice. The configuration goes over a clean link (the
 //! fault injector acts on the ticks only).
 //!

@@ -326,14 +326,21 @@ impl<'a> Session<'a> {
         }
     }
 
-    /// Loads a chunk of the announced tag map; a refusal leaves the
-    /// session unconfigured.
+    /// Loads a chunk of the announced tag map. A chunk refused while a map
+    /// loads leaves the session unconfigured with its motors stopped; a
+    /// chunk when no map is loading (`NotLoading`) is refused and changes
+    /// nothing, so a stray chunk neither stops a running grid run nor
+    /// leaves its motors turning without a robot to drive them.
     fn load_map(&mut self, chunk: &MapChunk) -> TargetMessage {
         match self.load_chunk(chunk) {
             Ok(answer) => answer,
+            Err(MapRefusal::NotLoading) => {
+                TargetMessage::Refused(Refusal::Map(MapRefusal::NotLoading))
+            }
             Err(why) => {
                 self.robot = None;
                 self.map_load = None;
+                self.bus.stop_motors();
                 TargetMessage::Refused(Refusal::Map(why))
             }
         }
@@ -811,6 +818,44 @@ mod tests {
         };
         assert_eq!(silent_ms, crate::LINK_TIMEOUT_MS);
         assert!(motors.iter().all(|m| m.duty == 0));
+    }
+
+    /// A map chunk while a grid run drives (no map announced) is refused
+    /// and leaves the run as it was: still configured, still ticking.
+    /// Found by the `link_session` fuzz target: the refusal used to
+    /// unconfigure the session and leave the motors at their last duty
+    /// with no robot to drive or stop them.
+    #[test]
+    fn a_stray_map_chunk_leaves_a_running_robot_alone() {
+        let bus = ProxyBus::new();
+        let map = RefCell::new(LinkTagMap::new());
+        let mut s = Session::new(&bus, &map);
+        let link = LinkCounters::default();
+        s.handle(&HostMessage::Configure(configure()), link, || 0);
+        let tick = |k| {
+            HostMessage::Tick(TickInput {
+                tick: k,
+                left_count: Some(0),
+                right_count: Some(0),
+                uart: heapless::Vec::from_slice(&encode_frame(TagGrid::id(10, 10))).unwrap(),
+            })
+        };
+        let mut driven = false;
+        for k in 0..50 {
+            if let (TargetMessage::Ticked(out), _) = s.handle(&tick(k), link, || 0) {
+                driven |= out.left.duty > 0 || out.right.duty > 0;
+            }
+        }
+        assert!(driven);
+        assert_eq!(
+            s.handle(&chunk(0, &map_tags(3)), link, || 0).0,
+            TargetMessage::Refused(Refusal::Map(MapRefusal::NotLoading))
+        );
+        assert!(s.is_configured());
+        assert!(matches!(
+            s.handle(&tick(50), link, || 0).0,
+            TargetMessage::Ticked(_)
+        ));
     }
 
     /// A resent tick is answered again without running the robot twice; an
