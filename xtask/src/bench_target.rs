@@ -40,7 +40,7 @@ pub const REPORT: &str = "target/bench-target.md";
 const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// Stages of the main table: the bench's name and the row label.
-const STAGES: [(&str, &str); 8] = [
+const STAGES: [(&str, &str); 10] = [
     (
         "odometry",
         "odometry (2 counter deltas + `OdometryStep::from_counts`)",
@@ -70,11 +70,41 @@ const STAGES: [(&str, &str); 8] = [
         "robot_tick_fusion_dead_reckoned",
         "whole tick, fusion EKF estimator, dead-reckoned tick (no frame)",
     ),
+    (
+        "robot_tick_fusion_pf_fix",
+        "whole tick, fusion particle filter (100 particles; a build with `fusion-particle-filter`), tick with a tag fix (the read tag's cell likelihood)",
+    ),
+    (
+        "robot_tick_fusion_pf_dead_reckoned",
+        "whole tick, fusion particle filter (100 particles; a build with `fusion-particle-filter`), dead-reckoned tick (no frame)",
+    ),
+];
+
+/// Stack lines of the fusion estimator's whole ticks and the row label's
+/// estimator.
+const FUSION_STACKS: [(&str, &str); 2] = [
+    ("robot_tick_fusion", "fusion EKF"),
+    ("robot_tick_fusion_pf", "fusion particle filter"),
 ];
 
 /// Features every `wmr-bench` build adds to its backend's: the fusion EKF
 /// estimator, for the whole-tick rows that run it.
 const BENCH_FEATURES: [&str; 1] = ["fusion-ekf"];
+
+/// The fusion particle filter's whole-tick stages and stack, measured by a
+/// build of their own (each backend's, with [`PF_FEATURES`]) and reported in
+/// that backend's column: compiled into the main build, the particle
+/// filter's arm of the estimator would set the frame of every fusion tick
+/// (the EKF's then takes 10 KB of stack, not 2.5 KB) and move the other
+/// rows, which are what a firmware without it runs.
+const PF_TICK: [&str; 3] = [
+    "robot_tick_fusion_pf_fix",
+    "robot_tick_fusion_pf_dead_reckoned",
+    "robot_tick_fusion_pf",
+];
+
+/// Features of the particle filter's own build (added to the backend's).
+const PF_FEATURES: [&str; 1] = ["fusion-particle-filter"];
 
 /// Math backend calls, per call.
 const MATH: [(&str, &str); 7] = [
@@ -187,6 +217,36 @@ impl Report {
     /// The stack of the stage called `name` (not the tick's).
     pub fn stack(&self, name: &str) -> Option<u64> {
         self.stacks.iter().find(|s| s.0 == name).map(|s| s.1)
+    }
+
+    /// Takes the particle filter's whole-tick stages and stack
+    /// ([`PF_TICK`]) from `pf`, the same backend's run built with
+    /// [`PF_FEATURES`] (whose other figures are not this build's).
+    ///
+    /// # Errors
+    /// `pf` lacks one of them, or this run already has one.
+    pub fn take_pf_tick(&mut self, pf: &Report) -> Result<(), String> {
+        let [fix, dead_reckoned, stack] = PF_TICK;
+        for name in [fix, dead_reckoned] {
+            if self.stat(name).is_some() {
+                return Err(format!("the {} build measured {name}", self.backend));
+            }
+            let stat = pf.stat(name).ok_or_else(|| {
+                format!(
+                    "the {} particle-filter build measured no {name}",
+                    pf.backend
+                )
+            })?;
+            self.stats.push(stat.clone());
+        }
+        let bytes = pf.stack(stack).ok_or_else(|| {
+            format!(
+                "the {} particle-filter build reported no stack {stack}",
+                pf.backend
+            )
+        })?;
+        self.stacks.push((stack.to_owned(), bytes));
+        Ok(())
     }
 
     /// The filter called `name`.
@@ -355,12 +415,12 @@ pub fn bench_target(write_docs: bool) -> crate::Result {
     let mut reports = Vec::new();
     for (backend, features) in BACKENDS {
         eprintln!("\n==> wmr-bench, {backend}");
-        reports.push(run_backend(
-            backend,
-            features,
-            &[],
-            &format!("bench-{backend}"),
-        )?);
+        let mut report = run_backend(backend, features, &[], &format!("bench-{backend}"))?;
+        eprintln!("\n==> wmr-bench, {backend}, fusion particle filter");
+        let with_pf: Vec<&str> = features.iter().chain(&PF_FEATURES).copied().collect();
+        let pf = run_backend(backend, &with_pf, &[], &format!("bench-{backend}-pf"))?;
+        report.take_pf_tick(&pf)?;
+        reports.push(report);
     }
     eprintln!("\n==> wmr-bench-m0, f32 (Cortex-M0)");
     let m0 = run_m0()?;
@@ -471,19 +531,22 @@ pub fn markdown(reports: &[Report]) -> String {
         let _ = write!(md, " {} B |", grouped(r.tick_stack_bytes));
     }
     md.push('\n');
-    let _ = write!(
-        md,
-        "| tick peak stack, fusion EKF estimator (below the caller's SP) |"
-    );
-    for r in reports {
-        let stack = r.stack("robot_tick_fusion");
+    for (name, estimator) in FUSION_STACKS {
         let _ = write!(
             md,
-            " {} |",
-            stack.map_or("–".into(), |b| format!("{} B", grouped(b)))
+            "| tick peak stack, {estimator} estimator (below the caller's SP) |"
         );
+        for r in reports {
+            let stack = r.stack(name);
+            let _ = write!(
+                md,
+                " {} |",
+                stack.map_or("–".into(), |b| format!("{} B", grouped(b)))
+            );
+        }
+        md.push('\n');
     }
-    md.push_str("\n\nThe math backend alone, per call:\n\n");
+    md.push_str("\nThe math backend alone, per call:\n\n");
     header(&mut md, "function");
     for (name, label) in MATH {
         let _ = write!(md, "| {label} |");
@@ -719,6 +782,44 @@ done
         assert!(
             md.contains("| EKF, N = M = 3 (`PoseModel`): update | – |"),
             "{md}"
+        );
+    }
+
+    /// The particle filter's own build gives its whole-tick rows and stack
+    /// to its backend's column, nothing else; a build lacking them, or a
+    /// main build that measured them itself, is an error.
+    #[test]
+    fn the_particle_filter_build_gives_its_tick_rows() {
+        let pf_output = OUTPUT.replace(
+            "stack robot_tick bytes=776\n",
+            "stack robot_tick bytes=9999\n\
+             bench robot_tick_fusion_pf_fix mean=268219.0 median=268000 min=248820 max=359407 n=100\n\
+             bench robot_tick_fusion_pf_dead_reckoned mean=159212.0 median=159200 min=157673 max=159804 n=100\n\
+             stack robot_tick_fusion_pf bytes=15296\n",
+        );
+        let pf = parse(&pf_output).unwrap();
+        let mut r = parse(OUTPUT).unwrap();
+        r.take_pf_tick(&pf).unwrap();
+        assert_eq!(r.stack("robot_tick_fusion_pf"), Some(15296));
+        assert_eq!(r.tick_stack_bytes, 776, "the main build's own tick");
+        assert_eq!(
+            r.stat("robot_tick_fusion_pf_fix").map(|s| s.max),
+            Some(359_407)
+        );
+        let md = markdown(&[r.clone()]);
+        assert!(
+            md.contains(
+                "tick with a tag fix (the read tag's cell likelihood) | 268 219 (248 820–359 407) |"
+            ),
+            "{md}"
+        );
+        assert!(md.contains("| tick peak stack, fusion particle filter estimator (below the caller's SP) | 15 296 B |"), "{md}");
+        assert!(r.take_pf_tick(&pf).is_err(), "measured twice");
+        assert!(
+            parse(OUTPUT)
+                .unwrap()
+                .take_pf_tick(&parse(OUTPUT).unwrap())
+                .is_err()
         );
     }
 

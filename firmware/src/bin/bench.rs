@@ -1442,19 +1442,55 @@ mod on_target {
         }
     }
 
-    /// The whole tick with the fusion EKF estimator (`EstimatorSpec::Fusion`,
-    /// default settings) on its own proxies, over the same readings as
-    /// paper 001's robot in [`bench_tick`] (the same world, from its first
-    /// tick), but a tag frame on even ticks only: its ticks with
-    /// a fix and its dead-reckoned ticks are reported apart, then its stack
-    /// over fix and dead-reckoned ticks alike. In a function of its own, so
-    /// that its robot and its samples take stack only while it runs (the
-    /// Cortex-M0 has 16 KiB of RAM in all).
+    /// One whole-tick bench of the fusion estimator: its filter and the
+    /// names its figures are reported under.
+    #[cfg(feature = "fusion-ekf")]
+    struct FusionTick {
+        filter: wmr_core::pilot::spec::FusionFilterSpec,
+        /// Stage of the ticks with a tag fix.
+        fix: &'static str,
+        /// Stage of the dead-reckoned ticks.
+        dead_reckoned: &'static str,
+        /// Name of its stack line.
+        stack: &'static str,
+    }
+
+    /// The fusion EKF's whole tick (the estimator's default filter).
+    #[cfg(feature = "fusion-ekf")]
+    const FUSION_EKF_TICK: FusionTick = FusionTick {
+        filter: wmr_core::pilot::spec::FusionFilterSpec::Ekf,
+        fix: "robot_tick_fusion_fix",
+        dead_reckoned: "robot_tick_fusion_dead_reckoned",
+        stack: "robot_tick_fusion",
+    };
+
+    /// The fusion particle filter's whole tick: with the bench's reader of
+    /// the nearest tag, each read is the particles' cell likelihood (what a
+    /// robot built with `fusion-particle-filter` runs).
+    #[cfg(feature = "fusion-particle-filter")]
+    const FUSION_PF_TICK: FusionTick = FusionTick {
+        filter: wmr_core::pilot::spec::FusionFilterSpec::ParticleFilter,
+        fix: "robot_tick_fusion_pf_fix",
+        dead_reckoned: "robot_tick_fusion_pf_dead_reckoned",
+        stack: "robot_tick_fusion_pf",
+    };
+
+    /// The whole tick with the fusion estimator (`EstimatorSpec::Fusion`,
+    /// default settings but `bench.filter`) on its own proxies, over the
+    /// same readings as paper 001's robot in [`bench_tick`] (the same
+    /// world, from its first tick), but a tag frame on even ticks only: its
+    /// ticks with a fix and its dead-reckoned ticks are reported apart,
+    /// then its stack over fix and dead-reckoned ticks alike. In a function
+    /// of its own, so that its robot and its samples take stack only while
+    /// it runs (the Cortex-M0 has 16 KiB of RAM in all).
     #[cfg(feature = "fusion-ekf")]
     #[inline(never)]
-    fn bench_fusion_tick(cal: Calibration) {
+    fn bench_fusion_tick(cal: Calibration, bench: &FusionTick) {
         let spec = pilot_spec(wmr_core::pilot::spec::EstimatorSpec::Fusion(
-            wmr_core::pilot::spec::FusionSpec::default(),
+            wmr_core::pilot::spec::FusionSpec {
+                filter: bench.filter,
+                ..Default::default()
+            },
         ));
         let (Ok(config), Ok(grid)) = (spec.build(), GRID.build()) else {
             fail("bench fusion configuration refused");
@@ -1486,10 +1522,7 @@ mod on_target {
             frame
         };
         let mut frames = 0_u32;
-        let mut stages = [
-            Stage::new("robot_tick_fusion_fix"),
-            Stage::new("robot_tick_fusion_dead_reckoned"),
-        ];
+        let mut stages = [Stage::new(bench.fix), Stage::new(bench.dead_reckoned)];
         for k in 0..WARMUP_TICKS + SAMPLES as u32 {
             let r = world.reading(k);
             let frame = load(&r);
@@ -1513,7 +1546,7 @@ mod on_target {
             peak = peak.zip(tick).map(|(a, b)| a.max(b));
         }
         match peak {
-            Some(bytes) => hprintln!("stack robot_tick_fusion bytes={}", bytes),
+            Some(bytes) => hprintln!("stack {} bytes={}", bench.stack, bytes),
             None => fail("the fusion tick used the whole painted stack window"),
         }
         // Every frame read and used, no device fault, never in the
@@ -1522,7 +1555,8 @@ mod on_target {
         let faults = robot.counters();
         let tracker = robot.pilot().tracker().counters();
         hprintln!(
-            "check fusion frames_ok={} fixes_used={} failsafe_entries={} fixes_gated={}",
+            "check {} frames_ok={} fixes_used={} failsafe_entries={} fixes_gated={}",
+            bench.stack,
             rfid.frames_ok,
             tracker.fixes_used,
             tracker.failsafe_entries,
@@ -1600,7 +1634,9 @@ mod on_target {
 
         bench_tick(cal);
         #[cfg(feature = "fusion-ekf")]
-        bench_fusion_tick(cal);
+        bench_fusion_tick(cal, &FUSION_EKF_TICK);
+        #[cfg(feature = "fusion-particle-filter")]
+        bench_fusion_tick(cal, &FUSION_PF_TICK);
         bench_math(cal);
         // The filters' states and stacks (up to 5 KB and 2.4 KB each) do
         // not fit beside the bench in the nRF51's 16 KiB of RAM: the M0
