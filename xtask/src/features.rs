@@ -79,7 +79,10 @@ pub const FIRMWARE: [&[&str]; 4] = [
 /// The rows of `wmr-bench-m0` (the on-target bench for the Cortex-M0,
 /// linted on `thumbv6m-none-eabi` only): its default backend, and both
 /// other backends at once.
-pub const BENCH_M0: [&[&str]; 2] = [&[], &["libm", "micromath", "fusion-ekf"]];
+pub const BENCH_M0: [&[&str]; 2] = [
+    &[],
+    &["libm", "micromath", "fusion-ekf", "fusion-particle-filter"],
+];
 
 /// Clippy `-D warnings` on every row of the matrix.
 pub fn clippy_matrix() -> crate::Result {

@@ -1467,7 +1467,7 @@ mod on_target {
     /// The fusion particle filter's whole tick: with the bench's reader of
     /// the nearest tag, each read is the particles' cell likelihood (what a
     /// robot built with `fusion-particle-filter` runs).
-    #[cfg(feature = "fusion-particle-filter")]
+    #[cfg(all(feature = "fusion-particle-filter", target_abi = "eabihf"))]
     const FUSION_PF_TICK: FusionTick = FusionTick {
         filter: wmr_core::pilot::spec::FusionFilterSpec::ParticleFilter,
         fix: "robot_tick_fusion_pf_fix",
@@ -1635,7 +1635,7 @@ mod on_target {
         bench_tick(cal);
         #[cfg(feature = "fusion-ekf")]
         bench_fusion_tick(cal, &FUSION_EKF_TICK);
-        #[cfg(feature = "fusion-particle-filter")]
+        #[cfg(all(feature = "fusion-particle-filter", target_abi = "eabihf"))]
         bench_fusion_tick(cal, &FUSION_PF_TICK);
         bench_math(cal);
         // The filters' states and stacks (up to 5 KB and 2.4 KB each) do
