@@ -70,6 +70,34 @@ fn speed_observer_firmware() -> PathBuf {
     .clone()
 }
 
+/// The QEMU-board firmware with the fusion estimator's particle filter
+/// (feature `fusion-particle-filter`): `WMR_PF_FIRMWARE_ELF` if set, else
+/// built here into `target/hil-firmware-pf`.
+fn particle_filter_firmware() -> PathBuf {
+    static ELF: OnceLock<PathBuf> = OnceLock::new();
+    ELF.get_or_init(|| match std::env::var_os("WMR_PF_FIRMWARE_ELF") {
+        Some(path) => workspace_root().join(path),
+        None => build_firmware_with(
+            Some(&workspace_root().join("target").join("hil-firmware-pf")),
+            &["fusion-particle-filter"],
+        )
+        .expect("build the QEMU-board firmware with fusion-particle-filter"),
+    })
+    .clone()
+}
+
+/// The default firmware, built without the feature `scenario` needs,
+/// refuses its configuration over the link as not in this build.
+fn the_default_firmware_lacks(scenario: &Scenario) {
+    let mut plain = QemuTarget::start(&firmware(), &options()).unwrap();
+    let configure =
+        firmware_sim::simulation::hil_configuration(&scenario.validate().unwrap()).unwrap();
+    assert_eq!(
+        plain.exchange(&HostMessage::Configure(configure)).unwrap(),
+        TargetMessage::Refused(Refusal::Spec(SpecError::NotInThisBuild))
+    );
+}
+
 fn options() -> HilOptions {
     HilOptions {
         firmware: Some(firmware()),
@@ -107,13 +135,36 @@ fn fusion_ukf_in_the_firmware_runs_exactly_as_on_the_host() {
     let summary = runs_exactly_as_on_the_host("fusion UKF", &scenario, &fusion_options);
     peak_stack_within_budget("fusion_ukf", &summary);
 
-    let mut plain = QemuTarget::start(&firmware(), &options()).unwrap();
-    let configure =
-        firmware_sim::simulation::hil_configuration(&scenario.validate().unwrap()).unwrap();
-    assert_eq!(
-        plain.exchange(&HostMessage::Configure(configure)).unwrap(),
-        TargetMessage::Refused(Refusal::Spec(SpecError::NotInThisBuild))
-    );
+    the_default_firmware_lacks(&scenario);
+}
+
+/// The fusion estimator's particle filter in the firmware (built with
+/// `fusion-particle-filter`: 100 particles, each nearest-tag read as the
+/// particles' cell likelihood, roughening on resampling), configured over
+/// the link with `host-tests/tests/fusion_ekf.rs`'s tuning (wheel noise
+/// 2e-7 m²/m, seed 1): 120 s of the full-stack figure-eight give the host
+/// run's records bit for bit, the particles' random draws included. The
+/// default firmware, built without the feature, refuses it.
+#[test]
+fn the_fusion_particle_filter_in_the_firmware_runs_exactly_as_on_the_host() {
+    let mut scenario = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
+    scenario.duration_s = 120.0;
+    scenario.estimator = EstimatorSpec::Fusion(FusionSpec {
+        filter: FusionFilterSpec::ParticleFilter,
+        wheel_variance_per_m: 2e-7,
+        ..FusionSpec::default()
+    });
+    let pf_options = HilOptions {
+        firmware: Some(particle_filter_firmware()),
+        ..options()
+    };
+    let summary = runs_exactly_as_on_the_host("fusion particle filter", &scenario, &pf_options);
+    let tracker = summary.tracker.expect("tracker report");
+    assert_eq!(tracker.failsafe_entries, 0, "{tracker:?}");
+    assert!(tracker.fixes_used > 0, "{tracker:?}");
+    peak_stack_within_budget("fusion_particle_filter", &summary);
+
+    the_default_firmware_lacks(&scenario);
 }
 
 /// Paper 003's wheel-speed observer on the speed loops, configured over
@@ -142,14 +193,11 @@ fn the_wheel_speed_observer_in_the_firmware_runs_exactly_as_on_the_host() {
     };
     runs_exactly_as_on_the_host("wheel-speed observer", &scenario, &observer_options);
 
-    let mut plain = QemuTarget::start(&firmware(), &options()).unwrap();
+    // The link's configuration carries the observer.
     let configure =
         firmware_sim::simulation::hil_configuration(&scenario.validate().unwrap()).unwrap();
     assert!(configure.pilot.drive.speed_observer.is_some());
-    assert_eq!(
-        plain.exchange(&HostMessage::Configure(configure)).unwrap(),
-        TargetMessage::Refused(Refusal::Spec(SpecError::NotInThisBuild))
-    );
+    the_default_firmware_lacks(&scenario);
 }
 
 /// A robot whose floor is a tag map (`robots/circle_surveyed.toml`: 364

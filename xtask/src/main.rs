@@ -286,7 +286,7 @@ fn build_firmware() -> std::result::Result<Vec<(&'static str, std::path::PathBuf
 /// and its features. Built here, in xtask's target directory whose
 /// dependencies the default build compiled, rather than by the tests, each
 /// in a target directory of its own from scratch.
-const HIL_VARIANTS: [(&str, &str, &[&str]); 2] = [
+const HIL_VARIANTS: [(&str, &str, &[&str]); 3] = [
     // Over the flash budget (docs/firmware.md), so not a board of its own:
     // the fusion estimator's EKF and UKF (`fusion-ukf` implies
     // `fusion-ekf`).
@@ -300,6 +300,13 @@ const HIL_VARIANTS: [(&str, &str, &[&str]); 2] = [
         "WMR_SPEED_OBSERVER_FIRMWARE_ELF",
         "qemu-speed-observer",
         &["board-qemu", "wheel-speed-observer"],
+    ),
+    // The fusion estimator's particle filter (a build of its own, as a
+    // robot would carry it: its frames would set the UKF build's stack).
+    (
+        "WMR_PF_FIRMWARE_ELF",
+        "qemu-pf",
+        &["board-qemu", "fusion-particle-filter"],
     ),
 ];
 
