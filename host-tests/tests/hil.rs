@@ -32,58 +32,60 @@ fn firmware() -> PathBuf {
     .clone()
 }
 
-/// The QEMU-board firmware with the fusion estimator's UKF (feature
-/// `fusion-ukf`): `WMR_FUSION_FIRMWARE_ELF` if set, else built here into
-/// `target/hil-firmware-fusion`.
-fn fusion_firmware() -> PathBuf {
-    static ELF: OnceLock<PathBuf> = OnceLock::new();
-    ELF.get_or_init(|| match std::env::var_os("WMR_FUSION_FIRMWARE_ELF") {
+/// A QEMU-board firmware variant with one feature more than the default:
+/// the ELF in `variable` if set (relative paths from the workspace root),
+/// else built here once into `target/<dir>` (`cargo xtask ci` builds each
+/// and sets its variable).
+fn variant_firmware(
+    elf: &'static OnceLock<PathBuf>,
+    variable: &str,
+    dir: &str,
+    feature: &str,
+) -> PathBuf {
+    elf.get_or_init(|| match std::env::var_os(variable) {
         Some(path) => workspace_root().join(path),
-        None => build_firmware_with(
-            Some(&workspace_root().join("target").join("hil-firmware-fusion")),
-            &["fusion-ukf"],
-        )
-        .expect("build the QEMU-board firmware with fusion-ukf"),
+        None => build_firmware_with(Some(&workspace_root().join("target").join(dir)), &[feature])
+            .unwrap_or_else(|e| panic!("build the QEMU-board firmware with {feature}: {e}")),
     })
     .clone()
+}
+
+/// The QEMU-board firmware with the fusion estimator's UKF (feature
+/// `fusion-ukf`): `WMR_FUSION_FIRMWARE_ELF`, or `target/hil-firmware-fusion`.
+fn fusion_firmware() -> PathBuf {
+    static ELF: OnceLock<PathBuf> = OnceLock::new();
+    variant_firmware(
+        &ELF,
+        "WMR_FUSION_FIRMWARE_ELF",
+        "hil-firmware-fusion",
+        "fusion-ukf",
+    )
 }
 
 /// The QEMU-board firmware with paper 003's wheel-speed observer (feature
-/// `wheel-speed-observer`): `WMR_SPEED_OBSERVER_FIRMWARE_ELF` if set, else
-/// built here into `target/hil-firmware-speed-observer`.
+/// `wheel-speed-observer`): `WMR_SPEED_OBSERVER_FIRMWARE_ELF`, or
+/// `target/hil-firmware-speed-observer`.
 fn speed_observer_firmware() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
-    ELF.get_or_init(
-        || match std::env::var_os("WMR_SPEED_OBSERVER_FIRMWARE_ELF") {
-            Some(path) => workspace_root().join(path),
-            None => build_firmware_with(
-                Some(
-                    &workspace_root()
-                        .join("target")
-                        .join("hil-firmware-speed-observer"),
-                ),
-                &["wheel-speed-observer"],
-            )
-            .expect("build the QEMU-board firmware with wheel-speed-observer"),
-        },
+    variant_firmware(
+        &ELF,
+        "WMR_SPEED_OBSERVER_FIRMWARE_ELF",
+        "hil-firmware-speed-observer",
+        "wheel-speed-observer",
     )
-    .clone()
 }
 
 /// The QEMU-board firmware with the fusion estimator's particle filter
-/// (feature `fusion-particle-filter`): `WMR_PF_FIRMWARE_ELF` if set, else
-/// built here into `target/hil-firmware-pf`.
+/// (feature `fusion-particle-filter`): `WMR_PF_FIRMWARE_ELF`, or
+/// `target/hil-firmware-pf`.
 fn particle_filter_firmware() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
-    ELF.get_or_init(|| match std::env::var_os("WMR_PF_FIRMWARE_ELF") {
-        Some(path) => workspace_root().join(path),
-        None => build_firmware_with(
-            Some(&workspace_root().join("target").join("hil-firmware-pf")),
-            &["fusion-particle-filter"],
-        )
-        .expect("build the QEMU-board firmware with fusion-particle-filter"),
-    })
-    .clone()
+    variant_firmware(
+        &ELF,
+        "WMR_PF_FIRMWARE_ELF",
+        "hil-firmware-pf",
+        "fusion-particle-filter",
+    )
 }
 
 /// The default firmware, built without the feature `scenario` needs,
