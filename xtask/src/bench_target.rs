@@ -84,7 +84,7 @@ const STAGES: [(&str, &str); 10] = [
 /// estimator.
 const FUSION_STACKS: [(&str, &str); 2] = [
     ("robot_tick_fusion", "fusion EKF"),
-    ("robot_tick_fusion_pf", "fusion particle filter"),
+    (PF_TICK[2], "fusion particle filter"),
 ];
 
 /// Features every `wmr-bench` build adds to its backend's: the fusion EKF
