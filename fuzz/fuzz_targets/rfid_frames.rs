@@ -5,8 +5,11 @@
 //! (either case: 10 for the 40-bit id, most significant first, 2 for the
 //! XOR of its 5 bytes), `0x03`; any `0x02` starts a new frame.
 //!
-//! Input: byte 0 drives the UART's chunk sizes, byte 1 its failures; the
-//! rest is the stream.
+//! Input: byte 0 drives the UART's chunk sizes and the bytes' arrival,
+//! byte 1 its faults; the rest is the stream. Each tag's age must bound
+//! the polls since its frame arrived from above, through every poll
+//! outcome (bytes read, a backlog, a read of 0 bytes while bytes wait, a
+//! ready or read error).
 
 #![no_main]
 
@@ -85,35 +88,44 @@ fn oracle(s: &[u8]) -> Oracle {
     o
 }
 
-/// A UART over the stream: ready while bytes remain; each read returns a
-/// chunk of 1..=16 bytes (sizes from a generator seeded by the input); a
-/// ready check or a read fails on the schedule `failures` sets. Its
-/// position and failure count are shared with the harness, which watches
-/// them while the reader owns the UART.
+/// A UART over the stream whose bytes arrive over time: `available` of
+/// them have arrived (the harness moves it on before each poll), ready
+/// while some of those wait; each read returns a chunk of 1..=16 bytes
+/// (sizes from a generator seeded by the input); on the schedule
+/// `failures` sets, a ready check or a read fails, or a read returns 0
+/// bytes although bytes wait. Its position and fault counts are shared
+/// with the harness, which watches them while the reader owns the UART.
 struct FakeUart<'a> {
     data: &'a [u8],
     pos: &'a Cell<usize>,
+    available: &'a Cell<usize>,
     injected: &'a Cell<u32>,
-    rng: u32,
+    zero_reads: &'a Cell<u32>,
+    rng: &'a Cell<u32>,
     failures: u8,
 }
 
+/// xorshift32
+fn next(rng: &Cell<u32>) -> u32 {
+    let mut x = rng.get();
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    rng.set(x);
+    x
+}
+
 impl FakeUart<'_> {
-    fn next(&mut self) -> u32 {
-        // xorshift32
-        self.rng ^= self.rng << 13;
-        self.rng ^= self.rng >> 17;
-        self.rng ^= self.rng << 5;
-        self.rng
+    /// Whether this call goes wrong: never if `failures` is 0, else about
+    /// one call in `failures + 1`.
+    fn fault(&mut self) -> bool {
+        let f = u32::from(self.failures);
+        f != 0 && next(self.rng).is_multiple_of(f + 1)
     }
 
-    /// Whether this call fails: never if `failures` is 0, else about one
-    /// call in `failures + 1`.
-    fn fail(&mut self) -> bool {
-        let f = u32::from(self.failures);
-        let fails = f != 0 && self.next().is_multiple_of(f + 1);
-        self.injected.set(self.injected.get() + u32::from(fails));
-        fails
+    fn fail(&mut self) -> Result<(), ErrorKind> {
+        self.injected.set(self.injected.get() + 1);
+        Err(ErrorKind::Other)
     }
 }
 
@@ -123,21 +135,26 @@ impl ErrorType for FakeUart<'_> {
 
 impl ReadReady for FakeUart<'_> {
     fn read_ready(&mut self) -> Result<bool, ErrorKind> {
-        if self.fail() {
-            return Err(ErrorKind::Other);
+        if self.fault() {
+            self.fail()?;
         }
-        Ok(self.pos.get() < self.data.len())
+        Ok(self.pos.get() < self.available.get())
     }
 }
 
 impl Read for FakeUart<'_> {
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, ErrorKind> {
-        if self.fail() {
-            return Err(ErrorKind::Other);
+        if self.fault() {
+            // Half the faults are errors, half reads of nothing.
+            if next(self.rng) & 1 == 0 {
+                self.fail()?;
+            }
+            self.zero_reads.set(self.zero_reads.get() + 1);
+            return Ok(0);
         }
-        let chunk = 1 + (self.next() % 16) as usize;
+        let chunk = 1 + (next(self.rng) % 16) as usize;
         let pos = self.pos.get();
-        let rest = &self.data[pos..];
+        let rest = &self.data[pos..self.available.get()];
         let n = rest.len().min(buf.len()).min(chunk);
         buf[..n].copy_from_slice(&rest[..n]);
         self.pos.set(pos + n);
@@ -169,29 +186,46 @@ fuzz_target!(|data: &[u8]| {
     assert_eq!((c.read_errors, c.superseded, c.backlogged_polls), (0, 0, 0));
     assert_eq!(parser.in_frame(), want.open);
 
-    // The reader, poll by poll: each poll returns the last valid frame
-    // whose ETX it read, and counts the earlier ones as superseded.
-    let (pos, injected) = (Cell::new(0), Cell::new(0));
+    // The reader, poll by poll, while the bytes arrive: each poll returns
+    // the last valid frame whose ETX it read, and counts the earlier ones
+    // as superseded.
+    let (pos, available, injected, zero_reads) =
+        (Cell::new(0), Cell::new(0), Cell::new(0), Cell::new(0));
+    let rng = Cell::new((u32::from(*seed) * 0x0101_0101) | 1);
     let mut reader = RfidReader::new(FakeUart {
         data: stream,
         pos: &pos,
+        available: &available,
         injected: &injected,
-        rng: (u32::from(*seed) * 0x0101_0101) | 1,
+        zero_reads: &zero_reads,
+        rng: &rng,
         failures: *failures,
     });
     let max = RfidReader::<FakeUart>::MAX_BYTES_PER_POLL;
+    // The poll before which each byte had arrived.
+    let mut arrival = vec![0_u32; stream.len()];
     let mut superseded = 0;
     let mut backlogged_polls = 0;
-    let mut polls = 0;
+    // Polls in a row that ended without seeing the UART empty.
+    let mut unclean_run = 0;
+    let mut polls = 0_u32;
     while pos.get() < stream.len() {
+        // Bytes arrive between polls: a few, or (one time in four) a burst
+        // that may exceed one poll's bound.
+        let burst = if next(&rng) % 4 == 0 { 1200 } else { 40 };
+        let arrived = (available.get() + (next(&rng) % burst) as usize).min(stream.len());
+        arrival[available.get()..arrived].fill(polls);
+        available.set(arrived);
         polls += 1;
-        // Each poll reads at least one byte unless the UART fails, which
-        // it does for about one call in `failures + 1`.
+        // Each poll reads at least one byte unless bytes are still to
+        // arrive or the UART faults, which it does for about one call in
+        // `failures + 1`.
         assert!(
-            polls <= 64 * (stream.len() + 1),
+            polls as usize <= 256 * (stream.len() + 1),
             "the reader does not progress"
         );
         let before = pos.get();
+        let faults_before = injected.get() + zero_reads.get();
         let backlogged_before = reader.counters().backlogged_polls;
         let got = reader.poll_read();
         let after = pos.get();
@@ -200,30 +234,42 @@ fuzz_target!(|data: &[u8]| {
             "one poll read {} > {max} bytes",
             after - before
         );
-        // A backlogged poll read the whole bound and left bytes waiting; a
-        // tag's age is at most the backlogged polls so far (0 without any).
+        // A backlogged poll read the whole bound and left bytes waiting.
         let backlogged = reader.counters().backlogged_polls - backlogged_before;
         assert!(backlogged <= 1);
         if backlogged == 1 {
-            assert!(after - before == max && after < stream.len());
+            assert!(after - before == max && after < available.get());
             backlogged_polls += 1;
         }
-        if let Some(read) = got {
-            assert!(read.age_ticks <= backlogged_polls, "{read:?}");
-        }
-        let got = got.map(|read| read.id);
-        let completed: Vec<u64> = want
+        let faulted = injected.get() + zero_reads.get() > faults_before;
+        let completed: Vec<(usize, u64)> = want
             .valid
             .iter()
             .filter(|(etx, _)| (before..after).contains(etx))
-            .map(|&(_, id)| id)
+            .copied()
             .collect();
+        if let Some(read) = got {
+            // An upper bound on the polls since the frame's last byte
+            // arrived, whatever the polls in between met (a backlog, an
+            // error, a read of nothing)...
+            let (etx, _) = completed.last().copied().expect("a tag read this poll");
+            let age = polls - 1 - arrival[etx];
+            assert!(read.age_ticks >= age, "{read:?} arrived {age} polls ago");
+            // ...and no looser than the polls in a row that ended without
+            // seeing the UART empty.
+            assert!(read.age_ticks <= unclean_run, "{read:?}: {unclean_run}");
+        }
         assert_eq!(
-            got.map(|t| t.0),
-            completed.last().copied(),
+            got.map(|read| read.id.0),
+            completed.last().map(|&(_, id)| id),
             "poll of bytes {before}..{after}"
         );
         superseded += completed.len().saturating_sub(1);
+        unclean_run = if faulted || backlogged == 1 {
+            unclean_run + 1
+        } else {
+            0
+        };
     }
     // The same bytes through the reader: the same counts as the parser's,
     // plus the UART's failures and the superseded tags.

@@ -248,10 +248,11 @@ pub struct TagRead {
     /// The tag.
     pub id: TagId,
     /// Upper bound on the polls (control ticks) since the frame's last
-    /// byte arrived: 0 when the previous poll emptied the UART (so the frame
-    /// arrived since), `k` after `k` polls in a row that stopped at
-    /// [`RfidReader::MAX_BYTES_PER_POLL`] with bytes still waiting (a poll
-    /// ended by a read error or a 0-byte read leaves the bound as it was).
+    /// byte arrived: 0 when the previous poll saw the UART empty (so the
+    /// frame arrived since), `k` after `k` polls in a row that ended without
+    /// seeing it empty: stopped at [`RfidReader::MAX_BYTES_PER_POLL`] with
+    /// bytes still waiting, or ended by a ready or read error, or by a read
+    /// of 0 bytes while the UART said it was ready.
     pub age_ticks: u32,
 }
 
@@ -269,15 +270,18 @@ pub struct TagRead {
 /// bound with bytes waiting, it counts [`RfidCounters::backlogged_polls`],
 /// and the next poll's tag carries the age that implies
 /// ([`TagRead::age_ticks`]): the tracker rejects a fix older than its
-/// `max_fix_age_ticks`, so a backlog is never replayed as fresh. Older tags
-/// of one poll are counted in [`RfidCounters::superseded`]: only the latest
-/// is returned.
+/// `max_fix_age_ticks`, so a backlog is never replayed as fresh. A poll
+/// ended by a ready or read error, or by a read of 0 bytes while the UART
+/// said it was ready, has not seen the UART empty either, and ages what it
+/// left behind the same way (a UART that reports an overrun while bytes
+/// are still buffered). Older tags of one poll are counted in
+/// [`RfidCounters::superseded`]: only the latest is returned.
 #[derive(Debug)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RfidReader<R: Read + ReadReady> {
     uart: R,
     parser: FrameParser,
-    /// Polls in a row that stopped at the bound with bytes waiting.
+    /// Polls in a row that ended without seeing the UART empty.
     backlog_polls_in_a_row: u32,
 }
 
@@ -328,9 +332,8 @@ impl<R: Read + ReadReady> RfidReader<R> {
                     break;
                 }
                 Err(_) => {
-                    // Ends the poll without saying whether bytes wait: the
-                    // age bound stays as it was.
                     self.count_read_error();
+                    self.left_bytes_unknown();
                     break;
                 }
             }
@@ -346,10 +349,15 @@ impl<R: Read + ReadReady> RfidReader<R> {
                 break;
             };
             let n = match self.uart.read(chunk) {
-                Ok(0) => break,
+                Ok(0) => {
+                    // Ready, yet nothing read: the UART may still hold bytes.
+                    self.left_bytes_unknown();
+                    break;
+                }
                 Ok(n) => n.min(want),
                 Err(_) => {
                     self.count_read_error();
+                    self.left_bytes_unknown();
                     break;
                 }
             };
@@ -377,6 +385,14 @@ impl<R: Read + ReadReady> RfidReader<R> {
     #[must_use]
     pub fn release(self) -> R {
         self.uart
+    }
+
+    /// The poll ended without seeing the UART empty (a ready or read
+    /// error, or a 0-byte read while ready): whatever it left behind may
+    /// have arrived before this poll, so the next poll's tag is one tick
+    /// older at most, as after a backlogged poll.
+    fn left_bytes_unknown(&mut self) {
+        self.backlog_polls_in_a_row = self.backlog_polls_in_a_row.saturating_add(1);
     }
 
     fn count_read_error(&mut self) {
@@ -631,6 +647,63 @@ mod tests {
         r.uart.fail_read = false;
         assert_eq!(r.poll(), Some(TagId(7)));
         assert_eq!(r.release().pos, FRAME_LEN);
+    }
+
+    /// A frame already buffered when polls start to fail, read once they
+    /// stop: each failed poll (ready error, read error, or a 0-byte read
+    /// while ready) may have left it waiting, so it comes out as old as the
+    /// failed polls before it, and the tracker's `max_fix_age_ticks` can
+    /// reject it.
+    #[test]
+    fn a_frame_left_behind_by_failed_polls_is_aged() {
+        struct Flaky<'a> {
+            uart: FakeUart<'a>,
+            zero_reads: usize,
+        }
+        impl embedded_io::ErrorType for Flaky<'_> {
+            type Error = embedded_io::ErrorKind;
+        }
+        impl ReadReady for Flaky<'_> {
+            fn read_ready(&mut self) -> Result<bool, Self::Error> {
+                self.uart.read_ready()
+            }
+        }
+        impl Read for Flaky<'_> {
+            fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+                if self.zero_reads > 0 {
+                    self.zero_reads -= 1;
+                    return Ok(0);
+                }
+                self.uart.read(buf)
+            }
+        }
+        let frame = encode_frame(TagId(7));
+        let mut r = RfidReader::new(Flaky {
+            uart: FakeUart::new(&frame),
+            zero_reads: 1,
+        });
+        // Poll 0: a 0-byte read while ready. Poll 1: a ready error.
+        // Poll 2: a read error. Poll 3 reads the frame, buffered since
+        // before poll 0.
+        assert_eq!(r.poll_read(), None);
+        r.uart.uart.fail_ready = true;
+        assert_eq!(r.poll_read(), None);
+        r.uart.uart.fail_ready = false;
+        r.uart.uart.fail_read = true;
+        assert_eq!(r.poll_read(), None);
+        r.uart.uart.fail_read = false;
+        assert_eq!(
+            r.poll_read(),
+            Some(TagRead {
+                id: TagId(7),
+                age_ticks: 3
+            })
+        );
+        let c = r.counters();
+        assert_eq!((c.read_errors, c.backlogged_polls), (2, 0));
+        // That poll saw the UART empty: the next frame is fresh.
+        r.uart.uart = FakeUart::new(&frame);
+        assert_eq!(r.poll_read().map(|read| read.age_ticks), Some(0));
     }
 
     /// A reader that claims data but returns 0 bytes (EOF) must not spin.
