@@ -78,7 +78,9 @@ impl Harness<'_> {
 
     fn handle(&mut self, message: &HostMessage) {
         let link = self.rx.counters();
+        let before = self.session.diagnostics(link);
         let (answer, _done) = self.session.handle(message, link, || 1234);
+        let after = self.session.diagnostics(link);
 
         // The answer goes out in one frame, and the host reads it back (the
         // host's receiver is tested by `link_decode`: `decode` here).
@@ -179,6 +181,13 @@ impl Harness<'_> {
                     "{t:?} over {full}"
                 );
                 assert!(t.command.iter().all(|c| c.is_finite()), "{t:?}");
+                // The answer says a fix was used exactly when the tracker
+                // counted one used this tick (a repeated tick is answered
+                // again without running).
+                if after.repeated_ticks == before.repeated_ticks {
+                    let used = after.tracker.fixes_used - before.tracker.fixes_used;
+                    assert_eq!(u32::from(t.fix), used, "{t:?}");
+                }
             }
             (HostMessage::Finish, TargetMessage::Finished(f)) => {
                 let full = max(self.pwm_max_duty);

@@ -56,7 +56,9 @@ pub struct RobotCounters {
 pub struct RobotTick {
     /// The pilot's step.
     pub pilot: PilotOutput,
-    /// The tag fix used this tick, if any.
+    /// The tag fix read this tick (a valid frame whose tag the locator
+    /// knows), before the tracker's checks; whether the tracker used it is
+    /// `pilot.tracker.fix_used`.
     pub fix: Option<TagFix>,
     /// The last motor fault of this tick, if any.
     pub motor_fault: Option<MotorFault>,
@@ -187,4 +189,114 @@ fn drive_or_stop<M: Motor>(motor: &mut M, command: MotorCommand) -> Result<(), M
         // nothing the first fault did not already report.
         let _ = motor.drive(MotorCommand::STOP);
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::saturated::TrackingGains;
+    use crate::devices::{TagId, encode_frame};
+    use crate::drive::{DriveConfig, SpeedLoopGains};
+    use crate::estimation::heading_observer::HeadingObserverConfig;
+    use crate::geometry::{DiffDriveGeometry, Vec2};
+    use crate::pilot::PilotConfig;
+    use crate::pilot::tracker::TrackerConfig;
+    use crate::reference::StraightLine;
+
+    struct StillEncoder;
+    impl QuadratureCounter for StillEncoder {
+        type Error = ();
+        fn raw_count(&mut self) -> Result<u32, ()> {
+            Ok(0)
+        }
+    }
+
+    struct IdleMotor;
+    impl Motor for IdleMotor {
+        fn drive(&mut self, _: MotorCommand) -> Result<(), MotorFault> {
+            Ok(())
+        }
+    }
+
+    /// A UART that holds one frame until it is read.
+    struct OneFrame {
+        frame: [u8; crate::devices::rfid::FRAME_LEN],
+        pos: usize,
+    }
+    impl embedded_io::ErrorType for OneFrame {
+        type Error = embedded_io::ErrorKind;
+    }
+    impl ReadReady for OneFrame {
+        fn read_ready(&mut self) -> Result<bool, Self::Error> {
+            Ok(self.pos < self.frame.len())
+        }
+    }
+    impl Read for OneFrame {
+        fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+            let rest = self.frame.get(self.pos..).unwrap_or_default();
+            let n = rest.len().min(buf.len());
+            buf[..n].copy_from_slice(&rest[..n]);
+            self.pos += n;
+            Ok(n)
+        }
+    }
+
+    /// A locator that puts every tag at `at`.
+    struct Everywhere {
+        at: Vec2,
+    }
+    impl TagLocator for Everywhere {
+        fn locate(&self, _: TagId) -> Option<Vec2> {
+            Some(self.at)
+        }
+    }
+
+    fn robot_reading_a_tag_at(
+        at: Vec2,
+    ) -> Robot<StillEncoder, StillEncoder, IdleMotor, IdleMotor, OneFrame, Everywhere> {
+        let h = 0.01;
+        let tracker = TrackerConfig::new(
+            HeadingObserverConfig::new(1.0, h).unwrap(),
+            TrackingGains::new(0.05, 0.05, 1.0).unwrap(),
+            StraightLine::new(Vec2::ZERO, 0.0, 0.2).unwrap().into(),
+            50,
+        )
+        .unwrap();
+        let gains = SpeedLoopGains {
+            feedforward_duty_per_rad_s: 0.05,
+            kp_duty_per_rad_s: 0.05,
+            ki_duty_per_rad: 0.5,
+        };
+        let geometry = DiffDriveGeometry::new(0.03, 0.2, 2048).unwrap();
+        let drive = DriveConfig::new(geometry, h, 20.0, 40.0, gains).unwrap();
+        let pilot = Pilot::new(PilotConfig::new(tracker, drive, 16).unwrap()).unwrap();
+        let uart = OneFrame {
+            frame: encode_frame(TagId(7)),
+            pos: 0,
+        };
+        Robot::new(
+            pilot,
+            (StillEncoder, StillEncoder),
+            (IdleMotor, IdleMotor),
+            RfidReader::new(uart),
+            Everywhere { at },
+        )
+    }
+
+    /// A tag read whose position the tracker refuses is reported as read
+    /// but not used: the tick's answer agrees with the tracker's counters.
+    #[test]
+    fn a_refused_fix_is_read_but_not_used() {
+        let mut robot = robot_reading_a_tag_at(Vec2::new(f32::INFINITY, 0.0));
+        let tick = robot.tick();
+        assert!(tick.fix.is_some());
+        assert!(!tick.pilot.tracker.fix_used, "{tick:?}");
+        let c = robot.pilot().tracker().counters();
+        assert_eq!((c.invalid_fixes, c.fixes_used), (1, 0));
+
+        let mut robot = robot_reading_a_tag_at(Vec2::new(0.1, 0.0));
+        let tick = robot.tick();
+        assert!(tick.pilot.tracker.fix_used, "{tick:?}");
+        assert_eq!(robot.pilot().tracker().counters().fixes_used, 1);
+    }
 }

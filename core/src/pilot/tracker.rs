@@ -378,6 +378,13 @@ pub struct TrackerOutput {
     pub law: TrackingCommand,
     /// Ticks since the last valid fix.
     pub ticks_since_fix: u32,
+    /// This tick's tag fix passed the tracker's checks (finite, no older
+    /// than `max_fix_age_ticks`) and went to the estimator: counted in
+    /// [`TrackerCounters::fixes_used`]. False without a fix, and for a fix
+    /// refused here (counted in [`TrackerCounters::invalid_fixes`] or
+    /// [`TrackerCounters::stale_fixes`]). The fusion estimator may still
+    /// gate an accepted fix's measurements ([`TrackerCounters::fixes_gated`]).
+    pub fix_used: bool,
 }
 
 /// Paper 001's output-feedback tracker with fix handling and failsafe.
@@ -464,7 +471,10 @@ impl OutputFeedbackTracker {
             self.counters.dead_reckoned_steps = self.counters.dead_reckoned_steps.saturating_add(1);
         }
         self.position = self.estimator.step(odometry, fix, previous, after_gap);
-        self.drive(tick, odometry)
+        TrackerOutput {
+            fix_used: fix.is_some(),
+            ..self.drive(tick, odometry)
+        }
     }
 
     /// The law (or the failsafe) from the position and heading estimate.
@@ -737,6 +747,43 @@ mod tests {
         );
     }
 
+    /// The step's answer says whether this tick's fix went to the
+    /// estimator, exactly when `fixes_used` counts it: not for a missing,
+    /// non-finite or stale fix, which the tracker counts instead.
+    #[test]
+    fn the_answer_says_a_fix_was_used_only_when_it_was() {
+        let mut t = tracker(10);
+        let still = OdometryStep::default();
+        let stale = Some(TagFix {
+            position: Vec2::ZERO,
+            age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS + 1,
+        });
+        let oldest_fresh = Some(TagFix {
+            position: Vec2::ZERO,
+            age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
+        });
+        let cases = [
+            (None, false),
+            (fix(f32::INFINITY, 0.0), false),
+            (fix(0.0, f32::NAN), false),
+            (stale, false),
+            (fix(0.0, 0.0), true),
+            (oldest_fresh, true),
+            (None, false),
+        ];
+        for (fix, used) in cases {
+            let before = t.counters();
+            let out = t.step(&still, fix);
+            let after = t.counters();
+            assert_eq!(out.fix_used, used, "{fix:?}");
+            assert_eq!(after.fixes_used - before.fixes_used, u32::from(used));
+            let refused = (after.invalid_fixes - before.invalid_fixes)
+                + (after.stale_fixes - before.stale_fixes);
+            assert_eq!(refused, u32::from(fix.is_some() && !used), "{fix:?}");
+        }
+        assert_eq!(t.counters().fixes_used, 2);
+    }
+
     #[test]
     fn paper_gains_are_accepted_and_reported() {
         let cfg = TrackerConfig::new(
@@ -898,6 +945,28 @@ mod tests {
             counters.fixes_used == 6000 && counters.non_finite_commands == 0,
             "{counters:?}"
         );
+    }
+
+    /// A fix the fusion EKF's gate rejects still passed the tracker's
+    /// checks: the answer says it was used, as `fixes_used` counts it, and
+    /// `fixes_gated` says the estimator's gate refused its measurement.
+    #[cfg(feature = "fusion-ekf")]
+    #[test]
+    fn a_gated_fix_is_used_by_the_tracker_and_counted_by_the_gate() {
+        use crate::estimation::fusion::FusionSettings;
+        let mut t = fusion_tracker(FusionSettings::new(fusion_filter(), 0.1, 0.0).unwrap());
+        let still = OdometryStep::default();
+        for _ in 0..50 {
+            assert!(t.step(&still, fix(0.0, 0.0)).fix_used);
+        }
+        let before = t.counters();
+        assert_eq!(before.fixes_gated, 0);
+        // Two metres from where the robot stands still: far outside 3σ.
+        let out = t.step(&still, fix(2.0, 0.0));
+        let after = t.counters();
+        assert!(out.fix_used, "{out:?}");
+        assert_eq!(after.fixes_used, before.fixes_used + 1);
+        assert!(after.fixes_gated > before.fixes_gated, "{after:?}");
     }
 
     /// With a distance limit the fusion estimator's failsafe counts metres

@@ -38,14 +38,14 @@ struct Outcome {
 }
 
 impl Outcome {
-    fn of_tracker(out: &wmr_core::pilot::tracker::TrackerOutput, fix: bool) -> Self {
+    fn of_tracker(out: &wmr_core::pilot::tracker::TrackerOutput) -> Self {
         let awaiting = out.mode == TrackerMode::AwaitingFix;
         Self {
             reference: out.reference.position,
             position: (!awaiting).then_some(out.position),
             heading: Some(out.heading),
             command: out.command,
-            fix,
+            fix: out.fix_used,
             mode: out.mode.into(),
             duties: None,
         }
@@ -261,7 +261,7 @@ impl<'t> Rig<'t> {
                 let fix = source.measure(t_s, &pose);
                 let out = tracker.step(&odometry, fix);
                 *last = out.command;
-                Outcome::of_tracker(&out, fix.is_some())
+                Outcome::of_tracker(&out)
             }
             Self::Controller {
                 controller,
@@ -306,7 +306,7 @@ impl<'t> Rig<'t> {
                 hw.note(out.pilot.drive.speed_limited, out.pilot.drive.accel_limited);
                 Outcome {
                     duties: Some(hw.duties()),
-                    ..Outcome::of_tracker(&out.pilot.tracker, out.fix.is_some())
+                    ..Outcome::of_tracker(&out.pilot.tracker)
                 }
             }
             Self::Pilot {
@@ -332,7 +332,7 @@ impl<'t> Rig<'t> {
                 hw.note(out.drive.speed_limited, out.drive.accel_limited);
                 Outcome {
                     duties: Some(hw.duties()),
-                    ..Outcome::of_tracker(&out.tracker, fix.is_some())
+                    ..Outcome::of_tracker(&out.tracker)
                 }
             }
             Self::Remote {

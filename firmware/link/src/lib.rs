@@ -397,7 +397,8 @@ pub struct TickOutput {
     pub heading: [f32; 2],
     /// Body command `(v m/s, ω rad/s)`.
     pub command: [f32; 2],
-    /// A tag fix was used this tick.
+    /// A tag fix passed the tracker's checks this tick and went to the
+    /// estimator (`TrackerOutput::fix_used`).
     pub fix: bool,
     /// The drive's wheel-speed limit scaled the command this tick.
     pub speed_limited: bool,

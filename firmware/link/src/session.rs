@@ -197,7 +197,7 @@ impl<'a> Session<'a> {
                             position_m: [t.position.x, t.position.y],
                             heading: [t.heading.cos_theta, t.heading.sin_theta],
                             command: [t.command.v_m_s, t.command.omega_rad_s],
-                            fix: out.fix.is_some(),
+                            fix: out.pilot.tracker.fix_used,
                             speed_limited: out.pilot.drive.speed_limited,
                             accel_limited: out.pilot.drive.accel_limited,
                         };

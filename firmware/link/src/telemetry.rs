@@ -37,7 +37,8 @@ pub const START_TAG: &str = "wmr-tlm-start";
 /// Fields of a record line after the tag and the version.
 pub const RECORD_FIELDS: usize = 16;
 
-/// [`Record::flags`]: a tag fix was used this tick.
+/// [`Record::flags`]: a tag fix passed the tracker's checks this tick
+/// (`TrackerOutput::fix_used`).
 pub const FLAG_FIX: u8 = 1;
 /// [`Record::flags`]: the drive's wheel-speed limit scaled the command.
 pub const FLAG_SPEED_LIMITED: u8 = 1 << 1;
@@ -116,7 +117,7 @@ impl Record {
     pub fn of(out: &RobotTick, robot: RobotCounters, tracker: TrackerCounters) -> Self {
         let t = &out.pilot.tracker;
         let flag = |on: bool, bit: u8| if on { bit } else { 0 };
-        let flags = flag(out.fix.is_some(), FLAG_FIX)
+        let flags = flag(t.fix_used, FLAG_FIX)
             | flag(out.pilot.drive.speed_limited, FLAG_SPEED_LIMITED)
             | flag(out.pilot.drive.accel_limited, FLAG_ACCEL_LIMITED)
             | flag(out.pilot.encoder_halt, FLAG_ENCODER_HALT)
