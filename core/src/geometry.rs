@@ -7,6 +7,7 @@
 //! robot forward.
 
 use crate::math;
+use crate::plausible::{COUNTS_PER_REV, TRACK_WIDTH_M, WHEEL_RADIUS_M};
 
 /// A planar vector in metres (or m/s, m/s², as the field it sits in says).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -171,21 +172,24 @@ impl WheelSpeeds {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum GeometryError {
-    /// Wheel radius not finite and positive.
+    /// Wheel radius outside [`WHEEL_RADIUS_M`].
     WheelRadius,
-    /// Track width (distance between wheel contact points) not finite and positive.
+    /// Track width (distance between wheel contact points) outside
+    /// [`TRACK_WIDTH_M`].
     TrackWidth,
-    /// Encoder counts per wheel revolution is zero.
+    /// Encoder counts per wheel revolution outside [`COUNTS_PER_REV`].
     CountsPerRevolution,
 }
 
 impl core::fmt::Display for GeometryError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Self::WheelRadius => "wheel_radius_m must be finite and > 0 m",
-            Self::TrackWidth => "track_width_m must be finite and > 0 m",
-            Self::CountsPerRevolution => "encoder_counts_per_rev must be > 0",
-        })
+        match self {
+            Self::WheelRadius => write!(f, "wheel_radius_m must be in {WHEEL_RADIUS_M} m"),
+            Self::TrackWidth => write!(f, "track_width_m must be in {TRACK_WIDTH_M} m"),
+            Self::CountsPerRevolution => {
+                write!(f, "encoder_counts_per_rev must be in {COUNTS_PER_REV}")
+            }
+        }
     }
 }
 
@@ -208,19 +212,19 @@ impl DiffDriveGeometry {
     /// after any gearbox and the ×4 of quadrature decoding).
     ///
     /// # Errors
-    /// The first parameter that is not finite and positive.
+    /// The first parameter outside its plausible range ([`crate::plausible`]).
     pub fn new(
         wheel_radius_m: f32,
         track_width_m: f32,
         counts_per_revolution: u32,
     ) -> Result<Self, GeometryError> {
-        if !(wheel_radius_m.is_finite() && wheel_radius_m > 0.0) {
+        if !WHEEL_RADIUS_M.contains(wheel_radius_m) {
             return Err(GeometryError::WheelRadius);
         }
-        if !(track_width_m.is_finite() && track_width_m > 0.0) {
+        if !TRACK_WIDTH_M.contains(track_width_m) {
             return Err(GeometryError::TrackWidth);
         }
-        if counts_per_revolution == 0 {
+        if !COUNTS_PER_REV.contains(counts_per_revolution as f32) {
             return Err(GeometryError::CountsPerRevolution);
         }
         Ok(Self {

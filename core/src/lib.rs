@@ -23,4 +23,5 @@ pub mod geometry;
 pub mod math;
 pub mod odometry;
 pub mod pilot;
+pub mod plausible;
 pub mod reference;

@@ -12,34 +12,55 @@
 
 use crate::geometry::Vec2;
 use crate::math;
+use crate::plausible::{
+    ANGLE_RAD, COORDINATE_M, PERIOD_S, REFERENCE_RATE_RAD_S, REFERENCE_SIZE_M, REFERENCE_SPEED_M_S,
+};
 
 /// Why a clock or trajectory was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ReferenceError {
-    /// Control period not finite and positive.
+    /// Control period outside [`PERIOD_S`].
     Period,
-    /// Amplitude / radius not finite and positive.
+    /// Amplitude / radius outside [`REFERENCE_SIZE_M`].
     Size,
-    /// Angular rate / speed not finite and positive.
+    /// Angular rate (its magnitude) outside [`REFERENCE_RATE_RAD_S`], or a
+    /// line's speed outside [`REFERENCE_SPEED_M_S`].
     Rate,
-    /// Phase, centre, start point or direction not finite (or direction zero).
+    /// Centre or start point outside [`COORDINATE_M`] on an axis, or phase
+    /// or direction outside [`ANGLE_RAD`].
     Placement,
 }
 
 impl core::fmt::Display for ReferenceError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Self::Period => "period_s must be finite and > 0 s",
-            Self::Size => "the amplitude or radius (m) must be finite and > 0",
-            Self::Rate => "the angular rate or speed must be finite and > 0",
-            Self::Placement => "the phase, centre, start point and direction must be finite (and the direction non-zero)",
-        })
+        match self {
+            Self::Period => write!(f, "period_s must be in {PERIOD_S} s"),
+            Self::Size => write!(
+                f,
+                "the amplitude h1_m or radius_m must be in {REFERENCE_SIZE_M} m"
+            ),
+            Self::Rate => write!(
+                f,
+                "the angular rate (h2_rad_s, |rate_rad_s|) must be in {REFERENCE_RATE_RAD_S} rad/s, \
+                 a line's speed_m_s in {REFERENCE_SPEED_M_S} m/s"
+            ),
+            Self::Placement => write!(
+                f,
+                "center_m and start_m must be in {COORDINATE_M} m on each axis, \
+                 phase_rad and heading_rad in {ANGLE_RAD} rad"
+            ),
+        }
     }
 }
 
 impl core::error::Error for ReferenceError {}
+
+/// Whether both coordinates of `p` lie in [`COORDINATE_M`].
+fn on_the_floor(p: Vec2) -> bool {
+    COORDINATE_M.contains(p.x) && COORDINATE_M.contains(p.y)
+}
 
 /// Converts the integer tick index into seconds: `t = k·h`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,9 +73,9 @@ impl TickClock {
     /// A clock with a fixed period (the control step `h`), s.
     ///
     /// # Errors
-    /// [`ReferenceError::Period`] if not finite and positive.
+    /// [`ReferenceError::Period`] outside [`PERIOD_S`].
     pub fn new(period_s: f32) -> Result<Self, ReferenceError> {
-        if period_s.is_finite() && period_s > 0.0 {
+        if PERIOD_S.contains(period_s) {
             Ok(Self { period_s })
         } else {
             Err(ReferenceError::Period)
@@ -123,15 +144,15 @@ impl FigureEight {
     /// `h1` (half-width, m), `h2` (rad/s) and phase `φ` (rad).
     ///
     /// # Errors
-    /// The first parameter out of range.
+    /// The first parameter outside its plausible range ([`crate::plausible`]).
     pub fn new(h1_m: f32, h2_rad_s: f32, phase_rad: f32) -> Result<Self, ReferenceError> {
-        if !(h1_m.is_finite() && h1_m > 0.0) {
+        if !REFERENCE_SIZE_M.contains(h1_m) {
             return Err(ReferenceError::Size);
         }
-        if !(h2_rad_s.is_finite() && h2_rad_s > 0.0) {
+        if !REFERENCE_RATE_RAD_S.contains(h2_rad_s) {
             return Err(ReferenceError::Rate);
         }
-        if !phase_rad.is_finite() {
+        if !ANGLE_RAD.contains(phase_rad) {
             return Err(ReferenceError::Placement);
         }
         Ok(Self {
@@ -192,20 +213,20 @@ impl Circle {
     /// and the polar angle of the start point (rad).
     ///
     /// # Errors
-    /// The first parameter out of range.
+    /// The first parameter outside its plausible range ([`crate::plausible`]).
     pub fn new(
         centre: Vec2,
         radius_m: f32,
         rate_rad_s: f32,
         phase_rad: f32,
     ) -> Result<Self, ReferenceError> {
-        if !(radius_m.is_finite() && radius_m > 0.0) {
+        if !REFERENCE_SIZE_M.contains(radius_m) {
             return Err(ReferenceError::Size);
         }
-        if !(rate_rad_s.is_finite() && rate_rad_s != 0.0) {
+        if !REFERENCE_RATE_RAD_S.contains_magnitude(rate_rad_s) {
             return Err(ReferenceError::Rate);
         }
-        if !(centre.is_finite() && phase_rad.is_finite()) {
+        if !(on_the_floor(centre) && ANGLE_RAD.contains(phase_rad)) {
             return Err(ReferenceError::Placement);
         }
         Ok(Self {
@@ -248,12 +269,12 @@ impl StraightLine {
     /// Start point (m), heading (rad) and speed (m/s, positive).
     ///
     /// # Errors
-    /// The first parameter out of range.
+    /// The first parameter outside its plausible range ([`crate::plausible`]).
     pub fn new(start: Vec2, heading_rad: f32, speed_m_s: f32) -> Result<Self, ReferenceError> {
-        if !(speed_m_s.is_finite() && speed_m_s > 0.0) {
+        if !REFERENCE_SPEED_M_S.contains(speed_m_s) {
             return Err(ReferenceError::Rate);
         }
-        if !(start.is_finite() && heading_rad.is_finite()) {
+        if !(on_the_floor(start) && ANGLE_RAD.contains(heading_rad)) {
             return Err(ReferenceError::Placement);
         }
         Ok(Self {

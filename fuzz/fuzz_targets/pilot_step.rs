@@ -7,7 +7,10 @@
 //! Every tick: both duties finite and in [-1, 1] (the drive's signed ones
 //! and the motor commands); the command finite; an encoder halt stops both
 //! motors; no fix yet means no command; in the failsafe the command only
-//! shrinks; the wheel targets within the drive's speed limit.
+//! shrinks; the wheel targets within the drive's speed limit; the
+//! reference finite; the answer's `fix_used` exactly when the tracker
+//! counts the fix used (a fix is refused, and counted, when not finite or
+//! older than `max_fix_age_ticks`).
 
 #![no_main]
 
@@ -55,6 +58,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
     };
     let mut pilot = Pilot::new(config).expect("a built configuration makes a pilot");
     let max_wheel_speed = config.drive().max_wheel_speed_rad_s();
+    let max_fix_age_ticks = spec.tracker.max_fix_age_ticks;
     let (mut left, mut right) = (0_u32, 0_u32);
     let mut previous_command = None;
     let ticks = match spec.tracker.estimator {
@@ -77,7 +81,31 @@ fn run(u: &mut Unstructured) -> Result<()> {
             right_count,
             fix: fix(u)?,
         };
+        let before = pilot.tracker().counters();
         let out = pilot.step(&m);
+        let after = pilot.tracker().counters();
+
+        // The answer says a fix was used exactly when the tracker counted
+        // it used: never without one, never for a non-finite or stale one
+        // (which the tracker counts instead).
+        let used = after.fixes_used - before.fixes_used;
+        let refused =
+            (after.invalid_fixes - before.invalid_fixes) + (after.stale_fixes - before.stale_fixes);
+        assert_eq!(u32::from(out.tracker.fix_used), used, "{m:?} {out:?}");
+        match m.fix {
+            None => assert_eq!((used, refused), (0, 0)),
+            Some(f) => {
+                let fresh = f.position.is_finite() && f.age_ticks <= max_fix_age_ticks;
+                assert_eq!(out.tracker.fix_used, fresh, "{f:?}");
+                assert_eq!(refused, u32::from(!fresh), "{f:?}");
+            }
+        }
+        // A configuration that builds keeps its reference finite.
+        let r = out.tracker.reference;
+        assert!(
+            r.position.is_finite() && r.velocity.is_finite() && r.acceleration.is_finite(),
+            "{r:?}"
+        );
 
         for duty in [out.drive.left_duty, out.drive.right_duty] {
             assert!(

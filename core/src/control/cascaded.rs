@@ -16,6 +16,7 @@ use crate::control::interface::{LawCommand, TrackingCommand, TrackingLaw};
 use crate::control::robot_frame::{UnicycleReference, estimated_error};
 use crate::estimation::heading_observer::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
+use crate::plausible::GAIN;
 use crate::reference::ReferenceSample;
 
 /// Why [`CascadedGains`] were refused.
@@ -23,18 +24,18 @@ use crate::reference::ReferenceSample;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum CascadedGainsError {
-    /// `c1` (heading, 1/s) not finite and positive.
+    /// `c1` (heading, 1/s) outside [`GAIN`].
     C1,
-    /// `c2` (along-track, 1/s) not finite and positive.
+    /// `c2` (along-track, 1/s) outside [`GAIN`].
     C2,
 }
 
 impl core::fmt::Display for CascadedGainsError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Self::C1 => "c1_per_s must be finite and > 0 1/s",
-            Self::C2 => "c2_per_s must be finite and > 0 1/s",
-        })
+        match self {
+            Self::C1 => write!(f, "c1_per_s must be in {GAIN} 1/s"),
+            Self::C2 => write!(f, "c2_per_s must be in {GAIN} 1/s"),
+        }
     }
 }
 
@@ -52,12 +53,12 @@ impl CascadedGains {
     /// `c1` (heading error, 1/s) and `c2` (along-track error, 1/s).
     ///
     /// # Errors
-    /// The first gain that is not finite and positive.
+    /// The first gain outside [`GAIN`].
     pub fn new(c1_per_s: f32, c2_per_s: f32) -> Result<Self, CascadedGainsError> {
-        if !(c1_per_s.is_finite() && c1_per_s > 0.0) {
+        if !GAIN.contains(c1_per_s) {
             return Err(CascadedGainsError::C1);
         }
-        if !(c2_per_s.is_finite() && c2_per_s > 0.0) {
+        if !GAIN.contains(c2_per_s) {
             return Err(CascadedGainsError::C2);
         }
         Ok(Self { c1_per_s, c2_per_s })

@@ -29,6 +29,7 @@ use crate::control::robot_frame::{RobotFrameError, UnicycleReference, estimated_
 use crate::estimation::heading_observer::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::math;
+use crate::plausible::{GAIN, PERIOD_S};
 use crate::reference::ReferenceSample;
 
 /// Why a [`HeadingErrorSineConfig`] was refused.
@@ -36,32 +37,28 @@ use crate::reference::ReferenceSample;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum HeadingErrorSineConfigError {
-    /// The observer gain `a` (s/m²) not finite and positive.
+    /// The observer gain `a` (s/m²) outside [`GAIN`].
     Gain,
-    /// `c2` (1/s) not finite and positive.
+    /// `c2` (1/s) outside [`GAIN`].
     C2,
     /// `γ` not in (0, 1).
     Gamma,
-    /// Control period not finite and positive.
+    /// Control period outside [`PERIOD_S`].
     Period,
 }
 
 impl core::fmt::Display for HeadingErrorSineConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Self::Gain => "a_s_per_m2 (the observer gain a) must be finite and > 0 s/m²",
-            Self::C2 => "c2_per_s must be finite and > 0 1/s",
-            Self::Gamma => "gamma (γ) must be in (0, 1)",
-            Self::Period => "period_s must be finite and > 0 s",
-        })
+        match self {
+            Self::Gain => write!(f, "a_s_per_m2 (the observer gain a) must be in {GAIN} s/m²"),
+            Self::C2 => write!(f, "c2_per_s must be in {GAIN} 1/s"),
+            Self::Gamma => f.write_str("gamma (γ) must be in (0, 1)"),
+            Self::Period => write!(f, "period_s must be in {PERIOD_S} s"),
+        }
     }
 }
 
 impl core::error::Error for HeadingErrorSineConfigError {}
-
-fn positive(x: f32) -> bool {
-    x.is_finite() && x > 0.0
-}
 
 /// A measurement of the errors at the start of the current step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -86,23 +83,23 @@ impl HeadingErrorSineConfig {
     /// step `h` (s). The paper's simulation: `a = 10, c2 = 2, γ = 0.9`.
     ///
     /// # Errors
-    /// The first parameter out of range.
+    /// The first parameter outside its plausible range ([`crate::plausible`]).
     pub fn new(
         a_s_per_m2: f32,
         c2_per_s: f32,
         gamma: f32,
         period_s: f32,
     ) -> Result<Self, HeadingErrorSineConfigError> {
-        if !positive(a_s_per_m2) {
+        if !GAIN.contains(a_s_per_m2) {
             return Err(HeadingErrorSineConfigError::Gain);
         }
-        if !positive(c2_per_s) {
+        if !GAIN.contains(c2_per_s) {
             return Err(HeadingErrorSineConfigError::C2);
         }
         if !(gamma.is_finite() && gamma > 0.0 && gamma < 1.0) {
             return Err(HeadingErrorSineConfigError::Gamma);
         }
-        if !positive(period_s) {
+        if !PERIOD_S.contains(period_s) {
             return Err(HeadingErrorSineConfigError::Period);
         }
         Ok(Self {

@@ -70,6 +70,7 @@ use crate::control::interface::{LawCommand, TrackingLaw};
 use crate::estimation::heading_observer::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Pose, Vec2};
 use crate::math;
+use crate::plausible::GAIN;
 use crate::reference::{ReferenceSample, SpeedBounds};
 
 /// Why tracking gains were refused.
@@ -77,21 +78,21 @@ use crate::reference::{ReferenceSample, SpeedBounds};
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum GainError {
-    /// `k1` not finite and positive.
+    /// `k1` outside [`GAIN`].
     K1,
-    /// `k2` not finite and positive.
+    /// `k2` outside [`GAIN`].
     K2,
-    /// `k3` not finite and positive.
+    /// `k3` outside [`GAIN`].
     K3,
 }
 
 impl core::fmt::Display for GainError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Self::K1 => "gains[0] (k1) must be finite and > 0 m/s",
-            Self::K2 => "gains[1] (k2) must be finite and > 0 m/s",
-            Self::K3 => "gains[2] (k3) must be finite and > 0 1/s",
-        })
+        match self {
+            Self::K1 => write!(f, "gains[0] (k1) must be in {GAIN} m/s"),
+            Self::K2 => write!(f, "gains[1] (k2) must be in {GAIN} m/s"),
+            Self::K3 => write!(f, "gains[2] (k3) must be in {GAIN} 1/s"),
+        }
     }
 }
 
@@ -145,7 +146,7 @@ impl TrackingGains {
     /// # Errors
     /// The first gain out of range.
     pub fn new(k1: f32, k2: f32, k3: f32) -> Result<Self, GainError> {
-        let ok = |k: f32| k.is_finite() && k > 0.0;
+        let ok = |k: f32| GAIN.contains(k);
         if !ok(k1) {
             return Err(GainError::K1);
         }

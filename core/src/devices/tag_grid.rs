@@ -16,6 +16,7 @@
 
 use crate::devices::TagId;
 use crate::geometry::Vec2;
+use crate::plausible::{COORDINATE_M, TAG_SPACING_M};
 
 /// Marker in bits 32..40 of every grid tag id.
 pub const GRID_MARKER: u64 = 0x5A;
@@ -25,9 +26,9 @@ pub const GRID_MARKER: u64 = 0x5A;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum TagGridError {
-    /// Spacing not finite and positive.
+    /// Spacing outside [`TAG_SPACING_M`].
     Spacing,
-    /// Origin not finite.
+    /// Origin outside [`COORDINATE_M`] on an axis.
     Origin,
     /// No rows or no columns.
     Size,
@@ -35,11 +36,11 @@ pub enum TagGridError {
 
 impl core::fmt::Display for TagGridError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Self::Spacing => "spacing_m must be finite and > 0 m",
-            Self::Origin => "origin_m must be finite",
-            Self::Size => "rows and columns must each be ≥ 1",
-        })
+        match self {
+            Self::Spacing => write!(f, "spacing_m must be in {TAG_SPACING_M} m"),
+            Self::Origin => write!(f, "origin_m must be in {COORDINATE_M} m on each axis"),
+            Self::Size => f.write_str("rows and columns must each be ≥ 1"),
+        }
     }
 }
 
@@ -60,17 +61,17 @@ impl TagGrid {
     /// `spacing_m` between neighbours, `rows × columns` tags.
     ///
     /// # Errors
-    /// The first parameter out of range.
+    /// The first parameter outside its plausible range ([`crate::plausible`]).
     pub fn new(
         origin: Vec2,
         spacing_m: f32,
         rows: u16,
         columns: u16,
     ) -> Result<Self, TagGridError> {
-        if !(spacing_m.is_finite() && spacing_m > 0.0) {
+        if !TAG_SPACING_M.contains(spacing_m) {
             return Err(TagGridError::Spacing);
         }
-        if !origin.is_finite() {
+        if !(COORDINATE_M.contains(origin.x) && COORDINATE_M.contains(origin.y)) {
             return Err(TagGridError::Origin);
         }
         if rows == 0 || columns == 0 {

@@ -28,30 +28,41 @@ pub mod speed_observer;
 
 use crate::geometry::{BodyVelocity, DiffDriveGeometry, WheelSpeeds};
 use crate::math;
+use crate::plausible::{PERIOD_S, SPEED_LOOP_GAIN, WHEEL_ACCEL_RAD_S2, WHEEL_SPEED_RAD_S};
 
 /// Why a drive configuration was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum DriveConfigError {
-    /// Control period not finite and positive.
+    /// Control period outside [`PERIOD_S`].
     Period,
-    /// Maximum wheel speed not finite and positive.
+    /// Maximum wheel speed outside [`WHEEL_SPEED_RAD_S`].
     MaxWheelSpeed,
-    /// Maximum wheel acceleration not finite and positive.
+    /// Maximum wheel acceleration outside [`WHEEL_ACCEL_RAD_S2`].
     MaxWheelAccel,
-    /// A speed-loop gain negative or not finite.
+    /// A speed-loop gain outside [`SPEED_LOOP_GAIN`].
     SpeedLoopGain,
 }
 
 impl core::fmt::Display for DriveConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Self::Period => "period_s must be finite and > 0 s",
-            Self::MaxWheelSpeed => "max_wheel_speed_rad_s must be finite and > 0 rad/s",
-            Self::MaxWheelAccel => "max_wheel_accel_rad_s2 must be finite and > 0 rad/s²",
-            Self::SpeedLoopGain => "the speed-loop gains (feedforward_duty_per_rad_s, kp_duty_per_rad_s, ki_duty_per_rad) must each be finite and ≥ 0",
-        })
+        match self {
+            Self::Period => write!(f, "period_s must be in {PERIOD_S} s"),
+            Self::MaxWheelSpeed => write!(
+                f,
+                "max_wheel_speed_rad_s must be in {WHEEL_SPEED_RAD_S} rad/s"
+            ),
+            Self::MaxWheelAccel => write!(
+                f,
+                "max_wheel_accel_rad_s2 must be in {WHEEL_ACCEL_RAD_S2} rad/s²"
+            ),
+            Self::SpeedLoopGain => write!(
+                f,
+                "the speed-loop gains (feedforward_duty_per_rad_s, kp_duty_per_rad_s, \
+                 ki_duty_per_rad) must each be in {SPEED_LOOP_GAIN}"
+            ),
+        }
     }
 }
 
@@ -71,10 +82,9 @@ pub struct SpeedLoopGains {
 
 impl SpeedLoopGains {
     fn is_valid(&self) -> bool {
-        let ok = |g: f32| g.is_finite() && g >= 0.0;
-        ok(self.feedforward_duty_per_rad_s)
-            && ok(self.kp_duty_per_rad_s)
-            && ok(self.ki_duty_per_rad)
+        SPEED_LOOP_GAIN.contains(self.feedforward_duty_per_rad_s)
+            && SPEED_LOOP_GAIN.contains(self.kp_duty_per_rad_s)
+            && SPEED_LOOP_GAIN.contains(self.ki_duty_per_rad)
     }
 }
 
@@ -95,7 +105,7 @@ impl DriveConfig {
     /// Validates the drive parameters.
     ///
     /// # Errors
-    /// The first parameter out of range.
+    /// The first parameter outside its plausible range ([`crate::plausible`]).
     pub fn new(
         geometry: DiffDriveGeometry,
         period_s: f32,
@@ -103,13 +113,13 @@ impl DriveConfig {
         max_wheel_accel_rad_s2: f32,
         speed_loop: SpeedLoopGains,
     ) -> Result<Self, DriveConfigError> {
-        if !(period_s.is_finite() && period_s > 0.0) {
+        if !PERIOD_S.contains(period_s) {
             return Err(DriveConfigError::Period);
         }
-        if !(max_wheel_speed_rad_s.is_finite() && max_wheel_speed_rad_s > 0.0) {
+        if !WHEEL_SPEED_RAD_S.contains(max_wheel_speed_rad_s) {
             return Err(DriveConfigError::MaxWheelSpeed);
         }
-        if !(max_wheel_accel_rad_s2.is_finite() && max_wheel_accel_rad_s2 > 0.0) {
+        if !WHEEL_ACCEL_RAD_S2.contains(max_wheel_accel_rad_s2) {
             return Err(DriveConfigError::MaxWheelAccel);
         }
         if !speed_loop.is_valid() {

@@ -85,6 +85,11 @@
 
 use nalgebra::{SMatrix, SVector};
 
+use crate::plausible::{
+    GAIN, MASS_KG, PERIOD_S, TORQUE_NM, TRACK_WIDTH_M, WHEEL_INERTIA_KG_M2, WHEEL_RADIUS_M,
+    WHEEL_SPEED_RAD_S, YAW_INERTIA_KG_M2,
+};
+
 /// A vector of `N` generalised coordinates (or forces, momenta).
 pub type Vector<const N: usize> = SVector<f32, N>;
 /// An `N × N` matrix.
@@ -143,17 +148,31 @@ pub enum MomentaObserverError {
 impl core::fmt::Display for MomentaObserverError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(match self {
-            Self::Lambda => "lambda_per_s (λ) must be finite and > 0 1/s",
-            Self::Period => "period_s (h) must be finite and > 0 s",
+            Self::Lambda => return write!(f, "lambda_per_s (λ) must be in {GAIN} 1/s"),
+            Self::Period => return write!(f, "period_s (h) must be in {PERIOD_S} s"),
             Self::Kappa => "kappa_per_s (κ) must be finite and > 0 1/s",
             Self::Scaling => "the initial scaling factor r(0) must be finite and ≥ 1",
             Self::StepTooLong => "the step is too long for the gains: Proposition 2 needs h·ψ < 1 with ψ = 4(1 + κ)",
-            Self::AdaptationGain => "the adaptation gains γ_r, γ_d must each be finite and > 0",
+            Self::AdaptationGain => {
+                return write!(
+                    f,
+                    "the adaptation gains γ_r, γ_d (friction_gain, disturbance_gain) must each be in {GAIN}"
+                );
+            }
             Self::FrictionIndex => "an unknown-friction coordinate index must be < N",
             Self::DuplicateFrictionIndex => "an unknown-friction coordinate is listed twice",
             Self::Inertia => "the inertia matrix must be finite, symmetric and positive definite",
             Self::Friction => "a friction coefficient must be finite and ≥ 0",
-            Self::Parameter => "a physical parameter (mass, length, inertia) must be finite and > 0 (the wheel inertia ≥ 0)",
+            Self::Parameter => {
+                return write!(
+                    f,
+                    "a physical parameter out of range: mass_kg must be in {MASS_KG} kg, \
+                     yaw_inertia_kg_m2 in {YAW_INERTIA_KG_M2} kg m², wheel_inertia_kg_m2 in \
+                     {WHEEL_INERTIA_KG_M2} kg m², wheel_radius_m in {WHEEL_RADIUS_M} m, \
+                     track_width_m in {TRACK_WIDTH_M} m, stall_torque_nm in {TORQUE_NM} N·m, \
+                     no_load_speed_rad_s in {WHEEL_SPEED_RAD_S} rad/s"
+                );
+            }
         })
     }
 }
@@ -184,10 +203,10 @@ impl<const S: usize> MomentaObserverConfig<S> {
         period_s: f32,
         unknown_friction: [usize; S],
     ) -> Result<Self, MomentaObserverError> {
-        if !(lambda_per_s.is_finite() && lambda_per_s > 0.0) {
+        if !GAIN.contains(lambda_per_s) {
             return Err(MomentaObserverError::Lambda);
         }
-        if !(period_s.is_finite() && period_s > 0.0) {
+        if !PERIOD_S.contains(period_s) {
             return Err(MomentaObserverError::Period);
         }
         for (i, &k) in unknown_friction.iter().enumerate() {
@@ -211,15 +230,14 @@ impl<const S: usize> MomentaObserverConfig<S> {
     /// 1 by default as in the paper (module docs).
     ///
     /// # Errors
-    /// [`MomentaObserverError::AdaptationGain`] unless both are finite and
-    /// positive.
+    /// [`MomentaObserverError::AdaptationGain`] unless both are in
+    /// [`GAIN`].
     pub fn with_adaptation_gains(
         self,
         friction_gain: f32,
         disturbance_gain: f32,
     ) -> Result<Self, MomentaObserverError> {
-        let ok = |x: f32| x.is_finite() && x > 0.0;
-        if !(ok(friction_gain) && ok(disturbance_gain)) {
+        if !(GAIN.contains(friction_gain) && GAIN.contains(disturbance_gain)) {
             return Err(MomentaObserverError::AdaptationGain);
         }
         Ok(Self {
@@ -595,7 +613,8 @@ impl WheelInertia {
     /// (kg m², may be 0).
     ///
     /// # Errors
-    /// [`MomentaObserverError::Parameter`].
+    /// [`MomentaObserverError::Parameter`] for a value outside its range
+    /// ([`crate::plausible`]).
     pub fn new(
         mass_kg: f32,
         yaw_inertia_kg_m2: f32,
@@ -603,13 +622,11 @@ impl WheelInertia {
         track_width_m: f32,
         wheel_inertia_kg_m2: f32,
     ) -> Result<Self, MomentaObserverError> {
-        let positive = |x: f32| x.is_finite() && x > 0.0;
-        if !(positive(mass_kg)
-            && positive(yaw_inertia_kg_m2)
-            && positive(wheel_radius_m)
-            && positive(track_width_m)
-            && wheel_inertia_kg_m2.is_finite()
-            && wheel_inertia_kg_m2 >= 0.0)
+        if !(MASS_KG.contains(mass_kg)
+            && YAW_INERTIA_KG_M2.contains(yaw_inertia_kg_m2)
+            && WHEEL_RADIUS_M.contains(wheel_radius_m)
+            && TRACK_WIDTH_M.contains(track_width_m)
+            && WHEEL_INERTIA_KG_M2.contains(wheel_inertia_kg_m2))
         {
             return Err(MomentaObserverError::Parameter);
         }

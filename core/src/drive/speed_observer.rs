@@ -33,6 +33,7 @@ use crate::drive::momenta_observer::{
     WheelInertia,
 };
 use crate::geometry::WheelSpeeds;
+use crate::plausible::{TORQUE_NM, WHEEL_SPEED_RAD_S};
 
 /// The accumulated wheel angle (rad) past which the origin is moved.
 pub const REBASE_RAD: f32 = 1000.0;
@@ -62,20 +63,20 @@ impl WheelSpeedObserverConfig {
     /// (s), with the default gains.
     ///
     /// # Errors
-    /// [`MomentaObserverError::Parameter`] for a torque or speed that is not
-    /// finite and positive, or the period's error.
+    /// [`MomentaObserverError::Parameter`] for a torque or speed outside
+    /// its range ([`crate::plausible`]), or the period's error.
     pub fn new(
         inertia: WheelInertia,
         stall_torque_nm: f32,
         no_load_speed_rad_s: f32,
         period_s: f32,
     ) -> Result<Self, MomentaObserverError> {
-        let positive = |x: f32| x.is_finite() && x > 0.0;
-        if !(positive(stall_torque_nm) && positive(no_load_speed_rad_s)) {
+        if !(TORQUE_NM.contains(stall_torque_nm) && WHEEL_SPEED_RAD_S.contains(no_load_speed_rad_s))
+        {
             return Err(MomentaObserverError::Parameter);
         }
         let damping_guess_nm_s_per_rad = stall_torque_nm / no_load_speed_rad_s;
-        if !positive(damping_guess_nm_s_per_rad) {
+        if !(damping_guess_nm_s_per_rad.is_finite() && damping_guess_nm_s_per_rad > 0.0) {
             return Err(MomentaObserverError::Parameter);
         }
         let model = inertia.model(Vector::zeros())?;

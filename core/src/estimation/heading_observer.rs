@@ -48,17 +48,18 @@
 
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::math;
+use crate::plausible::{GAIN, MIN_SPEED_M_S, PERIOD_S};
 
 /// Why a [`HeadingObserverConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ObserverConfigError {
-    /// Observer gain `L` not finite and positive.
+    /// Observer gain `L` outside [`GAIN`].
     Gain,
-    /// Control period not finite and positive.
+    /// Control period outside [`PERIOD_S`].
     Period,
-    /// Minimum speed for innovation negative or not finite.
+    /// Minimum speed for innovation outside [`MIN_SPEED_M_S`].
     MinSpeed,
     /// Initial estimate not finite.
     InitialEstimate,
@@ -66,12 +67,12 @@ pub enum ObserverConfigError {
 
 impl core::fmt::Display for ObserverConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Self::Gain => "observer_gain_per_m (L) must be finite and > 0 1/m",
-            Self::Period => "period_s must be finite and > 0 s",
-            Self::MinSpeed => "observer_min_speed_m_s must be finite and ≥ 0 m/s",
-            Self::InitialEstimate => "the initial estimate (ĉ, ŝ) must be finite",
-        })
+        match self {
+            Self::Gain => write!(f, "observer_gain_per_m (L) must be in {GAIN} 1/m"),
+            Self::Period => write!(f, "period_s must be in {PERIOD_S} s"),
+            Self::MinSpeed => write!(f, "observer_min_speed_m_s must be in {MIN_SPEED_M_S} m/s"),
+            Self::InitialEstimate => f.write_str("the initial estimate (ĉ, ŝ) must be finite"),
+        }
     }
 }
 
@@ -93,12 +94,12 @@ impl HeadingObserverConfig {
     /// `L` (1/m: the error decays as `e^{−L·distance}`) and the step `h` (s).
     ///
     /// # Errors
-    /// The first parameter out of range.
+    /// The first parameter outside its plausible range ([`crate::plausible`]).
     pub fn new(gain_per_m: f32, period_s: f32) -> Result<Self, ObserverConfigError> {
-        if !(gain_per_m.is_finite() && gain_per_m > 0.0) {
+        if !GAIN.contains(gain_per_m) {
             return Err(ObserverConfigError::Gain);
         }
-        if !(period_s.is_finite() && period_s > 0.0) {
+        if !PERIOD_S.contains(period_s) {
             return Err(ObserverConfigError::Period);
         }
         Ok(Self {
@@ -111,9 +112,9 @@ impl HeadingObserverConfig {
     /// Sets the speed below which the observer only rotates its estimate.
     ///
     /// # Errors
-    /// [`ObserverConfigError::MinSpeed`] if negative or not finite.
+    /// [`ObserverConfigError::MinSpeed`] outside [`MIN_SPEED_M_S`].
     pub fn with_min_speed(mut self, min_speed_m_s: f32) -> Result<Self, ObserverConfigError> {
-        if !(min_speed_m_s.is_finite() && min_speed_m_s >= 0.0) {
+        if !MIN_SPEED_M_S.contains(min_speed_m_s) {
             return Err(ObserverConfigError::MinSpeed);
         }
         self.min_speed_m_s = min_speed_m_s;

@@ -47,33 +47,34 @@
 use crate::estimation::heading_observer::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::math;
+use crate::plausible::{GAIN, PERIOD_S};
 
 /// Why a [`PoseObserverConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum PoseObserverConfigError {
-    /// `a1` (x injection, 1/s) not finite and positive.
+    /// `a1` (x injection, 1/s) outside [`GAIN`].
     A1,
-    /// `a2` (y injection, 1/s) not finite and positive.
+    /// `a2` (y injection, 1/s) outside [`GAIN`].
     A2,
-    /// `a3` (`ŝ` injection from `ỹ`, 1/m²) not finite and positive.
+    /// `a3` (`ŝ` injection from `ỹ`, 1/m²) outside [`GAIN`].
     A3,
-    /// `a4` (`ĉ` injection from `x̃`, 1/m²) not finite and positive.
+    /// `a4` (`ĉ` injection from `x̃`, 1/m²) outside [`GAIN`].
     A4,
-    /// Control period not finite and positive.
+    /// Control period outside [`PERIOD_S`].
     Period,
 }
 
 impl core::fmt::Display for PoseObserverConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Self::A1 => "gains[0] (a1, the x injection) must be finite and > 0 1/s",
-            Self::A2 => "gains[1] (a2, the y injection) must be finite and > 0 1/s",
-            Self::A3 => "gains[2] (a3) must be finite and > 0 1/m²",
-            Self::A4 => "gains[3] (a4) must be finite and > 0 1/m²",
-            Self::Period => "period_s must be finite and > 0 s",
-        })
+        match self {
+            Self::A1 => write!(f, "gains[0] (a1, the x injection) must be in {GAIN} 1/s"),
+            Self::A2 => write!(f, "gains[1] (a2, the y injection) must be in {GAIN} 1/s"),
+            Self::A3 => write!(f, "gains[2] (a3) must be in {GAIN} 1/m²"),
+            Self::A4 => write!(f, "gains[3] (a4) must be in {GAIN} 1/m²"),
+            Self::Period => write!(f, "period_s must be in {PERIOD_S} s"),
+        }
     }
 }
 
@@ -94,7 +95,7 @@ impl PoseObserverConfig {
     /// Gains `a1, a2` (1/s), `a3, a4` (1/m²) of (37) and the step `h` (s).
     ///
     /// # Errors
-    /// The first parameter that is not finite and positive.
+    /// The first parameter outside its plausible range ([`crate::plausible`]).
     pub fn new(
         a1_per_s: f32,
         a2_per_s: f32,
@@ -102,7 +103,7 @@ impl PoseObserverConfig {
         a4_per_m2: f32,
         period_s: f32,
     ) -> Result<Self, PoseObserverConfigError> {
-        let ok = |x: f32| x.is_finite() && x > 0.0;
+        let ok = |x: f32| GAIN.contains(x);
         if !ok(a1_per_s) {
             return Err(PoseObserverConfigError::A1);
         }
@@ -115,7 +116,7 @@ impl PoseObserverConfig {
         if !ok(a4_per_m2) {
             return Err(PoseObserverConfigError::A4);
         }
-        if !ok(period_s) {
+        if !PERIOD_S.contains(period_s) {
             return Err(PoseObserverConfigError::Period);
         }
         Ok(Self {

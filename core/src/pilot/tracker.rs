@@ -69,6 +69,7 @@ use crate::estimation::heading_observer::{
 use crate::estimation::{Estimator, EstimatorChoice, PoseEstimator};
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::odometry::OdometryStep;
+use crate::plausible::{DECEL_M_S2, PERIOD_S};
 use crate::reference::{ReferenceError, ReferenceSample, TickClock, Trajectory};
 
 /// Why a [`TrackerConfig`] was refused.
@@ -76,11 +77,11 @@ use crate::reference::{ReferenceError, ReferenceSample, TickClock, Trajectory};
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum TrackerConfigError {
-    /// Control period not finite and positive.
+    /// Control period outside [`PERIOD_S`].
     Period,
     /// The observer's configuration (its period must equal the tracker's).
     Observer(ObserverConfigError),
-    /// Failsafe deceleration not finite and positive.
+    /// Failsafe deceleration outside [`crate::plausible::DECEL_M_S2`].
     FailsafeDecel,
     /// Fix timeout of zero ticks.
     FixTimeout,
@@ -94,9 +95,9 @@ pub enum TrackerConfigError {
 impl core::fmt::Display for TrackerConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Self::Period => f.write_str("period_s must be finite and > 0 s"),
+            Self::Period => write!(f, "period_s must be in {PERIOD_S} s"),
             Self::Observer(e) => core::fmt::Display::fmt(e, f),
-            Self::FailsafeDecel => f.write_str("failsafe_decel_m_s2 must be finite and > 0 m/s²"),
+            Self::FailsafeDecel => write!(f, "failsafe_decel_m_s2 must be in {DECEL_M_S2} m/s²"),
             Self::FixTimeout => f.write_str("fix_timeout_ticks must be ≥ 1"),
             Self::AlgorithmPeriod => {
                 f.write_str("a paper 002 estimator or law must run at the tracker's period_s")
@@ -258,9 +259,9 @@ impl TrackerConfig {
     /// Sets the failsafe deceleration, m/s².
     ///
     /// # Errors
-    /// [`TrackerConfigError::FailsafeDecel`] if not finite and positive.
+    /// [`TrackerConfigError::FailsafeDecel`] outside [`DECEL_M_S2`].
     pub fn with_failsafe_decel(mut self, decel_m_s2: f32) -> Result<Self, TrackerConfigError> {
-        if !(decel_m_s2.is_finite() && decel_m_s2 > 0.0) {
+        if !DECEL_M_S2.contains(decel_m_s2) {
             return Err(TrackerConfigError::FailsafeDecel);
         }
         self.failsafe_decel_m_s2 = decel_m_s2;

@@ -67,6 +67,40 @@ pub(crate) fn positive(field: &str, v: f64) -> Result<f64, ScenarioError> {
     }
 }
 
+/// `v` if the core takes it: inside `range` once rounded to the core's
+/// `f32` (the core's plausible range of the quantity,
+/// [`wmr_core::plausible`]), so that the core's own check passes.
+pub(crate) fn in_range(
+    field: &str,
+    v: f64,
+    range: wmr_core::plausible::Range,
+    unit: &str,
+) -> Result<f64, ScenarioError> {
+    if range.contains(v as f32) {
+        Ok(v)
+    } else {
+        let unit = if unit.is_empty() {
+            String::new()
+        } else {
+            format!(" {unit}")
+        };
+        Err(ScenarioError::invalid(
+            field,
+            format!("must be in {range}{unit} (got {})", shown(v)),
+        ))
+    }
+}
+
+/// `v` as a person reads it: plain between 1e-4 and 1e9, in exponent
+/// notation beyond (`3e38`, not 39 digits).
+pub(crate) fn shown(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e9).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 pub(crate) fn non_negative(field: &str, v: f64) -> Result<f64, ScenarioError> {
     if v.is_finite() && v >= 0.0 {
         Ok(v)

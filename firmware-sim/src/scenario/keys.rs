@@ -338,7 +338,10 @@ fn kind_of(schema: &Value) -> String {
         _ => Vec::new(),
     };
     match types.first().map(String::as_str) {
-        Some("number") => "number".into(),
+        Some("number") => match (schema.get("minimum"), schema.get("maximum")) {
+            (Some(min), Some(max)) => format!("number in [{}, {}]", render(min), render(max)),
+            _ => "number".into(),
+        },
         Some("integer") => {
             let min = schema.get("minimum").map(render);
             match min {

@@ -7,8 +7,8 @@
 //! core checks are refused in the core's words:
 //!
 //! ```text
-//! scenario field `observer.gain_per_m`: refused by the core: observer_gain_per_m (L) must be finite and > 0 1/m
-//! scenario field `plant.wheel_radius_m`: must be finite and > 0 (got 0)
+//! scenario field `observer.gain_per_m`: refused by the core: observer_gain_per_m (L) must be in [0.000001, 10000] 1/m (got 0)
+//! scenario field `plant.wheel_radius_m`: must be in [0.001, 2] m (got 0)
 //! ```
 //!
 //! [`Scenario::validate`] turns a scenario into a [`Setup`]: the core's own

@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 use wmr_core::pilot::spec::{EstimatorSpec, LawSpec};
+use wmr_core::plausible;
 
 use super::defaults;
 use super::robot::RobotSource;
@@ -22,6 +23,7 @@ pub struct Scenario {
     pub duration_s: f64,
     /// Control period `h`, s.
     #[serde(default = "defaults::period_s")]
+    #[schemars(range(min = plausible::PERIOD_S.min, max = plausible::PERIOD_S.max))]
     pub period_s: f64,
     /// Error statistics are taken over `t ≥ transient_s`, s.
     #[serde(default)]
@@ -145,12 +147,15 @@ pub enum ReferenceSpec {
     FigureEight {
         /// Half-width `h1`, m.
         #[serde(default = "defaults::h1_m")]
+        #[schemars(range(min = plausible::REFERENCE_SIZE_M.min, max = plausible::REFERENCE_SIZE_M.max))]
         h1_m: f64,
         /// Rate `h2`, rad/s.
         #[serde(default = "defaults::h2_rad_s")]
+        #[schemars(range(min = plausible::REFERENCE_RATE_RAD_S.min, max = plausible::REFERENCE_RATE_RAD_S.max))]
         h2_rad_s: f64,
         /// Phase `φ`, rad (−π/2 starts at (0, −h1), as the paper's runs).
         #[serde(default = "defaults::phase_rad")]
+        #[schemars(range(min = plausible::ANGLE_RAD.min, max = plausible::ANGLE_RAD.max))]
         phase_rad: f64,
     },
     /// A circle.
@@ -159,11 +164,13 @@ pub enum ReferenceSpec {
         #[serde(default)]
         center_m: [f64; 2],
         /// Radius, m.
+        #[schemars(range(min = plausible::REFERENCE_SIZE_M.min, max = plausible::REFERENCE_SIZE_M.max))]
         radius_m: f64,
         /// Angular rate, rad/s (negative: clockwise).
         rate_rad_s: f64,
         /// Polar angle of the start point, rad.
         #[serde(default)]
+        #[schemars(range(min = plausible::ANGLE_RAD.min, max = plausible::ANGLE_RAD.max))]
         phase_rad: f64,
     },
     /// A straight line at constant speed.
@@ -173,8 +180,10 @@ pub enum ReferenceSpec {
         start_m: [f64; 2],
         /// Direction, rad.
         #[serde(default)]
+        #[schemars(range(min = plausible::ANGLE_RAD.min, max = plausible::ANGLE_RAD.max))]
         heading_rad: f64,
         /// Speed, m/s.
+        #[schemars(range(min = plausible::REFERENCE_SPEED_M_S.min, max = plausible::REFERENCE_SPEED_M_S.max))]
         speed_m_s: f64,
     },
 }
@@ -231,12 +240,15 @@ pub struct ControllerSpec {
     pub law: LawSpec,
     /// `k1`, m/s.
     #[serde(default = "defaults::k12")]
+    #[schemars(range(min = plausible::GAIN.min, max = plausible::GAIN.max))]
     pub k1: f64,
     /// `k2`, m/s.
     #[serde(default = "defaults::k12")]
+    #[schemars(range(min = plausible::GAIN.min, max = plausible::GAIN.max))]
     pub k2: f64,
     /// `k3`, 1/s.
     #[serde(default = "defaults::k3")]
+    #[schemars(range(min = plausible::GAIN.min, max = plausible::GAIN.max))]
     pub k3: f64,
 }
 
@@ -293,9 +305,11 @@ fn checked_table<'de, D: serde::Deserializer<'de>, T>(
 pub struct ObserverSpec {
     /// Observer gain `L`, 1/m.
     #[serde(default = "defaults::gain_per_m")]
+    #[schemars(range(min = plausible::GAIN.min, max = plausible::GAIN.max))]
     pub gain_per_m: f64,
     /// Speed below which position changes are ignored, m/s.
     #[serde(default = "defaults::min_speed_m_s")]
+    #[schemars(range(min = plausible::MIN_SPEED_M_S.min, max = plausible::MIN_SPEED_M_S.max))]
     pub min_speed_m_s: f64,
 }
 
@@ -346,9 +360,11 @@ pub enum PlantSpec {
     DiffDrive {
         /// Wheel radius, m.
         #[serde(default = "defaults::wheel_radius_m")]
+        #[schemars(range(min = plausible::WHEEL_RADIUS_M.min, max = plausible::WHEEL_RADIUS_M.max))]
         wheel_radius_m: f64,
         /// Track width, m.
         #[serde(default = "defaults::track_width_m")]
+        #[schemars(range(min = plausible::TRACK_WIDTH_M.min, max = plausible::TRACK_WIDTH_M.max))]
         track_width_m: f64,
         /// Motor + wheel time constant `τ`, s.
         #[serde(default = "defaults::motor_time_constant_s")]
@@ -467,18 +483,23 @@ pub struct DynamicsSpec {
 pub struct DriveSpec {
     /// Wheel speed limit, rad/s.
     #[serde(default = "defaults::max_wheel_speed_rad_s")]
+    #[schemars(range(min = plausible::WHEEL_SPEED_RAD_S.min, max = plausible::WHEEL_SPEED_RAD_S.max))]
     pub max_wheel_speed_rad_s: f64,
     /// Wheel acceleration limit, rad/s².
     #[serde(default = "defaults::max_wheel_accel_rad_s2")]
+    #[schemars(range(min = plausible::WHEEL_ACCEL_RAD_S2.min, max = plausible::WHEEL_ACCEL_RAD_S2.max))]
     pub max_wheel_accel_rad_s2: f64,
     /// Feed-forward, duty per rad/s (default: 1 / wheel speed at full duty).
     #[serde(default)]
+    #[schemars(range(min = plausible::SPEED_LOOP_GAIN.min, max = plausible::SPEED_LOOP_GAIN.max))]
     pub feedforward_duty_per_rad_s: Option<f64>,
     /// Proportional gain, duty per rad/s.
     #[serde(default = "defaults::kp_duty_per_rad_s")]
+    #[schemars(range(min = plausible::SPEED_LOOP_GAIN.min, max = plausible::SPEED_LOOP_GAIN.max))]
     pub kp_duty_per_rad_s: f64,
     /// Integral gain, duty per rad.
     #[serde(default = "defaults::ki_duty_per_rad")]
+    #[schemars(range(min = plausible::SPEED_LOOP_GAIN.min, max = plausible::SPEED_LOOP_GAIN.max))]
     pub ki_duty_per_rad: f64,
     /// Run the speed loops on paper 003's wheel-speed observer instead of
     /// the counts differenced over a tick (`[drive.speed_observer]`).
@@ -495,22 +516,29 @@ pub struct DriveSpec {
 #[serde(deny_unknown_fields)]
 pub struct SpeedObserverSpec {
     /// Robot mass, kg.
+    #[schemars(range(min = plausible::MASS_KG.min, max = plausible::MASS_KG.max))]
     pub mass_kg: f64,
     /// Yaw inertia about the axle midpoint, kg m².
+    #[schemars(range(min = plausible::YAW_INERTIA_KG_M2.min, max = plausible::YAW_INERTIA_KG_M2.max))]
     pub yaw_inertia_kg_m2: f64,
     /// Each wheel's drive-train inertia at the wheel, kg m² (default 0).
     #[serde(default)]
+    #[schemars(range(min = plausible::WHEEL_INERTIA_KG_M2.min, max = plausible::WHEEL_INERTIA_KG_M2.max))]
     pub wheel_inertia_kg_m2: f64,
     /// Motor torque at the wheel at full duty and standstill, N·m.
+    #[schemars(range(min = plausible::TORQUE_NM.min, max = plausible::TORQUE_NM.max))]
     pub stall_torque_nm: f64,
     /// `λ`, 1/s (default 5).
     #[serde(default = "defaults::observer_lambda_per_s")]
+    #[schemars(range(min = plausible::GAIN.min, max = plausible::GAIN.max))]
     pub lambda_per_s: f64,
     /// Damping adaptation gain `γ_r` (default 0.01).
     #[serde(default = "defaults::observer_friction_gain")]
+    #[schemars(range(min = plausible::GAIN.min, max = plausible::GAIN.max))]
     pub friction_gain: f64,
     /// Load adaptation gain `γ_d` (default 0.1).
     #[serde(default = "defaults::observer_disturbance_gain")]
+    #[schemars(range(min = plausible::GAIN.min, max = plausible::GAIN.max))]
     pub disturbance_gain: f64,
 }
 
@@ -552,6 +580,7 @@ pub enum PositionSpec {
     NearestTag {
         /// Tag spacing, m.
         #[serde(default = "defaults::spacing_m")]
+        #[schemars(range(min = plausible::TAG_SPACING_M.min, max = plausible::TAG_SPACING_M.max))]
         spacing_m: f64,
         /// A lattice point `[x, y]`, m.
         #[serde(default)]
@@ -568,6 +597,7 @@ pub enum PositionSpec {
     Reader {
         /// Tag spacing, m.
         #[serde(default = "defaults::spacing_m")]
+        #[schemars(range(min = plausible::TAG_SPACING_M.min, max = plausible::TAG_SPACING_M.max))]
         spacing_m: f64,
         /// A lattice point `[x, y]`, m.
         #[serde(default)]
@@ -583,6 +613,7 @@ pub enum PositionSpec {
         mode: ReaderModeSpec,
         /// Read radius around the antenna (`range` mode), m.
         #[serde(default = "defaults::read_radius_m")]
+        #[schemars(range(min = plausible::READ_RADIUS_M.min, max = plausible::READ_RADIUS_M.max))]
         read_radius_m: f64,
         /// Antenna ahead of the axle midpoint, m (where the simulated reader
         /// reads; the estimators are told, unless
@@ -648,6 +679,7 @@ pub struct FailsafeSpec {
     pub fix_timeout_s: f64,
     /// Failsafe deceleration, m/s².
     #[serde(default = "defaults::decel_m_s2")]
+    #[schemars(range(min = plausible::DECEL_M_S2.min, max = plausible::DECEL_M_S2.max))]
     pub decel_m_s2: f64,
 }
 

@@ -137,6 +137,11 @@ fn bad_values_name_their_field() {
         ),
         (
             "[position]\nkind = \"nearest_tag\"\nspacing_m = 1e-5",
+            "position.spacing_m",
+        ),
+        (
+            "[position]\nkind = \"nearest_tag\"\nspacing_m = 0.01\n\
+             extent_m = [-5000.0, -5000.0, 5000.0, 5000.0]",
             "position.extent_m",
         ),
         ("[position]\nkind = \"reader\"\nbaud = 0", "position.baud"),
@@ -487,4 +492,40 @@ fn old_estimator_and_law_keys_name_their_new_keys() {
 fn reader_defaults_are_the_readers_serde_defaults() {
     let parsed: PositionSpec = toml::from_str("kind = \"reader\"").unwrap();
     assert_eq!(parsed, PositionSpec::reader_defaults());
+}
+
+/// Values no robot has are refused at the front door, naming the key, the
+/// plausible range and the value: a control period of 3.4e38 s (which would
+/// put the reference at `t = inf` on the second tick), a 3e38 m tag
+/// spacing, and gains the core refuses (the value looked up in the file).
+#[test]
+fn implausible_values_are_refused_naming_key_range_and_value() {
+    let cases = [
+        (
+            "period_s = 3.4e38\n",
+            "period_s",
+            "must be in [0.0001, 1] s (got 3.4e38)",
+        ),
+        (
+            "[position]\nkind = \"nearest_tag\"\nspacing_m = 3e38\n",
+            "position.spacing_m",
+            "must be in [0.01, 10] m (got 3e38)",
+        ),
+        (
+            "[controller]\nk1 = 1e9\n",
+            "controller.k1",
+            "must be in [0.000001, 10000] m/s (got 1e9)",
+        ),
+        (
+            "[observer]\ngain_per_m = 2e4\n",
+            "observer.gain_per_m",
+            "(got 20000)",
+        ),
+    ];
+    for (extra, field, text) in cases {
+        let (head, tail) = MINIMAL.split_at(MINIMAL.find("[reference]").unwrap());
+        let e = err_of(&format!("{head}{extra}{tail}"));
+        assert_eq!(e.field(), Some(field), "{e}");
+        assert!(e.to_string().contains(text), "{e}");
+    }
 }

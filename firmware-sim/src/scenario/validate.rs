@@ -24,7 +24,7 @@ use wmr_core::devices::TagId;
 use crate::tags::{Floor, FloorTags, MapFloor};
 
 use super::defaults;
-use super::error::{ScenarioError, finite, non_negative, positive, probability};
+use super::error::{ScenarioError, finite, in_range, non_negative, positive, probability, shown};
 use super::schema::{
     ControllerKind, DynamicsSpec, MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec,
     ReaderModeSpec, ReferenceSpec, Scenario, SpeedObserverSpec,
@@ -33,6 +33,11 @@ use super::sweep_spec::{
     DEFAULT_EXACT_THRESHOLD_M, DEFAULT_HOLD_FRACTION, DEFAULT_START_RADIUS_M,
     DEFAULT_THRESHOLD_SPACINGS, EncoderChoices, MAX_ENCODER_CHOICES, ObserverStart, SweepPlan,
     SweepSpec,
+};
+use wmr_core::plausible::{
+    ANGLE_RAD, COORDINATE_M, GAIN, MASS_KG, PERIOD_S, READ_RADIUS_M, REFERENCE_RATE_RAD_S,
+    REFERENCE_SIZE_M, REFERENCE_SPEED_M_S, TAG_SPACING_M, TORQUE_NM, TRACK_WIDTH_M,
+    WHEEL_INERTIA_KG_M2, WHEEL_RADIUS_M, YAW_INERTIA_KG_M2,
 };
 
 /// The validated plant.
@@ -112,23 +117,52 @@ fn speed_observer_spec(
 ) -> Result<core_spec::SpeedObserverSpec, ScenarioError> {
     let field = |key: &str| format!("drive.speed_observer.{key}");
     Ok(core_spec::SpeedObserverSpec {
-        mass_kg: f(positive(&field("mass_kg"), o.mass_kg)?),
-        yaw_inertia_kg_m2: f(positive(&field("yaw_inertia_kg_m2"), o.yaw_inertia_kg_m2)?),
-        wheel_inertia_kg_m2: f(non_negative(
+        mass_kg: f(in_range(&field("mass_kg"), o.mass_kg, MASS_KG, "kg")?),
+        yaw_inertia_kg_m2: f(in_range(
+            &field("yaw_inertia_kg_m2"),
+            o.yaw_inertia_kg_m2,
+            YAW_INERTIA_KG_M2,
+            "kg m²",
+        )?),
+        wheel_inertia_kg_m2: f(in_range(
             &field("wheel_inertia_kg_m2"),
             o.wheel_inertia_kg_m2,
+            WHEEL_INERTIA_KG_M2,
+            "kg m²",
         )?),
-        stall_torque_nm: f(positive(&field("stall_torque_nm"), o.stall_torque_nm)?),
+        stall_torque_nm: f(in_range(
+            &field("stall_torque_nm"),
+            o.stall_torque_nm,
+            TORQUE_NM,
+            "N·m",
+        )?),
         no_load_speed_rad_s: f(params.wheel_speed_at_full_duty_rad_s),
-        lambda_per_s: f(positive(&field("lambda_per_s"), o.lambda_per_s)?),
-        friction_gain: f(positive(&field("friction_gain"), o.friction_gain)?),
-        disturbance_gain: f(positive(&field("disturbance_gain"), o.disturbance_gain)?),
+        lambda_per_s: f(in_range(
+            &field("lambda_per_s"),
+            o.lambda_per_s,
+            GAIN,
+            "1/s",
+        )?),
+        friction_gain: f(in_range(
+            &field("friction_gain"),
+            o.friction_gain,
+            GAIN,
+            "",
+        )?),
+        disturbance_gain: f(in_range(
+            &field("disturbance_gain"),
+            o.disturbance_gain,
+            GAIN,
+            "",
+        )?),
     })
 }
 
 /// A refusal of the core's spec builder, named by the scenario key it came
-/// from, in the core's own words (which name the field and the rule).
-fn spec_refusal(e: SpecError) -> ScenarioError {
+/// from, in the core's own words (which name the field and the rule), with
+/// the key's value in `scenario` where the key is a value rather than a
+/// table.
+fn spec_refusal(e: SpecError, scenario: &Scenario) -> ScenarioError {
     let field = match e.section() {
         "tracker.trajectory" => "reference",
         "tracker.estimator.pose_observer" => "estimator.pose_observer",
@@ -158,12 +192,22 @@ fn spec_refusal(e: SpecError) -> ScenarioError {
     let field = match e {
         SpecError::Drive(DriveConfigError::MaxWheelSpeed) => "drive.max_wheel_speed_rad_s",
         SpecError::Drive(DriveConfigError::MaxWheelAccel) => "drive.max_wheel_accel_rad_s2",
+        SpecError::Drive(DriveConfigError::Period)
+        | SpecError::Observer(ObserverConfigError::Period)
+        | SpecError::Tracker(TrackerConfigError::Period) => "period_s",
         _ => field,
     };
-    let reason = match core::error::Error::source(&e) {
+    let mut reason = match core::error::Error::source(&e) {
         Some(inner) => format!("refused by the core: {inner}"),
         None => format!("refused by the core: {e}"),
     };
+    if let Some(value) = scenario.value_at(field) {
+        let value = match value {
+            toml::Value::Float(v) => shown(v),
+            other => other.to_string(),
+        };
+        reason.push_str(&format!(" (got {value})"));
+    }
     ScenarioError::invalid(field, reason)
 }
 
@@ -173,6 +217,16 @@ fn f(v: f64) -> f32 {
 }
 
 impl Scenario {
+    /// The value of the dotted key `path` as this scenario holds it (its
+    /// defaults filled in), unless the key is a table or absent.
+    fn value_at(&self, path: &str) -> Option<toml::Value> {
+        let mut value = toml::Value::try_from(self).ok()?;
+        for key in path.split('.') {
+            value = value.get(key)?.clone();
+        }
+        (!value.is_table()).then_some(value)
+    }
+
     /// Keys given a value other than their default where they do not
     /// apply to this setup (ignored, so probably a mistake): one line
     /// each, naming the key and why. `firmware-sim` prints them as
@@ -325,7 +379,7 @@ impl Scenario {
         if self.name.trim().is_empty() {
             return Err(ScenarioError::invalid("name", "must not be empty"));
         }
-        let period_s = positive("period_s", self.period_s)?;
+        let period_s = in_range("period_s", self.period_s, PERIOD_S, "s")?;
         let duration_s = positive("duration_s", self.duration_s)?;
         let transient_s = non_negative("transient_s", self.transient_s)?;
         if transient_s >= duration_s {
@@ -378,7 +432,7 @@ impl Scenario {
             law: self.law_spec()?,
             sensors: self.sensor_spec(),
         };
-        let tracker = tracker_spec.build().map_err(spec_refusal)?;
+        let tracker = tracker_spec.build().map_err(|e| spec_refusal(e, self))?;
         let gains = TrackingGains::new(gains[0], gains[1], gains[2])
             .map_err(|e| ScenarioError::invalid("controller", format!("{e}")))?;
 
@@ -519,8 +573,18 @@ impl Scenario {
                     }
                 };
                 let params = DiffDriveParams {
-                    wheel_radius_m: positive("plant.wheel_radius_m", wheel_radius_m)?,
-                    track_width_m: positive("plant.track_width_m", track_width_m)?,
+                    wheel_radius_m: in_range(
+                        "plant.wheel_radius_m",
+                        wheel_radius_m,
+                        WHEEL_RADIUS_M,
+                        "m",
+                    )?,
+                    track_width_m: in_range(
+                        "plant.track_width_m",
+                        track_width_m,
+                        TRACK_WIDTH_M,
+                        "m",
+                    )?,
                     motor_time_constant_s: positive(
                         "plant.motor_time_constant_s",
                         motor_time_constant_s,
@@ -575,7 +639,7 @@ impl Scenario {
                     encoder_bits,
                     max_encoder_fault_ticks: PilotConfig::DEFAULT_MAX_ENCODER_FAULT_TICKS,
                 };
-                let pilot = pilot_spec.build().map_err(spec_refusal)?;
+                let pilot = pilot_spec.build().map_err(|e| spec_refusal(e, self))?;
                 Ok(PlantSetup::DiffDrive {
                     params,
                     encoder_counts_per_rev,
@@ -597,9 +661,9 @@ impl Scenario {
     ) -> Result<PositionSetup, ScenarioError> {
         let floor =
             |spacing_m: f64, offset_m: [f64; 2], margin_m: f64, extent_m: Option<[f64; 4]>| {
-                let spacing_m = positive("position.spacing_m", spacing_m)?;
-                finite("position.offset_m", offset_m[0])?;
-                finite("position.offset_m", offset_m[1])?;
+                let spacing_m = in_range("position.spacing_m", spacing_m, TAG_SPACING_M, "m")?;
+                in_range("position.offset_m", offset_m[0], COORDINATE_M, "m")?;
+                in_range("position.offset_m", offset_m[1], COORDINATE_M, "m")?;
                 let (min, max) = match extent_m {
                     Some(e) => {
                         for v in e {
@@ -680,7 +744,12 @@ impl Scenario {
                 let mode = match mode {
                     ReaderModeSpec::Paper => ReaderMode::Paper,
                     ReaderModeSpec::Range => ReaderMode::Range {
-                        read_radius_m: positive("position.read_radius_m", read_radius_m)?,
+                        read_radius_m: in_range(
+                            "position.read_radius_m",
+                            positive("position.read_radius_m", read_radius_m)?,
+                            READ_RADIUS_M,
+                            "m",
+                        )?,
                         repeat_interval_s: positive(
                             "position.repeat_interval_s",
                             repeat_interval_s,
@@ -780,9 +849,19 @@ impl ReferenceSpec {
                 h2_rad_s,
                 phase_rad,
             } => TrajectorySpec::FigureEight {
-                h1_m: f(positive("reference.h1_m", h1_m)?),
-                h2_rad_s: f(positive("reference.h2_rad_s", h2_rad_s)?),
-                phase_rad: f(finite("reference.phase_rad", phase_rad)?),
+                h1_m: f(in_range("reference.h1_m", h1_m, REFERENCE_SIZE_M, "m")?),
+                h2_rad_s: f(in_range(
+                    "reference.h2_rad_s",
+                    h2_rad_s,
+                    REFERENCE_RATE_RAD_S,
+                    "rad/s",
+                )?),
+                phase_rad: f(in_range(
+                    "reference.phase_rad",
+                    phase_rad,
+                    ANGLE_RAD,
+                    "rad",
+                )?),
             },
             Self::Circle {
                 center_m,
@@ -790,21 +869,43 @@ impl ReferenceSpec {
                 rate_rad_s,
                 phase_rad,
             } => {
-                let rate = finite("reference.rate_rad_s", rate_rad_s)?;
-                if rate == 0.0 {
+                if !REFERENCE_RATE_RAD_S.contains_magnitude(rate_rad_s as f32) {
                     return Err(ScenarioError::invalid(
                         "reference.rate_rad_s",
-                        "must not be 0",
+                        format!(
+                            "its magnitude must be in {REFERENCE_RATE_RAD_S} rad/s, the sign \
+                             gives the sense (got {rate_rad_s})"
+                        ),
                     ));
                 }
                 TrajectorySpec::Circle {
                     center_m: [
-                        f(finite("reference.center_m", center_m[0])?),
-                        f(finite("reference.center_m", center_m[1])?),
+                        f(in_range(
+                            "reference.center_m",
+                            center_m[0],
+                            COORDINATE_M,
+                            "m",
+                        )?),
+                        f(in_range(
+                            "reference.center_m",
+                            center_m[1],
+                            COORDINATE_M,
+                            "m",
+                        )?),
                     ],
-                    radius_m: f(positive("reference.radius_m", radius_m)?),
-                    rate_rad_s: f(rate),
-                    phase_rad: f(finite("reference.phase_rad", phase_rad)?),
+                    radius_m: f(in_range(
+                        "reference.radius_m",
+                        radius_m,
+                        REFERENCE_SIZE_M,
+                        "m",
+                    )?),
+                    rate_rad_s: f(rate_rad_s),
+                    phase_rad: f(in_range(
+                        "reference.phase_rad",
+                        phase_rad,
+                        ANGLE_RAD,
+                        "rad",
+                    )?),
                 }
             }
             Self::Line {
@@ -813,11 +914,31 @@ impl ReferenceSpec {
                 speed_m_s,
             } => TrajectorySpec::Line {
                 start_m: [
-                    f(finite("reference.start_m", start_m[0])?),
-                    f(finite("reference.start_m", start_m[1])?),
+                    f(in_range(
+                        "reference.start_m",
+                        start_m[0],
+                        COORDINATE_M,
+                        "m",
+                    )?),
+                    f(in_range(
+                        "reference.start_m",
+                        start_m[1],
+                        COORDINATE_M,
+                        "m",
+                    )?),
                 ],
-                heading_rad: f(finite("reference.heading_rad", heading_rad)?),
-                speed_m_s: f(positive("reference.speed_m_s", speed_m_s)?),
+                heading_rad: f(in_range(
+                    "reference.heading_rad",
+                    heading_rad,
+                    ANGLE_RAD,
+                    "rad",
+                )?),
+                speed_m_s: f(in_range(
+                    "reference.speed_m_s",
+                    speed_m_s,
+                    REFERENCE_SPEED_M_S,
+                    "m/s",
+                )?),
             },
         })
     }

@@ -1,12 +1,14 @@
 //! The pose filters' parameters, validated once ([`PoseFilterConfig`]), and
 //! the gate thresholds they imply (see [`crate::estimation::fusion::gate`]).
 
+use crate::plausible::{READ_RADIUS_M, TAG_SPACING_M, TRACK_WIDTH_M};
+
 /// Why a [`PoseFilterConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum PoseFilterError {
-    /// Track width not finite and positive.
+    /// Track width outside [`TRACK_WIDTH_M`].
     TrackWidth,
     /// A wheel-noise parameter negative or not finite.
     WheelNoise,
@@ -16,9 +18,9 @@ pub enum PoseFilterError {
     InitialVariance,
     /// The wheel-scale random walk negative or not finite.
     ScaleWalk,
-    /// Tag spacing not finite and positive.
+    /// Tag spacing outside [`TAG_SPACING_M`].
     TagSpacing,
-    /// Reader range negative or not finite.
+    /// Reader range outside [`READ_RADIUS_M`] (and 0 on a tag map).
     ReadRadius,
     /// Blind-distance limit negative or not finite.
     BlindDistance,
@@ -33,8 +35,8 @@ pub enum PoseFilterError {
 
 impl core::fmt::Display for PoseFilterError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Self::TrackWidth => "track_width_m must be finite and > 0 m",
+        let s = match self {
+            Self::TrackWidth => return write!(f, "track_width_m must be in {TRACK_WIDTH_M} m"),
             Self::WheelNoise => {
                 "wheel_variance_per_m and wheel_variance_floor_m2 must each be finite and ≥ 0"
             }
@@ -43,8 +45,13 @@ impl core::fmt::Display for PoseFilterError {
                 "each initial variance (and scale_prior) must be finite and ≥ 0"
             }
             Self::ScaleWalk => "the wheel-scale random walk must be finite and ≥ 0 per m",
-            Self::TagSpacing => "tag_spacing_m must be finite and > 0 m",
-            Self::ReadRadius => "read_radius_m must be finite and ≥ 0 m",
+            Self::TagSpacing => return write!(f, "tag_spacing_m must be in {TAG_SPACING_M} m"),
+            Self::ReadRadius => {
+                return write!(
+                    f,
+                    "read_radius_m must be in {READ_RADIUS_M} m (and > 0 on a tag map)"
+                );
+            }
             Self::BlindDistance => "max_blind_distance_m must be finite and ≥ 0 m",
             Self::TagMapReader => {
                 "a tag map (no grid spacing) needs a range reader, read_radius_m > 0 m: \
@@ -55,7 +62,8 @@ impl core::fmt::Display for PoseFilterError {
                  needs a grid's tag spacing s): the distance the robot may drive between \
                  two tags of its route, or 0 to keep the fix timeout"
             }
-        })
+        };
+        f.write_str(s)
     }
 }
 
@@ -89,7 +97,7 @@ impl PoseFilterConfig {
         variance_floor_m2: f32,
         gate_sigma: f32,
     ) -> Result<Self, PoseFilterError> {
-        if !(track_width_m.is_finite() && track_width_m > 0.0) {
+        if !TRACK_WIDTH_M.contains(track_width_m) {
             return Err(PoseFilterError::TrackWidth);
         }
         let non_negative = |x: f32| x.is_finite() && x >= 0.0;

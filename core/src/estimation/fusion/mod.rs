@@ -66,6 +66,7 @@ use crate::estimation::interface::{EstimatorCounters, PoseEstimator};
 use crate::geometry::{Pose, Vec2};
 use crate::math;
 use crate::odometry::OdometryStep;
+use crate::plausible::{READ_RADIUS_M, TAG_SPACING_M};
 
 /// Which filter the fusion estimator runs. The EKF is always built; the
 /// others need their cargo features (`fusion-ukf`,
@@ -114,7 +115,7 @@ impl FusionSettings {
         tag_spacing_m: f32,
         scale_prior: f32,
     ) -> Result<Self, PoseFilterError> {
-        if !(tag_spacing_m.is_finite() && tag_spacing_m > 0.0) {
+        if !TAG_SPACING_M.contains(tag_spacing_m) {
             return Err(PoseFilterError::TagSpacing);
         }
         Self::on_floor(filter, tag_spacing_m, 0.0, scale_prior)
@@ -132,15 +133,19 @@ impl FusionSettings {
     /// with gaps between its tags needs (see there).
     ///
     /// # Errors
-    /// [`PoseFilterError::TagMapReader`] unless `read_radius_m` is finite
-    /// and > 0, [`PoseFilterError::InitialVariance`].
+    /// [`PoseFilterError::TagMapReader`] unless `read_radius_m` is > 0,
+    /// [`PoseFilterError::ReadRadius`] outside [`READ_RADIUS_M`],
+    /// [`PoseFilterError::InitialVariance`].
     pub fn on_tag_map(
         filter: PoseFilterConfig,
         read_radius_m: f32,
         scale_prior: f32,
     ) -> Result<Self, PoseFilterError> {
-        if !(read_radius_m.is_finite() && read_radius_m > 0.0) {
+        if read_radius_m.is_nan() || read_radius_m <= 0.0 {
             return Err(PoseFilterError::TagMapReader);
+        }
+        if !READ_RADIUS_M.contains(read_radius_m) {
+            return Err(PoseFilterError::ReadRadius);
         }
         Self::on_floor(filter, 0.0, read_radius_m, scale_prior)
     }
@@ -244,7 +249,7 @@ impl FusionSettings {
     /// [`PoseFilterError::TagMapReader`] for 0 on a tag map
     /// ([`Self::on_tag_map`]).
     pub fn with_read_radius(self, read_radius_m: f32) -> Result<Self, PoseFilterError> {
-        if !(read_radius_m.is_finite() && read_radius_m >= 0.0) {
+        if !READ_RADIUS_M.contains(read_radius_m) {
             return Err(PoseFilterError::ReadRadius);
         }
         if read_radius_m == 0.0 && !self.on_grid() {
