@@ -26,7 +26,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context as _, bail};
 use plotters::prelude::*;
 use serde::Serialize;
-use wmr_core::estimation::heading_observer::HeadingEstimate;
+use wmr_core::geometry::HeadingEstimate;
 use wmr_link::telemetry::{
     FLAG_ACCEL_LIMITED, FLAG_FIX, FLAG_SPEED_LIMITED, FORMAT_VERSION, Line, Record, Start,
     mode_of_code, parse_line,

@@ -8,9 +8,8 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use host_tests::paper_pilot;
 use std::hint::black_box;
 use wmr_core::control::saturated::{TrackingController, TrackingGains};
-use wmr_core::estimation::heading_observer::{
-    HeadingEstimate, HeadingObserver, HeadingObserverConfig,
-};
+use wmr_core::estimation::heading_observer::{HeadingObserver, HeadingObserverConfig};
+use wmr_core::geometry::HeadingEstimate;
 use wmr_core::geometry::{BodyVelocity, Vec2};
 use wmr_core::pilot::Measurement;
 use wmr_core::pilot::tracker::TagFix;

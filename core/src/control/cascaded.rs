@@ -14,7 +14,7 @@
 
 use crate::control::interface::{LawCommand, TrackingCommand, TrackingLaw};
 use crate::control::robot_frame::{UnicycleReference, estimated_error};
-use crate::estimation::heading_observer::HeadingEstimate;
+use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::plausible::GAIN;
 use crate::reference::ReferenceSample;

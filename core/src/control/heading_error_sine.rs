@@ -26,7 +26,7 @@
 
 use crate::control::interface::{LawCommand, TrackingCommand, TrackingLaw};
 use crate::control::robot_frame::{RobotFrameError, UnicycleReference, estimated_error};
-use crate::estimation::heading_observer::HeadingEstimate;
+use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::math;
 use crate::plausible::{GAIN, PERIOD_S};

@@ -1,6 +1,6 @@
 //! The law interface: what the tracker asks of every tracking law.
 
-use crate::estimation::heading_observer::HeadingEstimate;
+use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::reference::ReferenceSample;
 

@@ -27,7 +27,7 @@ pub use interface::{LawCommand, TrackingCommand, TrackingLaw};
 use crate::control::cascaded::{CascadedController, CascadedGains};
 use crate::control::heading_error_sine::{HeadingErrorSineConfig, HeadingErrorSineTracker};
 use crate::control::saturated::{TrackingController, TrackingGains};
-use crate::estimation::heading_observer::HeadingEstimate;
+use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::reference::ReferenceSample;
 

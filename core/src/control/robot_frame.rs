@@ -26,7 +26,7 @@
 //! `ω_r = (ẋ_r ÿ_r − ẏ_r ẍ_r)/v_r²` and `v̇_r = (ẋ_r ẍ_r + ẏ_r ÿ_r)/v_r`,
 //! defined while `v_r > 0` ([`UnicycleReference::from_sample`]).
 
-use crate::estimation::heading_observer::HeadingEstimate;
+use crate::geometry::HeadingEstimate;
 use crate::geometry::{Pose, Vec2};
 use crate::math;
 use crate::reference::ReferenceSample;

@@ -67,7 +67,7 @@
 pub use crate::control::interface::TrackingCommand;
 
 use crate::control::interface::{LawCommand, TrackingLaw};
-use crate::estimation::heading_observer::HeadingEstimate;
+use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Pose, Vec2};
 use crate::math;
 use crate::plausible::GAIN;

@@ -11,9 +11,10 @@
 //! one. Before the first fix there is no position and the observer waits;
 //! the first fix starts it ([`PositionObserver::start_at`]).
 
-use crate::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
+use crate::estimation::heading_observer::HeadingObserver;
 use crate::estimation::interface::{EstimatorCounters, PoseEstimator};
 use crate::estimation::pose_observer::{PoseEstimate, PoseObserver};
+use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Pose, Vec2};
 use crate::odometry::OdometryStep;
 

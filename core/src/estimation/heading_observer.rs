@@ -46,7 +46,7 @@
 //!
 //! In every case `|e⁺| ≤ |e|`: the error never grows.
 
-use crate::geometry::{BodyVelocity, Vec2};
+use crate::geometry::{BodyVelocity, HeadingEstimate, Vec2};
 use crate::math;
 use crate::plausible::{GAIN, MIN_SPEED_M_S, PERIOD_S};
 
@@ -137,35 +137,6 @@ impl HeadingObserverConfig {
     #[must_use]
     pub fn min_speed_m_s(&self) -> f32 {
         self.min_speed_m_s
-    }
-}
-
-/// The observer's estimate `(ẑ3, ẑ4)` of `(cos θ, sin θ)`.
-///
-/// Not normalised: its length tends to 1 as the observer converges, and a
-/// length far from 1 says the estimate is not yet trustworthy.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct HeadingEstimate {
-    /// `ẑ3`, estimate of `cos θ`.
-    pub cos_theta: f32,
-    /// `ẑ4`, estimate of `sin θ`.
-    pub sin_theta: f32,
-}
-
-impl HeadingEstimate {
-    /// `θ̂ = atan2(ẑ4, ẑ3)` (11), in [−π, π]; 0 while the estimate is (0, 0).
-    #[must_use]
-    pub fn heading_rad(&self) -> f32 {
-        math::atan2(self.sin_theta, self.cos_theta)
-    }
-
-    /// `V_o = ½|z − ẑ|²` for a known true heading (the paper's Lyapunov function (9)).
-    #[must_use]
-    pub fn lyapunov(&self, true_heading_rad: f32) -> f32 {
-        let ec = math::cos(true_heading_rad) - self.cos_theta;
-        let es = math::sin(true_heading_rad) - self.sin_theta;
-        0.5 * (ec * ec + es * es)
     }
 }
 

@@ -1,6 +1,6 @@
 //! The estimator interface: what the tracker asks of every estimator.
 
-use crate::estimation::heading_observer::HeadingEstimate;
+use crate::geometry::HeadingEstimate;
 use crate::geometry::Vec2;
 use crate::odometry::OdometryStep;
 

@@ -29,8 +29,9 @@ pub use interface::{EstimatorCounters, PoseEstimator};
 
 #[cfg(feature = "fusion-ekf")]
 use crate::estimation::fusion::{FusionEstimator, FusionSettings};
-use crate::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
+use crate::estimation::heading_observer::HeadingObserver;
 use crate::estimation::pose_observer::{PoseEstimate, PoseObserver, PoseObserverConfig};
+use crate::geometry::HeadingEstimate;
 use crate::geometry::Vec2;
 use crate::odometry::OdometryStep;
 

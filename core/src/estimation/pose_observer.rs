@@ -44,7 +44,7 @@
 //! The estimate is `(ĉ, ŝ)`, not an angle: no wrapping. `θ̂ = atan2(ŝ, ĉ)`
 //! in [−π, π] when needed (the paper suggests `arctan(ŝ/ĉ)`).
 
-use crate::estimation::heading_observer::HeadingEstimate;
+use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::math;
 use crate::plausible::{GAIN, PERIOD_S};

@@ -64,9 +64,10 @@
 use crate::control::saturated::{GainBound, TrackingCommand, TrackingGains};
 use crate::control::{Law, LawChoice, LawCommand, TrackingLaw};
 use crate::estimation::heading_observer::{
-    HeadingEstimate, HeadingObserver, HeadingObserverConfig, ObserverConfigError,
+    HeadingObserver, HeadingObserverConfig, ObserverConfigError,
 };
 use crate::estimation::{Estimator, EstimatorChoice, PoseEstimator};
+use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::odometry::OdometryStep;
 use crate::plausible::{DECEL_M_S2, PERIOD_S};

@@ -4,8 +4,8 @@
 
 use wmr_core::control::saturated::{GainError, TrackingGains};
 use wmr_core::drive::DriveConfigError;
-use wmr_core::estimation::heading_observer::HeadingEstimate;
 use wmr_core::estimation::heading_observer::ObserverConfigError;
+use wmr_core::geometry::HeadingEstimate;
 use wmr_core::pilot::PilotConfig;
 use wmr_core::pilot::spec::{
     self as core_spec, EstimatorSpec, LawSpec, PilotSpec, SensorSpec, SpecError, TrackerSpec,

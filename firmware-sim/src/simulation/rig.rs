@@ -4,7 +4,8 @@
 
 use wmr_core::control::saturated::TrackingController;
 use wmr_core::devices::{QuadratureCounter, RfidReader};
-use wmr_core::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
+use wmr_core::estimation::heading_observer::HeadingObserver;
+use wmr_core::geometry::HeadingEstimate;
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
 use wmr_core::odometry::OdometryStep;
 use wmr_core::pilot::robot::{Motor, Robot};

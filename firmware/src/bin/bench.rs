@@ -96,7 +96,7 @@ mod on_target {
     use wmr_core::estimation::fusion::{
         EkfCore, PoseEkf, PoseFilter, PoseFilterConfig, PoseFilterCore, PositionMeasurement,
     };
-    use wmr_core::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
+    use wmr_core::estimation::heading_observer::HeadingObserver;
     use wmr_core::filters::ekf::{EkfModel, ExtendedKalmanFilter};
     use wmr_core::filters::particle_filter::{
         ParticleFilter, ParticleFilterConfig, ParticleModel, Proposal,
@@ -104,6 +104,7 @@ mod on_target {
     use wmr_core::filters::ukf::{
         MerweScaledSigmaPoints, UkfForm, UkfModel, UnscentedKalmanFilter,
     };
+    use wmr_core::geometry::HeadingEstimate;
     use wmr_core::geometry::{BodyVelocity, DiffDriveGeometry, Pose, Vec2, WheelSpeeds};
     use wmr_core::math;
     use wmr_core::odometry::{OdometryStep, WrappingCounter};

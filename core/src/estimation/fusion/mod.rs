@@ -61,8 +61,9 @@ pub use gate::{
 pub use tag_cells::{CellMeasurements, TagCellTracker};
 
 use crate::estimation::fusion::gate::PI_SQUARED;
-use crate::estimation::heading_observer::{HeadingEstimate, HeadingObserver};
+use crate::estimation::heading_observer::HeadingObserver;
 use crate::estimation::interface::{EstimatorCounters, PoseEstimator};
+use crate::geometry::HeadingEstimate;
 use crate::geometry::{Pose, Vec2};
 use crate::math;
 use crate::odometry::OdometryStep;
