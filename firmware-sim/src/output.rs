@@ -197,7 +197,7 @@ pub fn format_summary(s: &Summary) -> String {
             l.stale_frames
         );
         if let Some(r) = &h.link_faults {
-            let verdict = |expected: &crate::hil::ExpectedCounters, seen| {
+            let verdict = |expected: &crate::report::link_faults::ExpectedCounters, seen| {
                 if expected.agrees_with(seen) {
                     "agree".to_owned()
                 } else {

@@ -5,6 +5,8 @@
 //! These are plain data built from the scenario's [`Setup`] and the core's
 //! counters; nothing here runs a simulation.
 
+pub mod link_faults;
+
 use serde::Serialize;
 use wmr_core::control::LawChoice;
 use wmr_core::control::saturated::GainBound;
@@ -364,7 +366,7 @@ pub struct HilReport {
     /// The faults injected on the link (`--link-faults`), and what each
     /// side must have counted.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub link_faults: Option<crate::hil::LinkFaultReport>,
+    pub link_faults: Option<link_faults::LinkFaultReport>,
 }
 
 /// Everything a run produced.

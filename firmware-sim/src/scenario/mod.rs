@@ -24,12 +24,15 @@
 //! * `sweep_spec`: the `[sweep]` table ([`SweepSpec`]) and its validated
 //!   [`SweepPlan`];
 //! * `legacy`: the keys that moved, and the new key an error names;
-//! * `schema`: the serde tables ([`Scenario`] and what it holds); the
-//!   estimator and the law are the core's own spec types
-//!   ([`EstimatorSpec`], [`LawSpec`]), so the list of both is written once,
-//!   in the core;
-//! * `robot`: the robot file ([`robot::RobotFile`]) and how a scenario
-//!   takes its tables ([`Scenario::resolve_robot`]);
+//! * `tables`: the serde tables a scenario holds and a robot file shares
+//!   (`[plant]`, `[drive]`, `[controller]`, ...); the estimator and the law
+//!   are the core's own spec types ([`EstimatorSpec`], [`LawSpec`]), so the
+//!   list of both is written once, in the core;
+//! * `robot_file`: the robot file's schema ([`robot::RobotFile`]) and how a
+//!   scenario names its robot ([`robot::RobotSource`]);
+//! * `schema`: the scenario's top level ([`Scenario`]);
+//! * `robot`: loading a robot file and how a scenario takes its tables
+//!   ([`Scenario::resolve_robot`]), the flash image;
 //! * `validate`: [`Scenario::validate`] and what it builds ([`Setup`],
 //!   [`PlantSetup`], [`PositionSetup`]);
 //! * this file: parsing, files and the embedded scenarios ([`EMBEDDED`]).
@@ -41,8 +44,10 @@ mod error;
 pub mod keys;
 mod legacy;
 pub mod robot;
+mod robot_file;
 mod schema;
 mod sweep_spec;
+mod tables;
 mod validate;
 
 #[cfg(test)]
@@ -50,15 +55,16 @@ mod tests;
 
 pub use error::ScenarioError;
 pub(crate) use error::{non_negative, positive};
-pub use schema::{
-    ControllerKind, ControllerSpec, DriveSpec, DynamicsSpec, FailsafeSpec, FloorTagSpec,
-    InitialSpec, MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
-    ReferenceSpec, Scenario, SpeedObserverSpec,
-};
+pub use schema::Scenario;
 pub use sweep_spec::{
     DEFAULT_EXACT_THRESHOLD_M, DEFAULT_HOLD_FRACTION, DEFAULT_START_RADIUS_M,
     DEFAULT_THRESHOLD_SPACINGS, EncoderChoices, HeadingSweep, MAX_ENCODER_CHOICES, ObserverStart,
     SweepPlan, SweepSpec,
+};
+pub use tables::{
+    ControllerKind, ControllerSpec, DriveSpec, DynamicsSpec, FailsafeSpec, FloorTagSpec,
+    InitialSpec, MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
+    ReferenceSpec, SpeedObserverSpec,
 };
 pub use validate::{PlantSetup, PositionSetup, Setup, reference_bounds};
 /// The core's estimator and law specs, which the scenario's `[estimator]`

@@ -25,14 +25,15 @@ use crate::tags::{Floor, FloorTags, MapFloor};
 
 use super::defaults;
 use super::error::{ScenarioError, finite, in_range, non_negative, positive, probability, shown};
-use super::schema::{
-    ControllerKind, DynamicsSpec, MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec,
-    ReaderModeSpec, ReferenceSpec, Scenario, SpeedObserverSpec,
-};
+use super::schema::Scenario;
 use super::sweep_spec::{
     DEFAULT_EXACT_THRESHOLD_M, DEFAULT_HOLD_FRACTION, DEFAULT_START_RADIUS_M,
     DEFAULT_THRESHOLD_SPACINGS, EncoderChoices, MAX_ENCODER_CHOICES, ObserverStart, SweepPlan,
     SweepSpec,
+};
+use super::tables::{
+    ControllerKind, DynamicsSpec, MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec,
+    ReaderModeSpec, ReferenceSpec, SpeedObserverSpec,
 };
 use wmr_core::plausible::{
     ANGLE_RAD, COORDINATE_M, GAIN, MASS_KG, PERIOD_S, READ_RADIUS_M, REFERENCE_RATE_RAD_S,

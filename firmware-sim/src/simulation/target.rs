@@ -155,7 +155,8 @@ mod tests {
     /// robot's floor is all in `Configure`.
     #[test]
     fn a_tag_map_follows_configure_in_chunks() {
-        let path = crate::hil::workspace_root()
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("..")
             .join("robots")
             .join("circle_surveyed.toml");
         let setup = Scenario::from_file(&path).unwrap().validate().unwrap();
