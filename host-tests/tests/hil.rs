@@ -443,7 +443,7 @@ fn reader_traffic_at_the_links_maximum_is_drained_every_tick() {
 /// exactly as replayed from what was injected (so no corrupt frame was
 /// accepted and no stale one used); and every silence past the timeout was
 /// reported with both motors at duty 0. (The hour-long soak: `firmware-sim
-/// hil figure_eight_rfid_full_stack --link-faults 1`, docs/firmware.md.)
+/// hil figure_eight_rfid_full_stack --link-faults 1`, docs/hil.md, "A faulty link".)
 #[test]
 fn a_faulty_link_loses_no_tick_and_every_fault_is_counted() {
     let mut scenario = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();

@@ -5,7 +5,7 @@
 //! By default it is a report: it prints the tables and writes
 //! `target/bench-target.md`, nothing tracked (so `cargo xtask ci` can run
 //! it on any checkout). With `--write` it also replaces the generated
-//! section of `docs/firmware.md` (between its `bench-target` markers),
+//! section of `docs/budgets.md` (between its `bench-target` markers),
 //! which is how the published tables are regenerated.
 
 use std::fmt::Write as _;
@@ -27,7 +27,7 @@ pub const BACKENDS: [(&str, &[&str]); 3] = [
 
 /// The tracked page holding the published tables (relative to the
 /// workspace root), written only with `--write`.
-pub const DOCS_PAGE: &str = "docs/firmware.md";
+pub const DOCS_PAGE: &str = "docs/budgets.md";
 /// Markers of the generated part of [`DOCS_PAGE`].
 const DOCS_START: &str = "<!-- bench-target:start -->";
 const DOCS_END: &str = "<!-- bench-target:end -->";

@@ -33,7 +33,7 @@
 //! * `bench-target [--write]` — instructions per call of the tick and its
 //!   stages on the target (QEMU `netduinoplus2`, `-icount shift=0`), for
 //!   each math backend; writes `target/bench-target.md`, and with
-//!   `--write` also the generated section of `docs/firmware.md` (between
+//!   `--write` also the generated section of `docs/budgets.md` (between
 //!   its `bench-target` markers), the only task that writes a tracked file;
 //!   fails when the default backend's instructions or tick stack exceed
 //!   their budgets (`firmware/budgets.toml`, `xtask/src/budgets.rs`).
@@ -287,7 +287,7 @@ fn build_firmware() -> std::result::Result<Vec<(&'static str, std::path::PathBuf
 /// dependencies the default build compiled, rather than by the tests, each
 /// in a target directory of its own from scratch.
 const HIL_VARIANTS: [(&str, &str, &[&str]); 3] = [
-    // Over the flash budget (docs/firmware.md), so not a board of its own:
+    // Over the flash budget (docs/budgets.md, "Flash and static RAM"), so not a board of its own:
     // the fusion estimator's EKF and UKF (`fusion-ukf` implies
     // `fusion-ekf`).
     (

@@ -198,8 +198,8 @@ fn fail() -> ! {
 /// link receiver: about 1.9 KB; the tag map a run may load,
 /// `wmr_link::MAP_CAPACITY` tags, 64 KiB) lives in statics
 /// (`cortex_m::singleton!`, in `.bss`), not in this function's frame, so
-/// the stack holds only what a message's handling needs (docs/firmware.md,
-/// "Memory").
+/// the stack holds only what a message's handling needs (docs/budgets.md,
+/// "Stack").
 pub fn run() -> ! {
     let Some(cp) = cortex_m::Peripherals::take() else {
         // Only possible if something took them before `main`.

@@ -63,8 +63,8 @@
 //! The generator is seeded from the configuration
 //! (`PoseFilterConfig::with_particle_seed`): a run repeats bit
 //! for bit from its seed. A prediction draws `4P` Gaussians and drives `P`
-//! arcs; with [`FUSION_PARTICLES`] = 100 that needs the `micromath`
-//! backend to fit a 10 ms tick on a Cortex-M4 (bench table in docs/firmware.md).
+//! arcs; with [`FUSION_PARTICLES`] = 100 its whole tick on a Cortex-M4F
+//! is in the bench table of docs/budgets.md.
 
 use nalgebra::{SVector, Vector2};
 

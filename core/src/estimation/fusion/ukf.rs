@@ -61,7 +61,7 @@
 //! # Cost
 //! 11 sigma points, each one odometry arc (a `sin`, `cos` and `sinc`), a
 //! 5×5 Cholesky per step and per fix, and `Q` from the EKF's
-//! linearisation: see the bench table in docs/firmware.md.
+//! linearisation: see the bench table in docs/budgets.md.
 
 use nalgebra::{Matrix2, SVector, Vector2};
 
