@@ -244,7 +244,12 @@ fn circles(edges: &BTreeMap<Vec<String>, BTreeSet<Vec<String>>>) -> Vec<Vec<Stri
 
 #[test]
 fn no_import_circle_in_the_core_or_the_simulator() {
-    for src in ["core/src", "firmware-sim/src", "firmware/link/src", "papers/src"] {
+    for src in [
+        "core/src",
+        "firmware-sim/src",
+        "firmware/link/src",
+        "papers/src",
+    ] {
         let edges = graph(&root().join(src));
         assert!(edges.len() > 3, "{src}: {} modules read", edges.len());
         assert_eq!(circles(&edges), Vec::<Vec<String>>::new(), "{src}");
