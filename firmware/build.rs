@@ -1,11 +1,12 @@
-//! Links the firmware for the STM32F4 memory map of its `memory.x`
+//! Links the firmware for the STM32F4 memory map of the workspace's
+//! `memory.x` (at its top: the robot board's map)
 //! (on `thumb*` targets only; host builds of the stub need nothing), and
 //! includes a robot image when `WMR_ROBOT_IMAGE` names one.
 
 use std::{env, fs, path::PathBuf};
 
 fn main() {
-    println!("cargo:rerun-if-changed=memory.x");
+    println!("cargo:rerun-if-changed=../memory.x");
     println!("cargo:rerun-if-changed=build.rs");
     // `cargo xtask firmware --robot FILE`: the robot image (`firmware-sim
     // robot-image`) replaces the Black Pill's compiled-in configuration.
@@ -24,7 +25,7 @@ fn main() {
         return;
     }
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-    fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x into OUT_DIR");
+    fs::copy("../memory.x", out.join("memory.x")).expect("copy ../memory.x into OUT_DIR");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rustc-link-arg-bins=--nmagic");
     println!("cargo:rustc-link-arg-bins=-Tlink.x");

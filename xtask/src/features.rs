@@ -121,6 +121,14 @@ pub fn clippy_matrix() -> crate::Result {
             )?;
         }
     }
+    // The root workspace's `cargo fmt --all` does not reach the M0 bench's
+    // own workspace (its binary is the firmware's bench source, formatted
+    // there; this checks its build script).
+    crate::step("rustfmt bench-m0", || {
+        let manifest = crate::target::workspace_root().join(crate::target::BENCH_M0_MANIFEST);
+        let manifest = manifest.to_string_lossy();
+        crate::cargo(&["fmt", "--manifest-path", &manifest, "--", "--check"], &[])
+    })?;
     for row in BENCH_M0 {
         let features = row.join(",");
         let target = crate::bench_target::M0_TARGET;
@@ -135,10 +143,22 @@ pub fn clippy_matrix() -> crate::Result {
 }
 
 /// One step of the matrix: `cargo clippy -p <package> --target <target>
-/// <args> -- -D warnings`, named `clippy <label>`.
+/// <args> -- -D warnings` (`--manifest-path` for a workspace of its own:
+/// [`crate::target::package_args`]), named `clippy <label>`.
 fn clippy(label: &str, package: &str, target: &str, args: &[&str]) -> crate::Result {
     crate::step(&format!("clippy {label}"), || {
-        let mut all = vec!["clippy", "-p", package, "--target", target];
+        let selector = crate::target::package_args(package);
+        let mut all = vec!["clippy"];
+        all.extend(selector.iter().map(String::as_str));
+        all.extend(["--target", target]);
+        let own_target_dir = crate::target::workspace_root()
+            .join("target")
+            .join("bench-m0")
+            .to_string_lossy()
+            .into_owned();
+        if package == "wmr-bench-m0" {
+            all.extend(["--target-dir", &own_target_dir]);
+        }
         all.extend(args);
         all.extend(["--", "-D", "warnings"]);
         crate::cargo(&all, &[])

@@ -19,6 +19,26 @@ pub fn workspace_root() -> PathBuf {
     manifest.parent().unwrap_or(manifest).to_path_buf()
 }
 
+/// The Cortex-M0 bench's manifest: a workspace of its own (it links its own
+/// `memory.x`; the root `Cargo.toml` says why).
+pub const BENCH_M0_MANIFEST: &str = "firmware/bench-m0/Cargo.toml";
+
+/// The cargo arguments that select `package`: `-p` for a package of this
+/// workspace, `--manifest-path` for `wmr-bench-m0`, a workspace of its own
+/// (whose own target directory would be `firmware/bench-m0/target`: callers
+/// give it one inside this workspace's).
+pub fn package_args(package: &str) -> [String; 2] {
+    if package == "wmr-bench-m0" {
+        let manifest = workspace_root().join(BENCH_M0_MANIFEST);
+        [
+            "--manifest-path".into(),
+            manifest.to_string_lossy().into_owned(),
+        ]
+    } else {
+        ["-p".into(), package.into()]
+    }
+}
+
 /// xtask's own cargo target directory. Builds elsewhere in `target/` (other
 /// tasks, an editor, a colleague's shell) cannot swap an ELF between its
 /// build and its use here, and an opt-level override here invalidates
@@ -75,16 +95,10 @@ pub fn build_release(
 ) -> Result<Vec<PathBuf>, String> {
     let dir = target_dir();
     let dir_arg = dir.to_string_lossy().into_owned();
-    let mut all = vec![
-        "build",
-        "-p",
-        package,
-        "--release",
-        "--target",
-        target,
-        "--target-dir",
-        &dir_arg,
-    ];
+    let selector = package_args(package);
+    let mut all = vec!["build"];
+    all.extend(selector.iter().map(String::as_str));
+    all.extend(["--release", "--target", target, "--target-dir", &dir_arg]);
     all.extend(args);
     crate::cargo(&all, env)?;
     let out = dir.join("elf").join(label);
