@@ -658,7 +658,7 @@ mod tests {
         // report is skipped, the repeats go on from where it ends.
         assert_eq!(reader.counters().skipped_line_busy, 1);
         assert_eq!(reader.counters().frames_sent, 23);
-        // Without the period: one report per update, as before.
+        // Without the period: one report per update.
         let (mut reader, _uart) = VirtualRfidReader::new(
             ReaderConfig {
                 update_period_s: None,

@@ -67,7 +67,7 @@ enum Command {
         /// Inject seeded faults on the link during the ticks, both ways:
         /// 1 % of bytes corrupted, 0.5 % of frames each dropped, duplicated
         /// and delayed by a frame, and an outage past the firmware's link
-        /// timeout before 0.1 % of ticks (issue 16's soak). Prints what was
+        /// timeout before 0.1 % of ticks (the faulty-link soak). Prints what was
         /// injected against what each side counted.
         #[arg(long, value_name = "SEED")]
         link_faults: Option<u64>,

@@ -13,9 +13,9 @@
 //! critical section from `acquire` to `release`) is dropped whole and the
 //! outer frame goes on; an unmatched release does nothing.
 //!
-//! The byte stream is the same: defmt's own [`defmt::Encoder`] (rzCOBS
-//! framing) for the frames; `defmt-print`, `probe-rs` and `firmware-sim`
-//! decode it as before.
+//! The byte stream is the same as those crates': defmt's own
+//! [`defmt::Encoder`] (rzCOBS framing) for the frames; `defmt-print`,
+//! `probe-rs` and `firmware-sim` decode it as they decode theirs.
 
 #![allow(unsafe_code)]
 
@@ -123,7 +123,8 @@ mod sink {
 
     /// Bytes gathered before one semihosting write (defmt's encoder hands
     /// over one byte at a time, and a semihosting call costs a trap to
-    /// QEMU: a telemetry record of about 60 bytes was 60 calls).
+    /// QEMU: unbuffered, a telemetry record of about 60 bytes would be 60
+    /// calls).
     const BUF_SIZE: usize = 128;
 
     pub struct Sink {

@@ -1,4 +1,4 @@
-//! The RFID antenna 10 cm ahead of the axle midpoint (issue 18, item 3):
+//! The RFID antenna 10 cm ahead of the axle midpoint:
 //! the simulated reader reads the tag under the antenna; a core told of
 //! the offset (`SensorSpec::antenna_offset_m`) moves each fix back to the
 //! axle midpoint with its heading estimate. On paper 001's full-stack

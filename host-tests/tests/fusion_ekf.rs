@@ -99,9 +99,8 @@ fn random_slip_with_the_cell_edge_constraint() {
     // only, learnt 0.0272 [0.0337] / 0.0009 [0.0011] (0.113 / 0.0834). The
     // worst error over starts is bimodal under slip (0.0525 or 0.065 m:
     // on par with paper 001's, not better), so the max is bounded over
-    // every start and only the mean is compared with paper 001's. (Before
-    // the ensembles the bounds were set on single runs: 0.058, 0.2, 0.012,
-    // 0.026 m.) The default tuning under 2 mm/√m, one run: 0.120 / 0.0127.
+    // every start and only the mean is compared with paper 001's. The
+    // default tuning under 2 mm/√m, one run: 0.120 / 0.0127.
     let cases = [
         (slip(0.002), FusionTuning::FIXED_WHEELS, 0.068, 0.012),
         (
@@ -165,11 +164,10 @@ fn random_slip_with_the_cell_edge_constraint() {
 /// stack, whose plants have no slip. Medians over 32 starts
 /// (`host_tests::ENSEMBLE_OFFSETS_M`), max / mean with the f32 kernels
 /// [libm's sinf/cosf]: EKF 0.0177 [0.0222] / 0.0013 [0.0014] and 0.0175
-/// [0.0205] / 0.0021 [0.0023] m, UKF 0.0068 / 0.0008 and 0.0067 [0.0070]
-/// / 0.0019 m (at 3931685; today 0.0067 / 0.0008 and 0.0077 / 0.0019 m,
-/// docs/fusion.md). The EKF's spread is wide (0.0044–0.0256 m on the unicycle):
-/// the single run this test asserted before (0.0045 m, bound 0.006) was
-/// one of its best starts.
+/// [0.0205] / 0.0021 [0.0023] m, UKF 0.0067 / 0.0008 and 0.0077 / 0.0019 m
+/// (docs/fusion.md). The EKF's spread is wide (0.0044–0.0256 m on the
+/// unicycle): a single run can be one of its best starts (0.0045 m), so
+/// the test holds the ensemble's medians.
 #[test]
 fn the_slip_tuning_in_the_pilot() {
     let runs = [
@@ -299,8 +297,8 @@ struct Ensemble {
 /// `πr/4` short of the tag, variance `0.05 r²` along the heading and
 /// `r²/3` across it) and its failsafe counts the distance driven since the last fix (default
 /// `4 s²/r`: 0.8, 3.2 and 7.2 m), not the time: with the default 0.5 s fix
-/// timeout the robot stops between tags and never reads another (issue
-/// 3's deadlock), so paper 001's observer, which has no such failsafe,
+/// timeout the robot stops between tags and never reads another (a
+/// deadlock), so paper 001's observer, which has no such failsafe,
 /// runs with the timeout raised to 30 s. The fusion filters run with the
 /// EKF's default wheel noise (1e-3 m²/m) and with one near the truth
 /// (3e-5). On the 10 cm floor they are on par with paper 001's observer.
@@ -308,9 +306,8 @@ struct Ensemble {
 /// Figures are medians over the ensemble of 32 starts
 /// (`host_tests::ENSEMBLE_OFFSETS_M`). The EKF at its default wheel noise
 /// loses the fix on the 20 cm floor in some of them (5 of 32 with the
-/// core's f32 kernels, 6 of 32 with libm's `sinf`/`cosf`; the single run
-/// this test asserted before happened to keep it): that row is held to its
-/// medians only, and every other row to no lost fix at all.
+/// core's f32 kernels, 6 of 32 with libm's `sinf`/`cosf`): that row is
+/// held to its medians only, and every other row to no lost fix at all.
 #[test]
 fn sparse_reader_range_mode() {
     use firmware_sim::scenario::{PositionSpec, ReaderModeSpec};
@@ -325,8 +322,6 @@ fn sparse_reader_range_mode() {
     //               0.0993 / 0.0295 [0.0288];
     // UKF, 3e-5:    0.0301 / 0.0064 [0.0065], 0.0639 [0.0641] / 0.0163
     //               [0.0169], 0.104 [0.102] / 0.0262.
-    // (Single runs gave 0.0893 / 0.0205 for the UKF on 30 cm, the bound
-    // before the ensembles, which both medians exceed.)
     let bounds = [
         (
             FusionFilterSpec::Ekf,
@@ -426,14 +421,10 @@ fn sparse_reader_range_mode() {
 fn the_ukf_and_the_particle_filter_as_the_pilots_estimator() {
     // (kind, scenario, wheel variance, bounds on the ensemble's median max
     // / mean); medians over 32 starts, m, with the f32 kernels [libm's
-    // sinf/cosf]: UKF 0.0065 [0.0063] / 0.0008 and 0.0067 / 0.0019 (0.0063
-    // and 0.0069 with FilterPy's update before the Joseph-type one,
-    // docs/fusion.md). The particle filter (issue 17 item 2: every read as
-    // its tag's cell, roughening; docs/fusion.md) is held to the issue's
-    // 0.02 / 0.005 m; before it (boundary crossings as Gaussians, 3e-5):
-    // 0.0479 [0.0573] / 0.0046 [0.0052] and 0.0638 [0.0619] / 0.0056
-    // [0.0055], spread over 0.011–0.20 m (the EKF, above: 0.0053 / 0.0005
-    // and 0.0051 / 0.0016).
+    // sinf/cosf]: UKF 0.0065 [0.0063] / 0.0008 and 0.0067 / 0.0019
+    // (docs/fusion.md). The particle filter (every read as its tag's cell,
+    // roughening; docs/fusion.md) is held to issue 17's target, 0.02 /
+    // 0.005 m (the EKF, above: 0.0053 / 0.0005 and 0.0051 / 0.0016).
     let runs = [
         (
             FusionFilterSpec::Ukf,
@@ -520,8 +511,8 @@ fn the_ukf_and_the_particle_filter_as_the_pilots_estimator() {
 /// exact wheels (2048-count encoders on the full stack).
 const PF_WHEEL_VARIANCE: f32 = 2e-7;
 
-/// Issue 17 item 2: the fusion particle filter (every nearest-tag read as
-/// its tag's cell, roughening after resampling; docs/fusion.md) within
+/// The fusion particle filter (every nearest-tag read as its tag's cell,
+/// roughening after resampling; docs/fusion.md) within issue 17's target,
 /// 0.02 m max and 0.005 m mean after 100 s on the figure-eight, with the
 /// unicycle and through the full device stack: one run each (seed 1, the
 /// scenario's start), a few seconds in release. The ensembles of

@@ -170,7 +170,7 @@ fn the_fusion_particle_filter_in_the_firmware_runs_exactly_as_on_the_host() {
 }
 
 /// Paper 003's wheel-speed observer on the speed loops, configured over
-/// the link (protocol 10 carries it in the drive's spec): 30 s of the
+/// the link (which carries it in the drive's spec): 30 s of the
 /// full-stack figure-eight give the host run's records, bit for bit. The
 /// default firmware, built without the feature, refuses it.
 #[test]
@@ -204,7 +204,7 @@ fn the_wheel_speed_observer_in_the_firmware_runs_exactly_as_on_the_host() {
 
 /// A robot whose floor is a tag map (`robots/circle_surveyed.toml`: 364
 /// surveyed tags with arbitrary 40-bit ids), its map sent over the link
-/// after `Configure` (protocol 12, in chunks): 5 s of its circle give the
+/// after `Configure` (in `MapChunk`s): 5 s of its circle give the
 /// host run's records, bit for bit, on fixes the firmware resolved in the
 /// map it loaded (every id read known to it).
 #[test]
@@ -313,7 +313,7 @@ fn the_firmware_refuses_a_bad_tag_map_naming_the_tag() {
 }
 
 /// The firmware's default scenario (`figure_eight_rfid_full_stack_fusion_ekf`:
-/// the fusion EKF, which every board carries (issue 15, item 4), selected
+/// the fusion EKF, which every board carries, selected
 /// over the link): 120 s of the full-stack figure-eight, the same records
 /// as the host run, bit for bit, within the stack budget. (The whole 480 s
 /// run, by `firmware-sim hil`: 0.0035 / 0.0016 m max / mean after 100 s,
@@ -434,7 +434,7 @@ fn reader_traffic_at_the_links_maximum_is_drained_every_tick() {
     assert_eq!(rfid.superseded + tracker.fixes_used, rfid.frames_ok);
 }
 
-/// Issue 16's faulty link, 20 s of the full-stack figure-eight: 1 % of
+/// A faulty link, 20 s of the full-stack figure-eight: 1 % of
 /// bytes corrupted and 0.5 % of frames each dropped, duplicated and
 /// delayed, both ways, and outages past the firmware's link timeout before
 /// 0.5 % of ticks. The host resends a tick until its answer comes; the
@@ -495,7 +495,7 @@ fn a_faulty_link_loses_no_tick_and_every_fault_is_counted() {
     );
 }
 
-/// Telemetry (issue 18 item 5): a HIL run's own firmware log, read back
+/// Telemetry: a HIL run's own firmware log, read back
 /// by `firmware-sim plot`'s reader, gives that run's estimate, reference,
 /// command, mode, fix and time columns of `run.csv` exactly, cell for
 /// cell, every tick (20 s, a record every tick); decimated by 7, every

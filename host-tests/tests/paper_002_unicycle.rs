@@ -196,8 +196,7 @@ fn figure_eight_position_only_pairings() {
     // (`host_tests::ENSEMBLE_OFFSETS_M`) is held to the bounds. Measured
     // over 32 starts: median 0.298 / 0.136 m (0.217–0.378 m) with the f32
     // kernels, 0.498 / 0.198 m (0.227–0.498 m) with libm's sinf/cosf; the
-    // bound on the max, 0.3 m for one run of 0.218 m before the ensembles,
-    // is now 0.55 m, just above libm's median.
+    // bound on the max, 0.55 m, sits just above libm's median.
     let prop7: Vec<ErrorStats> = host_tests::ENSEMBLE_OFFSETS_M
         .iter()
         .map(|&offset| figure_eight_comparison_from(Pairing::PoseObserverWithProp7, offset).0)
@@ -241,10 +240,8 @@ fn pairings_selected_in_a_scenario_file_run_in_the_simulator_and_the_pilot() {
         // (spread of the max), with the f32 kernels [libm's sinf/cosf]:
         // unicycle 0.455 [0.667] / 0.200 [0.250] (0.10–27.8 m [0.11–26.9]:
         // some starts lose the reference), full stack 2.19 [2.35] / 0.77
-        // [1.03] (1.0–4.7 m [1.2–7.4]; since a09b049's drive limits). The
-        // bounds, 0.75 / 0.3 and 3.0 / 1.1 m, sit just above libm's
-        // medians; before the ensembles they
-        // were 1.6 / 0.75 m on one lucky run (1.434 / 0.668 m).
+        // [1.03] (1.0–4.7 m [1.2–7.4], with the drive's limits). The
+        // bounds, 0.75 / 0.3 and 3.0 / 1.1 m, sit just above libm's medians.
         (
             EstimatorSpec::POSE_OBSERVER,
             LawSpec::HEADING_ERROR_SINE,

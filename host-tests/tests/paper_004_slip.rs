@@ -116,8 +116,8 @@ fn scenario_2_gaussian_filters() {
     }
 }
 
-/// The particle filter (100 particles, regularized, the optimal proposal:
-/// issue 17) in scenario 1: it tracks the robot about as the EKF does.
+/// The particle filter (100 particles, regularized, the optimal proposal)
+/// in scenario 1: it tracks the robot about as the EKF does.
 /// Its noisier estimates push `p̂` up through law (7) a little more than
 /// the EKF's (worst seed of 1–5: 0.46 above 4/3 during the slip, the
 /// EKF's 0.25).
@@ -140,9 +140,9 @@ fn scenario_1_particle_filter() {
 fn scenario_2_particle_filter() {
     let w = worst(Scenario::Torque, Estimator::ParticleFilter);
     // Measured: 0.115, 0.046, 0.076 m; |p̂ − 4/3| during ≤ 0.152, after
-    // ≤ 1.146; estimate error ≤ 0.064 m (the prior proposal: 4 of seeds
-    // 1–5 diverged unregularized; regularized, the mean RMS before the slip
-    // over seeds 1–20 was 0.50 m).
+    // ≤ 1.146; estimate error ≤ 0.064 m (with the prior proposal, 4 of
+    // seeds 1–5 diverge unregularized; regularized, its mean RMS before the
+    // slip over seeds 1–20 is 0.50 m).
     assert!(w.before < 0.18 && w.during < 0.07 && w.after < 0.1, "{w:?}");
     assert!(
         w.slip_estimate_error < 0.17 && w.slip_estimate_after < 1.15,
@@ -234,7 +234,7 @@ fn diverged_runs_are_flagged() {
     }
 }
 
-/// Issue 17, item 1: the particle filter with the paper's N = 100, the
+/// The particle filter with the paper's N = 100, the
 /// optimal proposal and the scenario files' process noise, against the
 /// EKF over seeds 1–20 of both scenarios: no run diverges, the position
 /// RMS is within 1.5× the EKF's in every window of every seed, and the

@@ -1,4 +1,4 @@
-//! One robot file for the simulator and the flash (issue 18, items 1–2):
+//! One robot file for the simulator and the flash:
 //! a scenario naming its robot runs exactly as the same robot written in
 //! the scenario; a bad robot file is refused naming the file, key and
 //! reason; and the Black Pill firmware built with a robot image carries
@@ -432,7 +432,7 @@ fn outputs(dir: &Path, result: &firmware_sim::RunResult) -> (Vec<u8>, String) {
     (std::fs::read(csv).unwrap(), summary.join("\n"))
 }
 
-/// Issue 18: a tag-map floor (`floor.kind = "tag_map"`, arbitrary ids) that
+/// A tag-map floor (`floor.kind = "tag_map"`, arbitrary ids) that
 /// lays out the tags of a grid runs as that grid: the reader reads the
 /// same tag (nearest; within the read radius in `range` mode) and the
 /// robot resolves the map's id to the same position, so `run.csv` (which
@@ -516,7 +516,7 @@ fn the_surveyed_robot_tracks_on_its_tag_map() {
     assert!(rfid.frames_ok > 1000, "{} frames", rfid.frames_ok);
     assert_eq!(rfid.unknown_tags, 0);
     assert_eq!(result.summary.floor_tags, Some(364));
-    // Tracking after the transient within 1 cm (4.5 mm rms when written).
+    // Tracking after the transient within 1 cm (measured: 4.5 mm rms).
     assert!(
         result.summary.rms_error_m < 0.01,
         "{}",
@@ -531,7 +531,7 @@ fn the_surveyed_robot_tracks_on_its_tag_map() {
     assert_eq!(chunks.iter().map(|c| c.tags.len()).sum::<usize>(), 364);
 }
 
-/// Issue 18: reader faults are the experiment's. A scenario naming its
+/// Reader faults are the experiment's. A scenario naming its
 /// robot keeps `position`'s fault keys, and they change the counters
 /// exactly as in the same scenario with the robot written inline
 /// (`figure_eight_rfid_full_stack`): same records, same reader and core
@@ -658,16 +658,15 @@ fn the_fusion_estimator_tracks_on_a_sparse_tag_map() {
     assert!(observer.rms_error_m > 0.5, "{}", observer.rms_error_m);
     assert_eq!(observer_30_s.tracker.as_ref().unwrap().failsafe_entries, 0);
     assert_eq!(fusion.tracker.as_ref().unwrap().failsafe_entries, 0);
-    // 0.0163 m when written (observer with 30 s: 0.0303 m).
+    // Measured: 0.0163 m (observer with 30 s: 0.0303 m).
     assert!(fusion.rms_error_m < 0.02, "{}", fusion.rms_error_m);
     assert!(fusion.rms_error_m < observer_30_s.rms_error_m);
     assert!(fusion.max_error_m < observer_30_s.max_error_m);
 }
 
-/// Issue 18: `firmware-sim hil` records telemetry every
-/// `telemetry.every_ticks` of the scenario's robot unless
-/// `--telemetry-every` says otherwise; without a robot (or `[telemetry]`),
-/// every tick, as before.
+/// `firmware-sim hil` records telemetry every `telemetry.every_ticks` of
+/// the scenario's robot unless `--telemetry-every` says otherwise; without
+/// a robot (or `[telemetry]`), every tick.
 #[test]
 fn hil_telemetry_defaults_to_the_robots() {
     use firmware_sim::hil::{DEFAULT_TELEMETRY_EVERY_TICKS, default_telemetry_every_ticks};

@@ -138,8 +138,8 @@ fn glitching_run(min_counts: u32, max_counts: u32) -> firmware_sim::Summary {
 
 /// Every burst larger than twice the top wheel speed allows in a tick (≈ 118
 /// counts here, plus the tick's own motion, up to ≈ 60) is rejected as an
-/// implausible jump (issue 16, item 6): the pilot takes the counter's new
-/// value as its origin and loses only that tick's motion (the tracker sees
+/// implausible jump: the pilot takes the counter's new value as its
+/// origin and loses only that tick's motion (the tracker sees
 /// none), and the motors never halt. With bursts of 200–2,000 counts every
 /// burst is caught: 978 rejected ticks for 982 bursts, the difference being
 /// ticks on which both encoders glitched (one rejected tick each; expected

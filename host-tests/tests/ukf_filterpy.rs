@@ -332,7 +332,7 @@ fn scenario1_default_hooks_matches_filterpy() {
     assert!(dev.covariance < 4e-2, "{dev:?}");
 }
 
-/// Issue 17's four-state case (`fixtures/ukf/range_bearing4.txt`, written
+/// The four-state case (`fixtures/ukf/range_bearing4.txt`, written
 /// by `generate_range_bearing.py`): state `(X, Y, ψ, v)`, input `(a, ω)`,
 /// range and bearing to two landmarks, `α = 0.5`, ψ crossing ±π twice.
 #[derive(Debug, Clone, Copy)]

@@ -37,11 +37,11 @@
 //! `ξ̇_d` is obtained; here it is the backward difference of `ξ_d` over the
 //! step (0 on the first step and after a rejected one). Differentiating
 //! (6)–(7) along the model instead (`ė1 = ω̂ e2 − v̂ + v_r cos e3`, … with
-//! `(v̂, ω̂)` from the wheel speeds and `p̂`) was tried and dropped: with
-//! `p̂ ≠ p` it feeds the adaptation error into the inner loop, and even on
-//! the true state `p̂` climbed to 9 during the slip (measured in
-//! `host-tests`), where differencing keeps it at 1.33. Evaluating (8) at
-//! `p = 1` instead of `p̂` did no better.
+//! `(v̂, ω̂)` from the wheel speeds and `p̂`) does worse: with `p̂ ≠ p` it
+//! feeds the adaptation error into the inner loop, and even on the true
+//! state `p̂` climbs to 9 during the slip (measured in `host-tests`), where
+//! differencing keeps it at 1.33. Evaluating (8) at `p = 1` instead of `p̂`
+//! does no better.
 //!
 //! # Filter models (section "Numerical results")
 //! [`PoseModel`] (scenario 1: state `(X, Y, ψ)`) and [`PoseWheelModel`]
@@ -574,8 +574,8 @@ pub struct PoseModel;
 /// held over a step (a random walk through the process noise), the whole
 /// state measured. The paper's "linear and angular velocities" are read as
 /// (6)'s: computing them from the state's wheel speeds with `p̂` couples
-/// the filter to the adaptation, and on the EKF that diverged once `p̂`
-/// was off (measured in `host-tests`).
+/// the filter to the adaptation, and on the EKF that diverges once `p̂`
+/// is off (measured in `host-tests`).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PoseWheelModel;
 

@@ -44,11 +44,12 @@
 //! Half-angle identities could replace that `sincos`: with `ẑ = z/|z|`,
 //! `d* + ẑ = 2 cos(e/2)·(cos, sin)(θ* + e/2)` (for |e| ≤ π/2) and `ẑ − d* =
 //! 2 sin(e/2)·(−sin, cos)(θ* + e/2)` (above), and `sin(e/2)` is `d*` cross
-//! the normalized bisector. Tried and measured (`cargo xtask bench-target`,
-//! Cortex-M4F): the law went from 510 to 564 instructions, because the two
-//! normalizations cost two `sqrt`s, and `sqrtf` is a 67-instruction software
-//! routine here (stable `no_std` Rust has no `VSQRT` without `unsafe`),
-//! against 100 for the `sincos`. Kept the `sincos`.
+//! the normalized bisector. Measured (`cargo xtask bench-target`,
+//! Cortex-M4F), the law takes 564 instructions with them against 510 with
+//! the `sincos`, because the two normalizations cost two `sqrt`s, and
+//! `sqrtf` is a 67-instruction software routine here (stable `no_std` Rust
+//! has no `VSQRT` without `unsafe`), against 100 for the `sincos`. So the
+//! law keeps the `sincos`.
 //!
 //! # Gain bound (15)
 //! `k1² + k2² ≤ γ²·(4/π²)·v_rm²` with `0 < γ < 1` guarantees

@@ -201,10 +201,10 @@ impl DriveConfig {
 /// Returns the limited speeds and whether the limit acted. Non-finite input
 /// gives zero speeds (and counts as limited). Each speed is scaled as
 /// `(target / largest) · max`: the quotient lies in [−1, 1], so the result
-/// never exceeds `max` in magnitude. (`target · (max / largest)` did, by up
-/// to ~10 %, when `max / largest` was a subnormal `f32` with few significant
-/// bits: a subnormal limit, or a command near `f32::MAX`; found by the
-/// `pilot_step` fuzz target.)
+/// never exceeds `max` in magnitude. (`target · (max / largest)` would
+/// exceed it, by up to ~10 %, when `max / largest` is a subnormal `f32`
+/// with few significant bits: a subnormal limit, or a command near
+/// `f32::MAX`; the `pilot_step` fuzz target finds such inputs.)
 #[must_use]
 pub fn limit_wheel_speeds(target: WheelSpeeds, max_rad_s: f32) -> (WheelSpeeds, bool) {
     if !target.is_finite() {
@@ -416,11 +416,12 @@ impl Drive {
 mod tests {
     use super::*;
 
-    /// Neither wheel may exceed the limit. `target · (max / largest)` did:
-    /// by an ulp for ordinary values (the product of two rounded factors),
-    /// and by up to ~10 % when `max / largest` was subnormal (the
-    /// `pilot_step` fuzz target's finding); these limits and speeds, as
-    /// bits, each broke it (found by a search over random bit patterns).
+    /// Neither wheel may exceed the limit. `target · (max / largest)`
+    /// exceeds it: by an ulp for ordinary values (the product of two
+    /// rounded factors), and by up to ~10 % when `max / largest` is
+    /// subnormal (the `pilot_step` fuzz target's finding); these limits and
+    /// speeds, as bits, each break it (found by a search over random bit
+    /// patterns).
     #[test]
     fn the_speed_limit_holds_when_its_scale_would_be_subnormal() {
         let cases = [

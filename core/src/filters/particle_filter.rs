@@ -136,7 +136,7 @@
 //! counted in `correction_stages`). A prior much wider than the
 //! measurement noise then converges onto the measurement instead of onto
 //! its single closest particle. Without regularization (the default) an
-//! update is one stage, bit for bit as before.
+//! update is one stage, bit for bit the plain filter's.
 //!
 //! # Roughening (opt-in)
 //! With [`ParticleFilterConfig::with_roughening`]`(K)`, every resampling
@@ -149,7 +149,8 @@
 //! with a non-zero range (a component all particles share, e.g. a wheel
 //! scale that is not estimated, stays as it is). It needs no covariance
 //! factor (unlike the regularization above), and does not turn on
-//! progressive correction. Off by default, bit for bit as before.
+//! progressive correction. Off by default, and then bit for bit the plain
+//! filter.
 //!
 //! # A likelihood of the model's own
 //! [`ParticleFilter::update_with_likelihood`] weights the particles by any
@@ -186,9 +187,9 @@
 //! weight does not depend on where the particle lands, so a process noise
 //! far wider than the measurement noise (scenario 2 of paper 004: wheel
 //! speeds moved by the torques by several rad/s per step, measured to
-//! 0.1 rad/s) no longer scatters the particles where the likelihood is
-//! nil. [`ParticleFilter::predict`] therefore only moves the particles to
-//! `f⁽ⁱ⁾` and leaves the draw pending (the estimate is their weighted
+//! 0.1 rad/s) does not scatter the particles where the likelihood is nil,
+//! as the prior does. [`ParticleFilter::predict`] therefore only moves
+//! the particles to `f⁽ⁱ⁾` and leaves the draw pending (the estimate is their weighted
 //! mean, the predicted mean, and [`ParticleFilter::covariance`] adds `Q`);
 //! the next [`ParticleFilter::update`] weights and draws as above, and a
 //! second prediction without an update in between first draws the
@@ -2495,7 +2496,7 @@ mod tests {
         let three = core::mem::size_of::<ParticleFilter<Unicycle, 3, 3, 100>>();
         let five = core::mem::size_of::<ParticleFilter<FiveStates, 5, 5, 100>>();
         println!("P = 100: {three} B for N = M = 3, {five} B for N = M = 5");
-        // +4 B each for the roughening constant (issue 17 item 2).
+        // The roughening constant included (4 B each).
         assert_eq!(three, 3364);
         assert_eq!(five, 5024);
     }

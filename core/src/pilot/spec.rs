@@ -357,8 +357,8 @@ pub enum FusionFilterSpec {
 
 /// What the estimators know of the robot's sensors: the odometry's track
 /// width and count quantization, the floor's tag spacing and the reader's
-/// range. Facts of the robot and its floor, stated once (the fusion
-/// estimator is the only one that uses them today); in a [`PilotSpec`] the
+/// range. Facts of the robot and its floor, stated once (only the fusion
+/// estimator uses them); in a [`PilotSpec`] the
 /// track width must equal the drive's.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -1,5 +1,5 @@
 //! Seeded faults on the lock-step link, both ways, and what each receiver
-//! should count because of them (issue 16's faulty-link soak).
+//! should count because of them (the faulty-link soak).
 //!
 //! Each frame, in each direction, meets at most one fault, drawn from the
 //! run's seed: dropped, sent twice, delayed (held back and sent after the

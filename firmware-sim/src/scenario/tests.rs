@@ -214,7 +214,7 @@ fn dynamics_of(setup: &Setup) -> Option<WheelDynamics> {
 
 #[test]
 fn plant_dynamics_table_gives_the_wheel_dynamics() {
-    // Absent: the first-order wheels, as before.
+    // Absent: the first-order wheels.
     let s = Scenario::from_toml_str(&format!("{MINIMAL}\n{DIFF_DRIVE}")).unwrap();
     assert_eq!(dynamics_of(&s.validate().unwrap()), None);
     let full = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
@@ -363,7 +363,7 @@ fn plant_dynamics_table_is_refused_where_it_does_not_belong() {
     ))
     .to_string();
     assert!(e.contains("stall_torque_nm"), "{e}");
-    // The unicycle still parses as before, with or without its table.
+    // The unicycle parses, with or without its table.
     let s = Scenario::from_toml_str(&format!("{MINIMAL}\n[plant]\nkind = \"unicycle\"\n")).unwrap();
     assert_eq!(s.plant, PlantSpec::Unicycle);
 }

@@ -122,7 +122,7 @@ mod tests {
 
     #[test]
     fn the_link_carries_the_speed_observer() {
-        // Protocol 10 sends it in the drive's spec: the firmware builds the
+        // The link sends it in the drive's spec: the firmware builds the
         // same observer from the same numbers.
         let mut full = Scenario::embedded("figure_eight_rfid_full_stack").unwrap();
         let plain = hil_configuration(&full.validate().unwrap()).unwrap();

@@ -13,8 +13,8 @@ use wmr_papers::slip_tracking::{PoseModel, PoseWheelModel};
 /// Particles of the particle filter by default (paper: 100).
 pub const PARTICLES: usize = 100;
 
-/// The particle counts a scenario may ask for (issue 17: the paper's 100,
-/// then 300 and 1,000). The count is a const generic of the core's
+/// The particle counts a scenario may ask for (the paper's 100, and 300
+/// and 1,000). The count is a const generic of the core's
 /// `ParticleFilter`, so each is one instantiation built into the
 /// simulator ([`Particles`]); others are refused at validation.
 pub const PARTICLE_COUNTS: [usize; 3] = [100, 300, 1000];

@@ -29,7 +29,7 @@ pub const PROCESS_NOISE: [f64; 5] = [1e-5, 1e-5, 1e-5, 1e-2, 1e-2];
 /// one gave the smallest worst ratio to the EKF in both. A smaller heading
 /// spread (0.002–0.004) or the EKF's own `Q` (0.003 everywhere) lets the
 /// cloud lag the robot (3 of 20 seeds diverged at 0.002); a larger one
-/// (0.02, the prior proposal's old choice with 0.01 m) gives noisier
+/// (0.02, with 0.01 m of position) gives noisier
 /// estimates, which law (7) turns into a higher `p̂`.
 ///
 /// The wheel speeds' 5 rad/s: scenario 2's torques move a wheel by up to
@@ -482,13 +482,13 @@ pub struct UkfSpec {
     #[serde(default = "defaults::ukf_initial_variance")]
     pub initial_variance: [f64; 5],
     /// `form = "covariance"` (default) or `"square_root"`: which form of
-    /// the core's UKF runs (issue 17; the square-root form needs `β ≥ α²`).
+    /// the core's UKF runs (the square-root form needs `β ≥ α²`).
     #[serde(default)]
     pub form: UkfFormSpec,
 }
 
 /// The form of the core's UKF (`wmr_core::filters::ukf::UkfForm`). The
-/// covariance form is the default: the square-root form did not do better
+/// covariance form is the default: the square-root form does no better
 /// on either scenario (docs/paper-004.md) and costs more.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -534,7 +534,7 @@ pub struct ParticleFilterSpec {
     pub regularization: f64,
     /// How the particles are drawn: `optimal` (the optimal importance
     /// density, closed-form here because every state is measured; core
-    /// `particle_filter` docs; the default, issue 17) or `prior` (the
+    /// `particle_filter` docs; the default) or `prior` (the
     /// paper's transition prior).
     #[serde(default)]
     pub proposal: ProposalSpec,

@@ -26,8 +26,8 @@ use wmr_core::pilot::spec::{PilotSpec, SpecError, TagGridSpec};
 
 /// The image's first bytes.
 pub const MAGIC: [u8; 8] = *b"WMRROBOT";
-/// Bump when the layout (or [`PilotSpec`]'s shape) changes (2: the
-/// telemetry decimation).
+/// Bump when the layout (or [`PilotSpec`]'s shape) changes (what each
+/// version changed: `CHANGELOG.md`, "Robot image versions").
 pub const IMAGE_VERSION: u16 = 2;
 /// Bytes of one tag record: id `u64`, `x`, `y` `f32`.
 pub const TAG_RECORD_BYTES: usize = 16;

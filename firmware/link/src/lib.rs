@@ -94,13 +94,9 @@ use wmr_core::pilot::robot::RobotCounters;
 use wmr_core::pilot::spec::{PilotSpec, SpecError, TagGridSpec};
 use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 
-/// Bump when a message changes shape; both sides refuse a mismatch (6:
-/// the estimator's sensor facts left `EstimatorSpec::Fusion` for
-/// `TrackerSpec::sensors`; 7: `RfidCounters::backlogged_polls` in the
-/// diagnostics; 8: `Nack`, `LinkSilent`, stale frames and repeated ticks;
-/// 9: `SensorSpec::antenna_offset_m`; 10: `DriveSpec::speed_observer`,
-/// the wheel-speed observer; 11: `Configure::telemetry_every_ticks`; 12:
-/// `Configure::floor`, a grid or a tag map sent in `MapChunk`s).
+/// The link's version: bump when a message changes shape; both sides
+/// refuse a mismatch. What each version changed: `CHANGELOG.md`, "HIL
+/// link protocol versions".
 pub const PROTOCOL_VERSION: u16 = 12;
 
 /// Most tags the firmware's tag map holds under HIL (the QEMU board's

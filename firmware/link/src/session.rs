@@ -821,10 +821,10 @@ mod tests {
     }
 
     /// A map chunk while a grid run drives (no map announced) is refused
-    /// and leaves the run as it was: still configured, still ticking.
-    /// Found by the `link_session` fuzz target: the refusal used to
-    /// unconfigure the session and leave the motors at their last duty
-    /// with no robot to drive or stop them.
+    /// and leaves the run as it was: still configured, still ticking. A
+    /// regression test for a finding of the `link_session` fuzz target:
+    /// without the fix, the refusal unconfigures the session and leaves the
+    /// motors at their last duty with no robot to drive or stop them.
     #[test]
     fn a_stray_map_chunk_leaves_a_running_robot_alone() {
         let bus = ProxyBus::new();

@@ -1075,7 +1075,7 @@ mod on_target {
             scenario_2,
             MAX_FILTER_RMS_ERROR_M,
         );
-        // The square-root form (issue 17) of the same two filters.
+        // The square-root form of the same two filters.
         let mut srukf3 = built(
             MerweScaledSigmaPoints::paper().and_then(|points| {
                 UnscentedKalmanFilter::<_, 3, 3, 7>::new(
@@ -1141,15 +1141,16 @@ mod on_target {
         proposal: Proposal,
     }
 
-    /// The prior proposal (the paper's), unregularized, the process noise
-    /// of before issue 17: the rows `pf3`, `pf5`.
+    /// The prior proposal (the paper's), unregularized, with the prior
+    /// proposal's process noise (`PARTICLE_PROCESS_STD`): the rows `pf3`,
+    /// `pf5`.
     const PRIOR_PROPOSAL: ParticleSetting = ParticleSetting {
         process_std: PARTICLE_PROCESS_STD,
         regularization: 0.0,
         proposal: Proposal::Prior,
     };
 
-    /// The slip scenario files' setting since issue 17 (firmware-sim
+    /// The slip scenario files' setting (firmware-sim
     /// `slip::PARTICLE_PROCESS_STD`, `PARTICLE_REGULARIZATION`, the optimal
     /// proposal; docs/paper-004.md): the rows `pf3o`, `pf5o`.
     const OPTIMAL_PROPOSAL: ParticleSetting = ParticleSetting {

@@ -15,7 +15,7 @@
 //!   identity but for its first two columns.
 //! ```
 //!
-//! Every product keeps the order of the dense product it replaced (the
+//! Every product keeps the order of the dense matrix product (the
 //! `k` of `Σ_k A_ik B_kj` ascending, from `A_i0 B_0j`), leaving out only
 //! terms that are exactly 0 and factors that are exactly 1: the filter's
 //! figures are those of the dense code to the last bit (the tests check it
@@ -367,8 +367,8 @@ fn keep_times(keep: &[Line; 2], x: &Lines) -> Lines {
 
 #[cfg(test)]
 mod tests {
-    //! The sparse filter against the dense one it replaced (the code before
-    //! issue 15, item 3), to the bit.
+    //! The sparse filter against a dense EKF of the same equations, to
+    //! the bit.
     use super::*;
     use crate::estimation::fusion::odometry_noise::{
         scale_walk_variance, wheel_travels, wheel_variance,
@@ -382,7 +382,8 @@ mod tests {
         (m + m.transpose()) * 0.5
     }
 
-    /// The dense EKF as it was.
+    /// The dense EKF: full matrix products, the reference the sparse
+    /// filter matches to the bit.
     #[derive(Clone, Copy)]
     struct Dense {
         state: PoseState,

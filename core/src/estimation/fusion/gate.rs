@@ -450,7 +450,7 @@ fn mahalanobis(
                 [c.m11 + r.m11, c.m12 + r.m12],
                 [c.m21 + r.m21, c.m22 + r.m22],
             ])?;
-            // (ỹᵀ S⁻¹) ỹ, in the order of the dense product it replaced.
+            // (ỹᵀ S⁻¹) ỹ, in the order of the dense matrix product.
             let (row0, row1) = (y0 * i00 + y1 * i10, y0 * i01 + y1 * i11);
             (row0 * y0 + row1 * y1, 2)
         }
@@ -472,8 +472,8 @@ fn axis_distance2(innovation: f32, s: f32) -> Option<(f32, u8)> {
 
 /// The inverse of the 2×2 matrix of rows `s` by its closed form,
 /// `[[s11, −s01], [−s10, s00]] / det` (`None` if `det = 0`): the 2-D
-/// innovation covariance `S` of a fix needs no general inverse. The
-/// arithmetic of nalgebra's `try_inverse` for 2×2, which it replaced.
+/// innovation covariance `S` of a fix needs no general inverse. The same
+/// arithmetic as nalgebra's `try_inverse` for 2×2.
 pub(crate) fn inverse_2x2(s: [[f32; 2]; 2]) -> Option<[[f32; 2]; 2]> {
     let [[s00, s01], [s10, s11]] = s;
     let determinant = s00 * s11 - s10 * s01;

@@ -1,8 +1,8 @@
 //! An extended Kalman filter of the pose `(x, y, θ)` that propagates with
 //! the encoder odometry every tick and corrects with RFID tag fixes when
-//! they arrive, gating each fix on its Mahalanobis distance (issue 5's
-//! fusion estimator; the filter machinery follows paper 004's EKF, Joseph
-//! form and all).
+//! they arrive, gating each fix on its Mahalanobis distance (the fusion
+//! estimator; the filter machinery follows paper 004's EKF, Joseph form
+//! and all).
 //!
 //! The gate, the counters, re-localisation and heading resets are
 //! [`PoseFilter`]'s, around a filter core ([`PoseFilterCore`]): this

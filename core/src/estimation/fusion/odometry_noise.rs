@@ -47,8 +47,8 @@ pub(crate) struct OdometryLinearisation {
 impl OdometryLinearisation {
     /// The 3×3 block `G Σ Gᵀ` of the process noise, as rows:
     /// `(G Σ Gᵀ)_ij = (G_i0 Σ_R) G_j0 + (G_i1 Σ_L) G_j1` (the order of the
-    /// dense product it replaced, so that it rounds the same; so rounded
-    /// it need not be symmetric to the bit).
+    /// dense matrix product, so that it rounds the same; so rounded it
+    /// need not be symmetric to the bit).
     pub(crate) fn pose_noise(&self) -> [[f32; 3]; 3] {
         let [sigma_r, sigma_l] = self.wheel_variances;
         let weighted = self.by_wheels.map(|[r, l]| [r * sigma_r, l * sigma_l]);

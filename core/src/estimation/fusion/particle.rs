@@ -27,7 +27,7 @@
 //! off (`∞`): a fix the gate let through pulls the weight onto the closest
 //! particles rather than throwing them away.
 //!
-//! # Tag cells (issue 17 item 2)
+//! # Tag cells
 //! A nearest-tag read is a quantized measurement, and a Gaussian of the
 //! 1 mm variance of a boundary crossing ([`TagCellTracker::measurements`])
 //! cuts 100 particles down to a few. With a nearest-tag reader the

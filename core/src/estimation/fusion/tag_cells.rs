@@ -163,7 +163,7 @@ impl TagCellTracker {
     }
 
     /// Forgets the last tag (after a gap in the reads, when a change of tag
-    /// no longer means one boundary crossed during the last tick).
+    /// need not mean one boundary crossed during the last tick).
     pub fn restart(&mut self) {
         self.last_tag = None;
     }

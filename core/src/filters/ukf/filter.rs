@@ -51,8 +51,8 @@ pub(super) fn is_noise_covariance<const K: usize>(a: &SMatrix<f32, K, K>) -> boo
 /// the posterior `x, P`, the factor of `P` (the square-root form's; the
 /// covariance form passes the filter's unchanged), the gain and `S`, for
 /// `K` measured components; or the outcome of a failure. A tuple behind an
-/// alias rather than a struct: a struct cost the three-state update 7-10 %
-/// more instructions on the Cortex-M4 (d197056).
+/// alias rather than a struct: a struct costs the three-state update
+/// 7-10 % more instructions on the Cortex-M4 (measured at d197056).
 pub(super) type Corrected<const N: usize, const K: usize> = Result<
     (
         SVector<f32, N>,
@@ -289,8 +289,8 @@ where
             return Err(UkfError::ProcessNoise);
         }
         self.q = symmetrize(&q);
-        // The covariance form never reads √Q: a 5×5 factor per step was
-        // 15 % of the fusion UKF's predict.
+        // The covariance form never reads √Q: a 5×5 factor per step would
+        // be 15 % of the fusion UKF's predict.
         if self.form == UkfForm::SquareRoot {
             self.q_factor = semidefinite_factor(&self.q);
         }
@@ -439,8 +439,8 @@ where
             return StepOutcome::RejectedInput;
         }
         // Its factor only if the square-root form needs it (`correct`):
-        // the covariance form does not, and a 2×2 factor per fix was half
-        // the fusion UKF's update cost.
+        // the covariance form does not, and a 2×2 factor per fix would be
+        // half the fusion UKF's update cost.
         let r = symmetrize(r);
         self.update_with(z, &r, None)
     }

@@ -52,9 +52,9 @@
 //! gives `P⁻ − K Pxyᵀ − Pxy Kᵀ + K S Kᵀ = P⁻ − K S Kᵀ` for the optimal `K`,
 //! with FilterPy's weights. Unlike the difference it does not cancel: a
 //! measurement that pins a state down leaves that state's deviations
-//! `eᵢ ≈ 0` and its variance `≈ K R Kᵀ` (issue 17's case, `P₀ =
-//! [[100, 0.05], [0.05, 1e-4]]` measured with `R = 1e-12`: `P₂₂ = 1e-12`
-//! where the difference gave −2.9e-11 in `f32`). It is positive
+//! `eᵢ ≈ 0` and its variance `≈ K R Kᵀ` (`P₀ = [[100, 0.05], [0.05,
+//! 1e-4]]` measured with `R = 1e-12`: `P₂₂ = 1e-12` where the difference
+//! gives −2.9e-11 in `f32`). It is positive
 //! semi-definite by construction whenever the weights are non-negative;
 //! a negative `W₀ᶜ` (small `α`) multiplies `e₀`, the centre point's
 //! deviation, which is rounding-sized on a near-linear step. It costs one
@@ -132,9 +132,9 @@
 //! it: [`unscented_mean_with_angles`] (the circular mean `atan2(Σ W sin,
 //! Σ W cos)`, FilterPy's book recipe) for `x_mean_fn`/`z_mean_fn` and
 //! [`residual_with_angles`] (difference wrapped to (−π, π]) for
-//! `residual_x`/`residual_z`. (Before issue 17 the four were separate
-//! trait methods, and a model that overrode three of them compiled.) The unscented circular
-//! mean has resultant `Σ W cos d ≈ 1 − σ²/2` for an angle of variance `σ²`
+//! `residual_x`/`residual_z`. (One setting rather than four trait
+//! methods, so that no model can override three of them and compile.)
+//! The unscented circular mean has resultant `Σ W cos d ≈ 1 − σ²/2` for an angle of variance `σ²`
 //! (whatever `α`): above about 2 rad² it turns negative, the mean flips by
 //! π and `P⁻` becomes indefinite. FilterPy fails there too (paper 004's
 //! `P0 = 10 I` on the heading makes scipy raise at the second predict), so
@@ -166,8 +166,8 @@
 //!   [`StepOutcome::RejectedInput`];
 //! * `(λ + n)P` does not factor (not positive definite, e.g. after
 //!   rounding; covariance form only): it is symmetrised, each diagonal
-//!   entry raised by [`COVARIANCE_JITTER`] times itself (not the largest
-//!   one, which swamped small variances: issue 17), and factored
+//!   entry raised by [`COVARIANCE_JITTER`] times itself (not by the
+//!   largest one, which would swamp small variances), and factored
 //!   again; if that works the step goes on ([`StepOutcome::Repaired`],
 //!   counted as a repair). Otherwise `P` is reset to the initial covariance
 //!   given at construction, `x` is kept and the step is skipped

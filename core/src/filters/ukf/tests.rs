@@ -466,8 +466,8 @@ fn angles_wrap_through_pi() {
 
 proptest! {
     /// The array-based `unscented_mean` gives, bit for bit, what the
-    /// column-view version it replaced gave (`σ₀ + Σ Wᵢ(σᵢ − σ₀)`
-    /// through `column_iter`), for any finite points and weights.
+    /// column-view formula gives (`σ₀ + Σ Wᵢ(σᵢ − σ₀)` through
+    /// `column_iter`), for any finite points and weights.
     #[test]
     fn unscented_mean_is_bitwise_the_column_view_formula(
         points in proptest::collection::vec(-1e3_f32..1e3, 3 * 7),
@@ -528,11 +528,11 @@ fn linear_filter(
 
 const FORMS: [UkfForm; 2] = [UkfForm::Covariance, UkfForm::SquareRoot];
 
-/// Issue 17's case: `P0 = [[100, 0.05], [0.05, 1e-4]]`, identity
+/// A sharp measurement: `P0 = [[100, 0.05], [0.05, 1e-4]]`, identity
 /// dynamics, `Q = 0`, the second state measured with `R = 1e-12`. The
 /// exact posterior `P₂₂` is `1e-4·1e-12/(1e-4 + 1e-12) ≈ 1e-12`; FilterPy's
-/// `P⁻ − K S Kᵀ` gave −2.9e-11 in `f32`, and the repair that followed set
-/// it to 7.5e-4. Both forms now keep it at 1e-12 and need no repair.
+/// `P⁻ − K S Kᵀ` gives −2.9e-11 in `f32`, which needs a repair. Both forms
+/// keep it at 1e-12 and need no repair.
 /// The state starts at zero: at `α = 0.01` the sigma points of a variance
 /// of 1e-12 are `x ± 1.4e-8`, below the `f32` resolution of an `x` of 0.5
 /// (6e-8), where they round onto `x` and the next predict's `P₂₂` is 0 in
