@@ -14,6 +14,7 @@
     )
 )]
 
+pub mod builds;
 pub mod control;
 pub mod devices;
 pub mod drive;

@@ -16,6 +16,7 @@ use firmware_sim::hil::{
     workspace_root,
 };
 use firmware_sim::{Record, Scenario, Summary, run};
+use wmr_core::builds::{self, OptionalBuild};
 use wmr_core::control::saturated::GainError;
 use wmr_core::pilot::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec, SpecError};
 use wmr_link::{HostMessage, Refusal, TargetMessage, TickInput};
@@ -32,60 +33,42 @@ fn firmware() -> PathBuf {
     .clone()
 }
 
-/// A QEMU-board firmware variant with one feature more than the default:
-/// the ELF in `variable` if set (relative paths from the workspace root),
-/// else built here once into `target/<dir>` (`cargo xtask ci` builds each
-/// and sets its variable).
-fn variant_firmware(
-    elf: &'static OnceLock<PathBuf>,
-    variable: &str,
-    dir: &str,
-    feature: &str,
-) -> PathBuf {
-    elf.get_or_init(|| match std::env::var_os(variable) {
+/// The QEMU-board firmware of an optional build (`wmr_core::builds`): one
+/// feature more than the default. The ELF in the build's
+/// `hil_firmware_env` variable if set (relative paths from the workspace
+/// root), else built here once into `target/hil-firmware-<feature>`
+/// (`cargo xtask ci` builds each and sets its variable).
+fn variant_firmware(elf: &'static OnceLock<PathBuf>, build: OptionalBuild) -> PathBuf {
+    elf.get_or_init(|| match std::env::var_os(build.hil_firmware_env) {
         Some(path) => workspace_root().join(path),
-        None => build_firmware_with(Some(&workspace_root().join("target").join(dir)), &[feature])
-            .unwrap_or_else(|e| panic!("build the QEMU-board firmware with {feature}: {e}")),
+        None => {
+            let dir = workspace_root()
+                .join("target")
+                .join(format!("hil-firmware-{}", build.feature));
+            build_firmware_with(Some(&dir), &[build.feature]).unwrap_or_else(|e| {
+                panic!("build the QEMU-board firmware with {}: {e}", build.feature)
+            })
+        }
     })
     .clone()
 }
 
-/// The QEMU-board firmware with the fusion estimator's UKF (feature
-/// `fusion-ukf`): `WMR_FUSION_FIRMWARE_ELF`, or `target/hil-firmware-fusion`.
+/// The QEMU-board firmware with the fusion estimator's UKF.
 fn fusion_firmware() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
-    variant_firmware(
-        &ELF,
-        "WMR_FUSION_FIRMWARE_ELF",
-        "hil-firmware-fusion",
-        "fusion-ukf",
-    )
+    variant_firmware(&ELF, builds::FUSION_UKF)
 }
 
-/// The QEMU-board firmware with paper 003's wheel-speed observer (feature
-/// `wheel-speed-observer`): `WMR_SPEED_OBSERVER_FIRMWARE_ELF`, or
-/// `target/hil-firmware-speed-observer`.
+/// The QEMU-board firmware with paper 003's wheel-speed observer.
 fn speed_observer_firmware() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
-    variant_firmware(
-        &ELF,
-        "WMR_SPEED_OBSERVER_FIRMWARE_ELF",
-        "hil-firmware-speed-observer",
-        "wheel-speed-observer",
-    )
+    variant_firmware(&ELF, builds::WHEEL_SPEED_OBSERVER)
 }
 
-/// The QEMU-board firmware with the fusion estimator's particle filter
-/// (feature `fusion-particle-filter`): `WMR_PF_FIRMWARE_ELF`, or
-/// `target/hil-firmware-pf`.
+/// The QEMU-board firmware with the fusion estimator's particle filter.
 fn particle_filter_firmware() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
-    variant_firmware(
-        &ELF,
-        "WMR_PF_FIRMWARE_ELF",
-        "hil-firmware-pf",
-        "fusion-particle-filter",
-    )
+    variant_firmware(&ELF, builds::FUSION_PARTICLE_FILTER)
 }
 
 /// The default firmware, built without the feature `scenario` needs,

@@ -104,7 +104,7 @@ const PF_TICK: [&str; 3] = [
 ];
 
 /// Features of the particle filter's own build (added to the backend's).
-const PF_FEATURES: [&str; 1] = ["fusion-particle-filter"];
+const PF_FEATURES: [&str; 1] = [wmr_core::builds::FUSION_PARTICLE_FILTER.feature];
 
 /// Math backend calls, per call.
 const MATH: [(&str, &str); 7] = [

@@ -281,41 +281,22 @@ fn build_firmware() -> std::result::Result<Vec<(&'static str, std::path::PathBuf
     Ok(elfs)
 }
 
-/// The QEMU-board builds of the HIL tests beside the default one: the
-/// environment variable that gives each test its ELF, the build's label
-/// and its features. Built here, in xtask's target directory whose
-/// dependencies the default build compiled, rather than by the tests, each
-/// in a target directory of its own from scratch.
-const HIL_VARIANTS: [(&str, &str, &[&str]); 3] = [
-    // Over the flash budget (docs/budgets.md, "Flash and static RAM"), so not a board of its own:
-    // the fusion estimator's EKF and UKF (`fusion-ukf` implies
-    // `fusion-ekf`).
-    (
-        "WMR_FUSION_FIRMWARE_ELF",
-        "qemu-fusion",
-        &["board-qemu", "fusion-ukf"],
-    ),
-    // Paper 003's wheel-speed observer in the speed loops.
-    (
-        "WMR_SPEED_OBSERVER_FIRMWARE_ELF",
-        "qemu-speed-observer",
-        &["board-qemu", "wheel-speed-observer"],
-    ),
-    // The fusion estimator's particle filter (a build of its own, as a
-    // robot would carry it: its frames would set the UKF build's stack).
-    (
-        "WMR_PF_FIRMWARE_ELF",
-        "qemu-pf",
-        &["board-qemu", "fusion-particle-filter"],
-    ),
-];
-
-/// Builds each of [`HIL_VARIANTS`], copied to
-/// `target/firmware/wmr-firmware-<label>.elf`; returns the environment
-/// variable and ELF path of each.
+/// Builds the QEMU-board firmware of each optional build
+/// ([`wmr_core::builds::OPTIONAL_BUILDS`]: the fusion estimator's UKF and
+/// particle filter, the wheel-speed observer), for the HIL tests beside
+/// the default one, copied to `target/firmware/wmr-firmware-qemu-<feature>.elf`;
+/// returns the environment variable that gives the tests each ELF, and its
+/// path. Built here, in xtask's target directory whose dependencies the
+/// default build compiled, rather than by the tests, each in a target
+/// directory of its own from scratch. Each is a build of its own, as a
+/// robot would carry it (the flash budget leaves no room for all at once:
+/// docs/budgets.md, "Flash and static RAM"; and the particle filter's
+/// frames would set the others' stack).
 fn build_hil_variants() -> std::result::Result<Vec<(&'static str, String)>, String> {
     let mut elfs = Vec::new();
-    for (variable, label, features) in HIL_VARIANTS {
+    for build in wmr_core::builds::OPTIONAL_BUILDS {
+        let (variable, label) = (build.hil_firmware_env, format!("qemu-{}", build.feature));
+        let features = &["board-qemu", build.feature];
         let mut built = Vec::new();
         step(
             &format!("build firmware {} (release)", features.join(" + ")),

@@ -19,16 +19,20 @@
 use std::time::Instant;
 
 /// The feature sets proved for each board, besides the board's own
-/// feature: the default (none), then each estimator feature alone (the
-/// boards imply `fusion-ekf`, so its row repeats the default; kept, so that
-/// the list stays one row per estimator feature).
-pub const ROWS: [&[&str]; 5] = [
-    &[],
-    &["fusion-ekf"],
-    &["fusion-ukf"],
-    &["fusion-particle-filter"],
-    &["wheel-speed-observer"],
-];
+/// feature: the default (none), `fusion-ekf` (which the boards imply, so
+/// its row repeats the default; kept, so that the list stays one row per
+/// estimator feature), then each optional build of
+/// [`wmr_core::builds::OPTIONAL_BUILDS`] alone.
+pub fn rows() -> Vec<Vec<&'static str>> {
+    [vec![], vec!["fusion-ekf"]]
+        .into_iter()
+        .chain(
+            wmr_core::builds::OPTIONAL_BUILDS
+                .iter()
+                .map(|build| vec![build.feature]),
+        )
+        .collect()
+}
 
 /// The undefined symbol the `panic-never` handler calls.
 const SENTINEL: &str = "wmr_firmware_has_a_panic_path";
@@ -39,7 +43,7 @@ pub fn panic_free() -> crate::Result {
     let started = Instant::now();
     let mut proved = Vec::new();
     for (board, board_feature) in crate::BOARDS {
-        for row in ROWS {
+        for row in rows() {
             let features: Vec<&str> = std::iter::once(board_feature)
                 .chain(row.iter().copied())
                 .chain(std::iter::once("panic-never"))
@@ -84,10 +88,11 @@ pub fn panic_free() -> crate::Result {
 
 #[cfg(test)]
 mod tests {
-    use super::ROWS;
+    use super::rows;
 
     /// Every estimator feature of the firmware (a `fusion-*` feature or
-    /// `wheel-speed-observer`) is proved alone, and the default is proved.
+    /// `wheel-speed-observer`) is proved alone, and the default is proved;
+    /// the optional ones are exactly `wmr_core::builds::OPTIONAL_BUILDS`.
     #[test]
     fn rows_cover_every_estimator_feature() {
         let manifest =
@@ -101,10 +106,22 @@ mod tests {
             .filter(|f| f.starts_with("fusion-") || *f == "wheel-speed-observer")
             .collect();
         assert!(!estimators.is_empty());
+        let rows = rows();
         for f in &estimators {
-            assert!(ROWS.iter().any(|r| r == &[*f]), "`{f}` is not proved alone");
+            assert!(rows.iter().any(|r| r == &[*f]), "`{f}` is not proved alone");
         }
-        assert!(ROWS.iter().any(|r| r.is_empty()), "no default row");
-        assert_eq!(ROWS.len(), estimators.len() + 1);
+        assert!(rows.iter().any(|r| r.is_empty()), "no default row");
+        assert_eq!(rows.len(), estimators.len() + 1);
+        let mut optional: Vec<&str> = estimators
+            .into_iter()
+            .filter(|f| *f != "fusion-ekf")
+            .collect();
+        let mut listed: Vec<&str> = wmr_core::builds::OPTIONAL_BUILDS
+            .iter()
+            .map(|b| b.feature)
+            .collect();
+        optional.sort_unstable();
+        listed.sort_unstable();
+        assert_eq!(optional, listed, "wmr_core::builds::OPTIONAL_BUILDS");
     }
 }

@@ -14,6 +14,7 @@
 //! simulator and the firmware build bit-identical configurations from the
 //! same spec.
 
+use crate::builds::{self, OptionalBuild};
 use crate::control::LawChoice;
 use crate::control::cascaded::{CascadedGains, CascadedGainsError};
 use crate::control::heading_error_sine::{HeadingErrorSineConfig, HeadingErrorSineConfigError};
@@ -784,6 +785,28 @@ pub struct PilotSpec {
 }
 
 impl PilotSpec {
+    /// The optional builds ([`crate::builds`]) this spec needs beyond what
+    /// both firmware boards carry (the fusion EKF): the fusion estimator's
+    /// UKF or particle filter, the wheel-speed observer.
+    pub fn required_builds(&self) -> impl Iterator<Item = OptionalBuild> {
+        let filter = match self.tracker.estimator {
+            EstimatorSpec::Fusion(FusionSpec {
+                filter: FusionFilterSpec::Ukf,
+                ..
+            }) => Some(builds::FUSION_UKF),
+            EstimatorSpec::Fusion(FusionSpec {
+                filter: FusionFilterSpec::ParticleFilter,
+                ..
+            }) => Some(builds::FUSION_PARTICLE_FILTER),
+            _ => None,
+        };
+        let observer = self
+            .drive
+            .speed_observer
+            .map(|_| builds::WHEEL_SPEED_OBSERVER);
+        observer.into_iter().chain(filter)
+    }
+
     /// The validated pilot configuration.
     ///
     /// # Errors

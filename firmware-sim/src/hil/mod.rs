@@ -57,21 +57,7 @@ pub struct HilRun {
 /// estimator's UKF or particle filter.
 #[must_use]
 pub fn firmware_features(pilot: &PilotSpec) -> Vec<&'static str> {
-    use wmr_core::pilot::spec::{EstimatorSpec, FusionFilterSpec};
-    let mut features = Vec::new();
-    if pilot.drive.speed_observer.is_some() {
-        features.push("wheel-speed-observer");
-    }
-    match pilot.tracker.estimator {
-        EstimatorSpec::Fusion(f) if f.filter == FusionFilterSpec::Ukf => {
-            features.push("fusion-ukf")
-        }
-        EstimatorSpec::Fusion(f) if f.filter == FusionFilterSpec::ParticleFilter => {
-            features.push("fusion-particle-filter");
-        }
-        _ => {}
-    }
-    features
+    pilot.required_builds().map(|build| build.feature).collect()
 }
 
 /// The telemetry decimation of a HIL run of `scenario` when none is asked
