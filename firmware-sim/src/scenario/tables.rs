@@ -356,10 +356,27 @@ impl<'de> Deserialize<'de> for PlantSpec {
                     .to_string()
             })
         };
-        checked_table(deserializer, unicycle_dynamics, |table| {
-            PlantSpec::deserialize(table)
-        })
+        checked_table(
+            deserializer,
+            |table| unicycle_dynamics(table).or_else(|| only_kind(table, "plant", "unicycle")),
+            PlantSpec::deserialize,
+        )
     }
+}
+
+/// A refusal of any key but `kind` in the table `section` when its kind is
+/// `kind`, a variant without keys: serde's tagged enums pass over a unit
+/// variant's other keys, which would otherwise be ignored in silence.
+fn only_kind(table: &toml::Table, section: &str, kind: &str) -> Option<String> {
+    if table.get("kind").and_then(toml::Value::as_str) != Some(kind) {
+        return None;
+    }
+    table.keys().find(|key| *key != "kind").map(|key| {
+        format!(
+            "`{section}.{key}` does not apply to {section}.kind = \"{kind}\", which takes no \
+             other key: remove it (`firmware-sim schema` says which keys each kind takes)"
+        )
+    })
 }
 
 /// Rigid-body wheel dynamics of the `diff_drive` plant, the
@@ -490,8 +507,16 @@ pub enum ReaderModeSpec {
 }
 
 /// Where the position measurement comes from.
+///
+/// (De)serialized by hand around the derived code (`remote = "Self"`), so
+/// that a key under `kind = "exact"` is refused, not ignored.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+#[serde(
+    remote = "Self",
+    tag = "kind",
+    rename_all = "snake_case",
+    deny_unknown_fields
+)]
 pub enum PositionSpec {
     /// The true position, every tick.
     #[default]
@@ -567,6 +592,23 @@ pub enum PositionSpec {
         #[serde(default = "defaults::seed")]
         seed: u64,
     },
+}
+
+impl Serialize for PositionSpec {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        // The derived serializer (inherent, from `remote = "Self"`).
+        PositionSpec::serialize(self, serializer)
+    }
+}
+
+impl<'de> Deserialize<'de> for PositionSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        checked_table(
+            deserializer,
+            |table| only_kind(table, "position", "exact"),
+            PositionSpec::deserialize,
+        )
+    }
 }
 
 impl PositionSpec {

@@ -529,3 +529,31 @@ fn implausible_values_are_refused_naming_key_range_and_value() {
         assert!(e.to_string().contains(text), "{e}");
     }
 }
+
+/// A kind that takes no key refuses every other key of its table, by its
+/// path (serde's tagged enums pass over a unit variant's keys).
+#[test]
+fn a_key_under_a_kind_that_takes_none_is_refused_by_its_path() {
+    for (table, path) in [
+        ("[plant]\nkind = \"unicycle\"\nfoo = 1", "`plant.foo`"),
+        (
+            "[plant]\nkind = \"unicycle\"\nwheel_radius_m = 0.03",
+            "`plant.wheel_radius_m`",
+        ),
+        (
+            "[plant]\nkind = \"unicycle\"\nsubsteps = 4",
+            "`plant.substeps`",
+        ),
+        (
+            "[position]\nkind = \"exact\"\nspacing_m = 0.1",
+            "`position.spacing_m`",
+        ),
+    ] {
+        let e = err_of(&format!("{MINIMAL}\n{table}\n"));
+        assert!(matches!(e, ScenarioError::Parse(_)), "{e}");
+        assert!(e.to_string().contains(path), "{table}: {e}");
+    }
+    // The kinds alone still parse.
+    Scenario::from_toml_str(&format!("{MINIMAL}\n[plant]\nkind = \"unicycle\"\n")).unwrap();
+    Scenario::from_toml_str(&format!("{MINIMAL}\n[position]\nkind = \"exact\"\n")).unwrap();
+}
