@@ -694,3 +694,47 @@ fn hil_telemetry_defaults_to_the_robots() {
         DEFAULT_TELEMETRY_EVERY_TICKS
     );
 }
+
+/// A scenario that names its robot refuses every robot table it also
+/// gives, whatever its values: one equal to the defaults would otherwise be
+/// ignored in silence while the robot's runs.
+#[test]
+fn a_robot_table_in_a_robot_named_scenario_is_refused_even_at_its_defaults() {
+    let dir = temp_dir("robot-tables");
+    std::fs::copy(robots().join("example.toml"), dir.join("example.toml")).unwrap();
+    let scenario = std::fs::read_to_string(robots().join("figure_eight.toml")).unwrap();
+    for (table, key) in [
+        ("[controller]\nk1 = 0.11\n", "controller"),
+        ("[plant]\nkind = \"unicycle\"\n", "plant"),
+        ("period_s = 0.01\n", "period_s"),
+    ] {
+        // Top-level keys before the first table.
+        let text = match table.starts_with('[') {
+            true => format!("{scenario}\n{table}"),
+            false => format!("{table}{scenario}"),
+        };
+        let file = dir.join("scenario.toml");
+        std::fs::write(&file, text).unwrap();
+        let e = Scenario::from_file(&file).unwrap_err();
+        assert_eq!(e.field(), Some(key), "{e}");
+        assert!(e.to_string().contains("sets it: remove it"), "{e}");
+    }
+}
+
+/// A robot file that cannot be read is named as a robot file, with the
+/// scenario key that named it.
+#[test]
+fn a_missing_robot_file_is_named_with_who_named_it() {
+    let dir = temp_dir("missing-robot");
+    let scenario = std::fs::read_to_string(robots().join("figure_eight.toml"))
+        .unwrap()
+        .replace("robot = \"example.toml\"", "robot = \"nope.toml\"");
+    let file = dir.join("scenario.toml");
+    std::fs::write(&file, scenario).unwrap();
+    let e = Scenario::from_file(&file).unwrap_err().to_string();
+    assert!(e.starts_with("cannot read robot file "), "{e}");
+    assert!(
+        e.contains("nope.toml, named by the scenario's `robot = \"nope.toml\"`"),
+        "{e}"
+    );
+}

@@ -5,11 +5,16 @@
 /// Why a scenario was refused.
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
-    /// The file could not be read.
-    #[error("cannot read scenario file {path}")]
+    /// A file could not be read.
+    #[error("cannot read {what} {path}{}", named_by_suffix(.named_by.as_deref()))]
     Io {
+        /// What the file is: `scenario file`, `robot file`, `tag map`.
+        what: &'static str,
         /// The file.
         path: String,
+        /// Who named it, when another file did (`robot = "…"` in a
+        /// scenario file, `floor.file` in a robot file).
+        named_by: Option<String>,
         /// Why.
         source: std::io::Error,
     },
@@ -37,7 +42,40 @@ pub enum ScenarioError {
     },
 }
 
+fn named_by_suffix(named_by: Option<&str>) -> String {
+    named_by.map_or_else(String::new, |who| format!(", named by {who}"))
+}
+
 impl ScenarioError {
+    /// An [`Self::Io`] error of reading `what` at `path`.
+    pub(crate) fn io(what: &'static str, path: &std::path::Path, source: std::io::Error) -> Self {
+        Self::Io {
+            what,
+            path: path.display().to_string(),
+            named_by: None,
+            source,
+        }
+    }
+
+    /// This error, saying who named the file that could not be read.
+    #[must_use]
+    pub(crate) fn named_by(self, who: impl Into<String>) -> Self {
+        match self {
+            Self::Io {
+                what,
+                path,
+                named_by: None,
+                source,
+            } => Self::Io {
+                what,
+                path,
+                named_by: Some(who.into()),
+                source,
+            },
+            other => other,
+        }
+    }
+
     pub(crate) fn invalid(field: &str, reason: impl Into<String>) -> Self {
         Self::Invalid {
             field: field.to_owned(),

@@ -119,10 +119,8 @@ pub(crate) fn read_file<T>(
     path: &Path,
     parse: impl FnOnce(&str) -> Result<T, ScenarioError>,
 ) -> Result<T, ScenarioError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
-        path: path.display().to_string(),
-        source,
-    })?;
+    let text = std::fs::read_to_string(path)
+        .map_err(|source| ScenarioError::io("scenario file", path, source))?;
     parse(&text).map_err(|e| match e {
         ScenarioError::Parse(m) => ScenarioError::Parse(format!("{}: {m}", path.display())),
         other => other,
@@ -149,9 +147,10 @@ impl Scenario {
     /// As [`Self::from_toml_str`]; a refused robot key is a
     /// [`ScenarioError::Robot`] naming the robot file.
     pub fn from_toml_str_in(text: &str, dir: Option<&Path>) -> Result<Self, ScenarioError> {
-        let mut scenario: Self =
-            toml::from_str(text).map_err(|e| ScenarioError::Parse(e.to_string()))?;
-        let robot = scenario.resolve_robot(dir)?;
+        let parse_error = |e: toml::de::Error| ScenarioError::Parse(e.to_string());
+        let mut scenario: Self = toml::from_str(text).map_err(parse_error)?;
+        let keys: toml::Table = text.parse().map_err(parse_error)?;
+        let robot = scenario.resolve_robot(dir, |key| keys.contains_key(key))?;
         scenario.validate().map_err(|e| match &robot {
             Some(robot) => robot.name_in(e),
             None => e,

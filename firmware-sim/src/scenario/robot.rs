@@ -260,10 +260,8 @@ impl Robot {
     /// [`ScenarioError::Io`], [`ScenarioError::Parse`] naming the file, or
     /// [`ScenarioError::Robot`] for the tag map.
     pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| ScenarioError::io("robot file", path, source))?;
         let file: RobotFile = toml::from_str(&text)
             .map_err(|e| ScenarioError::Parse(format!("robot file {}: {e}", path.display())))?;
         Self::new(file, path.display().to_string(), path.parent())
@@ -287,11 +285,10 @@ impl Robot {
                     ));
                 };
                 let csv_path = dir.join(csv);
-                let text =
-                    std::fs::read_to_string(&csv_path).map_err(|source| ScenarioError::Io {
-                        path: csv_path.display().to_string(),
-                        source,
-                    })?;
+                let text = std::fs::read_to_string(&csv_path).map_err(|source| {
+                    ScenarioError::io("tag map", &csv_path, source)
+                        .named_by(format!("`floor.file` in robot file {path}"))
+                })?;
                 parse_tag_map(&csv_path.display().to_string(), &text)?
             }
         };
@@ -406,16 +403,36 @@ impl Robot {
     }
 }
 
+/// The scenario's top-level keys a robot file sets: a scenario that names
+/// a robot may give none of them, even at its default value (`position` is
+/// the robot's too, but for the reader's fault keys: [`ReaderFaults`]).
+pub const ROBOT_KEYS: [&str; 9] = [
+    "period_s",
+    "plant",
+    "drive",
+    "controller",
+    "observer",
+    "estimator",
+    "failsafe",
+    "telemetry",
+    "floor_tags",
+];
+
 impl Scenario {
     /// Replaces `self.robot` by its tables (read from the file it names,
     /// relative to `dir`; with `None` no file is read: a robot file or tag
     /// map is refused), and returns the
     /// robot (to name its file in validation errors: [`Robot::name_in`]).
+    /// `given` says whether the scenario file gives a top-level key.
     ///
     /// # Errors
     /// The robot file cannot be read or parsed, or a robot table also
-    /// given in the scenario.
-    pub fn resolve_robot(&mut self, dir: Option<&Path>) -> Result<Option<Robot>, ScenarioError> {
+    /// given in the scenario ([`ROBOT_KEYS`]).
+    pub fn resolve_robot(
+        &mut self,
+        dir: Option<&Path>,
+        given: impl Fn(&str) -> bool,
+    ) -> Result<Option<Robot>, ScenarioError> {
         let Some(source) = self.robot.take() else {
             return Ok(None);
         };
@@ -430,7 +447,8 @@ impl Scenario {
                         ),
                     ));
                 };
-                Robot::from_file(&dir.join(&name))?
+                Robot::from_file(&dir.join(&name))
+                    .map_err(|e| e.named_by(format!("the scenario's `robot = \"{name}\"`")))?
             }
             RobotSource::Inline(file) => Robot::new(*file, "[robot]".to_owned(), dir)?,
         };
@@ -441,21 +459,7 @@ impl Scenario {
                 "a robot is a \"diff_drive\" (wheels, encoders, motors)",
             ));
         }
-        let given = [
-            (
-                "period_s",
-                self.period_s.to_bits() != defaults::period_s().to_bits(),
-            ),
-            ("plant", self.plant != PlantSpec::default()),
-            ("drive", self.drive.is_some()),
-            ("controller", self.controller != ControllerSpec::default()),
-            ("observer", self.observer != ObserverSpec::default()),
-            ("estimator", self.estimator != EstimatorSpec::default()),
-            ("failsafe", self.failsafe != FailsafeSpec::default()),
-            ("telemetry", self.telemetry.is_some()),
-            ("floor_tags", !self.floor_tags.is_empty()),
-        ];
-        if let Some((key, _)) = given.iter().find(|(_, given)| *given) {
+        if let Some(key) = ROBOT_KEYS.iter().find(|key| given(key)) {
             return Err(ScenarioError::invalid(
                 key,
                 format!(
