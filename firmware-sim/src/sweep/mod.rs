@@ -246,7 +246,7 @@ pub fn convergence(records: &[Record], threshold_m: f64, hold_s: f64) -> Converg
 
 /// One run of a sweep: what was varied and what came out (one row of
 /// `runs.csv`; empty cells for what does not apply).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct SweepRun {
     /// Run index `i`.
     pub index: u64,

@@ -72,7 +72,8 @@ pub fn write_sweep(dir: &Path, result: &SweepResult, plot: bool) -> anyhow::Resu
     Ok(files)
 }
 
-/// `runs.csv` as bytes: a header and one row per run, in index order.
+/// `runs.csv` as bytes: a header and one row per run, in index order (the
+/// header alone for no run: a shard of more shards than runs).
 ///
 /// # Errors
 /// Serialization errors.
@@ -81,7 +82,19 @@ pub fn runs_csv(rows: &[SweepRun]) -> anyhow::Result<Vec<u8>> {
     for row in rows {
         w.serialize(row)?;
     }
-    w.into_inner().map_err(|e| anyhow::anyhow!("runs.csv: {e}"))
+    let bytes = w
+        .into_inner()
+        .map_err(|e| anyhow::anyhow!("runs.csv: {e}"))?;
+    if !rows.is_empty() {
+        return Ok(bytes);
+    }
+    // The writer takes its header from the first row it serializes.
+    let with_one = runs_csv(&[SweepRun::default()])?;
+    let header_end = with_one
+        .iter()
+        .position(|&b| b == b'\n')
+        .map_or(with_one.len(), |at| at + 1);
+    Ok(with_one[..header_end].to_vec())
 }
 
 /// A markdown table with one row per sweep: convergence and the
@@ -397,4 +410,20 @@ pub fn plot_error_vs_distance(path: &Path, result: &SweepResult) -> anyhow::Resu
     root.present()
         .map_err(plot_err)
         .with_context(|| format!("writing {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A shard of more shards than runs holds no run: its `runs.csv` is the
+    /// header alone, the line every other shard's starts with.
+    #[test]
+    fn an_empty_shard_writes_the_header() {
+        let empty = runs_csv(&[]).unwrap();
+        let one = runs_csv(&[SweepRun::default()]).unwrap();
+        assert_eq!(empty.iter().filter(|&&b| b == b'\n').count(), 1);
+        assert!(one.starts_with(&empty));
+        assert!(empty.starts_with(b"index,seed,"));
+    }
 }
