@@ -473,10 +473,9 @@ impl OutputFeedbackTracker {
             self.counters.dead_reckoned_steps = self.counters.dead_reckoned_steps.saturating_add(1);
         }
         self.position = self.estimator.step(odometry, fix, previous, after_gap);
-        TrackerOutput {
-            fix_used: fix.is_some(),
-            ..self.drive(tick, odometry)
-        }
+        let mut out = self.drive(tick, odometry);
+        out.fix_used = fix.is_some();
+        out
     }
 
     /// The law (or the failsafe) from the position and heading estimate.
