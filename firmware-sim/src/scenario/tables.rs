@@ -194,16 +194,25 @@ impl Serialize for ControllerSpec {
 
 impl<'de> Deserialize<'de> for ControllerSpec {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        checked_table(deserializer, super::legacy::controller_key, |table| {
-            ControllerSpec::deserialize(table)
-        })
+        checked_table(
+            deserializer,
+            "controller",
+            super::legacy::controller_key,
+            |table| ControllerSpec::deserialize(table),
+        )
     }
 }
 
-/// A table through its derived deserializer (inherent, from `remote =
-/// "Self"`), unless `refuse` finds a reason in the raw table first.
+/// The table `section` through its derived deserializer (inherent, from
+/// `remote = "Self"`), unless `refuse` finds a reason in the raw table
+/// first. An error inside names its key (`position.spacing_m`): the table
+/// reaches the derived code as a value, without the positions that let the
+/// TOML parser point at a key, and a tagged enum's fields are read from a
+/// buffer that no path tracking sees; so the key is the first whose
+/// removal changes the error.
 fn checked_table<'de, D: serde::Deserializer<'de>, T>(
     deserializer: D,
+    section: &str,
     refuse: impl Fn(&toml::Table) -> Option<String>,
     derived: impl Fn(toml::Value) -> Result<T, toml::de::Error>,
 ) -> Result<T, D::Error> {
@@ -214,7 +223,20 @@ fn checked_table<'de, D: serde::Deserializer<'de>, T>(
     }
     // The derived deserializer's error text ends in a newline the outer
     // error adds again.
-    derived(toml::Value::Table(table)).map_err(|e| D::Error::custom(e.to_string().trim_end()))
+    let reason = |e: toml::de::Error| e.to_string().trim_end().to_owned();
+    let Err(error) = derived(toml::Value::Table(table.clone())) else {
+        return derived(toml::Value::Table(table)).map_err(|e| D::Error::custom(reason(e)));
+    };
+    let error = reason(error);
+    let culprit = table.keys().filter(|key| *key != "kind").find(|key| {
+        let mut without = table.clone();
+        without.remove(*key);
+        derived(toml::Value::Table(without)).map_or_else(|e| reason(e) != error, |_| true)
+    });
+    Err(D::Error::custom(match culprit {
+        Some(key) => format!("`{section}.{key}`: {error}"),
+        None => error,
+    }))
 }
 
 /// Paper 001's heading observer (5).
@@ -252,9 +274,12 @@ impl Serialize for ObserverSpec {
 
 impl<'de> Deserialize<'de> for ObserverSpec {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        checked_table(deserializer, super::legacy::observer_key, |table| {
-            ObserverSpec::deserialize(table)
-        })
+        checked_table(
+            deserializer,
+            "observer",
+            super::legacy::observer_key,
+            |table| ObserverSpec::deserialize(table),
+        )
     }
 }
 
@@ -358,6 +383,7 @@ impl<'de> Deserialize<'de> for PlantSpec {
         };
         checked_table(
             deserializer,
+            "plant",
             |table| unicycle_dynamics(table).or_else(|| only_kind(table, "plant", "unicycle")),
             PlantSpec::deserialize,
         )
@@ -605,6 +631,7 @@ impl<'de> Deserialize<'de> for PositionSpec {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         checked_table(
             deserializer,
+            "position",
             |table| only_kind(table, "position", "exact"),
             PositionSpec::deserialize,
         )

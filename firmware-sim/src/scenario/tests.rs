@@ -557,3 +557,30 @@ fn a_key_under_a_kind_that_takes_none_is_refused_by_its_path() {
     Scenario::from_toml_str(&format!("{MINIMAL}\n[plant]\nkind = \"unicycle\"\n")).unwrap();
     Scenario::from_toml_str(&format!("{MINIMAL}\n[position]\nkind = \"exact\"\n")).unwrap();
 }
+
+/// A value of the wrong type or length inside a table names its key, also
+/// in the tables deserialized by hand (whose errors the parser could only
+/// place at the table's header).
+#[test]
+fn a_type_error_names_its_key() {
+    for (table, path) in [
+        (
+            "[position]\nkind = \"nearest_tag\"\nspacing_m = \"10 cm\"",
+            "`position.spacing_m`",
+        ),
+        (
+            "[position]\nkind = \"nearest_tag\"\noffset_m = [0.0]",
+            "`position.offset_m`",
+        ),
+        (
+            "[plant]\nkind = \"diff_drive\"\nwheel_radius_m = \"3 cm\"",
+            "`plant.wheel_radius_m`",
+        ),
+        ("[controller]\nk1 = \"fast\"", "`controller.k1`"),
+        ("[observer]\ngain_per_m = true", "`observer.gain_per_m`"),
+    ] {
+        let e = err_of(&format!("{MINIMAL}\n{table}\n"));
+        assert!(matches!(e, ScenarioError::Parse(_)), "{e}");
+        assert!(e.to_string().contains(path), "{table}: {e}");
+    }
+}
