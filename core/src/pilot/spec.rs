@@ -233,14 +233,14 @@ pub struct FusionSpec {
     /// are taken as calibrated; 4e-4 learns them from a 2 % prior).
     pub scale_prior: f32,
     /// The failsafe's limit on the distance driven since the last fix, m,
-    /// which then replaces the fix timeout; `Some(0.0)`: the timeout
-    /// decides. `None` (the default): `4 s²/r` for tag spacing `s` and a
-    /// reader of range `r > 0` ([`SensorSpec`]), where gaps between tags
-    /// are normal (eight times `s²/2r`, the mean distance a straight line
-    /// runs between the grid's read discs; 3.2 m for a 20 cm grid and a
-    /// 5 cm range), and 0 for a reader of the nearest tag. On a tag map
-    /// (`SensorSpec::tag_spacing_m` 0) there is no default: `None` is
-    /// refused ([`PoseFilterError::TagMapBlindDistance`]).
+    /// which then replaces the fix timeout; 0: the timeout decides. Not
+    /// given (the default): `4 s²/r` for tag spacing `s` and a reader of
+    /// range `r > 0` ([`SensorSpec`]), where gaps between tags are normal
+    /// (eight times `s²/2r`, the mean distance a straight line runs
+    /// between the grid's read discs; 3.2 m for a 20 cm grid and a 5 cm
+    /// range), and 0 for a reader of the nearest tag. On a tag map
+    /// (`SensorSpec::tag_spacing_m` 0) there is no default: it must be
+    /// given ([`PoseFilterError::TagMapBlindDistance`]).
     pub max_blind_distance_m: Option<f32>,
     /// Reads of an unchanged tag pull an estimate that left the tag's cell
     /// back to its edge (default off; with `wheel_variance_per_m` near the

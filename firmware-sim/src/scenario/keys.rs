@@ -343,10 +343,13 @@ fn kind_of(schema: &Value) -> String {
             _ => "number".into(),
         },
         Some("integer") => {
-            let min = schema.get("minimum").map(render);
-            match min {
-                Some(m) => format!("integer ≥ {m}"),
-                None => "integer".into(),
+            match (
+                schema.get("minimum").map(render),
+                schema.get("maximum").map(render),
+            ) {
+                (Some(min), Some(max)) => format!("integer in [{min}, {max}]"),
+                (Some(min), None) => format!("integer ≥ {min}"),
+                _ => "integer".into(),
             }
         }
         Some("boolean") => "true | false".into(),
@@ -493,6 +496,36 @@ mod tests {
             }
         }
         assert!(robots >= 2, "{robots} robot files in {}", dir.display());
+    }
+
+    /// The list states each bound a value is checked against: the core's
+    /// plausible ranges of physical quantities, and the integers' real
+    /// lower bounds (≥ 1 where 0 is refused), in TOML's words.
+    #[test]
+    fn the_list_states_the_bounds_that_are_checked() {
+        let keys = scenario_keys();
+        let kind = |key: &str| {
+            keys.iter()
+                .find(|k| k.key == key)
+                .unwrap_or_else(|| panic!("{key} not listed"))
+                .kind
+                .clone()
+        };
+        assert_eq!(kind("period_s"), "number in [0.0001, 1.0]");
+        assert_eq!(kind("controller.k1"), "number in [1e-6, 10000.0]");
+        assert_eq!(kind("plant.wheel_radius_m"), "number in [0.001, 2.0]");
+        assert_eq!(kind("plant.encoder_bits"), "integer in [2, 32]");
+        assert_eq!(kind("plant.substeps"), "integer ≥ 1");
+        assert_eq!(kind("position.baud"), "integer ≥ 1");
+        assert_eq!(kind("telemetry.every_ticks"), "integer in [1, 65535]");
+        for k in &keys {
+            assert!(
+                !k.description.contains("Some(") && !k.description.contains("`None`"),
+                "{}: {}",
+                k.key,
+                k.description
+            );
+        }
     }
 
     #[test]

@@ -18,6 +18,7 @@ pub struct TelemetrySpec {
     /// A telemetry record every this many control ticks, 1 to 65535 (the
     /// Black Pill's default, `TELEMETRY_EVERY_TICKS`: 10, 10 Hz at 10 ms).
     #[serde(default = "defaults::telemetry_every_ticks")]
+    #[schemars(range(min = 1, max = 65535))]
     pub every_ticks: u64,
 }
 
@@ -320,15 +321,19 @@ pub enum PlantSpec {
         wheel_speed_at_full_duty_rad_s: f64,
         /// Quadrature counts per wheel revolution.
         #[serde(default = "defaults::encoder_counts_per_rev")]
+        #[schemars(range(min = 1, max = 16_777_216))]
         encoder_counts_per_rev: u32,
         /// Width of the hardware encoder counters, bits.
         #[serde(default = "defaults::encoder_bits")]
+        #[schemars(range(min = 2, max = 32))]
         encoder_bits: u32,
         /// PWM full-scale duty, steps.
         #[serde(default = "defaults::pwm_max_duty")]
+        #[schemars(range(min = 1))]
         pwm_max_duty: u16,
         /// RK4 substeps per control period.
         #[serde(default = "defaults::substeps")]
+        #[schemars(range(min = 1))]
         substeps: u32,
         /// Rigid-body wheel dynamics (`[plant.dynamics]`); absent: each
         /// wheel is the first-order system of `motor_time_constant_s`.
@@ -355,8 +360,10 @@ pub struct EncoderGlitchSpec {
     pub probability_per_read: f64,
     /// Smallest burst, counts (default 1).
     #[serde(default = "defaults::glitch_min_counts")]
+    #[schemars(range(min = 1))]
     pub min_counts: u32,
     /// Largest burst, counts.
+    #[schemars(range(min = 1))]
     pub max_counts: u32,
     /// RNG seed (left encoder; the right uses `seed + 1`).
     #[serde(default = "defaults::seed")]
@@ -599,6 +606,7 @@ pub enum PositionSpec {
         antenna_offset_compensated: bool,
         /// Line speed, baud.
         #[serde(default = "defaults::baud")]
+        #[schemars(range(min = 1))]
         baud: u32,
         /// Repeat interval while a tag stays in range (`range` mode), s.
         /// Shorter than the control period, the reader repeats between ticks
