@@ -199,7 +199,7 @@ impl<'de> Deserialize<'de> for ControllerSpec {
             deserializer,
             "controller",
             super::legacy::controller_key,
-            |table| ControllerSpec::deserialize(table),
+            ControllerSpec::deserialize,
         )
     }
 }
@@ -279,7 +279,7 @@ impl<'de> Deserialize<'de> for ObserverSpec {
             deserializer,
             "observer",
             super::legacy::observer_key,
-            |table| ObserverSpec::deserialize(table),
+            ObserverSpec::deserialize,
         )
     }
 }
