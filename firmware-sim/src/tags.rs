@@ -32,7 +32,7 @@ pub enum FloorError {
         columns: u64,
     },
     /// The core refused the grid.
-    #[error("the core refused the grid: {0:?}")]
+    #[error("the core refused the grid: {0}")]
     Core(TagGridError),
 }
 

@@ -36,9 +36,10 @@ use super::tables::{
     ReaderModeSpec, ReferenceSpec, SpeedObserverSpec,
 };
 use wmr_core::plausible::{
-    ANGLE_RAD, COORDINATE_M, GAIN, MASS_KG, PERIOD_S, READ_RADIUS_M, REFERENCE_RATE_RAD_S,
-    REFERENCE_SIZE_M, REFERENCE_SPEED_M_S, TAG_SPACING_M, TORQUE_NM, TRACK_WIDTH_M,
-    WHEEL_INERTIA_KG_M2, WHEEL_RADIUS_M, YAW_INERTIA_KG_M2,
+    ANGLE_RAD, COORDINATE_M, DECEL_M_S2, GAIN, MASS_KG, MIN_SPEED_M_S, PERIOD_S, READ_RADIUS_M,
+    REFERENCE_RATE_RAD_S, REFERENCE_SIZE_M, REFERENCE_SPEED_M_S, SPEED_LOOP_GAIN, TAG_SPACING_M,
+    TORQUE_NM, TRACK_WIDTH_M, WHEEL_ACCEL_RAD_S2, WHEEL_INERTIA_KG_M2, WHEEL_RADIUS_M,
+    WHEEL_SPEED_RAD_S, YAW_INERTIA_KG_M2,
 };
 
 /// The validated plant.
@@ -411,7 +412,11 @@ impl Scenario {
         // by the core (`spec_refusal` names their keys); the timeout is
         // checked here, where it becomes a tick count.
         let c = &self.controller;
-        let gains = [f(c.k1), f(c.k2), f(c.k3)];
+        let gains = [
+            f(in_range("controller.k1", c.k1, GAIN, "m/s")?),
+            f(in_range("controller.k2", c.k2, GAIN, "m/s")?),
+            f(in_range("controller.k3", c.k3, GAIN, "1/s")?),
+        ];
         let timeout_s = positive("failsafe.fix_timeout_s", self.failsafe.fix_timeout_s)?;
         let fix_timeout_ticks = (timeout_s / period_s - 1e-9).ceil().max(1.0);
         if fix_timeout_ticks >= f64::from(u32::MAX) {
@@ -424,10 +429,25 @@ impl Scenario {
             period_s: f(period_s),
             trajectory: trajectory_spec,
             gains,
-            observer_gain_per_m: f(self.observer.gain_per_m),
-            observer_min_speed_m_s: f(self.observer.min_speed_m_s),
+            observer_gain_per_m: f(in_range(
+                "observer.gain_per_m",
+                self.observer.gain_per_m,
+                GAIN,
+                "1/m",
+            )?),
+            observer_min_speed_m_s: f(in_range(
+                "observer.min_speed_m_s",
+                self.observer.min_speed_m_s,
+                MIN_SPEED_M_S,
+                "m/s",
+            )?),
             fix_timeout_ticks: fix_timeout_ticks as u32,
-            failsafe_decel_m_s2: f(self.failsafe.decel_m_s2),
+            failsafe_decel_m_s2: f(in_range(
+                "failsafe.decel_m_s2",
+                self.failsafe.decel_m_s2,
+                DECEL_M_S2,
+                "m/s²",
+            )?),
             max_fix_age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
             estimator: self.estimator_spec()?,
             law: self.law_spec()?,
@@ -626,12 +646,36 @@ impl Scenario {
                         wheel_radius_m: f(params.wheel_radius_m),
                         track_width_m: f(params.track_width_m),
                         encoder_counts_per_rev,
-                        // Checked by the core (`spec_refusal`).
-                        max_wheel_speed_rad_s: f(d.max_wheel_speed_rad_s),
-                        max_wheel_accel_rad_s2: f(d.max_wheel_accel_rad_s2),
-                        feedforward_duty_per_rad_s: f(feedforward),
-                        kp_duty_per_rad_s: f(d.kp_duty_per_rad_s),
-                        ki_duty_per_rad: f(d.ki_duty_per_rad),
+                        max_wheel_speed_rad_s: f(in_range(
+                            "drive.max_wheel_speed_rad_s",
+                            d.max_wheel_speed_rad_s,
+                            WHEEL_SPEED_RAD_S,
+                            "rad/s",
+                        )?),
+                        max_wheel_accel_rad_s2: f(in_range(
+                            "drive.max_wheel_accel_rad_s2",
+                            d.max_wheel_accel_rad_s2,
+                            WHEEL_ACCEL_RAD_S2,
+                            "rad/s²",
+                        )?),
+                        feedforward_duty_per_rad_s: f(in_range(
+                            "drive.feedforward_duty_per_rad_s",
+                            feedforward,
+                            SPEED_LOOP_GAIN,
+                            "duty/(rad/s)",
+                        )?),
+                        kp_duty_per_rad_s: f(in_range(
+                            "drive.kp_duty_per_rad_s",
+                            d.kp_duty_per_rad_s,
+                            SPEED_LOOP_GAIN,
+                            "duty/(rad/s)",
+                        )?),
+                        ki_duty_per_rad: f(in_range(
+                            "drive.ki_duty_per_rad",
+                            d.ki_duty_per_rad,
+                            SPEED_LOOP_GAIN,
+                            "duty/rad",
+                        )?),
                         speed_observer: d
                             .speed_observer
                             .map(|o| speed_observer_spec(&o, &params))

@@ -38,7 +38,8 @@ impl core::fmt::Display for PoseFilterError {
         let s = match self {
             Self::TrackWidth => return write!(f, "track_width_m must be in {TRACK_WIDTH_M} m"),
             Self::WheelNoise => {
-                "wheel_variance_per_m and wheel_variance_floor_m2 must each be finite and ≥ 0"
+                "wheel_variance_per_m must be finite and ≥ 0 m²/m, and so must the count \
+                 quantization's variance (from the wheel radius and encoder counts per revolution)"
             }
             Self::Gate => "gate_sigma must be finite and ≥ 1",
             Self::InitialVariance => {

@@ -110,6 +110,18 @@ pub enum SetupError {
     BaudRate,
 }
 
+impl core::fmt::Display for SetupError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::PwmFrequency => "the motor PWM frequency is out of TIM1's reach",
+            Self::TickPeriod => "the control period is out of TIM5's reach",
+            Self::BaudRate => "the RFID reader's baud rate is out of USART2's reach",
+        })
+    }
+}
+
+impl core::error::Error for SetupError {}
+
 /// TIM1 as the motors' PWM: edge-aligned, prescaler 1, `TIMCLK2 / freq`
 /// steps per period, channels 1 and 2 in PWM mode 1 with preload, outputs
 /// off and duty 0 until [`PwmChannel::enable`].
@@ -256,6 +268,19 @@ pub enum LineError {
     /// A byte arrived before the last was read.
     Overrun,
 }
+
+impl core::fmt::Display for LineError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Parity => "USART2: parity error",
+            Self::Framing => "USART2: framing error (no stop bit)",
+            Self::Noise => "USART2: noise detected",
+            Self::Overrun => "USART2: overrun (a byte arrived before the last was read)",
+        })
+    }
+}
+
+impl core::error::Error for LineError {}
 
 /// USART2 receiving at a fixed baud rate, 8N1 (transmitter on, idle high).
 pub struct RfidRx {
