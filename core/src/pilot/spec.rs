@@ -965,6 +965,21 @@ mod tests {
         }
     }
 
+    /// A wheel-speed observer of a 2 kg robot, but for its mass and
+    /// motors' stall torque.
+    fn speed_observer(mass_kg: f32, stall_torque_nm: f32) -> SpeedObserverSpec {
+        SpeedObserverSpec {
+            mass_kg,
+            yaw_inertia_kg_m2: 0.02,
+            wheel_inertia_kg_m2: 0.0,
+            stall_torque_nm,
+            no_load_speed_rad_s: 20.0,
+            lambda_per_s: 5.0,
+            friction_gain: 0.01,
+            disturbance_gain: 0.1,
+        }
+    }
+
     /// Every physical quantity of a spec at the ends of its plausible range
     /// builds, and one `f32` step beyond either end is refused naming the
     /// part and the key.
@@ -1096,28 +1111,10 @@ mod tests {
                 s.tracker.sensors.read_radius_m = v;
             }),
             ("mass_kg", p::MASS_KG, |s, v| {
-                s.drive.speed_observer = Some(SpeedObserverSpec {
-                    mass_kg: v,
-                    yaw_inertia_kg_m2: 0.02,
-                    wheel_inertia_kg_m2: 0.0,
-                    stall_torque_nm: 0.5,
-                    no_load_speed_rad_s: 20.0,
-                    lambda_per_s: 5.0,
-                    friction_gain: 0.01,
-                    disturbance_gain: 0.1,
-                });
+                s.drive.speed_observer = Some(speed_observer(v, 0.5));
             }),
             ("stall_torque_nm", p::TORQUE_NM, |s, v| {
-                s.drive.speed_observer = Some(SpeedObserverSpec {
-                    mass_kg: 2.0,
-                    yaw_inertia_kg_m2: 0.02,
-                    wheel_inertia_kg_m2: 0.0,
-                    stall_torque_nm: v,
-                    no_load_speed_rad_s: 20.0,
-                    lambda_per_s: 5.0,
-                    friction_gain: 0.01,
-                    disturbance_gain: 0.1,
-                });
+                s.drive.speed_observer = Some(speed_observer(2.0, v));
             }),
         ];
         for (key, range, set) in cases {

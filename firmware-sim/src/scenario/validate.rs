@@ -213,6 +213,15 @@ fn spec_refusal(e: SpecError, scenario: &Scenario) -> ScenarioError {
     ScenarioError::invalid(field, reason)
 }
 
+/// A point `[x, y]` on the floor, each coordinate in the core's
+/// [`COORDINATE_M`], in the core's precision.
+fn floor_point(field: &str, [x, y]: [f64; 2]) -> Result<[f32; 2], ScenarioError> {
+    Ok([
+        f(in_range(field, x, COORDINATE_M, "m")?),
+        f(in_range(field, y, COORDINATE_M, "m")?),
+    ])
+}
+
 /// `f32` of a validated `f64` (the core's precision).
 fn f(v: f64) -> f32 {
     v as f32
@@ -707,8 +716,7 @@ impl Scenario {
         let floor =
             |spacing_m: f64, offset_m: [f64; 2], margin_m: f64, extent_m: Option<[f64; 4]>| {
                 let spacing_m = in_range("position.spacing_m", spacing_m, TAG_SPACING_M, "m")?;
-                in_range("position.offset_m", offset_m[0], COORDINATE_M, "m")?;
-                in_range("position.offset_m", offset_m[1], COORDINATE_M, "m")?;
+                floor_point("position.offset_m", offset_m)?;
                 let (min, max) = match extent_m {
                     Some(e) => {
                         for v in e {
@@ -924,20 +932,7 @@ impl ReferenceSpec {
                     ));
                 }
                 TrajectorySpec::Circle {
-                    center_m: [
-                        f(in_range(
-                            "reference.center_m",
-                            center_m[0],
-                            COORDINATE_M,
-                            "m",
-                        )?),
-                        f(in_range(
-                            "reference.center_m",
-                            center_m[1],
-                            COORDINATE_M,
-                            "m",
-                        )?),
-                    ],
+                    center_m: floor_point("reference.center_m", center_m)?,
                     radius_m: f(in_range(
                         "reference.radius_m",
                         radius_m,
@@ -958,20 +953,7 @@ impl ReferenceSpec {
                 heading_rad,
                 speed_m_s,
             } => TrajectorySpec::Line {
-                start_m: [
-                    f(in_range(
-                        "reference.start_m",
-                        start_m[0],
-                        COORDINATE_M,
-                        "m",
-                    )?),
-                    f(in_range(
-                        "reference.start_m",
-                        start_m[1],
-                        COORDINATE_M,
-                        "m",
-                    )?),
-                ],
+                start_m: floor_point("reference.start_m", start_m)?,
                 heading_rad: f(in_range(
                     "reference.heading_rad",
                     heading_rad,
