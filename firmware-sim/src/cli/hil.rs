@@ -1,0 +1,121 @@
+//! `firmware-sim hil`: a scenario with its control tick in the firmware under QEMU.
+
+use super::{load, progress_bar};
+use std::path::PathBuf;
+
+use firmware_sim::hil::{HilOptions, LinkFaultSpec, run_hil};
+use firmware_sim::output::{format_summary, write_all};
+use firmware_sim::scenario::Scenario;
+
+/// The arguments of `hil`.
+#[derive(Debug, clap::Args)]
+pub struct HilArgs {
+    /// Scenario file or embedded name; default:
+    /// `figure_eight_rfid_full_stack_fusion_ekf` (the firmware's default
+    /// estimator; `figure_eight_rfid_full_stack` runs paper 001's).
+    scenario: Option<String>,
+    /// Output directory (default: out/<scenario name>-hil).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Firmware ELF (default: build the QEMU-board firmware with cargo).
+    #[arg(long)]
+    firmware: Option<PathBuf>,
+    /// Inject seeded faults on the link during the ticks, both ways:
+    /// 1 % of bytes corrupted, 0.5 % of frames each dropped, duplicated
+    /// and delayed by a frame, and an outage past the firmware's link
+    /// timeout before 0.1 % of ticks (the faulty-link soak). Prints what was
+    /// injected against what each side counted.
+    #[arg(long, value_name = "SEED")]
+    link_faults: Option<u64>,
+    /// Override the scenario's duration, s.
+    #[arg(long)]
+    duration_s: Option<f64>,
+    /// Longest wait for any answer of the firmware, s.
+    #[arg(long, default_value_t = 10.0)]
+    timeout_s: f64,
+    /// Do not render run.png.
+    #[arg(long)]
+    no_plot: bool,
+    /// A telemetry record on the firmware's log every N ticks (0:
+    /// none); `firmware-sim plot OUT/firmware.log` reads them back.
+    /// Default: the scenario's `telemetry.every_ticks` (its robot
+    /// file's, when it names one), else 1 (every tick).
+    #[arg(long, value_name = "N")]
+    telemetry_every: Option<u16>,
+    /// Also copy the decoded firmware log (OUT/firmware.log) to FILE.
+    #[arg(long, value_name = "FILE")]
+    firmware_log: Option<PathBuf>,
+}
+
+impl HilArgs {
+    /// Runs the subcommand.
+    pub fn run(self) -> anyhow::Result<()> {
+        let Self {
+            scenario,
+            out,
+            firmware,
+            duration_s,
+            timeout_s,
+            link_faults,
+            no_plot,
+            telemetry_every,
+            firmware_log,
+        } = self;
+        let mut scenario = match scenario {
+            None => Scenario::embedded("figure_eight_rfid_full_stack_fusion_ekf")?,
+            Some(arg) => load(&arg)?,
+        };
+        if let Some(d) = duration_s {
+            scenario.duration_s = d;
+            if scenario.transient_s >= d {
+                scenario.transient_s = 0.0;
+            }
+        }
+        anyhow::ensure!(
+            timeout_s.is_finite() && timeout_s > 0.0,
+            "--timeout-s must be positive"
+        );
+        let out =
+            out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}-hil", scenario.name)));
+        std::fs::create_dir_all(&out)?;
+        let options = HilOptions {
+            firmware,
+            log: Some(out.join("firmware.defmt")),
+            answer_timeout: std::time::Duration::from_secs_f64(timeout_s),
+            faults: link_faults.map(LinkFaultSpec::soak),
+            telemetry_every_ticks: match telemetry_every {
+                Some(n) => n,
+                None => firmware_sim::hil::default_telemetry_every_ticks(&scenario)?,
+            },
+        };
+        let bar = progress_bar(&scenario, 0.0)?;
+        let run = run_hil(&scenario, &options, |done, _| bar.set_position(done));
+        bar.finish_and_clear();
+        let run = run?;
+        let files = write_all(&out, &run.result, !no_plot)?;
+        if let Some(copy) = &firmware_log {
+            std::fs::copy(out.join("firmware.log"), copy).map_err(|e| {
+                anyhow::anyhow!("copying the firmware log to {}: {e}", copy.display())
+            })?;
+        }
+        out!("{}", format_summary(&run.result.summary));
+        outln!(
+            "firmware      {} (log: {})",
+            run.firmware.display(),
+            firmware_log
+                .as_deref()
+                .unwrap_or(&out.join("firmware.log"))
+                .display()
+        );
+        outln!(
+            "wrote         {}, {}{}",
+            files.csv.display(),
+            files.summary.display(),
+            files
+                .plot
+                .map(|p| format!(", {}", p.display()))
+                .unwrap_or_default()
+        );
+        Ok(())
+    }
+}
