@@ -1,0 +1,76 @@
+//! Refusals of the core's spec builder, named by the file's key and
+//! value.
+
+use wmr_core::control::saturated::GainError;
+use wmr_core::drive::DriveConfigError;
+use wmr_core::estimation::heading_observer::ObserverConfigError;
+use wmr_core::pilot::spec::SpecError;
+use wmr_core::pilot::tracker::TrackerConfigError;
+
+use crate::scenario::error::{ScenarioError, shown};
+use crate::scenario::schema::Scenario;
+
+/// A refusal of the core's spec builder, named by the scenario key it came
+/// from, in the core's own words (which name the field and the rule), with
+/// the key's value in `scenario` where the key is a value rather than a
+/// table.
+pub(super) fn spec_refusal(e: SpecError, scenario: &Scenario) -> ScenarioError {
+    let field = match e.section() {
+        "tracker.trajectory" => "reference",
+        "tracker.estimator.pose_observer" => "estimator.pose_observer",
+        "tracker.estimator.fusion" => "estimator.fusion",
+        "tracker.law.cascaded" => "controller.law.cascaded",
+        "tracker.law.heading_error_sine" => "controller.law.heading_error_sine",
+        // The sensor facts come from the plant and the floor.
+        "tracker.sensors" => "position",
+        "drive" => "drive",
+        "drive.speed_observer" => "drive.speed_observer",
+        "tag_grid" => "position",
+        _ => match e {
+            SpecError::Gains(GainError::K1) => "controller.k1",
+            SpecError::Gains(GainError::K2) => "controller.k2",
+            SpecError::Gains(GainError::K3) => "controller.k3",
+            SpecError::Observer(ObserverConfigError::Gain) => "observer.gain_per_m",
+            SpecError::Observer(ObserverConfigError::MinSpeed) => "observer.min_speed_m_s",
+            SpecError::Observer(_) => "observer",
+            SpecError::Tracker(TrackerConfigError::FailsafeDecel) => "failsafe.decel_m_s2",
+            SpecError::Tracker(TrackerConfigError::FixTimeout) => "failsafe.fix_timeout_s",
+            SpecError::Tracker(TrackerConfigError::Period) => "period_s",
+            SpecError::Tracker(_) => "failsafe",
+            SpecError::Geometry(_) | SpecError::Pilot(_) => "plant",
+            _ => "estimator",
+        },
+    };
+    let field = match e {
+        SpecError::Drive(DriveConfigError::MaxWheelSpeed) => "drive.max_wheel_speed_rad_s",
+        SpecError::Drive(DriveConfigError::MaxWheelAccel) => "drive.max_wheel_accel_rad_s2",
+        SpecError::Drive(DriveConfigError::Period)
+        | SpecError::Observer(ObserverConfigError::Period)
+        | SpecError::Tracker(TrackerConfigError::Period) => "period_s",
+        _ => field,
+    };
+    let mut reason = match core::error::Error::source(&e) {
+        Some(inner) => format!("refused by the core: {inner}"),
+        None => format!("refused by the core: {e}"),
+    };
+    if let Some(value) = scenario.value_at(field) {
+        let value = match value {
+            toml::Value::Float(v) => shown(v),
+            other => other.to_string(),
+        };
+        reason.push_str(&format!(" (got {value})"));
+    }
+    ScenarioError::invalid(field, reason)
+}
+
+impl Scenario {
+    /// The value of the dotted key `path` as this scenario holds it (its
+    /// defaults filled in), unless the key is a table or absent.
+    pub(super) fn value_at(&self, path: &str) -> Option<toml::Value> {
+        let mut value = toml::Value::try_from(self).ok()?;
+        for key in path.split('.') {
+            value = value.get(key)?.clone();
+        }
+        (!value.is_table()).then_some(value)
+    }
+}
