@@ -127,6 +127,62 @@ pub(crate) fn read_file<T>(
     })
 }
 
+/// The parser's error `e` of the scenario `text`, naming the key when it
+/// is inside `[position]`: a tagged enum's fields are read from a buffer,
+/// so the parser can only point at the table's header. The key is the
+/// first whose removal changes the table's own error.
+fn name_position_key(text: &str, e: &toml::de::Error) -> String {
+    use serde::Deserialize as _;
+    let message = e.to_string();
+    let Ok(raw) = text.parse::<toml::Table>() else {
+        return message;
+    };
+    let Some(toml::Value::Table(position)) = raw.get("position") else {
+        return message;
+    };
+    let error_of = |table: &toml::Table| {
+        PositionSpec::deserialize(toml::Value::Table(table.clone()))
+            .err()
+            .map(|e| e.to_string())
+    };
+    let Some(error) = error_of(position) else {
+        return message;
+    };
+    let culprit = position.keys().filter(|key| *key != "kind").find(|key| {
+        let mut without = position.clone();
+        without.remove(*key);
+        error_of(&without).as_ref() != Some(&error)
+    });
+    match culprit {
+        Some(key) => format!("`position.{key}`: {message}"),
+        None => message,
+    }
+}
+
+/// The keys a scenario file gives: its top level, and its `[position]`
+/// table's kind and other keys.
+#[derive(serde::Deserialize)]
+struct FileKeys {
+    position: Option<TaggedKeys>,
+    #[serde(flatten)]
+    top: std::collections::BTreeMap<String, serde::de::IgnoredAny>,
+}
+
+/// A tagged table's `kind` and its other keys.
+#[derive(serde::Deserialize)]
+struct TaggedKeys {
+    kind: Option<String>,
+    #[serde(flatten)]
+    other: std::collections::BTreeMap<String, serde::de::IgnoredAny>,
+}
+
+impl FileKeys {
+    /// Whether the file gives the top-level key `key`.
+    fn given(&self, key: &str) -> bool {
+        (key == "position" && self.position.is_some()) || self.top.contains_key(key)
+    }
+}
+
 impl Scenario {
     /// Parses and validates a scenario from TOML text.
     ///
@@ -148,9 +204,20 @@ impl Scenario {
     /// [`ScenarioError::Robot`] naming the robot file.
     pub fn from_toml_str_in(text: &str, dir: Option<&Path>) -> Result<Self, ScenarioError> {
         let parse_error = |e: toml::de::Error| ScenarioError::Parse(e.to_string());
-        let mut scenario: Self = toml::from_str(text).map_err(parse_error)?;
-        let keys: toml::Table = text.parse().map_err(parse_error)?;
-        let robot = scenario.resolve_robot(dir, |key| keys.contains_key(key))?;
+        let mut scenario: Self =
+            toml::from_str(text).map_err(|e| ScenarioError::Parse(name_position_key(text, &e)))?;
+        // Which keys the file gives, not what they hold (a value is not
+        // converted: a u64 seed beyond i64 is no TOML integer value).
+        let keys: FileKeys = toml::from_str(text).map_err(parse_error)?;
+        if let Some(position) = &keys.position {
+            let given = position.other.keys().map(String::as_str);
+            if let Some(reason) =
+                tables::only_kind_of(position.kind.as_deref(), given, "position", "exact")
+            {
+                return Err(ScenarioError::Parse(reason));
+            }
+        }
+        let robot = scenario.resolve_robot(dir, |key| keys.given(key))?;
         scenario.validate().map_err(|e| match &robot {
             Some(robot) => robot.name_in(e),
             None => e,

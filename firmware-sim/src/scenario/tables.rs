@@ -401,10 +401,26 @@ impl<'de> Deserialize<'de> for PlantSpec {
 /// `kind`, a variant without keys: serde's tagged enums pass over a unit
 /// variant's other keys, which would otherwise be ignored in silence.
 fn only_kind(table: &toml::Table, section: &str, kind: &str) -> Option<String> {
-    if table.get("kind").and_then(toml::Value::as_str) != Some(kind) {
+    let keys = table.keys().map(String::as_str);
+    only_kind_of(
+        table.get("kind").and_then(toml::Value::as_str),
+        keys,
+        section,
+        kind,
+    )
+}
+
+/// [`only_kind`] on a table's kind and keys.
+pub(super) fn only_kind_of<'a>(
+    table_kind: Option<&str>,
+    mut keys: impl Iterator<Item = &'a str>,
+    section: &str,
+    kind: &str,
+) -> Option<String> {
+    if table_kind != Some(kind) {
         return None;
     }
-    table.keys().find(|key| *key != "kind").map(|key| {
+    keys.find(|key| *key != "kind").map(|key| {
         format!(
             "`{section}.{key}` does not apply to {section}.kind = \"{kind}\", which takes no \
              other key: remove it (`firmware-sim schema` says which keys each kind takes)"
@@ -539,17 +555,11 @@ pub enum ReaderModeSpec {
     Range,
 }
 
-/// Where the position measurement comes from.
-///
-/// (De)serialized by hand around the derived code (`remote = "Self"`), so
-/// that a key under `kind = "exact"` is refused, not ignored.
+/// Where the position measurement comes from. A key under `kind =
+/// "exact"`, which serde's tagged enum would pass over, is refused by the
+/// scenario's parser ([`only_kind`], on the file's keys).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
-#[serde(
-    remote = "Self",
-    tag = "kind",
-    rename_all = "snake_case",
-    deny_unknown_fields
-)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum PositionSpec {
     /// The true position, every tick.
     #[default]
@@ -626,24 +636,6 @@ pub enum PositionSpec {
         #[serde(default = "defaults::seed")]
         seed: u64,
     },
-}
-
-impl Serialize for PositionSpec {
-    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        // The derived serializer (inherent, from `remote = "Self"`).
-        PositionSpec::serialize(self, serializer)
-    }
-}
-
-impl<'de> Deserialize<'de> for PositionSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        checked_table(
-            deserializer,
-            "position",
-            |table| only_kind(table, "position", "exact"),
-            PositionSpec::deserialize,
-        )
-    }
 }
 
 impl PositionSpec {
