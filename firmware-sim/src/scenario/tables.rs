@@ -225,10 +225,10 @@ fn checked_table<'de, D: serde::Deserializer<'de>, T>(
     // The derived deserializer's error text ends in a newline the outer
     // error adds again.
     let reason = |e: toml::de::Error| e.to_string().trim_end().to_owned();
-    let Err(error) = derived(toml::Value::Table(table.clone())) else {
-        return derived(toml::Value::Table(table)).map_err(|e| D::Error::custom(reason(e)));
+    let error = match derived(toml::Value::Table(table.clone())) {
+        Ok(value) => return Ok(value),
+        Err(e) => reason(e),
     };
-    let error = reason(error);
     let culprit = table.keys().filter(|key| *key != "kind").find(|key| {
         let mut without = table.clone();
         without.remove(*key);
