@@ -354,6 +354,75 @@ impl From<StraightLine> for Trajectory {
     }
 }
 
+/// A reference trajectory by its parameters (SI units, radians), each in
+/// its plausible range ([`crate::plausible`]: sizes in
+/// [`crate::plausible::REFERENCE_SIZE_M`], rates in
+/// [`crate::plausible::REFERENCE_RATE_RAD_S`], a line's speed in
+/// [`crate::plausible::REFERENCE_SPEED_M_S`], points in
+/// [`crate::plausible::COORDINATE_M`] on each axis, angles in
+/// [`crate::plausible::ANGLE_RAD`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum TrajectorySpec {
+    /// [`FigureEight::new`]: half-width `h1_m`, rate `h2_rad_s`, phase.
+    FigureEight {
+        /// `h1`, m.
+        h1_m: f32,
+        /// `h2`, rad/s.
+        h2_rad_s: f32,
+        /// Phase `φ`, rad.
+        phase_rad: f32,
+    },
+    /// [`Circle::new`].
+    Circle {
+        /// Centre, m.
+        center_m: [f32; 2],
+        /// Radius, m.
+        radius_m: f32,
+        /// Angular rate, rad/s (sign gives the sense).
+        rate_rad_s: f32,
+        /// Phase at `t = 0`, rad.
+        phase_rad: f32,
+    },
+    /// [`StraightLine::new`].
+    Line {
+        /// Start point, m.
+        start_m: [f32; 2],
+        /// Direction, rad.
+        heading_rad: f32,
+        /// Speed, m/s.
+        speed_m_s: f32,
+    },
+}
+
+impl TrajectorySpec {
+    /// The validated trajectory.
+    ///
+    /// # Errors
+    /// The constructor's refusal.
+    pub fn build(&self) -> Result<Trajectory, ReferenceError> {
+        Ok(match *self {
+            Self::FigureEight {
+                h1_m,
+                h2_rad_s,
+                phase_rad,
+            } => FigureEight::new(h1_m, h2_rad_s, phase_rad)?.into(),
+            Self::Circle {
+                center_m: [cx, cy],
+                radius_m,
+                rate_rad_s,
+                phase_rad,
+            } => Circle::new(Vec2::new(cx, cy), radius_m, rate_rad_s, phase_rad)?.into(),
+            Self::Line {
+                start_m: [x, y],
+                heading_rad,
+                speed_m_s,
+            } => StraightLine::new(Vec2::new(x, y), heading_rad, speed_m_s)?.into(),
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

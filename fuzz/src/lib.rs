@@ -9,10 +9,12 @@
 //! gives its typical value, so a short input is a valid spec.
 
 use arbitrary::{Result, Unstructured};
-use wmr_core::pilot::spec::{
-    DriveSpec, EstimatorSpec, FusionFilterSpec, FusionSpec, LawSpec, PilotSpec, SensorSpec,
-    TagGridSpec, TrackerSpec, TrajectorySpec,
-};
+use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
+use wmr_core::drive::spec::DriveSpec;
+use wmr_core::estimation::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec, SensorSpec};
+use wmr_core::control::spec::LawSpec;
+use wmr_core::devices::tag_grid::TagGridSpec;
+use wmr_core::reference::TrajectorySpec;
 
 /// Values a validation must refuse, or must take at their edge.
 pub const SPECIAL_F32: [f32; 14] = [

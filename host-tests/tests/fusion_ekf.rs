@@ -5,7 +5,7 @@
 //! `|p − p_r|` after 100 s, m.
 
 use host_tests::fusion::*;
-use wmr_core::pilot::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec};
+use wmr_core::estimation::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec};
 
 fn run(estimator: Estimator, wheels: WheelTruth, tuning: FusionTuning) -> FusionRun {
     let r = figure_eight_run(estimator, wheels, tuning);

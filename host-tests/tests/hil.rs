@@ -18,7 +18,8 @@ use firmware_sim::hil::{
 use firmware_sim::{Record, Scenario, Summary, run};
 use wmr_core::builds::{self, OptionalBuild};
 use wmr_core::control::saturated::GainError;
-use wmr_core::pilot::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec, SpecError};
+use wmr_core::estimation::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec};
+use wmr_core::pilot::spec::SpecError;
 use wmr_link::{HostMessage, Refusal, TargetMessage, TickInput};
 
 fn firmware() -> PathBuf {

@@ -15,8 +15,9 @@ use std::process::Command;
 use firmware_sim::hil::{FIRMWARE_TARGET, workspace_root};
 use firmware_sim::scenario::robot::{FlashFloor, Robot};
 use firmware_sim::{Scenario, run};
+use wmr_core::devices::tag_grid::TagGridSpec;
 use wmr_core::devices::{TagId, TagLocator};
-use wmr_core::pilot::spec::{SpecError, TagGridSpec};
+use wmr_core::pilot::spec::SpecError;
 use wmr_link::image::{self, ImageFloor, MAGIC};
 
 fn robots() -> PathBuf {
@@ -277,7 +278,8 @@ fn the_blackpill_robot_file_is_the_boards_default() {
         "{e}"
     );
     let image = image(range + fusion + "max_blind_distance_m = 12.0\n").unwrap();
-    let wmr_core::pilot::spec::EstimatorSpec::Fusion(spec) = image.pilot.tracker.estimator else {
+    let wmr_core::estimation::spec::EstimatorSpec::Fusion(spec) = image.pilot.tracker.estimator
+    else {
         panic!("the fusion estimator")
     };
     assert_eq!(spec.max_blind_distance_m, Some(12.0));

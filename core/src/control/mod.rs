@@ -14,13 +14,14 @@
 //! # Adding a law
 //! Its own file implementing [`TrackingLaw`], one arm in [`LawChoice`]
 //! and [`Law`] here, and one arm in the spec
-//! ([`crate::pilot::spec::LawSpec`]) that builds it.
+//! ([`crate::control::spec::LawSpec`]) that builds it.
 
 pub mod cascaded;
 pub mod heading_error_sine;
 pub mod interface;
 pub mod robot_frame;
 pub mod saturated;
+pub mod spec;
 
 pub use interface::{LawCommand, TrackingCommand, TrackingLaw};
 

@@ -162,6 +162,45 @@ impl<T: TagLocator + ?Sized> TagLocator for &T {
     }
 }
 
+/// A regular floor-tag grid ([`TagGrid::new`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct TagGridSpec {
+    /// Position of tag (row 0, column 0), m, each axis in
+    /// [`crate::plausible::COORDINATE_M`].
+    pub origin_m: [f32; 2],
+    /// Spacing between neighbours, m, in [`crate::plausible::TAG_SPACING_M`].
+    pub spacing_m: f32,
+    /// Rows (along y).
+    pub rows: u16,
+    /// Columns (along x).
+    pub columns: u16,
+}
+
+impl TagGridSpec {
+    /// The validated grid.
+    ///
+    /// # Errors
+    /// The grid's refusal.
+    pub fn build(&self) -> Result<TagGrid, TagGridError> {
+        let [x, y] = self.origin_m;
+        TagGrid::new(Vec2::new(x, y), self.spacing_m, self.rows, self.columns)
+    }
+
+    /// The spec of a grid (inverse of [`Self::build`]).
+    #[must_use]
+    pub fn of(grid: &TagGrid) -> Self {
+        let origin = grid.origin();
+        Self {
+            origin_m: [origin.x, origin.y],
+            spacing_m: grid.spacing_m(),
+            rows: grid.rows(),
+            columns: grid.columns(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -189,5 +228,19 @@ mod tests {
             Err(TagGridError::Spacing)
         );
         assert_eq!(TagGrid::new(Vec2::ZERO, 0.1, 0, 1), Err(TagGridError::Size));
+    }
+
+    #[test]
+    fn grid_spec_round_trips() {
+        let spec = TagGridSpec {
+            origin_m: [-6.0, -6.5],
+            spacing_m: 0.1,
+            rows: 130,
+            columns: 120,
+        };
+        let grid = spec.build().unwrap();
+        assert_eq!(TagGridSpec::of(&grid), spec);
+        let bad = TagGridSpec { rows: 0, ..spec };
+        assert_eq!(bad.build(), Err(TagGridError::Size));
     }
 }

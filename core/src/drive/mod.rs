@@ -24,6 +24,7 @@
 //!   over one tick; it also estimates each wheel's load torque and damping.
 
 pub mod momenta_observer;
+pub mod spec;
 pub mod speed_observer;
 
 use crate::geometry::{BodyVelocity, DiffDriveGeometry, WheelSpeeds};

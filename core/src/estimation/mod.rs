@@ -16,13 +16,14 @@
 //! Its own file implementing [`PoseEstimator`] (or [`PositionObserver`],
 //! to get dead reckoning from [`DeadReckoning`]), one arm in
 //! [`EstimatorChoice`] and [`Estimator`] here, and one arm in the spec
-//! ([`crate::pilot::spec::EstimatorSpec`]) that builds it.
+//! ([`crate::estimation::spec::EstimatorSpec`]) that builds it.
 
 pub mod dead_reckoning;
 pub mod fusion;
 pub mod heading_observer;
 pub mod interface;
 pub mod pose_observer;
+pub mod spec;
 
 pub use dead_reckoning::{DeadReckoning, PositionObserver};
 pub use interface::{EstimatorCounters, PoseEstimator};

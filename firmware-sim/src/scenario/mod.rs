@@ -67,9 +67,10 @@ pub use tables::{
     ReferenceSpec, SpeedObserverSpec,
 };
 pub use validate::{PlantSetup, PositionSetup, Setup, reference_bounds};
+pub use wmr_core::control::spec::LawSpec;
 /// The core's estimator and law specs, which the scenario's `[estimator]`
 /// table and `controller.law` key deserialize into.
-pub use wmr_core::pilot::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec, LawSpec};
+pub use wmr_core::estimation::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec};
 
 /// The scenarios shipped with the simulator, as `(file name, TOML text)`.
 /// The first is the default.

@@ -49,7 +49,9 @@
 use std::path::Path;
 
 use wmr_core::devices::TagId;
-use wmr_core::pilot::spec::{EstimatorSpec, PilotSpec, TagGridSpec};
+use wmr_core::devices::tag_grid::TagGridSpec;
+use wmr_core::estimation::spec::EstimatorSpec;
+use wmr_core::pilot::spec::PilotSpec;
 use wmr_link::image;
 
 use super::defaults;

@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 use wmr_core::devices::TagId;
-use wmr_core::pilot::spec::EstimatorSpec;
+use wmr_core::estimation::spec::EstimatorSpec;
 
 use super::defaults;
 use super::tables::{

@@ -4,7 +4,7 @@
 //! values is `validate`'s job.
 
 use serde::{Deserialize, Serialize};
-use wmr_core::pilot::spec::EstimatorSpec;
+use wmr_core::estimation::spec::EstimatorSpec;
 use wmr_core::plausible;
 
 use super::defaults;

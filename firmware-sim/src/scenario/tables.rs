@@ -6,7 +6,7 @@
 //! quantities. Checking the values is `validate`'s job.
 
 use serde::{Deserialize, Serialize};
-use wmr_core::pilot::spec::LawSpec;
+use wmr_core::control::spec::LawSpec;
 use wmr_core::plausible;
 
 use super::defaults;

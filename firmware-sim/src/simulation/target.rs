@@ -1,7 +1,7 @@
 //! The control tick run elsewhere: the [`TargetLink`] a remote robot (the
 //! firmware under QEMU) answers on, and the configuration it needs.
 
-use wmr_core::pilot::spec::TagGridSpec;
+use wmr_core::devices::tag_grid::TagGridSpec;
 use wmr_link::{
     Configure, Diagnostics, FloorSpec, MAP_CAPACITY, MAP_CHUNK_TAGS, MapChunk, MapTag, TickInput,
     TickOutput,

@@ -20,9 +20,10 @@
 //! malformed image is an [`ImageError`].
 
 use serde::{Deserialize, Serialize};
+use wmr_core::devices::tag_grid::TagGridSpec;
 use wmr_core::devices::{TagGrid, TagId, TagLocator};
 use wmr_core::geometry::Vec2;
-use wmr_core::pilot::spec::{PilotSpec, SpecError, TagGridSpec};
+use wmr_core::pilot::spec::{PilotSpec, SpecError};
 
 /// The image's first bytes.
 pub const MAGIC: [u8; 8] = *b"WMRROBOT";
@@ -202,7 +203,7 @@ pub fn decode(bytes: &[u8]) -> Result<RobotImage<'_>, ImageError> {
                 return Err(ImageError::Length);
             }
             let grid: TagGridSpec = postcard::from_bytes(grid).map_err(|_| ImageError::Encoding)?;
-            ImageFloor::Grid(grid.build().map_err(ImageError::Spec)?)
+            ImageFloor::Grid(grid.build().map_err(|e| ImageError::Spec(e.into()))?)
         }
         [1] => {
             let (count, records) = split(rest, 4)?;
@@ -326,7 +327,7 @@ mod tests {
         };
         let mut pilot = c.pilot;
         // The wheel-speed observer travels in the image too.
-        pilot.drive.speed_observer = Some(wmr_core::pilot::spec::SpeedObserverSpec {
+        pilot.drive.speed_observer = Some(wmr_core::drive::spec::SpeedObserverSpec {
             mass_kg: 4.0,
             yaw_inertia_kg_m2: 0.08,
             wheel_inertia_kg_m2: 0.0,

@@ -88,10 +88,11 @@ pub mod session;
 pub mod telemetry;
 
 use serde::{Deserialize, Serialize};
+use wmr_core::devices::tag_grid::TagGridSpec;
 use wmr_core::devices::{RfidCounters, TagMapError};
 use wmr_core::pilot::PilotCounters;
 use wmr_core::pilot::robot::RobotCounters;
-use wmr_core::pilot::spec::{PilotSpec, SpecError, TagGridSpec};
+use wmr_core::pilot::spec::{PilotSpec, SpecError};
 use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 
 /// The link's version: bump when a message changes shape; both sides
@@ -876,7 +877,9 @@ mod tests {
         }
     }
     use proptest::prelude::*;
-    use wmr_core::pilot::spec::{DriveSpec, TrackerSpec, TrajectorySpec};
+    use wmr_core::drive::spec::DriveSpec;
+    use wmr_core::pilot::spec::TrackerSpec;
+    use wmr_core::reference::TrajectorySpec;
 
     pub(crate) fn configure() -> HostMessage {
         HostMessage::Configure(Configure {
@@ -895,9 +898,9 @@ mod tests {
                     fix_timeout_ticks: 50,
                     failsafe_decel_m_s2: 0.5,
                     max_fix_age_ticks: 2,
-                    estimator: wmr_core::pilot::spec::EstimatorSpec::HeadingObserver,
-                    law: wmr_core::pilot::spec::LawSpec::Saturated,
-                    sensors: wmr_core::pilot::spec::SensorSpec {
+                    estimator: wmr_core::estimation::spec::EstimatorSpec::HeadingObserver,
+                    law: wmr_core::control::spec::LawSpec::Saturated,
+                    sensors: wmr_core::estimation::spec::SensorSpec {
                         track_width_m: 0.3,
                         // Count quantum q = 2π·0.05 m / 2048: q²/12.
                         wheel_variance_floor_m2: 1.96e-9,

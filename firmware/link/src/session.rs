@@ -420,8 +420,11 @@ mod tests {
     use crate::{MAP_CHUNK_TAGS, MapTag};
     use wmr_core::devices::TagMapError;
     use wmr_core::devices::encode_frame;
-    use wmr_core::pilot::spec::{DriveSpec, PilotSpec, TagGridSpec, TrackerSpec, TrajectorySpec};
+    use wmr_core::devices::tag_grid::TagGridSpec;
+    use wmr_core::drive::spec::DriveSpec;
+    use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
     use wmr_core::pilot::tracker::TrackerMode;
+    use wmr_core::reference::TrajectorySpec;
 
     /// The grid of [`configure`]: 21 × 21 tags 0.1 m apart around the
     /// origin.
@@ -482,9 +485,9 @@ mod tests {
                     fix_timeout_ticks: 50,
                     failsafe_decel_m_s2: 0.5,
                     max_fix_age_ticks: 2,
-                    estimator: wmr_core::pilot::spec::EstimatorSpec::HeadingObserver,
-                    law: wmr_core::pilot::spec::LawSpec::Saturated,
-                    sensors: wmr_core::pilot::spec::SensorSpec {
+                    estimator: wmr_core::estimation::spec::EstimatorSpec::HeadingObserver,
+                    law: wmr_core::control::spec::LawSpec::Saturated,
+                    sensors: wmr_core::estimation::spec::SensorSpec {
                         track_width_m: 0.3,
                         // Count quantum q = 2π·0.05 m / 2048: q²/12.
                         wheel_variance_floor_m2: 1.96e-9,

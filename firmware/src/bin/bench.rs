@@ -89,7 +89,9 @@ mod on_target {
 
     use nalgebra::{SMatrix, SVector};
     use wmr_core::control::saturated::{TrackingCommand, TrackingController, TrackingGains};
+    use wmr_core::devices::tag_grid::TagGridSpec;
     use wmr_core::devices::{MotorDriver, MotorWiring, RfidReader, TagGrid, TagId, encode_frame};
+    use wmr_core::drive::spec::DriveSpec;
     use wmr_core::drive::{SpeedLoopGains, WheelSpeedLoop};
     use wmr_core::estimation::fusion::particle::{ParticleCore, PoseParticleFilter};
     use wmr_core::estimation::fusion::ukf::{PoseUkf, UkfCore};
@@ -109,9 +111,10 @@ mod on_target {
     use wmr_core::math;
     use wmr_core::odometry::{OdometryStep, WrappingCounter};
     use wmr_core::pilot::robot::{Robot, RobotTick};
-    use wmr_core::pilot::spec::{DriveSpec, PilotSpec, TagGridSpec, TrackerSpec, TrajectorySpec};
+    use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
     use wmr_core::pilot::tracker::TagFix;
     use wmr_core::pilot::{Measurement, Pilot, PilotOutput};
+    use wmr_core::reference::TrajectorySpec;
     use wmr_core::reference::{ReferenceSample, Trajectory};
     use wmr_link::TickInput;
     use wmr_link::proxy::{ProxyBus, Side};
@@ -178,7 +181,7 @@ mod on_target {
 
     /// Paper 001's figure-eight and observer gain, on a small robot (as
     /// `host_tests::paper_pilot` and the simulator's defaults).
-    fn pilot_spec(estimator: wmr_core::pilot::spec::EstimatorSpec) -> PilotSpec {
+    fn pilot_spec(estimator: wmr_core::estimation::spec::EstimatorSpec) -> PilotSpec {
         PilotSpec {
             tracker: TrackerSpec {
                 period_s: PERIOD_S,
@@ -194,8 +197,8 @@ mod on_target {
                 failsafe_decel_m_s2: 0.5,
                 max_fix_age_ticks: 2,
                 estimator,
-                law: wmr_core::pilot::spec::LawSpec::Saturated,
-                sensors: wmr_core::pilot::spec::SensorSpec {
+                law: wmr_core::control::spec::LawSpec::Saturated,
+                sensors: wmr_core::estimation::spec::SensorSpec {
                     track_width_m: 0.2,
                     // Count quantum q = 2π·0.03 m / 2048: q²/12.
                     wheel_variance_floor_m2: 7.06e-10,
@@ -1317,7 +1320,7 @@ mod on_target {
     /// never take stack at the same time.
     #[inline(never)]
     fn bench_tick(cal: Calibration) {
-        let spec = pilot_spec(wmr_core::pilot::spec::EstimatorSpec::HeadingObserver);
+        let spec = pilot_spec(wmr_core::estimation::spec::EstimatorSpec::HeadingObserver);
         let (Ok(config), Ok(grid)) = (spec.build(), GRID.build()) else {
             fail("bench configuration refused");
         };
@@ -1448,7 +1451,7 @@ mod on_target {
     /// names its figures are reported under.
     #[cfg(feature = "fusion-ekf")]
     struct FusionTick {
-        filter: wmr_core::pilot::spec::FusionFilterSpec,
+        filter: wmr_core::estimation::spec::FusionFilterSpec,
         /// Stage of the ticks with a tag fix.
         fix: &'static str,
         /// Stage of the dead-reckoned ticks.
@@ -1460,7 +1463,7 @@ mod on_target {
     /// The fusion EKF's whole tick (the estimator's default filter).
     #[cfg(feature = "fusion-ekf")]
     const FUSION_EKF_TICK: FusionTick = FusionTick {
-        filter: wmr_core::pilot::spec::FusionFilterSpec::Ekf,
+        filter: wmr_core::estimation::spec::FusionFilterSpec::Ekf,
         fix: "robot_tick_fusion_fix",
         dead_reckoned: "robot_tick_fusion_dead_reckoned",
         stack: "robot_tick_fusion",
@@ -1471,7 +1474,7 @@ mod on_target {
     /// robot built with `fusion-particle-filter` runs).
     #[cfg(all(feature = "fusion-particle-filter", target_abi = "eabihf"))]
     const FUSION_PF_TICK: FusionTick = FusionTick {
-        filter: wmr_core::pilot::spec::FusionFilterSpec::ParticleFilter,
+        filter: wmr_core::estimation::spec::FusionFilterSpec::ParticleFilter,
         fix: "robot_tick_fusion_pf_fix",
         dead_reckoned: "robot_tick_fusion_pf_dead_reckoned",
         stack: "robot_tick_fusion_pf",
@@ -1488,8 +1491,8 @@ mod on_target {
     #[cfg(feature = "fusion-ekf")]
     #[inline(never)]
     fn bench_fusion_tick(cal: Calibration, bench: &FusionTick) {
-        let spec = pilot_spec(wmr_core::pilot::spec::EstimatorSpec::Fusion(
-            wmr_core::pilot::spec::FusionSpec {
+        let spec = pilot_spec(wmr_core::estimation::spec::EstimatorSpec::Fusion(
+            wmr_core::estimation::spec::FusionSpec {
                 filter: bench.filter,
                 ..Default::default()
             },

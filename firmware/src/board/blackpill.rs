@@ -132,11 +132,13 @@ use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 use wmr_core::devices::{MotorDriver, MotorWiring, RfidReader};
+use wmr_core::drive::spec::DriveSpec;
 use wmr_core::estimation::heading_observer::HeadingObserverConfig;
 use wmr_core::pilot::robot::{Robot, RobotTick};
-use wmr_core::pilot::spec::{DriveSpec, PilotSpec, SpecError, TrackerSpec, TrajectorySpec};
+use wmr_core::pilot::spec::{PilotSpec, SpecError, TrackerSpec};
 use wmr_core::pilot::tracker::{TrackerConfig, TrackerMode};
 use wmr_core::pilot::{Pilot, PilotConfig};
+use wmr_core::reference::TrajectorySpec;
 use wmr_link::telemetry::{self, Start};
 
 use devices::{Encoder, LineErrors, RfidPump, RfidUart};
@@ -213,9 +215,9 @@ pub const PILOT: PilotSpec = PilotSpec {
         fix_timeout_ticks: 50,
         failsafe_decel_m_s2: TrackerConfig::DEFAULT_FAILSAFE_DECEL_M_S2,
         max_fix_age_ticks: TrackerConfig::DEFAULT_MAX_FIX_AGE_TICKS,
-        estimator: wmr_core::pilot::spec::EstimatorSpec::HeadingObserver,
-        law: wmr_core::pilot::spec::LawSpec::Saturated,
-        sensors: wmr_core::pilot::spec::SensorSpec {
+        estimator: wmr_core::estimation::spec::EstimatorSpec::HeadingObserver,
+        law: wmr_core::control::spec::LawSpec::Saturated,
+        sensors: wmr_core::estimation::spec::SensorSpec {
             track_width_m: 0.2,
             // Count quantum q = 2π·0.03 m / 2048: q²/12. No tag grid: the site's
             // tags are a map, which the fusion estimator (refusing a zero

@@ -1,7 +1,8 @@
 //! The core's estimator, law and sensor specs as a scenario chooses
 //! them.
 
-use wmr_core::pilot::spec::{EstimatorSpec, LawSpec, SensorSpec};
+use wmr_core::control::spec::LawSpec;
+use wmr_core::estimation::spec::{EstimatorSpec, SensorSpec};
 
 use crate::scenario::defaults;
 use crate::scenario::error::ScenarioError;

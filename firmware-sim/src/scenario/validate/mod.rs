@@ -8,9 +8,10 @@
 //! observer and failsafe, and puts the [`Setup`] together.
 
 use wmr_core::control::saturated::TrackingGains;
+use wmr_core::control::spec::LawSpec;
 use wmr_core::geometry::HeadingEstimate;
 use wmr_core::pilot::PilotConfig;
-use wmr_core::pilot::spec::{LawSpec, PilotSpec, TrackerSpec};
+use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
 use wmr_core::pilot::tracker::TrackerConfig;
 use wmr_core::reference::Trajectory;
 

@@ -1,8 +1,9 @@
 //! The plant: the unicycle, or the differential drive with the core's
 //! pilot, its wheel dynamics and its wheel-speed observer.
 
+use wmr_core::drive::spec as drive_spec;
 use wmr_core::pilot::PilotConfig;
-use wmr_core::pilot::spec::{self as core_spec, PilotSpec, TrackerSpec};
+use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
 
 use crate::devices::EncoderGlitches;
 use crate::plant::{DiffDriveParams, LoadTorque, WheelDynamics};
@@ -22,9 +23,9 @@ use super::{PlantSetup, f, spec_refusal};
 pub(super) fn speed_observer_spec(
     o: &SpeedObserverSpec,
     params: &DiffDriveParams,
-) -> Result<core_spec::SpeedObserverSpec, ScenarioError> {
+) -> Result<drive_spec::SpeedObserverSpec, ScenarioError> {
     let field = |key: &str| format!("drive.speed_observer.{key}");
-    Ok(core_spec::SpeedObserverSpec {
+    Ok(drive_spec::SpeedObserverSpec {
         mass_kg: f(in_range(&field("mass_kg"), o.mass_kg, MASS_KG, "kg")?),
         yaw_inertia_kg_m2: f(in_range(
             &field("yaw_inertia_kg_m2"),
@@ -165,7 +166,7 @@ impl Scenario {
                 };
                 let pilot_spec = PilotSpec {
                     tracker,
-                    drive: core_spec::DriveSpec {
+                    drive: drive_spec::DriveSpec {
                         wheel_radius_m: f(params.wheel_radius_m),
                         track_width_m: f(params.track_width_m),
                         encoder_counts_per_rev,

@@ -1,7 +1,7 @@
 //! The reference trajectory, checked key by key, and its bounding box.
 
-use wmr_core::pilot::spec::TrajectorySpec;
 use wmr_core::reference::Trajectory;
+use wmr_core::reference::TrajectorySpec;
 
 use crate::scenario::error::{ScenarioError, in_range};
 use crate::scenario::tables::ReferenceSpec;

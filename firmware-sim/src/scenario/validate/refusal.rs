@@ -4,7 +4,7 @@
 use wmr_core::control::saturated::GainError;
 use wmr_core::drive::DriveConfigError;
 use wmr_core::estimation::heading_observer::ObserverConfigError;
-use wmr_core::pilot::spec::SpecError;
+use wmr_core::pilot::spec::{SpecError, SpecSection};
 use wmr_core::pilot::tracker::TrackerConfigError;
 
 use crate::scenario::error::{ScenarioError, shown};
@@ -16,17 +16,18 @@ use crate::scenario::schema::Scenario;
 /// table.
 pub(super) fn spec_refusal(e: SpecError, scenario: &Scenario) -> ScenarioError {
     let field = match e.section() {
-        "tracker.trajectory" => "reference",
-        "tracker.estimator.pose_observer" => "estimator.pose_observer",
-        "tracker.estimator.fusion" => "estimator.fusion",
-        "tracker.law.cascaded" => "controller.law.cascaded",
-        "tracker.law.heading_error_sine" => "controller.law.heading_error_sine",
+        SpecSection::Trajectory => "reference",
+        SpecSection::PoseObserver => "estimator.pose_observer",
+        SpecSection::Fusion => "estimator.fusion",
+        SpecSection::CascadedLaw => "controller.law.cascaded",
+        SpecSection::HeadingErrorSineLaw => "controller.law.heading_error_sine",
         // The sensor facts come from the plant and the floor.
-        "tracker.sensors" => "position",
-        "drive" => "drive",
-        "drive.speed_observer" => "drive.speed_observer",
-        "tag_grid" => "position",
-        _ => match e {
+        SpecSection::Sensors | SpecSection::TagGrid => "position",
+        SpecSection::Drive => "drive",
+        SpecSection::SpeedObserver => "drive.speed_observer",
+        SpecSection::Pilot => "plant",
+        SpecSection::Build => "estimator",
+        SpecSection::Tracker => match e {
             SpecError::Gains(GainError::K1) => "controller.k1",
             SpecError::Gains(GainError::K2) => "controller.k2",
             SpecError::Gains(GainError::K3) => "controller.k3",
@@ -36,9 +37,7 @@ pub(super) fn spec_refusal(e: SpecError, scenario: &Scenario) -> ScenarioError {
             SpecError::Tracker(TrackerConfigError::FailsafeDecel) => "failsafe.decel_m_s2",
             SpecError::Tracker(TrackerConfigError::FixTimeout) => "failsafe.fix_timeout_s",
             SpecError::Tracker(TrackerConfigError::Period) => "period_s",
-            SpecError::Tracker(_) => "failsafe",
-            SpecError::Geometry(_) | SpecError::Pilot(_) => "plant",
-            _ => "estimator",
+            _ => "failsafe",
         },
     };
     let field = match e {
