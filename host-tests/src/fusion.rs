@@ -7,9 +7,11 @@
 //! the position is the nearest tag every tick (the paper's mode). The EKF
 //! pose feeds paper 001's law (14) as if it were the measured pose.
 
+use wmr_core::control::LawChoice;
 use wmr_core::control::saturated::{TrackingController, TrackingGains};
+use wmr_core::estimation::EstimatorChoice;
 use wmr_core::estimation::fusion::{PoseEkf, PoseFilterConfig, PoseFilterCounters, TagCellTracker};
-use wmr_core::estimation::heading_observer::{HeadingObserver, HeadingObserverConfig};
+use wmr_core::estimation::heading_observer::HeadingObserverConfig;
 use wmr_core::geometry::{DiffDriveGeometry, Pose, Vec2};
 use wmr_core::odometry::OdometryStep;
 use wmr_core::pilot::tracker::{OutputFeedbackTracker, TagFix, TrackerConfig};
@@ -171,9 +173,14 @@ pub fn figure_eight_run_from(
     let gains = TrackingGains::new(0.11, 0.11, 0.1).expect("gains");
     let mut law = TrackingController::new(gains);
     let observer_config = HeadingObserverConfig::new(0.6, hf).expect("paper gain");
-    let mut paper_001 = OutputFeedbackTracker::with_observer(
-        TrackerConfig::new(observer_config, gains, trajectory, 100).expect("tracker"),
-        HeadingObserver::new(observer_config),
+    let mut paper_001 = OutputFeedbackTracker::new(
+        TrackerConfig::new(
+            EstimatorChoice::HeadingObserver(observer_config),
+            LawChoice::Saturated(gains),
+            trajectory,
+            100,
+        )
+        .expect("tracker"),
     );
     let mut odometry = OdometryStep::default();
     // Seeded slip noise (xorshift + Box–Muller), reproducible.

@@ -7,8 +7,10 @@ pub mod paper_002;
 pub mod paper_003;
 pub mod paper_004;
 
+use wmr_core::control::LawChoice;
 use wmr_core::control::saturated::TrackingGains;
 use wmr_core::drive::{DriveConfig, SpeedLoopGains};
+use wmr_core::estimation::EstimatorChoice;
 use wmr_core::estimation::heading_observer::HeadingObserverConfig;
 use wmr_core::geometry::DiffDriveGeometry;
 use wmr_core::pilot::tracker::TrackerConfig;
@@ -25,8 +27,10 @@ pub const PAPER_PILOT_PERIOD_S: f32 = 0.01;
 pub fn paper_pilot() -> Pilot {
     let h = PAPER_PILOT_PERIOD_S;
     let tracker = TrackerConfig::new(
-        HeadingObserverConfig::new(0.6, h).expect("valid observer"),
-        TrackingGains::new(0.11, 0.11, 0.1).expect("valid gains"),
+        EstimatorChoice::HeadingObserver(
+            HeadingObserverConfig::new(0.6, h).expect("valid observer"),
+        ),
+        LawChoice::Saturated(TrackingGains::new(0.11, 0.11, 0.1).expect("valid gains")),
         FigureEight::paper_001().into(),
         100,
     )

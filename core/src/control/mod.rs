@@ -32,17 +32,40 @@ use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::reference::ReferenceSample;
 
-/// Which law the tracker runs: the one list of laws.
+/// Which law the tracker runs, with its configuration: the one list of
+/// laws. Each names itself ([`Self::label`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum LawChoice {
-    /// Paper 001's output-feedback law (27)–(28) (the tracker
-    /// configuration's `gains`).
-    Saturated,
+    /// Paper 001's output-feedback law (27)–(28) with gains `k1, k2, k3`.
+    Saturated(TrackingGains),
     /// Paper 002's cascaded controller (31) on the estimated error (30).
     Cascaded(CascadedGains),
     /// Paper 002's Proposition 7: observer of `sin θ_e` + controller (64).
     HeadingErrorSine(HeadingErrorSineConfig),
+}
+
+impl LawChoice {
+    /// The law's own step, s, where it has one (Proposition 7's observer);
+    /// it must be the tracker's control period.
+    #[must_use]
+    pub fn period_s(&self) -> Option<f32> {
+        match self {
+            Self::Saturated(_) | Self::Cascaded(_) => None,
+            Self::HeadingErrorSine(config) => Some(config.period_s()),
+        }
+    }
+
+    /// The law's name in reports: `law 001`, `cascaded law` or
+    /// `sin θe law`.
+    #[must_use]
+    pub fn label(&self) -> &'static str {
+        match self {
+            Self::Saturated(_) => "law 001",
+            Self::Cascaded(_) => "cascaded law",
+            Self::HeadingErrorSine(_) => "sin θe law",
+        }
+    }
 }
 
 /// The running law: [`LawChoice`] built.
@@ -58,11 +81,11 @@ pub enum Law {
 }
 
 impl Law {
-    /// The law `choice` selects; `gains` are paper 001's law's.
+    /// The law `choice`, at rest.
     #[must_use]
-    pub fn new(choice: LawChoice, gains: TrackingGains) -> Self {
+    pub fn new(choice: LawChoice) -> Self {
         match choice {
-            LawChoice::Saturated => Self::Saturated(TrackingController::new(gains)),
+            LawChoice::Saturated(gains) => Self::Saturated(TrackingController::new(gains)),
             LawChoice::Cascaded(gains) => Self::Cascaded(CascadedController::new(gains)),
             LawChoice::HeadingErrorSine(config) => {
                 Self::HeadingErrorSine(HeadingErrorSineTracker::new(config, 0.0))
@@ -71,7 +94,6 @@ impl Law {
     }
 }
 
-/// Calls the [`TrackingLaw`] method on the running law.
 macro_rules! dispatch {
     ($self:ident, $method:ident($($arg:expr),*)) => {
         match $self {

@@ -5,6 +5,7 @@
 use crate::control::LawChoice;
 use crate::control::cascaded::{CascadedGains, CascadedGainsError};
 use crate::control::heading_error_sine::{HeadingErrorSineConfig, HeadingErrorSineConfigError};
+use crate::control::saturated::TrackingGains;
 
 /// Why a [`LawSpec`] was refused: the law, and its own error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -97,13 +98,19 @@ impl LawSpec {
 }
 
 impl LawSpec {
-    /// The validated law for control period `period_s`.
+    /// The validated law for control period `period_s`; paper 001's law
+    /// runs with `saturated_gains` (the tracker's `k1, k2, k3`,
+    /// [`crate::pilot::spec::TrackerSpec::gains`]).
     ///
     /// # Errors
     /// The law's own refusal.
-    pub fn build(&self, period_s: f32) -> Result<LawChoice, LawSpecError> {
+    pub fn build(
+        &self,
+        saturated_gains: TrackingGains,
+        period_s: f32,
+    ) -> Result<LawChoice, LawSpecError> {
         Ok(match *self {
-            Self::Saturated => LawChoice::Saturated,
+            Self::Saturated => LawChoice::Saturated(saturated_gains),
             Self::Cascaded { c1_per_s, c2_per_s } => LawChoice::Cascaded(
                 CascadedGains::new(c1_per_s, c2_per_s).map_err(LawSpecError::Cascaded)?,
             ),

@@ -30,27 +30,71 @@ pub use interface::{EstimatorCounters, PoseEstimator};
 
 #[cfg(feature = "fusion-ekf")]
 use crate::estimation::fusion::{FusionEstimator, FusionSettings};
-use crate::estimation::heading_observer::HeadingObserver;
+use crate::estimation::heading_observer::{HeadingObserver, HeadingObserverConfig};
 use crate::estimation::pose_observer::{PoseEstimate, PoseObserver, PoseObserverConfig};
 use crate::geometry::HeadingEstimate;
 use crate::geometry::Vec2;
 use crate::odometry::OdometryStep;
 
-/// Which estimator the tracker runs: the one list of estimators.
+/// Which estimator the tracker runs, with its configuration: the one list
+/// of estimators. Each names itself ([`Self::label`]) and states its step
+/// ([`Self::period_s`]), which is the tracker's control period.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum EstimatorChoice {
-    /// Paper 001's heading observer (5) (the tracker configuration's
-    /// `observer`), with dead reckoning between fixes.
-    HeadingObserver,
+    /// Paper 001's heading observer (5), with dead reckoning between fixes.
+    HeadingObserver(HeadingObserverConfig),
     /// Paper 002's Proposition 4 observer of `x, y, cos θ, sin θ`, fed the
     /// position (fix or dead-reckoned).
     PoseObserver(PoseObserverConfig),
     /// The encoder + tag fusion estimator ([`fusion`]) on the filter its
     /// settings choose: its pose is the law's position and heading, between
-    /// fixes too (cargo feature `fusion-ekf`).
+    /// fixes too (cargo feature `fusion-ekf`). Paper 001's observer (5)
+    /// runs beside it as its heading guide (`guide`).
     #[cfg(feature = "fusion-ekf")]
-    Fusion(FusionSettings),
+    Fusion {
+        /// The filter and its tuning.
+        settings: FusionSettings,
+        /// The heading guide's configuration.
+        guide: HeadingObserverConfig,
+    },
+}
+
+impl EstimatorChoice {
+    /// The estimator's step, s: the tracker's control period.
+    #[must_use]
+    pub fn period_s(&self) -> f32 {
+        match self {
+            Self::HeadingObserver(config) => config.period_s(),
+            Self::PoseObserver(config) => config.period_s(),
+            #[cfg(feature = "fusion-ekf")]
+            Self::Fusion { guide, .. } => guide.period_s(),
+        }
+    }
+
+    /// The estimator's name in reports: `observer 001`, `pose observer`,
+    /// `fusion EKF`, `fusion UKF` or `fusion particle filter`.
+    #[must_use]
+    pub fn label(&self) -> &'static str {
+        match self {
+            Self::HeadingObserver(_) => "observer 001",
+            Self::PoseObserver(_) => "pose observer",
+            #[cfg(feature = "fusion-ekf")]
+            Self::Fusion { settings, .. } => settings.kind().label(),
+        }
+    }
+
+    /// Paper 001's observer (5) where it runs: as the estimator, or as the
+    /// fusion estimator's heading guide.
+    #[must_use]
+    pub fn heading_observer(&self) -> Option<HeadingObserverConfig> {
+        match *self {
+            Self::HeadingObserver(config) => Some(config),
+            Self::PoseObserver(_) => None,
+            #[cfg(feature = "fusion-ekf")]
+            Self::Fusion { guide, .. } => Some(guide),
+        }
+    }
 }
 
 /// The running estimator: [`EstimatorChoice`] built.
@@ -71,15 +115,25 @@ pub enum Estimator {
 }
 
 impl Estimator {
-    /// The estimator `choice` selects, starting from `observer`'s heading
-    /// estimate (paper 002's pose observer takes its `(ĉ, ŝ)`, the fusion
-    /// estimator runs it beside the filter as its guide).
+    /// The estimator `choice`, its heading starting at `initial` (paper
+    /// 001's `ẑ(0)`; a non-finite one starts at `(0, 0)`, heading
+    /// unknown), its position at the first fix.
     #[must_use]
-    pub fn new(choice: EstimatorChoice, observer: HeadingObserver) -> Self {
+    pub fn new(choice: EstimatorChoice, initial: HeadingEstimate) -> Self {
+        let observer = |config| {
+            HeadingObserver::with_initial_estimate(config, initial)
+                .unwrap_or_else(|_| HeadingObserver::new(config))
+        };
         match choice {
-            EstimatorChoice::HeadingObserver => Self::HeadingObserver(DeadReckoning::new(observer)),
+            EstimatorChoice::HeadingObserver(config) => {
+                Self::HeadingObserver(DeadReckoning::new(observer(config)))
+            }
             EstimatorChoice::PoseObserver(config) => {
-                let start = observer.estimate();
+                let start = if initial.cos_theta.is_finite() && initial.sin_theta.is_finite() {
+                    initial
+                } else {
+                    HeadingEstimate::default()
+                };
                 Self::PoseObserver(DeadReckoning::new(PoseObserver::new(
                     config,
                     PoseEstimate {
@@ -90,14 +144,13 @@ impl Estimator {
                 )))
             }
             #[cfg(feature = "fusion-ekf")]
-            EstimatorChoice::Fusion(settings) => {
-                Self::Fusion(FusionEstimator::new(settings, observer))
+            EstimatorChoice::Fusion { settings, guide } => {
+                Self::Fusion(FusionEstimator::new(settings, observer(guide)))
             }
         }
     }
 }
 
-/// Calls the [`PoseEstimator`] method on the running estimator.
 macro_rules! dispatch {
     ($self:ident, $method:ident($($arg:expr),*)) => {
         match $self {

@@ -8,6 +8,7 @@ use crate::estimation::EstimatorChoice;
 use crate::estimation::fusion::PoseFilterError;
 #[cfg(feature = "fusion-ekf")]
 use crate::estimation::fusion::{FusionFilter, FusionSettings, PoseFilterConfig};
+use crate::estimation::heading_observer::HeadingObserverConfig;
 use crate::estimation::pose_observer::{PoseObserverConfig, PoseObserverConfigError};
 
 /// Why an [`EstimatorSpec`] was refused: the estimator, and its own error.
@@ -262,7 +263,9 @@ pub struct SensorSpec {
 
 impl EstimatorSpec {
     /// The validated estimator for control period `period_s` and the
-    /// robot's `sensors`.
+    /// robot's `sensors`; paper 001's observer (5) runs with
+    /// `heading_observer`, as the estimator or as the fusion estimator's
+    /// heading guide.
     ///
     /// # Errors
     /// The estimator's own refusal, or
@@ -271,9 +274,10 @@ impl EstimatorSpec {
         &self,
         period_s: f32,
         sensors: &SensorSpec,
+        heading_observer: HeadingObserverConfig,
     ) -> Result<EstimatorChoice, EstimatorSpecError> {
         Ok(match *self {
-            Self::HeadingObserver => EstimatorChoice::HeadingObserver,
+            Self::HeadingObserver => EstimatorChoice::HeadingObserver(heading_observer),
             Self::PoseObserver {
                 gains: [a1, a2, a3, a4],
             } => EstimatorChoice::PoseObserver(
@@ -281,7 +285,10 @@ impl EstimatorSpec {
                     .map_err(EstimatorSpecError::PoseObserver)?,
             ),
             #[cfg(feature = "fusion-ekf")]
-            Self::Fusion(fusion) => EstimatorChoice::Fusion(fusion.build(sensors)?),
+            Self::Fusion(fusion) => EstimatorChoice::Fusion {
+                settings: fusion.build(sensors)?,
+                guide: heading_observer,
+            },
             #[cfg(not(feature = "fusion-ekf"))]
             Self::Fusion(_) => {
                 let _ = sensors;

@@ -287,8 +287,10 @@ impl Pilot {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::control::LawChoice;
     use crate::control::saturated::TrackingGains;
     use crate::drive::SpeedLoopGains;
+    use crate::estimation::EstimatorChoice;
     use crate::estimation::heading_observer::HeadingObserverConfig;
     use crate::geometry::{DiffDriveGeometry, Vec2};
     use crate::reference::StraightLine;
@@ -296,8 +298,8 @@ mod tests {
     fn pilot() -> Pilot {
         let h = 0.01;
         let tracker = TrackerConfig::new(
-            HeadingObserverConfig::new(1.0, h).unwrap(),
-            TrackingGains::new(0.05, 0.05, 1.0).unwrap(),
+            EstimatorChoice::HeadingObserver(HeadingObserverConfig::new(1.0, h).unwrap()),
+            LawChoice::Saturated(TrackingGains::new(0.05, 0.05, 1.0).unwrap()),
             StraightLine::new(Vec2::ZERO, 0.0, 0.2).unwrap().into(),
             50,
         )
@@ -370,8 +372,8 @@ mod tests {
     fn mismatched_periods_are_refused() {
         let p = pilot();
         let tracker = TrackerConfig::new(
-            HeadingObserverConfig::new(1.0, 0.02).unwrap(),
-            TrackingGains::new(0.05, 0.05, 1.0).unwrap(),
+            EstimatorChoice::HeadingObserver(HeadingObserverConfig::new(1.0, 0.02).unwrap()),
+            LawChoice::Saturated(TrackingGains::new(0.05, 0.05, 1.0).unwrap()),
             StraightLine::new(Vec2::ZERO, 0.0, 0.2).unwrap().into(),
             50,
         )

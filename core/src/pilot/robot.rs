@@ -194,9 +194,11 @@ fn drive_or_stop<M: Motor>(motor: &mut M, command: MotorCommand) -> Result<(), M
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::control::LawChoice;
     use crate::control::saturated::TrackingGains;
     use crate::devices::{TagId, encode_frame};
     use crate::drive::{DriveConfig, SpeedLoopGains};
+    use crate::estimation::EstimatorChoice;
     use crate::estimation::heading_observer::HeadingObserverConfig;
     use crate::geometry::{DiffDriveGeometry, Vec2};
     use crate::pilot::PilotConfig;
@@ -256,8 +258,8 @@ mod tests {
     ) -> Robot<StillEncoder, StillEncoder, IdleMotor, IdleMotor, OneFrame, Everywhere> {
         let h = 0.01;
         let tracker = TrackerConfig::new(
-            HeadingObserverConfig::new(1.0, h).unwrap(),
-            TrackingGains::new(0.05, 0.05, 1.0).unwrap(),
+            EstimatorChoice::HeadingObserver(HeadingObserverConfig::new(1.0, h).unwrap()),
+            LawChoice::Saturated(TrackingGains::new(0.05, 0.05, 1.0).unwrap()),
             StraightLine::new(Vec2::ZERO, 0.0, 0.2).unwrap().into(),
             50,
         )

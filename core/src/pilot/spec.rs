@@ -291,19 +291,17 @@ impl TrackerSpec {
         let observer = HeadingObserverConfig::new(self.observer_gain_per_m, self.period_s)
             .and_then(|o| o.with_min_speed(self.observer_min_speed_m_s))
             .map_err(SpecError::Observer)?;
-        let config = TrackerConfig::new(observer, gains, trajectory, self.fix_timeout_ticks)
+        let estimator = self
+            .estimator
+            .build(self.period_s, &self.sensors, observer)?;
+        let law = self.law.build(gains, self.period_s)?;
+        TrackerConfig::new(estimator, law, trajectory, self.fix_timeout_ticks)
             .and_then(|t| t.with_failsafe_decel(self.failsafe_decel_m_s2))
             .map(|t| t.with_max_fix_age(self.max_fix_age_ticks))
             .and_then(|t| {
                 let [ahead, left] = self.sensors.antenna_offset_m;
                 t.with_antenna_offset(Vec2::new(ahead, left))
             })
-            .map_err(SpecError::Tracker)?;
-        let estimator = self.estimator.build(self.period_s, &self.sensors)?;
-        let law = self.law.build(self.period_s)?;
-        config
-            .with_estimator(estimator)
-            .and_then(|config| config.with_law(law))
             .map_err(SpecError::Tracker)
     }
 }

@@ -4,11 +4,11 @@
 //! happens before the first fix, and the failsafe when fixes stop.
 //!
 //! # Estimator and law
-//! By default the tracker runs paper 001's observer and law. Any estimator
-//! of [`crate::estimation`] ([`TrackerConfig::with_estimator`]) and any law
-//! of [`crate::control`] ([`TrackerConfig::with_law`]) can replace them:
-//! the tracker sees them only through [`PoseEstimator`] and
-//! [`TrackingLaw`]. Where a law on the robot-frame error finds the
+//! The tracker has no algorithm of its own: its configuration names one
+//! estimator of [`crate::estimation`] ([`EstimatorChoice`]) and one law of
+//! [`crate::control`] ([`LawChoice`]) ([`TrackerConfig::new`]; paper 001's
+//! pair is `EstimatorChoice::HeadingObserver` with `LawChoice::Saturated`),
+//! and sees them only through [`PoseEstimator`] and [`TrackingLaw`]. Where a law on the robot-frame error finds the
 //! reference standing still (its heading undefined), the command is zero
 //! and the tick is counted ([`TrackerCounters::reference_standstill_ticks`]).
 //!
@@ -61,11 +61,9 @@
 //! moves the fix by less: at `(0, 0)`, before any heading is known, not
 //! at all). With a zero offset the fix is used as it is, bit for bit.
 
-use crate::control::saturated::{GainBound, TrackingCommand, TrackingGains};
+use crate::control::saturated::{GainBound, TrackingCommand};
 use crate::control::{Law, LawChoice, LawCommand, TrackingLaw};
-use crate::estimation::heading_observer::{
-    HeadingObserver, HeadingObserverConfig, ObserverConfigError,
-};
+use crate::estimation::heading_observer::ObserverConfigError;
 use crate::estimation::{Estimator, EstimatorChoice, PoseEstimator};
 use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
@@ -136,13 +134,11 @@ impl From<ReferenceError> for TrackerConfigError {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TrackerConfig {
     clock: TickClock,
-    observer: HeadingObserverConfig,
-    gains: TrackingGains,
     trajectory: Trajectory,
     fix_timeout_ticks: u32,
     max_fix_age_ticks: u32,
     failsafe_decel_m_s2: f32,
-    gain_bound: GainBound,
+    gain_bound: Option<GainBound>,
     estimator: EstimatorChoice,
     law: LawChoice,
     antenna_offset: Vec2,
@@ -158,35 +154,49 @@ impl TrackerConfig {
     /// Default age beyond which a fix is stale, ticks.
     pub const DEFAULT_MAX_FIX_AGE_TICKS: u32 = 2;
 
-    /// A configuration from the observer's, the gains and the reference.
+    /// A configuration from the estimator, the law and the reference.
     ///
     /// `fix_timeout_ticks`: ticks without a valid fix before the failsafe.
-    /// The control period is the observer's. The gain bound (15) is
-    /// evaluated here and available from [`Self::gain_bound`]; a violated
-    /// bound is reported, not refused (the paper's own gains violate it).
+    /// The control period is the estimator's step
+    /// ([`EstimatorChoice::period_s`]). For paper 001's law the gain bound
+    /// (15) is evaluated here and available from [`Self::gain_bound`]; a
+    /// violated bound is reported, not refused (the paper's own gains
+    /// violate it).
     ///
     /// # Errors
-    /// [`TrackerConfigError::FixTimeout`] for a zero timeout.
+    /// [`TrackerConfigError::FixTimeout`] for a zero timeout,
+    /// [`TrackerConfigError::Period`] for a step outside [`PERIOD_S`],
+    /// [`TrackerConfigError::AlgorithmPeriod`] if the law's own step
+    /// (Proposition 7's) is not the estimator's.
     pub fn new(
-        observer: HeadingObserverConfig,
-        gains: TrackingGains,
+        estimator: EstimatorChoice,
+        law: LawChoice,
         trajectory: Trajectory,
         fix_timeout_ticks: u32,
     ) -> Result<Self, TrackerConfigError> {
         if fix_timeout_ticks == 0 {
             return Err(TrackerConfigError::FixTimeout);
         }
+        let clock = TickClock::new(estimator.period_s())?;
+        if law
+            .period_s()
+            .is_some_and(|law_s| law_s.to_bits() != clock.period_s().to_bits())
+        {
+            return Err(TrackerConfigError::AlgorithmPeriod);
+        }
+        let gain_bound = match law {
+            LawChoice::Saturated(gains) => Some(gains.check_bound(trajectory.speed_bounds())),
+            LawChoice::Cascaded(_) | LawChoice::HeadingErrorSine(_) => None,
+        };
         Ok(Self {
-            clock: TickClock::new(observer.period_s())?,
-            observer,
-            gains,
+            clock,
             trajectory,
             fix_timeout_ticks,
             max_fix_age_ticks: Self::DEFAULT_MAX_FIX_AGE_TICKS,
             failsafe_decel_m_s2: Self::DEFAULT_FAILSAFE_DECEL_M_S2,
-            gain_bound: gains.check_bound(trajectory.speed_bounds()),
-            estimator: EstimatorChoice::HeadingObserver,
-            law: LawChoice::Saturated,
+            gain_bound,
+            estimator,
+            law,
             antenna_offset: Vec2::ZERO,
         })
     }
@@ -211,38 +221,6 @@ impl TrackerConfig {
     #[must_use]
     pub fn antenna_offset(&self) -> Vec2 {
         self.antenna_offset
-    }
-
-    /// Runs the estimator `choice` instead of paper 001's observer (5)
-    /// ([`crate::estimation`]).
-    ///
-    /// # Errors
-    /// [`TrackerConfigError::AlgorithmPeriod`] if a paper 002 observer's
-    /// step is not the tracker's.
-    pub fn with_estimator(mut self, choice: EstimatorChoice) -> Result<Self, TrackerConfigError> {
-        if let EstimatorChoice::PoseObserver(observer) = choice
-            && observer.period_s().to_bits() != self.clock.period_s().to_bits()
-        {
-            return Err(TrackerConfigError::AlgorithmPeriod);
-        }
-        self.estimator = choice;
-        Ok(self)
-    }
-
-    /// Runs the law `choice` instead of paper 001's law (27)–(28)
-    /// ([`crate::control`]).
-    ///
-    /// # Errors
-    /// [`TrackerConfigError::AlgorithmPeriod`] if Proposition 7's step is
-    /// not the tracker's.
-    pub fn with_law(mut self, choice: LawChoice) -> Result<Self, TrackerConfigError> {
-        if let LawChoice::HeadingErrorSine(config) = choice
-            && config.period_s().to_bits() != self.clock.period_s().to_bits()
-        {
-            return Err(TrackerConfigError::AlgorithmPeriod);
-        }
-        self.law = choice;
-        Ok(self)
     }
 
     /// The heading estimator.
@@ -276,9 +254,10 @@ impl TrackerConfig {
         self
     }
 
-    /// What the gain bound (15) says for these gains and this reference.
+    /// What the gain bound (15) says for paper 001's law's gains and this
+    /// reference (`None` for the other laws, which it does not concern).
     #[must_use]
-    pub fn gain_bound(&self) -> GainBound {
+    pub fn gain_bound(&self) -> Option<GainBound> {
         self.gain_bound
     }
 
@@ -292,12 +271,6 @@ impl TrackerConfig {
     #[must_use]
     pub fn trajectory(&self) -> &Trajectory {
         &self.trajectory
-    }
-
-    /// The observer's configuration.
-    #[must_use]
-    pub fn observer(&self) -> &HeadingObserverConfig {
-        &self.observer
     }
 
     /// Ticks without a valid fix before the failsafe engages.
@@ -408,16 +381,28 @@ impl OutputFeedbackTracker {
     /// A tracker at tick 0, heading estimate `(0, 0)`, awaiting its first fix.
     #[must_use]
     pub fn new(config: TrackerConfig) -> Self {
-        Self::with_observer(config, HeadingObserver::new(config.observer))
+        Self::starting_at(config, HeadingEstimate::default())
     }
 
-    /// A tracker whose estimator starts from a given heading estimate
-    /// (paper 002's pose observer takes its `(ĉ, ŝ)`, and its position
-    /// from the first fix).
-    #[must_use]
-    pub fn with_observer(config: TrackerConfig, observer: HeadingObserver) -> Self {
-        let estimator = Estimator::new(config.estimator, observer);
-        let law = Law::new(config.law, config.gains);
+    /// A tracker whose estimator starts from the heading estimate
+    /// `initial` (paper 001's `ẑ(0)`; paper 002's pose observer takes it
+    /// as its `(ĉ, ŝ)`, and its position from the first fix).
+    ///
+    /// # Errors
+    /// [`ObserverConfigError::InitialEstimate`] if not finite.
+    pub fn with_initial_heading(
+        config: TrackerConfig,
+        initial: HeadingEstimate,
+    ) -> Result<Self, ObserverConfigError> {
+        if !(initial.cos_theta.is_finite() && initial.sin_theta.is_finite()) {
+            return Err(ObserverConfigError::InitialEstimate);
+        }
+        Ok(Self::starting_at(config, initial))
+    }
+
+    fn starting_at(config: TrackerConfig, initial: HeadingEstimate) -> Self {
+        let estimator = Estimator::new(config.estimator, initial);
+        let law = Law::new(config.law);
         Self {
             config,
             estimator,
@@ -610,6 +595,8 @@ mod tests {
     use super::*;
     use crate::control::cascaded::CascadedGains;
     use crate::control::heading_error_sine::HeadingErrorSineConfig;
+    use crate::control::saturated::TrackingGains;
+    use crate::estimation::heading_observer::HeadingObserverConfig;
     use crate::estimation::pose_observer::PoseObserverConfig;
     use crate::geometry::Pose;
     use crate::reference::{FigureEight, StraightLine};
@@ -617,8 +604,8 @@ mod tests {
     fn tracker(timeout: u32) -> OutputFeedbackTracker {
         let line = StraightLine::new(Vec2::ZERO, 0.0, 0.2).unwrap();
         let cfg = TrackerConfig::new(
-            HeadingObserverConfig::new(1.0, 0.01).unwrap(),
-            TrackingGains::new(0.05, 0.05, 1.0).unwrap(),
+            EstimatorChoice::HeadingObserver(HeadingObserverConfig::new(1.0, 0.01).unwrap()),
+            LawChoice::Saturated(TrackingGains::new(0.05, 0.05, 1.0).unwrap()),
             line.into(),
             timeout,
         )
@@ -787,39 +774,55 @@ mod tests {
 
     #[test]
     fn paper_gains_are_accepted_and_reported() {
-        let cfg = TrackerConfig::new(
-            HeadingObserverConfig::new(0.6, 0.01).unwrap(),
-            TrackingGains::new(0.11, 0.11, 0.1).unwrap(),
-            FigureEight::paper_001().into(),
-            100,
-        )
-        .unwrap();
-        assert!(!cfg.gain_bound().is_satisfied());
+        let estimator =
+            EstimatorChoice::HeadingObserver(HeadingObserverConfig::new(0.6, 0.01).unwrap());
+        let law = LawChoice::Saturated(TrackingGains::new(0.11, 0.11, 0.1).unwrap());
+        let cfg = TrackerConfig::new(estimator, law, FigureEight::paper_001().into(), 100).unwrap();
+        assert_eq!(cfg.gain_bound().map(|b| b.is_satisfied()), Some(false));
         assert_eq!(
-            TrackerConfig::new(
-                *cfg.observer(),
-                TrackingGains::new(0.11, 0.11, 0.1).unwrap(),
-                FigureEight::paper_001().into(),
-                0
-            ),
+            TrackerConfig::new(estimator, law, FigureEight::paper_001().into(), 0),
             Err(TrackerConfigError::FixTimeout)
         );
+        // The bound (15) concerns law (27)–(28) only.
+        let cascaded = LawChoice::Cascaded(CascadedGains::new(1.0, 1.0).unwrap());
+        let cfg =
+            TrackerConfig::new(estimator, cascaded, FigureEight::paper_001().into(), 100).unwrap();
+        assert_eq!(cfg.gain_bound(), None);
     }
 
     #[test]
-    fn paper_002_algorithms_must_share_the_tracker_step() {
-        let cfg = tracker(10).config;
-        assert_eq!(
-            cfg.with_estimator(EstimatorChoice::PoseObserver(
-                PoseObserverConfig::new(1.0, 1.0, 1.0, 1.0, 0.02).unwrap()
-            )),
-            Err(TrackerConfigError::AlgorithmPeriod)
+    fn the_law_must_share_the_estimator_step() {
+        let line = StraightLine::new(Vec2::ZERO, 0.0, 0.2).unwrap();
+        let sine_at = |h| {
+            LawChoice::HeadingErrorSine(HeadingErrorSineConfig::new(10.0, 1.0, 0.9, h).unwrap())
+        };
+        let pose_observer = EstimatorChoice::PoseObserver(
+            PoseObserverConfig::new(1.0, 1.0, 1.0, 1.0, 0.01).unwrap(),
         );
         assert_eq!(
-            cfg.with_law(LawChoice::HeadingErrorSine(
-                HeadingErrorSineConfig::new(10.0, 1.0, 0.9, 0.02).unwrap()
-            )),
+            TrackerConfig::new(pose_observer, sine_at(0.02), line.into(), 10),
             Err(TrackerConfigError::AlgorithmPeriod)
+        );
+        let cfg = TrackerConfig::new(pose_observer, sine_at(0.01), line.into(), 10).unwrap();
+        assert_eq!(cfg.clock().period_s(), 0.01);
+    }
+
+    #[test]
+    fn a_tracker_starts_from_a_finite_initial_heading_only() {
+        let config = tracker(10).config;
+        let north = HeadingEstimate {
+            cos_theta: 0.0,
+            sin_theta: 1.0,
+        };
+        let t = OutputFeedbackTracker::with_initial_heading(config, north).unwrap();
+        assert_eq!(t.estimator.heading(), north);
+        let nan = HeadingEstimate {
+            cos_theta: f32::NAN,
+            sin_theta: 0.0,
+        };
+        assert_eq!(
+            OutputFeedbackTracker::with_initial_heading(config, nan).err(),
+            Some(ObserverConfigError::InitialEstimate)
         );
     }
 
@@ -832,17 +835,13 @@ mod tests {
         let h = 0.01;
         let circle: Trajectory = Circle::new(Vec2::ZERO, 2.0, 0.25, 0.0).unwrap().into();
         let cfg = TrackerConfig::new(
-            HeadingObserverConfig::new(1.0, h).unwrap(),
-            TrackingGains::new(0.05, 0.05, 1.0).unwrap(),
+            EstimatorChoice::PoseObserver(
+                PoseObserverConfig::new(2.0, 2.0, 20.0, 20.0, h).unwrap(),
+            ),
+            LawChoice::Cascaded(CascadedGains::new(1.0, 1.0).unwrap()),
             circle,
             10,
         )
-        .unwrap()
-        .with_estimator(EstimatorChoice::PoseObserver(
-            PoseObserverConfig::new(2.0, 2.0, 20.0, 20.0, h).unwrap(),
-        ))
-        .unwrap()
-        .with_law(LawChoice::Cascaded(CascadedGains::new(1.0, 1.0).unwrap()))
         .unwrap();
         let mut t = OutputFeedbackTracker::new(cfg);
         let mut pose = Pose::new(-1.0, 0.5, 2.5);
@@ -889,13 +888,14 @@ mod tests {
         let h = 0.01;
         let line = StraightLine::new(Vec2::ZERO, 0.5, 0.2).unwrap();
         let cfg = TrackerConfig::new(
-            HeadingObserverConfig::new(1.0, h).unwrap(),
-            TrackingGains::new(0.3, 0.3, 1.0).unwrap(),
+            EstimatorChoice::Fusion {
+                settings,
+                guide: HeadingObserverConfig::new(1.0, h).unwrap(),
+            },
+            LawChoice::Saturated(TrackingGains::new(0.3, 0.3, 1.0).unwrap()),
             line.into(),
             50,
         )
-        .unwrap()
-        .with_estimator(EstimatorChoice::Fusion(settings))
         .unwrap();
         OutputFeedbackTracker::new(cfg)
     }

@@ -11,7 +11,6 @@ use serde::Serialize;
 use wmr_core::control::LawChoice;
 use wmr_core::control::saturated::GainBound;
 use wmr_core::estimation::EstimatorChoice;
-use wmr_core::estimation::fusion::FusionFilter;
 use wmr_core::pilot::tracker::{OutputFeedbackTracker, TrackerCounters, TrackerMode};
 use wmr_link::LinkCounters;
 
@@ -296,8 +295,9 @@ pub struct Summary {
     pub scenario: String,
     /// `unicycle` or `diff_drive`.
     pub plant: &'static str,
-    /// `output_feedback` or `state_feedback`.
-    pub controller: &'static str,
+    /// `state_feedback`, or `output_feedback` with its estimator and law
+    /// ([`SetupLabels::controller`]).
+    pub controller: String,
     /// `exact`, `nearest_tag` or `reader`.
     pub position_source: &'static str,
     /// Which core entry point ran: `tracker`, `controller`, `robot` or `pilot`.
@@ -383,12 +383,13 @@ pub struct RunResult {
 }
 
 /// How a run's summary names its setup.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SetupLabels {
     /// `unicycle` or `diff_drive`.
     pub plant: &'static str,
-    /// `state_feedback`, or `output_feedback` with its estimator and law.
-    pub controller: &'static str,
+    /// `state_feedback`, or `output_feedback` with its estimator and law
+    /// as they name themselves.
+    pub controller: String,
     /// `exact`, `nearest_tag` or `reader`.
     pub position_source: &'static str,
 }
@@ -407,44 +408,14 @@ impl SetupLabels {
                 setup.tracker.estimator(),
                 setup.tracker.law(),
             ) {
-                (ControllerKind::StateFeedback, ..) => "state_feedback",
-                (_, EstimatorChoice::HeadingObserver, LawChoice::Saturated) => "output_feedback",
-                (_, EstimatorChoice::PoseObserver(_), LawChoice::Saturated) => {
-                    "output_feedback (pose observer, law 001)"
+                (ControllerKind::StateFeedback, ..) => "state_feedback".to_string(),
+                // Paper 001's own pair is the plain output feedback.
+                (_, EstimatorChoice::HeadingObserver(_), LawChoice::Saturated(_)) => {
+                    "output_feedback".to_string()
                 }
-                (_, EstimatorChoice::HeadingObserver, LawChoice::Cascaded(_)) => {
-                    "output_feedback (observer 001, cascaded law)"
+                (_, estimator, law) => {
+                    format!("output_feedback ({}, {})", estimator.label(), law.label())
                 }
-                (_, EstimatorChoice::PoseObserver(_), LawChoice::Cascaded(_)) => {
-                    "output_feedback (pose observer, cascaded law)"
-                }
-                (_, EstimatorChoice::HeadingObserver, LawChoice::HeadingErrorSine(_)) => {
-                    "output_feedback (observer 001, sin θe law)"
-                }
-                (_, EstimatorChoice::PoseObserver(_), LawChoice::HeadingErrorSine(_)) => {
-                    "output_feedback (pose observer, sin θe law)"
-                }
-                (_, EstimatorChoice::Fusion(f), LawChoice::Saturated) => match f.kind() {
-                    FusionFilter::Ekf => "output_feedback (fusion EKF, law 001)",
-                    FusionFilter::Ukf => "output_feedback (fusion UKF, law 001)",
-                    FusionFilter::ParticleFilter => {
-                        "output_feedback (fusion particle filter, law 001)"
-                    }
-                },
-                (_, EstimatorChoice::Fusion(f), LawChoice::Cascaded(_)) => match f.kind() {
-                    FusionFilter::Ekf => "output_feedback (fusion EKF, cascaded law)",
-                    FusionFilter::Ukf => "output_feedback (fusion UKF, cascaded law)",
-                    FusionFilter::ParticleFilter => {
-                        "output_feedback (fusion particle filter, cascaded law)"
-                    }
-                },
-                (_, EstimatorChoice::Fusion(f), LawChoice::HeadingErrorSine(_)) => match f.kind() {
-                    FusionFilter::Ekf => "output_feedback (fusion EKF, sin θe law)",
-                    FusionFilter::Ukf => "output_feedback (fusion UKF, sin θe law)",
-                    FusionFilter::ParticleFilter => {
-                        "output_feedback (fusion particle filter, sin θe law)"
-                    }
-                },
             },
             position_source: match setup.position {
                 PositionSetup::Exact => "exact",

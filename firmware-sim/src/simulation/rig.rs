@@ -4,7 +4,6 @@
 
 use wmr_core::control::saturated::TrackingController;
 use wmr_core::devices::{QuadratureCounter, RfidReader};
-use wmr_core::estimation::heading_observer::HeadingObserver;
 use wmr_core::geometry::HeadingEstimate;
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
 use wmr_core::odometry::OdometryStep;
@@ -151,20 +150,17 @@ impl<'t> Rig<'t> {
     pub(super) fn new(setup: &Setup) -> Self {
         let pose = setup.initial_pose;
         match (setup.plant, setup.controller) {
-            (PlantSetup::Unicycle, ControllerKind::OutputFeedback) => {
-                let observer = HeadingObserver::with_initial_estimate(
-                    *setup.tracker.observer(),
+            (PlantSetup::Unicycle, ControllerKind::OutputFeedback) => Self::Tracker {
+                plant: Unicycle::new(pose),
+                tracker: OutputFeedbackTracker::with_initial_heading(
+                    setup.tracker,
                     setup.initial_estimate,
                 )
-                .unwrap_or_else(|_| HeadingObserver::new(*setup.tracker.observer()));
-                Self::Tracker {
-                    plant: Unicycle::new(pose),
-                    tracker: OutputFeedbackTracker::with_observer(setup.tracker, observer),
-                    source: FixSource::new(setup),
-                    last: BodyVelocity::ZERO,
-                    period_s: setup.period_s as f32,
-                }
-            }
+                .unwrap_or_else(|_| OutputFeedbackTracker::new(setup.tracker)),
+                source: FixSource::new(setup),
+                last: BodyVelocity::ZERO,
+                period_s: setup.period_s as f32,
+            },
             (PlantSetup::Unicycle, ControllerKind::StateFeedback) => Self::Controller {
                 plant: Unicycle::new(pose),
                 controller: TrackingController::new(setup.gains),

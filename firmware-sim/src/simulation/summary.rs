@@ -1,7 +1,7 @@
 //! The figures of a run, from its records and what the rig counted.
 
 use crate::report::{Mode, ModeTicks, Record, SetupLabels, Summary, TrackerReport};
-use crate::scenario::{ControllerKind, Scenario, Setup};
+use crate::scenario::{Scenario, Setup};
 
 use super::rig::Rig;
 use super::sources::rfid_report;
@@ -106,10 +106,9 @@ pub(super) fn summarize(
             source.floor_tags(),
         ),
     };
-    let gain_bound = match setup.controller {
-        ControllerKind::OutputFeedback => setup.tracker.gain_bound(),
-        ControllerKind::StateFeedback => setup.gains.check_bound(setup.trajectory.speed_bounds()),
-    };
+    // The scenario's gains k1, k2, k3 against the bound (15), whichever
+    // law runs (the core evaluates it for law (27)–(28) only).
+    let gain_bound = setup.gains.check_bound(setup.trajectory.speed_bounds());
     let labels = SetupLabels::of(setup);
     Summary {
         scenario: scenario.name.clone(),

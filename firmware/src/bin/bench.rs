@@ -1338,7 +1338,12 @@ mod on_target {
             fail("bench counter refused");
         };
         let mut counters = [counter; 2];
-        let mut observer = HeadingObserver::new(*config.tracker().observer());
+        // Paper 001's observer (5): the firmware's fusion estimator runs it
+        // as its heading guide.
+        let Some(observer) = config.tracker().estimator().heading_observer() else {
+            fail("bench estimator runs no observer (5)");
+        };
+        let mut observer = HeadingObserver::new(observer);
         let mut law = TrackingController::new(gains);
         let mut wheel_loop = WheelSpeedLoop::default();
         let mut lone_pilot = pilot.clone();

@@ -9,11 +9,13 @@
 //! to `f32`.
 
 use super::{Figure, Series};
+use wmr_core::control::LawChoice;
 use wmr_core::control::cascaded::{CascadedController, CascadedGains};
 use wmr_core::control::heading_error_sine::{HeadingErrorSineConfig, HeadingErrorSineTracker};
 use wmr_core::control::robot_frame::{RobotFrameError, UnicycleReference};
 use wmr_core::control::saturated::{TrackingController, TrackingGains};
-use wmr_core::estimation::heading_observer::{HeadingObserver, HeadingObserverConfig};
+use wmr_core::estimation::EstimatorChoice;
+use wmr_core::estimation::heading_observer::HeadingObserverConfig;
 use wmr_core::estimation::pose_observer::{PoseEstimate, PoseObserver, PoseObserverConfig};
 use wmr_core::geometry::{BodyVelocity, Vec2};
 use wmr_core::odometry::OdometryStep;
@@ -457,9 +459,14 @@ pub fn figure_eight_comparison_from(pairing: Pairing, start_offset_m: f64) -> (E
     robot.x += start_offset_m;
     let gains = TrackingGains::new(0.11, 0.11, 0.1).expect("paper gains");
     let observer_cfg = HeadingObserverConfig::new(0.6, hf).expect("paper gain");
-    let tracker_cfg = TrackerConfig::new(observer_cfg, gains, trajectory, 100).expect("tracker");
-    let mut tracker =
-        OutputFeedbackTracker::with_observer(tracker_cfg, HeadingObserver::new(observer_cfg));
+    let tracker_cfg = TrackerConfig::new(
+        EstimatorChoice::HeadingObserver(observer_cfg),
+        LawChoice::Saturated(gains),
+        trajectory,
+        100,
+    )
+    .expect("tracker");
+    let mut tracker = OutputFeedbackTracker::new(tracker_cfg);
     let mut law = TrackingController::new(gains);
     let pose_cfg = PoseObserverConfig::new(1.5, 1.5, 100.0, 100.0, hf).expect("gains");
     let start = tag(robot);

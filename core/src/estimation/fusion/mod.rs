@@ -90,6 +90,21 @@ pub enum FusionFilter {
     ParticleFilter,
 }
 
+impl FusionFilter {
+    /// The filter's name in reports: `fusion EKF`, `fusion UKF` or
+    /// `fusion particle filter`.
+    #[must_use]
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::Ekf => "fusion EKF",
+            #[cfg(feature = "fusion-ukf")]
+            Self::Ukf => "fusion UKF",
+            #[cfg(feature = "fusion-particle-filter")]
+            Self::ParticleFilter => "fusion particle filter",
+        }
+    }
+}
+
 /// Validated settings of the tracker's fusion estimator
 /// (`EstimatorChoice::Fusion`, cargo feature `fusion-ekf`).
 #[derive(Debug, Clone, Copy, PartialEq)]
