@@ -20,6 +20,8 @@ pub mod devices;
 pub mod drive;
 pub mod estimation;
 pub mod filters;
+#[cfg(feature = "arbitrary")]
+pub mod fuzzing;
 pub mod geometry;
 pub mod math;
 pub mod odometry;

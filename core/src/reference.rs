@@ -423,6 +423,33 @@ impl TrajectorySpec {
     }
 }
 
+/// A reference drawn from a fuzzer's bytes, near paper 001's sizes
+/// ([`crate::fuzzing`]).
+#[cfg(feature = "arbitrary")]
+impl<'a> arbitrary::Arbitrary<'a> for TrajectorySpec {
+    fn arbitrary(u: &mut arbitrary::Unstructured<'a>) -> arbitrary::Result<Self> {
+        use crate::fuzzing::float;
+        Ok(match u.int_in_range(0_u8..=2)? {
+            0 => Self::Line {
+                start_m: [float(u, 0.0)?, float(u, 0.0)?],
+                heading_rad: float(u, 0.0)?,
+                speed_m_s: float(u, 0.2)?,
+            },
+            1 => Self::FigureEight {
+                h1_m: float(u, 5.0)?,
+                h2_rad_s: float(u, 0.02)?,
+                phase_rad: float(u, -core::f32::consts::FRAC_PI_2)?,
+            },
+            _ => Self::Circle {
+                center_m: [float(u, 0.0)?, float(u, 0.0)?],
+                radius_m: float(u, 1.0)?,
+                rate_rad_s: float(u, 0.2)?,
+                phase_rad: float(u, 0.0)?,
+            },
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -7,12 +7,12 @@
 use std::fs;
 use std::path::Path;
 
-use wmr_core::devices::{TagGrid, TagId, encode_frame};
-use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
-use wmr_core::drive::spec::DriveSpec;
-use wmr_core::estimation::spec::{EstimatorSpec, SensorSpec};
 use wmr_core::control::spec::LawSpec;
 use wmr_core::devices::tag_grid::TagGridSpec;
+use wmr_core::devices::{TagGrid, TagId, encode_frame};
+use wmr_core::drive::spec::DriveSpec;
+use wmr_core::estimation::spec::{EstimatorSpec, SensorSpec};
+use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
 use wmr_core::reference::TrajectorySpec;
 use wmr_link::{
     Configure, Diagnostics, Finished, HostMessage, MAX_FRAME_BYTES, MotorOutput, PROTOCOL_VERSION,

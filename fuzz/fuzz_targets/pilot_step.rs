@@ -16,8 +16,8 @@
 
 use arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
-use wmr_core::geometry::Vec2;
 use wmr_core::estimation::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec};
+use wmr_core::geometry::Vec2;
 use wmr_core::pilot::tracker::{TagFix, TrackerMode};
 use wmr_core::pilot::{Measurement, Pilot};
 use wmr_fuzz::{encoder_count, float, pilot_spec};

@@ -14,10 +14,11 @@
 //! backend alone and both together, and each estimator feature alone,
 //! including no estimator at all (the `not(feature = "fusion-ekf")` paths,
 //! which the workspace build, where the simulator turns every feature on,
-//! never compiles). The last row turns everything on. `std` and
-//! `schemars` are left out: they are for host tools (`schemars` does not
-//! even build for the Cortex-M0, which lacks pointer atomics), which the
-//! host clippy of the workspace covers.
+//! never compiles). The last row turns everything on. `std`, `schemars`
+//! and `arbitrary` are left out: they are for host tools (`schemars` does
+//! not even build for the Cortex-M0, which lacks pointer atomics;
+//! `arbitrary` needs `std`), which the host clippy of the workspace covers
+//! (`host-tests` turns `arbitrary` on).
 //!
 //! The firmware always takes the core with `defmt` (and `serde` through
 //! the link), so its choices are a board, the math backend (`micromath`,
@@ -266,7 +267,7 @@ mod tests {
         check(
             "core/Cargo.toml",
             &CORE,
-            &["default", "std", "schemars"],
+            &["default", "std", "schemars", "arbitrary"],
             &[],
         );
         let has = |r: &&[&str], f: &str| r.contains(&f);

@@ -125,3 +125,24 @@ impl LawSpec {
         })
     }
 }
+
+/// A law drawn from a fuzzer's bytes, its gains near the defaults
+/// ([`crate::fuzzing`]).
+#[cfg(feature = "arbitrary")]
+impl<'a> arbitrary::Arbitrary<'a> for LawSpec {
+    fn arbitrary(u: &mut arbitrary::Unstructured<'a>) -> arbitrary::Result<Self> {
+        use crate::fuzzing::float;
+        Ok(match u.int_in_range(0_u8..=2)? {
+            0 => Self::Saturated,
+            1 => Self::Cascaded {
+                c1_per_s: float(u, Self::DEFAULT_C_PER_S)?,
+                c2_per_s: float(u, Self::DEFAULT_C_PER_S)?,
+            },
+            _ => Self::HeadingErrorSine {
+                a_s_per_m2: float(u, Self::DEFAULT_SINE_A_S_PER_M2)?,
+                c2_per_s: float(u, Self::DEFAULT_C_PER_S)?,
+                gamma: float(u, Self::DEFAULT_GAMMA)?,
+            },
+        })
+    }
+}

@@ -201,6 +201,21 @@ impl TagGridSpec {
     }
 }
 
+/// A grid drawn from a fuzzer's bytes: 21 × 21 tags, 0.1 m apart, around
+/// the origin most of the time ([`crate::fuzzing`]).
+#[cfg(feature = "arbitrary")]
+impl<'a> arbitrary::Arbitrary<'a> for TagGridSpec {
+    fn arbitrary(u: &mut arbitrary::Unstructured<'a>) -> arbitrary::Result<Self> {
+        use crate::fuzzing::float;
+        Ok(Self {
+            origin_m: [float(u, -1.0)?, float(u, -1.0)?],
+            spacing_m: float(u, 0.1)?,
+            rows: if u.ratio(7, 8)? { 21 } else { u.arbitrary()? },
+            columns: if u.ratio(7, 8)? { 21 } else { u.arbitrary()? },
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -170,3 +170,23 @@ impl DriveSpec {
         }
     }
 }
+
+/// A drive drawn from a fuzzer's bytes, near a 2048-count, 0.3 m robot
+/// ([`crate::fuzzing`]), on differenced counts.
+#[cfg(feature = "arbitrary")]
+impl<'a> arbitrary::Arbitrary<'a> for DriveSpec {
+    fn arbitrary(u: &mut arbitrary::Unstructured<'a>) -> arbitrary::Result<Self> {
+        use crate::fuzzing::{count, float};
+        Ok(Self {
+            wheel_radius_m: float(u, 0.05)?,
+            track_width_m: float(u, 0.3)?,
+            encoder_counts_per_rev: count(u, 2048)?,
+            max_wheel_speed_rad_s: float(u, 20.0)?,
+            max_wheel_accel_rad_s2: float(u, 40.0)?,
+            feedforward_duty_per_rad_s: float(u, 0.05)?,
+            kp_duty_per_rad_s: float(u, 0.05)?,
+            ki_duty_per_rad: float(u, 0.5)?,
+            speed_observer: None,
+        })
+    }
+}

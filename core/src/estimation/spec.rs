@@ -297,3 +297,41 @@ impl EstimatorSpec {
         })
     }
 }
+
+/// An estimator drawn from a fuzzer's bytes, its tuning near the defaults
+/// ([`crate::fuzzing`]), on any of the three filters.
+#[cfg(feature = "arbitrary")]
+impl<'a> arbitrary::Arbitrary<'a> for EstimatorSpec {
+    fn arbitrary(u: &mut arbitrary::Unstructured<'a>) -> arbitrary::Result<Self> {
+        use crate::fuzzing::float;
+        Ok(match u.int_in_range(0_u8..=3)? {
+            0 => Self::HeadingObserver,
+            1 => {
+                let [a1, a2, a3, a4] = Self::DEFAULT_POSE_OBSERVER_GAINS;
+                Self::PoseObserver {
+                    gains: [float(u, a1)?, float(u, a2)?, float(u, a3)?, float(u, a4)?],
+                }
+            }
+            _ => {
+                let d = FusionSpec::default();
+                Self::Fusion(FusionSpec {
+                    filter: *u.choose(&[
+                        FusionFilterSpec::Ekf,
+                        FusionFilterSpec::Ukf,
+                        FusionFilterSpec::ParticleFilter,
+                    ])?,
+                    wheel_variance_per_m: float(u, d.wheel_variance_per_m)?,
+                    gate_sigma: float(u, d.gate_sigma)?,
+                    scale_prior: float(u, 4e-4)?,
+                    max_blind_distance_m: if u.arbitrary()? {
+                        Some(float(u, 3.2)?)
+                    } else {
+                        None
+                    },
+                    edge_constraint: u.arbitrary()?,
+                    particle_seed: u.arbitrary()?,
+                })
+            }
+        })
+    }
+}

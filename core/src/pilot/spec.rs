@@ -360,6 +360,50 @@ impl PilotSpec {
     }
 }
 
+/// A pilot drawn from a fuzzer's bytes, around a typical 2048-count,
+/// 0.3 m robot at 100 Hz ([`crate::fuzzing`]); each part is drawn by its
+/// own spec's `Arbitrary`.
+#[cfg(feature = "arbitrary")]
+impl<'a> arbitrary::Arbitrary<'a> for PilotSpec {
+    fn arbitrary(u: &mut arbitrary::Unstructured<'a>) -> arbitrary::Result<Self> {
+        use crate::fuzzing::{count, float};
+        let period_s = float(u, 0.01)?;
+        let drive: DriveSpec = u.arbitrary()?;
+        // The sensors' track width must equal the drive's (bit for bit):
+        // keep it so most of the time.
+        let sensor_track_width_m = if u.ratio(7, 8)? {
+            drive.track_width_m
+        } else {
+            float(u, 0.3)?
+        };
+        let tracker = TrackerSpec {
+            period_s,
+            trajectory: u.arbitrary()?,
+            gains: [float(u, 0.5)?, float(u, 0.5)?, float(u, 1.0)?],
+            observer_gain_per_m: float(u, 10.0)?,
+            observer_min_speed_m_s: float(u, 1e-3)?,
+            fix_timeout_ticks: count(u, 50)?,
+            failsafe_decel_m_s2: float(u, 0.5)?,
+            max_fix_age_ticks: count(u, 2)?,
+            estimator: u.arbitrary()?,
+            law: u.arbitrary()?,
+            sensors: SensorSpec {
+                track_width_m: sensor_track_width_m,
+                wheel_variance_floor_m2: float(u, 1.96e-9)?,
+                tag_spacing_m: float(u, 0.1)?,
+                read_radius_m: float(u, 0.0)?,
+                antenna_offset_m: [float(u, 0.1)?, float(u, 0.0)?],
+            },
+        };
+        Ok(Self {
+            tracker,
+            drive,
+            encoder_bits: count(u, 16)?,
+            max_encoder_fault_ticks: count(u, 5)?,
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
