@@ -10,11 +10,42 @@ use crate::control::saturated::TrackingGains;
 /// Why a [`LawSpec`] was refused: the law, and its own error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum LawSpecError {
     /// Paper 002's cascaded controller (31).
     Cascaded(CascadedGainsError),
     /// Paper 002's Proposition 7 observer and controller.
     HeadingErrorSine(HeadingErrorSineConfigError),
+}
+
+impl LawSpecError {
+    /// The law's key in [`LawSpec`] (its `snake_case` tag).
+    #[must_use]
+    pub fn law_key(&self) -> &'static str {
+        match self {
+            Self::Cascaded(_) => "cascaded",
+            Self::HeadingErrorSine(_) => "heading_error_sine",
+        }
+    }
+
+    fn inner(&self) -> &(dyn core::error::Error + 'static) {
+        match self {
+            Self::Cascaded(e) => e,
+            Self::HeadingErrorSine(e) => e,
+        }
+    }
+}
+
+impl core::fmt::Display for LawSpecError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        core::fmt::Display::fmt(self.inner(), f)
+    }
+}
+
+impl core::error::Error for LawSpecError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        Some(self.inner())
+    }
 }
 
 /// The tracker's law (with the `serde` feature, the `law` key of a

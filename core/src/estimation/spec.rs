@@ -14,6 +14,7 @@ use crate::estimation::pose_observer::{PoseObserverConfig, PoseObserverConfigErr
 /// Why an [`EstimatorSpec`] was refused: the estimator, and its own error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum EstimatorSpecError {
     /// Paper 002's pose observer (Proposition 4).
     PoseObserver(PoseObserverConfigError),
@@ -23,6 +24,57 @@ pub enum EstimatorSpecError {
     /// without its cargo feature (`fusion-ekf`, `fusion-ukf`,
     /// `fusion-particle-filter`).
     NotInThisBuild,
+}
+
+impl EstimatorSpecError {
+    /// The estimator's key in [`EstimatorSpec`] (its `snake_case` tag:
+    /// `pose_observer`, `fusion`; `""` for [`Self::NotInThisBuild`]).
+    #[must_use]
+    pub fn estimator_key(&self) -> &'static str {
+        match self {
+            Self::PoseObserver(_) => "pose_observer",
+            Self::Fusion(_) => "fusion",
+            Self::NotInThisBuild => "",
+        }
+    }
+
+    /// Whether the refused value is a fact of the robot's sensors
+    /// ([`SensorSpec`]) rather than the estimator's own tuning.
+    #[must_use]
+    pub fn is_about_sensors(&self) -> bool {
+        matches!(
+            self,
+            Self::Fusion(
+                PoseFilterError::TrackWidth
+                    | PoseFilterError::TagSpacing
+                    | PoseFilterError::ReadRadius
+            )
+        )
+    }
+}
+
+impl core::fmt::Display for EstimatorSpecError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::PoseObserver(e) => core::fmt::Display::fmt(e, f),
+            Self::Fusion(e) => core::fmt::Display::fmt(e, f),
+            Self::NotInThisBuild => f.write_str(
+                "this build of the core lacks the selected estimator (the fusion estimator \
+                 needs the cargo feature fusion-ekf, its UKF fusion-ukf, its particle filter \
+                 fusion-particle-filter)",
+            ),
+        }
+    }
+}
+
+impl core::error::Error for EstimatorSpecError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Self::PoseObserver(e) => Some(e),
+            Self::Fusion(e) => Some(e),
+            Self::NotInThisBuild => None,
+        }
+    }
 }
 
 /// The tracker's estimator: which one, and its own tuning.

@@ -25,17 +25,14 @@
 //! same spec.
 
 use crate::builds::{self, OptionalBuild};
-use crate::control::cascaded::CascadedGainsError;
-use crate::control::heading_error_sine::HeadingErrorSineConfigError;
 use crate::control::saturated::{GainError, TrackingGains};
 use crate::control::spec::{LawSpec, LawSpecError};
 use crate::devices::TagGridError;
 use crate::drive::DriveConfigError;
 use crate::drive::momenta_observer::MomentaObserverError;
 use crate::drive::spec::{DriveSpec, DriveSpecError};
-use crate::estimation::fusion::PoseFilterError;
+
 use crate::estimation::heading_observer::{HeadingObserverConfig, ObserverConfigError};
-use crate::estimation::pose_observer::PoseObserverConfigError;
 use crate::estimation::spec::{
     EstimatorSpec, EstimatorSpecError, FusionFilterSpec, FusionSpec, SensorSpec,
 };
@@ -65,19 +62,17 @@ pub enum SpecError {
     Pilot(PilotConfigError),
     /// The floor-tag grid.
     TagGrid(TagGridError),
-    /// Paper 002's pose observer (Proposition 4).
-    PoseObserver(PoseObserverConfigError),
-    /// The fusion estimator.
-    Fusion(PoseFilterError),
+    /// The estimator ([`EstimatorSpec`]; never its
+    /// [`EstimatorSpecError::NotInThisBuild`], which is
+    /// [`Self::NotInThisBuild`]).
+    Estimator(EstimatorSpecError),
     /// A part this build of the core was compiled without (the fusion
     /// estimator needs the cargo feature `fusion-ekf`, its UKF
     /// `fusion-ukf`, its particle filter `fusion-particle-filter`; the
     /// wheel-speed observer `wheel-speed-observer`).
     NotInThisBuild,
-    /// Paper 002's cascaded controller (31).
-    CascadedLaw(CascadedGainsError),
-    /// Paper 002's Proposition 7 observer and controller.
-    HeadingErrorSineLaw(HeadingErrorSineConfigError),
+    /// The law ([`LawSpec`]).
+    Law(LawSpecError),
     /// The sensors' track width differs from the drive's.
     SensorTrackWidth,
     /// Paper 003's wheel-speed observer of the speed loops
@@ -93,16 +88,10 @@ impl SpecError {
             Self::Trajectory(_) => SpecSection::Trajectory,
             Self::Tracker(TrackerConfigError::AntennaOffset) => SpecSection::Sensors,
             Self::Gains(_) | Self::Observer(_) | Self::Tracker(_) => SpecSection::Tracker,
-            Self::PoseObserver(_) => SpecSection::PoseObserver,
-            Self::Fusion(
-                PoseFilterError::TrackWidth
-                | PoseFilterError::TagSpacing
-                | PoseFilterError::ReadRadius,
-            )
-            | Self::SensorTrackWidth => SpecSection::Sensors,
-            Self::Fusion(_) => SpecSection::Fusion,
-            Self::CascadedLaw(_) => SpecSection::CascadedLaw,
-            Self::HeadingErrorSineLaw(_) => SpecSection::HeadingErrorSineLaw,
+            Self::Estimator(e) if e.is_about_sensors() => SpecSection::Sensors,
+            Self::SensorTrackWidth => SpecSection::Sensors,
+            Self::Estimator(e) => SpecSection::Estimator(e.estimator_key()),
+            Self::Law(e) => SpecSection::Law(e.law_key()),
             Self::Geometry(_) | Self::Drive(_) => SpecSection::Drive,
             Self::SpeedObserver(_) => SpecSection::SpeedObserver,
             Self::Pilot(_) => SpecSection::Pilot,
@@ -122,17 +111,17 @@ impl SpecError {
             Self::Drive(e) => e,
             Self::Pilot(e) => e,
             Self::TagGrid(e) => e,
-            Self::PoseObserver(e) => e,
-            Self::Fusion(e) => e,
-            Self::CascadedLaw(e) => e,
-            Self::HeadingErrorSineLaw(e) => e,
+            Self::Estimator(e) => return core::error::Error::source(e),
+            Self::Law(e) => return core::error::Error::source(e),
             Self::SpeedObserver(e) => e,
             Self::NotInThisBuild | Self::SensorTrackWidth => return None,
         })
     }
 }
 
-/// The part of a [`PilotSpec`] a [`SpecError`] is about.
+/// The part of a [`PilotSpec`] a [`SpecError`] is about; it displays as
+/// a dotted path of [`PilotSpec`]'s fields (nothing for the pilot's own
+/// fields and for [`Self::Build`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SpecSection {
@@ -145,14 +134,12 @@ pub enum SpecSection {
     Trajectory,
     /// The sensor facts ([`SensorSpec`]).
     Sensors,
-    /// Paper 002's pose observer ([`EstimatorSpec::PoseObserver`]).
-    PoseObserver,
-    /// The fusion estimator ([`FusionSpec`]).
-    Fusion,
-    /// Paper 002's cascaded law ([`LawSpec::Cascaded`]).
-    CascadedLaw,
-    /// Paper 002's Proposition 7 law ([`LawSpec::HeadingErrorSine`]).
-    HeadingErrorSineLaw,
+    /// The estimator's own table, by its key in [`EstimatorSpec`]
+    /// (`pose_observer`, `fusion`).
+    Estimator(&'static str),
+    /// The law's own table, by its key in [`LawSpec`] (`cascaded`,
+    /// `heading_error_sine`).
+    Law(&'static str),
     /// The drive ([`DriveSpec`]: geometry, limits, speed loop).
     Drive,
     /// Paper 003's wheel-speed observer
@@ -164,23 +151,18 @@ pub enum SpecSection {
     Build,
 }
 
-impl SpecSection {
-    /// The section as a dotted path of [`PilotSpec`]'s fields (`""` for
-    /// the pilot's own fields and for [`Self::Build`]).
-    #[must_use]
-    pub fn path(self) -> &'static str {
+impl core::fmt::Display for SpecSection {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Self::Pilot | Self::Build => "",
-            Self::Tracker => "tracker",
-            Self::Trajectory => "tracker.trajectory",
-            Self::Sensors => "tracker.sensors",
-            Self::PoseObserver => "tracker.estimator.pose_observer",
-            Self::Fusion => "tracker.estimator.fusion",
-            Self::CascadedLaw => "tracker.law.cascaded",
-            Self::HeadingErrorSineLaw => "tracker.law.heading_error_sine",
-            Self::Drive => "drive",
-            Self::SpeedObserver => "drive.speed_observer",
-            Self::TagGrid => "tag_grid",
+            Self::Pilot | Self::Build => Ok(()),
+            Self::Tracker => f.write_str("tracker"),
+            Self::Trajectory => f.write_str("tracker.trajectory"),
+            Self::Sensors => f.write_str("tracker.sensors"),
+            Self::Estimator(key) => write!(f, "tracker.estimator.{key}"),
+            Self::Law(key) => write!(f, "tracker.law.{key}"),
+            Self::Drive => f.write_str("drive"),
+            Self::SpeedObserver => f.write_str("drive.speed_observer"),
+            Self::TagGrid => f.write_str("tag_grid"),
         }
     }
 }
@@ -188,19 +170,15 @@ impl SpecSection {
 impl From<EstimatorSpecError> for SpecError {
     fn from(e: EstimatorSpecError) -> Self {
         match e {
-            EstimatorSpecError::PoseObserver(e) => Self::PoseObserver(e),
-            EstimatorSpecError::Fusion(e) => Self::Fusion(e),
             EstimatorSpecError::NotInThisBuild => Self::NotInThisBuild,
+            e => Self::Estimator(e),
         }
     }
 }
 
 impl From<LawSpecError> for SpecError {
     fn from(e: LawSpecError) -> Self {
-        match e {
-            LawSpecError::Cascaded(e) => Self::CascadedLaw(e),
-            LawSpecError::HeadingErrorSine(e) => Self::HeadingErrorSineLaw(e),
-        }
+        Self::Law(e)
     }
 }
 
@@ -226,12 +204,14 @@ impl From<DriveSpecError> for SpecError {
 impl core::fmt::Display for SpecError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self.inner() {
-            Some(e) if self.section().path().is_empty() => write!(f, "{e}"),
-            Some(e) => write!(f, "{}: {e}", self.section().path()),
+            Some(e) if matches!(self.section(), SpecSection::Pilot | SpecSection::Build) => {
+                write!(f, "{e}")
+            }
+            Some(e) => write!(f, "{}: {e}", self.section()),
             None if *self == Self::SensorTrackWidth => write!(
                 f,
                 "{}: track_width_m must equal drive.track_width_m",
-                self.section().path()
+                self.section()
             ),
             None => f.write_str(
                 "this build of the core lacks the selected part (the fusion estimator needs \
@@ -764,7 +744,9 @@ mod tests {
         s.tracker.estimator = EstimatorSpec::Fusion(FusionSpec::default());
         s.tracker.sensors.tag_spacing_m = -0.1;
         let expected = if cfg!(feature = "fusion-ekf") {
-            SpecError::Fusion(crate::estimation::fusion::PoseFilterError::TagSpacing)
+            SpecError::Estimator(EstimatorSpecError::Fusion(
+                crate::estimation::fusion::PoseFilterError::TagSpacing,
+            ))
         } else {
             SpecError::NotInThisBuild
         };
@@ -793,12 +775,16 @@ mod tests {
         // The nearest-tag reader's cells need a grid.
         assert_eq!(
             s.build().map(|_| ()),
-            Err(SpecError::Fusion(PoseFilterError::TagMapReader))
+            Err(SpecError::Estimator(EstimatorSpecError::Fusion(
+                PoseFilterError::TagMapReader
+            )))
         );
         s.tracker.sensors.read_radius_m = 0.05;
         assert_eq!(
             s.build().map(|_| ()),
-            Err(SpecError::Fusion(PoseFilterError::TagMapBlindDistance))
+            Err(SpecError::Estimator(EstimatorSpecError::Fusion(
+                PoseFilterError::TagMapBlindDistance
+            )))
         );
         for limit in [0.0, 3.0] {
             s.tracker.estimator = EstimatorSpec::Fusion(FusionSpec {

@@ -98,7 +98,7 @@ use wmr_core::pilot::tracker::{TrackerCounters, TrackerMode};
 /// The link's version: bump when a message changes shape; both sides
 /// refuse a mismatch. What each version changed: `CHANGELOG.md`, "HIL
 /// link protocol versions".
-pub const PROTOCOL_VERSION: u16 = 12;
+pub const PROTOCOL_VERSION: u16 = 13;
 
 /// Most tags the firmware's tag map holds under HIL (the QEMU board's
 /// static table: 16 B a tag, 64 KiB of its 128 KiB of RAM): the robot

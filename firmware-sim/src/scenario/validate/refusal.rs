@@ -15,12 +15,18 @@ use crate::scenario::schema::Scenario;
 /// the key's value in `scenario` where the key is a value rather than a
 /// table.
 pub(super) fn spec_refusal(e: SpecError, scenario: &Scenario) -> ScenarioError {
+    // An estimator's and a law's tables carry their spec's key.
+    let table;
     let field = match e.section() {
         SpecSection::Trajectory => "reference",
-        SpecSection::PoseObserver => "estimator.pose_observer",
-        SpecSection::Fusion => "estimator.fusion",
-        SpecSection::CascadedLaw => "controller.law.cascaded",
-        SpecSection::HeadingErrorSineLaw => "controller.law.heading_error_sine",
+        SpecSection::Estimator(key) => {
+            table = format!("estimator.{key}");
+            &table
+        }
+        SpecSection::Law(key) => {
+            table = format!("controller.law.{key}");
+            &table
+        }
         // The sensor facts come from the plant and the floor.
         SpecSection::Sensors | SpecSection::TagGrid => "position",
         SpecSection::Drive => "drive",
