@@ -168,6 +168,12 @@ impl TrackerConfig {
     /// [`TrackerConfigError::Period`] for a step outside [`PERIOD_S`],
     /// [`TrackerConfigError::AlgorithmPeriod`] if the law's own step
     /// (Proposition 7's) is not the estimator's.
+    // Inlined: built out of line, the configuration (with the fusion
+    // estimator's settings) is assembled in this function's frame and
+    // copied out, which put 116 B on the firmware's peak stack (its
+    // `Configure` path); inlined into the spec's build, it is assembled
+    // in place.
+    #[inline(always)]
     pub fn new(
         estimator: EstimatorChoice,
         law: LawChoice,
