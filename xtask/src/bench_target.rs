@@ -1,6 +1,6 @@
 //! `cargo xtask bench-target [--write]`: instructions per call on the
 //! target, under QEMU, for each math backend (see
-//! `firmware/src/bin/bench.rs`).
+//! `firmware/src/bin/bench/main.rs`).
 //!
 //! By default it is a report: it prints the tables and writes
 //! `target/bench-target.md`, nothing tracked (so `cargo xtask ci` can run

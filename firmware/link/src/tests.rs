@@ -1,0 +1,356 @@
+//! Unit tests of the messages, the framing and the channel.
+
+use super::codec::{CRC, cobs_decode_in_place};
+use super::*;
+use serde::Deserialize;
+use wmr_core::devices::TagMapError;
+
+/// The bit-by-bit CRC is CRC-32/ISO-HDLC: its check value, and the
+/// table-driven one on every length of a pseudo-random buffer.
+#[test]
+fn crc_is_crc32_iso_hdlc() {
+    assert_eq!(CRC.checksum(b"123456789"), 0xCBF4_3926);
+    let table = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+    let bytes: std::vec::Vec<u8> = (0..300_u32)
+        .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+        .collect();
+    for n in 0..bytes.len() {
+        assert_eq!(CRC.checksum(&bytes[..n]), table.checksum(&bytes[..n]));
+    }
+}
+use proptest::prelude::*;
+use wmr_core::devices::tag_grid::TagGridSpec;
+use wmr_core::drive::spec::DriveSpec;
+use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
+use wmr_core::reference::TrajectorySpec;
+
+pub(crate) fn configure() -> HostMessage {
+    HostMessage::Configure(Configure {
+        protocol: PROTOCOL_VERSION,
+        pilot: PilotSpec {
+            tracker: TrackerSpec {
+                period_s: 0.01,
+                trajectory: TrajectorySpec::FigureEight {
+                    h1_m: 5.0,
+                    h2_rad_s: 0.02,
+                    phase_rad: -core::f32::consts::FRAC_PI_2,
+                },
+                gains: [0.5, 0.5, 1.0],
+                observer_gain_per_m: 10.0,
+                observer_min_speed_m_s: 1e-3,
+                fix_timeout_ticks: 50,
+                failsafe_decel_m_s2: 0.5,
+                max_fix_age_ticks: 2,
+                estimator: wmr_core::estimation::spec::EstimatorSpec::HeadingObserver,
+                law: wmr_core::control::spec::LawSpec::Saturated,
+                sensors: wmr_core::estimation::spec::SensorSpec {
+                    track_width_m: 0.3,
+                    // Count quantum q = 2π·0.05 m / 2048: q²/12.
+                    wheel_variance_floor_m2: 1.96e-9,
+                    tag_spacing_m: 0.1,
+                    read_radius_m: 0.0,
+                    antenna_offset_m: [0.0; 2],
+                },
+            },
+            drive: DriveSpec {
+                wheel_radius_m: 0.05,
+                track_width_m: 0.3,
+                encoder_counts_per_rev: 2048,
+                max_wheel_speed_rad_s: 20.0,
+                max_wheel_accel_rad_s2: 40.0,
+                feedforward_duty_per_rad_s: 0.05,
+                kp_duty_per_rad_s: 0.05,
+                ki_duty_per_rad: 0.5,
+                speed_observer: None,
+            },
+            encoder_bits: 16,
+            max_encoder_fault_ticks: 5,
+        },
+        floor: FloorSpec::Grid(TagGridSpec {
+            origin_m: [-6.0, -6.0],
+            spacing_m: 0.1,
+            rows: 130,
+            columns: 130,
+        }),
+        pwm_max_duty: 1000,
+        telemetry_every_ticks: 1,
+    })
+}
+
+fn full_tick() -> HostMessage {
+    let mut uart = heapless::Vec::new();
+    for i in 0..MAX_UART_BYTES_PER_TICK {
+        let _ = uart.push(u8::try_from(i % 251).unwrap_or(0));
+    }
+    HostMessage::Tick(TickInput {
+        tick: u32::MAX,
+        left_count: Some(u32::MAX),
+        right_count: None,
+        uart,
+    })
+}
+
+fn feed<M: for<'de> Deserialize<'de>>(
+    rx: &mut Receiver,
+    bytes: &[u8],
+) -> Vec<Result<M, LinkError>> {
+    bytes.iter().filter_map(|&b| rx.push(b)).collect()
+}
+
+#[test]
+fn messages_round_trip_and_fit() {
+    let mut tx = Sender::default();
+    let mut rx = Receiver::new();
+    let mut out = [0; MAX_FRAME_BYTES];
+    let chunk = HostMessage::MapChunk(MapChunk {
+        first: 16,
+        tags: heapless::Vec::from_slice(&[MapTag {
+            id: 0x12_3456_789A,
+            position_m: [1.5, -0.25],
+        }])
+        .unwrap(),
+    });
+    for msg in [configure(), chunk, full_tick(), HostMessage::Finish] {
+        let bytes = tx.frame(msg.clone(), &mut out).unwrap().to_vec();
+        assert_eq!(bytes.last(), Some(&0));
+        assert!(!bytes[..bytes.len() - 1].contains(&0));
+        assert_eq!(feed::<HostMessage>(&mut rx, &bytes), vec![Ok(msg)]);
+    }
+    assert_eq!(rx.counters().frames_ok, 4);
+    assert_eq!(rx.counters().sequence_gaps, 0);
+}
+
+/// The largest chunk (every id and index at its longest varint,
+/// positions that do not compress) is one frame, and decodes back;
+/// in RAM it is no larger than `Configure`, the largest message
+/// before it, so the firmware's receive path needs no more stack.
+#[test]
+fn a_full_map_chunk_fits_a_frame() {
+    let tags = (0..MAP_CHUNK_TAGS)
+        .map(|i| MapTag {
+            id: u64::MAX - i as u64,
+            position_m: [f32::MIN_POSITIVE, -f32::MAX],
+        })
+        .collect();
+    let chunk = HostMessage::MapChunk(MapChunk {
+        first: u16::MAX,
+        tags,
+    });
+    let mut out = [0; MAX_FRAME_BYTES];
+    let mut tx = Sender { seq: u32::MAX };
+    let bytes = tx.frame(chunk.clone(), &mut out).unwrap().to_vec();
+    println!("largest map chunk: {} B of {MAX_FRAME_BYTES}", bytes.len());
+    let mut rx = Receiver::new();
+    assert_eq!(feed::<HostMessage>(&mut rx, &bytes), vec![Ok(chunk)]);
+    assert!(core::mem::size_of::<MapChunk>() <= core::mem::size_of::<Configure>());
+    // The capacity and every index fit the messages' u16.
+    assert!(u16::try_from(MAP_CAPACITY).is_ok());
+}
+
+/// Every refusal of a map says which tag and why, in words.
+#[test]
+fn map_refusals_name_the_tag_and_why() {
+    let said = |r: MapRefusal| Refusal::Map(r).to_string();
+    assert_eq!(
+        said(MapRefusal::Tag {
+            index: 7,
+            why: TagMapError::DuplicateId
+        }),
+        "the tag map was refused: tag 7: tag id already in the map"
+    );
+    assert_eq!(
+        said(MapRefusal::Size {
+            tags: 5000,
+            capacity: 4096
+        }),
+        "the tag map was refused: Configure announced 5000 tags; the firmware holds 1 to 4096"
+    );
+    assert!(
+        said(MapRefusal::Tag {
+            index: 3,
+            why: TagMapError::Unsorted
+        })
+        .contains("ids must increase")
+    );
+    assert!(
+        said(MapRefusal::OutOfOrder {
+            expected: 16,
+            first: 32
+        })
+        .contains("starting at tag 32 arrived; tag 16 was next")
+    );
+}
+
+/// The flat serializer of `Diagnostics` writes what the derived
+/// deserializer reads (postcard: a struct is its fields in order), in
+/// field order: every counter distinct, round trip exact.
+#[test]
+fn diagnostics_serialize_flat_in_field_order() {
+    let values: [u32; DIAGNOSTIC_COUNTERS] =
+        core::array::from_fn(|i| 1000 * u32::try_from(i).unwrap() + 1);
+    // A postcard tuple is its elements' encodings in a row.
+    let mut wire = Vec::new();
+    for v in values {
+        let mut buf = [0_u8; 8];
+        wire.extend_from_slice(postcard::to_slice(&v, &mut buf).unwrap());
+    }
+    let diagnostics: Diagnostics = postcard::from_bytes(&wire).unwrap();
+    assert_eq!(diagnostics.flat(), values);
+    assert_eq!(diagnostics.rfid.frames_ok, 1);
+    assert_eq!(diagnostics.link.timeouts, 29_001);
+    assert_eq!(diagnostics.stale_ticks, 33_001);
+    let mut again = [0_u8; 256];
+    assert_eq!(
+        postcard::to_slice(&diagnostics, &mut again).unwrap(),
+        &wire[..]
+    );
+}
+
+#[test]
+fn a_flipped_bit_is_caught_and_the_next_frame_still_decodes() {
+    let mut tx = Sender::default();
+    let mut rx = Receiver::new();
+    let mut out = [0; MAX_FRAME_BYTES];
+    let good = tx.frame(configure(), &mut out).unwrap().to_vec();
+    let mut bad = good.clone();
+    bad[10] ^= 0x04;
+    let next = tx.frame(HostMessage::Finish, &mut out).unwrap().to_vec();
+    let got = feed::<HostMessage>(&mut rx, &[bad, next].concat());
+    assert_eq!(got.len(), 2);
+    assert!(got[0].is_err());
+    assert_eq!(got[1], Ok(HostMessage::Finish));
+    assert_eq!(rx.counters().corrupt_frames, 1);
+    // The corrupt frame still used a sequence number.
+    assert_eq!(rx.counters().sequence_gaps, 0);
+}
+
+#[test]
+fn sequence_gaps_are_counted() {
+    let mut tx = Sender::default();
+    let mut rx = Receiver::new();
+    let mut out = [0; MAX_FRAME_BYTES];
+    let first = tx.frame(HostMessage::Finish, &mut out).unwrap().to_vec();
+    for _ in 0..3 {
+        tx.frame(HostMessage::Finish, &mut out).unwrap();
+    }
+    let fifth = tx.frame(HostMessage::Finish, &mut out).unwrap().to_vec();
+    let got = feed::<HostMessage>(&mut rx, &[first, fifth].concat());
+    assert_eq!(got.len(), 2);
+    assert_eq!(rx.counters().sequence_gaps, 3);
+}
+
+#[test]
+fn duplicates_and_overtaken_frames_are_dropped_as_stale() {
+    let mut tx = Sender::default();
+    let mut rx = Receiver::new();
+    let mut out = [0; MAX_FRAME_BYTES];
+    let frames: Vec<Vec<u8>> = (0..3)
+        .map(|_| tx.frame(HostMessage::Finish, &mut out).unwrap().to_vec())
+        .collect();
+    // 0, 0 again (a duplicate), 2 (overtakes 1), then the late 1.
+    let stream = [&frames[0], &frames[0], &frames[2], &frames[1]].map(|f| f.as_slice());
+    let got = feed::<HostMessage>(&mut rx, &stream.concat());
+    assert_eq!(
+        got,
+        vec![
+            Ok(HostMessage::Finish),
+            Err(LinkError::Stale),
+            Ok(HostMessage::Finish),
+            Err(LinkError::Stale)
+        ]
+    );
+    let c = rx.counters();
+    assert_eq!((c.frames_ok, c.stale_frames), (2, 2));
+    // 1 was missing when 2 came; it came late and was not used.
+    assert_eq!((c.sequence_gaps, c.corrupt_frames), (1, 0));
+}
+
+#[test]
+fn a_peer_far_behind_has_restarted_and_is_accepted() {
+    let mut tx = Sender::default();
+    let mut rx = Receiver::new();
+    let mut out = [0; MAX_FRAME_BYTES];
+    for _ in 0..=STALE_WINDOW + 1 {
+        let bytes = tx.frame(HostMessage::Finish, &mut out).unwrap().to_vec();
+        assert_eq!(
+            feed::<HostMessage>(&mut rx, &bytes),
+            vec![Ok(HostMessage::Finish)]
+        );
+    }
+    // The peer restarts its numbering from 0: more than the window
+    // behind, so accepted (one gap), not stale.
+    let restarted = Sender::default()
+        .frame(HostMessage::Finish, &mut out)
+        .unwrap()
+        .to_vec();
+    assert_eq!(
+        feed::<HostMessage>(&mut rx, &restarted),
+        vec![Ok(HostMessage::Finish)]
+    );
+    let c = rx.counters();
+    assert_eq!((c.stale_frames, c.sequence_gaps), (0, 1));
+}
+
+#[test]
+fn an_overlong_frame_is_dropped_whole() {
+    let mut rx = Receiver::new();
+    let junk = vec![0x55_u8; MAX_FRAME_BYTES * 2];
+    let got = feed::<HostMessage>(&mut rx, &[junk.as_slice(), &[0]].concat());
+    assert_eq!(got, vec![Err(LinkError::TooLong)]);
+    let mut out = [0; MAX_FRAME_BYTES];
+    let ok = Sender::default()
+        .frame(HostMessage::Finish, &mut out)
+        .unwrap()
+        .to_vec();
+    assert_eq!(
+        feed::<HostMessage>(&mut rx, &ok),
+        vec![Ok(HostMessage::Finish)]
+    );
+}
+
+proptest! {
+    #[test]
+    fn garbage_never_panics_and_rarely_passes(bytes in proptest::collection::vec(any::<u8>(), 0..2048)) {
+        let mut rx = Receiver::new();
+        let got = feed::<HostMessage>(&mut rx, &bytes);
+        let c = rx.counters();
+        prop_assert_eq!(got.len() as u32, c.frames_ok + c.corrupt_frames);
+    }
+
+    #[test]
+    fn the_checked_cobs_decoder_agrees_with_the_crate(bytes in proptest::collection::vec(any::<u8>(), 0..700)) {
+        let mut ours = bytes.clone();
+        let mut theirs = bytes.clone();
+        let got = cobs_decode_in_place(&mut ours);
+        match cobs::decode_in_place(&mut theirs) {
+            Ok(n) => {
+                prop_assert_eq!(got, Ok(n));
+                prop_assert_eq!(&ours[..n], &theirs[..n]);
+            }
+            Err(_) => prop_assert_eq!(got, Err(LinkError::Cobs)),
+        }
+    }
+
+    #[test]
+    fn the_checked_cobs_decoder_inverts_the_encoder(data in proptest::collection::vec(any::<u8>(), 0..700)) {
+        let mut encoded = vec![0_u8; cobs::max_encoding_length(data.len())];
+        let n = cobs::encode(&data, &mut encoded);
+        encoded.truncate(n);
+        prop_assert_eq!(cobs_decode_in_place(&mut encoded), Ok(data.len()));
+        prop_assert_eq!(&encoded[..data.len()], data.as_slice());
+    }
+
+    #[test]
+    fn any_single_byte_corruption_is_rejected(pos in 0_usize..400, flip in 1_u8..=255) {
+        let mut out = [0; MAX_FRAME_BYTES];
+        let good = Sender::default().frame(configure(), &mut out).unwrap().to_vec();
+        let pos = pos % (good.len() - 1);
+        let mut bad = good.clone();
+        bad[pos] ^= flip;
+        let mut rx = Receiver::new();
+        let got = feed::<HostMessage>(&mut rx, &bad);
+        // A corrupted byte may become 0x00 and split the frame; no piece
+        // may decode as a message.
+        prop_assert!(got.iter().all(Result::is_err), "{:?}", got);
+    }
+}
