@@ -36,6 +36,7 @@ use crate::reference::ReferenceSample;
 /// laws. Each names itself ([`Self::label`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
 pub enum LawChoice {
     /// Paper 001's output-feedback law (27)–(28) with gains `k1, k2, k3`.
     Saturated(TrackingGains),

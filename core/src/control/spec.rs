@@ -11,6 +11,7 @@ use crate::control::saturated::TrackingGains;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[non_exhaustive]
 pub enum LawSpecError {
     /// Paper 002's cascaded controller (31).
     Cascaded(CascadedGainsError),
@@ -61,6 +62,7 @@ impl core::error::Error for LawSpecError {
     derive(serde::Serialize, serde::Deserialize),
     serde(rename_all = "snake_case", deny_unknown_fields)
 )]
+#[non_exhaustive]
 pub enum LawSpec {
     /// Paper 001's saturated output-feedback law (27)–(28), gains
     /// [`crate::pilot::spec::TrackerSpec::gains`].

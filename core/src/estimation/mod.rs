@@ -41,6 +41,7 @@ use crate::odometry::OdometryStep;
 /// ([`Self::period_s`]), which is the tracker's control period.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
 pub enum EstimatorChoice {
     /// Paper 001's heading observer (5), with dead reckoning between fixes.
     HeadingObserver(HeadingObserverConfig),

@@ -15,6 +15,7 @@ use crate::estimation::pose_observer::{PoseObserverConfig, PoseObserverConfigErr
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[non_exhaustive]
 pub enum EstimatorSpecError {
     /// Paper 002's pose observer (Proposition 4).
     PoseObserver(PoseObserverConfigError),
@@ -95,6 +96,7 @@ impl core::error::Error for EstimatorSpecError {
     derive(serde::Serialize, serde::Deserialize),
     serde(rename_all = "snake_case", deny_unknown_fields)
 )]
+#[non_exhaustive]
 pub enum EstimatorSpec {
     /// Paper 001's heading observer (5), gain
     /// [`crate::pilot::spec::TrackerSpec::observer_gain_per_m`], with dead reckoning between
@@ -271,6 +273,7 @@ impl Default for FusionSpec {
     derive(serde::Serialize, serde::Deserialize),
     serde(rename_all = "snake_case")
 )]
+#[non_exhaustive]
 pub enum FusionFilterSpec {
     /// The EKF.
     #[default]
