@@ -27,10 +27,10 @@ pub use interface::{LawCommand, TrackingCommand, TrackingLaw};
 
 use crate::control::cascaded::{CascadedController, CascadedGains};
 use crate::control::heading_error_sine::{HeadingErrorSineConfig, HeadingErrorSineTracker};
-use crate::control::saturated::{TrackingController, TrackingGains};
+use crate::control::saturated::{GainBound, TrackingController, TrackingGains};
 use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
-use crate::reference::ReferenceSample;
+use crate::reference::{ReferenceSample, SpeedBounds};
 
 /// Which law the tracker runs, with its configuration: the one list of
 /// laws. Each names itself ([`Self::label`]).
@@ -54,6 +54,17 @@ impl LawChoice {
         match self {
             Self::Saturated(_) | Self::Cascaded(_) => None,
             Self::HeadingErrorSine(config) => Some(config.period_s()),
+        }
+    }
+
+    /// What paper 001's gain bound (15) says for this law's gains and a
+    /// reference of speed bounds `bounds` (`None` for the laws it does not
+    /// concern).
+    #[must_use]
+    pub fn gain_bound(&self, bounds: SpeedBounds) -> Option<GainBound> {
+        match self {
+            Self::Saturated(gains) => Some(gains.check_bound(bounds)),
+            Self::Cascaded(_) | Self::HeadingErrorSine(_) => None,
         }
     }
 

@@ -190,10 +190,7 @@ impl TrackerConfig {
         {
             return Err(TrackerConfigError::AlgorithmPeriod);
         }
-        let gain_bound = match law {
-            LawChoice::Saturated(gains) => Some(gains.check_bound(trajectory.speed_bounds())),
-            LawChoice::Cascaded(_) | LawChoice::HeadingErrorSine(_) => None,
-        };
+        let gain_bound = law.gain_bound(trajectory.speed_bounds());
         Ok(Self {
             clock,
             trajectory,
