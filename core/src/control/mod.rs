@@ -12,9 +12,9 @@
 //! the estimated heading ([`robot_frame`]).
 //!
 //! # Adding a law
-//! Its own file implementing [`TrackingLaw`], one arm in [`LawChoice`]
-//! and [`Law`] here, and one arm in the spec
-//! ([`crate::control::spec::LawSpec`]) that builds it.
+//! Its own file, its arms in the lists here, and its spec beside it in
+//! [`spec`]: nothing outside this module changes. The recipe, step by
+//! step: `docs/architecture.md`, "Adding an estimator or a law".
 
 pub mod cascaded;
 pub mod heading_error_sine;
