@@ -25,7 +25,9 @@ pub fn gain_per_m() -> f64 {
     0.6
 }
 pub fn min_speed_m_s() -> f64 {
-    f64::from(wmr_core::estimation::heading_observer::HeadingObserverConfig::DEFAULT_MIN_SPEED_M_S)
+    core_default(
+        wmr_core::estimation::heading_observer::HeadingObserverConfig::DEFAULT_MIN_SPEED_M_S,
+    )
 }
 pub fn wheel_radius_m() -> f64 {
     0.03
@@ -64,13 +66,15 @@ pub fn ki_duty_per_rad() -> f64 {
     0.5
 }
 pub fn observer_lambda_per_s() -> f64 {
-    f64::from(wmr_core::drive::speed_observer::WheelSpeedObserverConfig::DEFAULT_LAMBDA_PER_S)
+    core_default(wmr_core::drive::speed_observer::WheelSpeedObserverConfig::DEFAULT_LAMBDA_PER_S)
 }
 pub fn observer_friction_gain() -> f64 {
-    f64::from(wmr_core::drive::speed_observer::WheelSpeedObserverConfig::DEFAULT_FRICTION_GAIN)
+    core_default(wmr_core::drive::speed_observer::WheelSpeedObserverConfig::DEFAULT_FRICTION_GAIN)
 }
 pub fn observer_disturbance_gain() -> f64 {
-    f64::from(wmr_core::drive::speed_observer::WheelSpeedObserverConfig::DEFAULT_DISTURBANCE_GAIN)
+    core_default(
+        wmr_core::drive::speed_observer::WheelSpeedObserverConfig::DEFAULT_DISTURBANCE_GAIN,
+    )
 }
 pub fn spacing_m() -> f64 {
     0.1
@@ -105,4 +109,12 @@ pub fn yes() -> bool {
 /// The Black Pill's `TELEMETRY_EVERY_TICKS` (`firmware/src/board/blackpill.rs`).
 pub fn telemetry_every_ticks() -> u64 {
     10
+}
+
+/// The `f64` a file writes for a default the core states in `f32`: the
+/// shortest decimal that reads back as that `f32` (`0.001`, where the
+/// `f32`'s own value is `0.0010000000474974513`). Validation turns it
+/// back into the core's `f32`, bit for bit.
+fn core_default(value: f32) -> f64 {
+    value.to_string().parse().unwrap_or(f64::from(value))
 }

@@ -55,6 +55,7 @@ mod tests;
 
 pub use error::ScenarioError;
 pub(crate) use error::{non_negative, positive};
+use schema::GivenKeys;
 pub use schema::Scenario;
 pub use sweep_spec::{
     DEFAULT_EXACT_THRESHOLD_M, DEFAULT_HOLD_FRACTION, DEFAULT_START_RADIUS_M,
@@ -218,6 +219,7 @@ impl Scenario {
                 return Err(ScenarioError::Parse(reason));
             }
         }
+        scenario.given = GivenKeys::of_toml(text).map_err(parse_error)?;
         let robot = scenario.resolve_robot(dir, |key| keys.given(key))?;
         scenario.validate().map_err(|e| match &robot {
             Some(robot) => robot.name_in(e),
@@ -260,11 +262,63 @@ impl Scenario {
         Self::embedded(EMBEDDED[0].0).expect("embedded default scenario is valid")
     }
 
-    /// The scenario as TOML.
+    /// The scenario as TOML, resolved: every key that applies, at its
+    /// value (defaults filled in), and none that this setup ignores
+    /// ([`Self::ignored_keys`]), so that the file read back gives the same
+    /// run and no warning. The values of the core's `f32` specs (the
+    /// estimator's and the law's tables) are written as their shortest
+    /// decimal (`0.001`, not `0.0010000000474974513`), which reads back as
+    /// the same `f32`.
     ///
     /// # Errors
     /// Never for a scenario that was parsed (all values representable).
     pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
-        toml::to_string_pretty(self)
+        let mut value = toml::Value::try_from(self)?;
+        for (key, _) in self.ignored_keys() {
+            remove_key(&mut value, key);
+        }
+        // The core's own specs (the estimator's and the law's tables) hold
+        // f32; the simulator's tables hold f64 and are written as they are.
+        if let Some(estimator) = value.get_mut("estimator") {
+            shortest_f32_floats(estimator);
+        }
+        if let Some(law) = value.get_mut("controller").and_then(|c| c.get_mut("law")) {
+            shortest_f32_floats(law);
+        }
+        toml::to_string_pretty(&value)
+    }
+}
+
+/// Removes the dotted `key` from a TOML value, if there.
+fn remove_key(value: &mut toml::Value, key: &str) {
+    match key.split_once('.') {
+        Some((table, rest)) => {
+            if let Some(inner) = value.get_mut(table) {
+                remove_key(inner, rest);
+            }
+        }
+        None => {
+            if let Some(table) = value.as_table_mut() {
+                table.remove(key);
+            }
+        }
+    }
+}
+
+/// Writes every float of a table of the core's `f32` specs as the `f64` of
+/// its shortest `f32` decimal, which reads back as the same `f32`.
+fn shortest_f32_floats(value: &mut toml::Value) {
+    match value {
+        toml::Value::Float(x) => {
+            let single = *x as f32;
+            if f64::from(single).to_bits() == x.to_bits()
+                && let Ok(shortest) = single.to_string().parse::<f64>()
+            {
+                *x = shortest;
+            }
+        }
+        toml::Value::Table(table) => table.iter_mut().for_each(|(_, v)| shortest_f32_floats(v)),
+        toml::Value::Array(items) => items.iter_mut().for_each(shortest_f32_floats),
+        _ => {}
     }
 }

@@ -57,7 +57,7 @@ use wmr_link::image;
 use super::defaults;
 use super::error::ScenarioError;
 pub use super::robot_file::{FloorSpec, MappedTag, ReaderSpec, RobotFile, RobotSource};
-use super::schema::Scenario;
+use super::schema::{GivenKeys, Scenario};
 use super::tables::{
     ControllerSpec, FailsafeSpec, FloorTagSpec, ObserverSpec, PlantSpec, PositionSpec,
     ReferenceSpec,
@@ -322,6 +322,7 @@ impl Robot {
             measurement: super::MeasurementSpec::default(),
             sweep: None,
             robot: None,
+            given: GivenKeys::default(),
         };
         self.fill(&mut scenario, ReaderFaults::default());
         scenario

@@ -93,4 +93,90 @@ pub struct Scenario {
     /// only `corrupt_byte_probability`, `drop_frame_probability`, `seed`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub robot: Option<RobotSource>,
+    /// The keys the file gave (not serialized): warnings name a key that
+    /// does not apply only where the file wrote it.
+    #[serde(skip)]
+    #[schemars(skip)]
+    pub(crate) given: GivenKeys,
+}
+
+/// The dotted keys a scenario file gave (`observer.gain_per_m`), tables
+/// of tables included, arrays of tables as their key alone. Provenance, not
+/// content: any two compare equal, so that a scenario and its re-read
+/// resolved file are the same scenario.
+#[derive(Debug, Clone, Default)]
+pub struct GivenKeys(std::collections::BTreeSet<String>);
+
+impl GivenKeys {
+    /// The keys of a TOML text (which has parsed as a scenario already).
+    ///
+    /// # Errors
+    /// The TOML parser's, for a text that is not TOML.
+    pub(crate) fn of_toml(text: &str) -> Result<Self, toml::de::Error> {
+        toml::from_str::<KeyTree>(text).map(|tree| Self(tree.0))
+    }
+
+    /// Whether the file gave `key` (a table counts as given when the file
+    /// wrote it or any key under it).
+    #[must_use]
+    pub fn contains(&self, key: &str) -> bool {
+        self.0.contains(key)
+    }
+}
+
+/// The dotted keys under a TOML value: its own keys and theirs for a
+/// table, none for anything else (values are skipped, never converted).
+struct KeyTree(std::collections::BTreeSet<String>);
+
+impl<'de> Deserialize<'de> for KeyTree {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Keys;
+        impl<'de> serde::de::Visitor<'de> for Keys {
+            type Value = KeyTree;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("any TOML value")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> Result<KeyTree, A::Error> {
+                let mut keys = std::collections::BTreeSet::new();
+                while let Some(key) = map.next_key::<String>()? {
+                    let under: KeyTree = map.next_value()?;
+                    keys.extend(under.0.into_iter().map(|k| format!("{key}.{k}")));
+                    keys.insert(key);
+                }
+                Ok(KeyTree(keys))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<KeyTree, A::Error> {
+                while seq.next_element::<serde::de::IgnoredAny>()?.is_some() {}
+                Ok(KeyTree(std::collections::BTreeSet::new()))
+            }
+            fn visit_bool<E>(self, _: bool) -> Result<KeyTree, E> {
+                Ok(KeyTree(std::collections::BTreeSet::new()))
+            }
+            fn visit_i64<E>(self, _: i64) -> Result<KeyTree, E> {
+                Ok(KeyTree(std::collections::BTreeSet::new()))
+            }
+            fn visit_u64<E>(self, _: u64) -> Result<KeyTree, E> {
+                Ok(KeyTree(std::collections::BTreeSet::new()))
+            }
+            fn visit_f64<E>(self, _: f64) -> Result<KeyTree, E> {
+                Ok(KeyTree(std::collections::BTreeSet::new()))
+            }
+            fn visit_str<E>(self, _: &str) -> Result<KeyTree, E> {
+                Ok(KeyTree(std::collections::BTreeSet::new()))
+            }
+        }
+        d.deserialize_any(Keys)
+    }
+}
+
+impl PartialEq for GivenKeys {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }

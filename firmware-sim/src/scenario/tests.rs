@@ -80,6 +80,90 @@ fn keys_that_do_not_apply_are_warned_about() {
     assert!(w[0].starts_with("position.read_radius_m: ignored"), "{w:?}");
 }
 
+/// A key that does not apply is warned about whatever its value, its
+/// default included, and only where the file gives it.
+#[test]
+fn warnings_name_given_keys_whatever_their_value() {
+    let default_gain = Scenario::from_toml_str(&format!(
+        "{MINIMAL}\n[controller]\nkind = \"state_feedback\"\n[observer]\ngain_per_m = 0.6\n"
+    ))
+    .unwrap();
+    assert_eq!(default_gain.observer.gain_per_m, 0.6);
+    let w = default_gain.warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(w[0].starts_with("observer.gain_per_m: ignored"), "{w:?}");
+    let default_radius = Scenario::from_toml_str(&format!(
+        "{MINIMAL}\n[plant]\nkind = \"diff_drive\"\n[position]\nkind = \"reader\"\nread_radius_m = {}\nrepeat_interval_s = {}\n",
+        super::defaults::read_radius_m(),
+        super::defaults::repeat_interval_s(),
+    ))
+    .unwrap();
+    let w = default_radius.warnings();
+    assert_eq!(w.len(), 2, "{w:?}");
+    assert!(w[0].starts_with("position.read_radius_m: ignored"), "{w:?}");
+    assert!(
+        w[1].starts_with("position.repeat_interval_s: ignored"),
+        "{w:?}"
+    );
+    // The law at its default (another one is refused).
+    let law = Scenario::from_toml_str(&format!(
+        "{MINIMAL}\n[controller]\nkind = \"state_feedback\"\nlaw = \"saturated\"\n"
+    ))
+    .unwrap();
+    assert_eq!(law.warnings().len(), 1, "{:?}", law.warnings());
+}
+
+/// The resolved file leaves out what the setup ignores (so it reads back
+/// without a warning) and writes the core's `f32` values as short as they
+/// were given.
+#[test]
+fn the_resolved_file_reads_back_the_same_without_warnings() {
+    let state = Scenario::from_toml_str(&format!(
+        "{MINIMAL}\n[controller]\nkind = \"state_feedback\"\n[observer]\ngain_per_m = 2.0\n"
+    ))
+    .unwrap();
+    let resolved = state.to_toml_string().unwrap();
+    assert!(!resolved.contains("gain_per_m"), "{resolved}");
+    assert!(!resolved.contains("estimate_cos"), "{resolved}");
+    let again = Scenario::from_toml_str(&resolved).unwrap();
+    assert_eq!(again.warnings(), Vec::<String>::new());
+    // The same run: only the unused observer's gain went back to its default.
+    let (a, b) = (again.validate().unwrap(), state.validate().unwrap());
+    assert_eq!(
+        (
+            a.ticks,
+            a.controller,
+            a.gains,
+            a.trajectory,
+            a.plant,
+            a.position
+        ),
+        (
+            b.ticks,
+            b.controller,
+            b.gains,
+            b.trajectory,
+            b.plant,
+            b.position
+        )
+    );
+
+    let fusion = Scenario::from_toml_str(&format!(
+        "{MINIMAL}\n[position]\nkind = \"nearest_tag\"\n[estimator.fusion]\nwheel_variance_per_m = 1e-3\ngate_sigma = 3.3\n"
+    ))
+    .unwrap();
+    let resolved = fusion.to_toml_string().unwrap();
+    assert!(
+        resolved.contains("wheel_variance_per_m = 0.001\n"),
+        "{resolved}"
+    );
+    assert!(resolved.contains("gate_sigma = 3.3\n"), "{resolved}");
+    let again = Scenario::from_toml_str(&resolved).unwrap();
+    assert_eq!(again.estimator, fusion.estimator);
+    // f64 keys keep their value, bit for bit.
+    assert_eq!(again.period_s.to_bits(), fusion.period_s.to_bits());
+}
+
 #[test]
 fn minimal_scenario_takes_the_paper_defaults() {
     let s = Scenario::from_toml_str(MINIMAL).unwrap();

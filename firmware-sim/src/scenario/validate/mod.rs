@@ -8,7 +8,6 @@
 //! observer and failsafe, and puts the [`Setup`] together.
 
 use wmr_core::control::saturated::TrackingGains;
-use wmr_core::control::spec::LawSpec;
 use wmr_core::geometry::HeadingEstimate;
 use wmr_core::pilot::PilotConfig;
 use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
@@ -20,11 +19,10 @@ use crate::plant::{DiffDriveParams, PlantPose};
 
 use crate::tags::{Floor, FloorTags};
 
-use super::defaults;
 use super::error::{ScenarioError, finite, in_range, non_negative, positive};
 use super::schema::Scenario;
 use super::sweep_spec::SweepPlan;
-use super::tables::{ControllerKind, MeasurementSpec, ObserverSpec, PositionSpec, ReaderModeSpec};
+use super::tables::{ControllerKind, MeasurementSpec, PositionSpec, ReaderModeSpec};
 use wmr_core::plausible::{COORDINATE_M, DECEL_M_S2, GAIN, MIN_SPEED_M_S, PERIOD_S};
 
 mod estimator;
@@ -121,43 +119,47 @@ pub(super) fn f(v: f64) -> f32 {
 }
 
 impl Scenario {
-    /// Keys given a value other than their default where they do not
-    /// apply to this setup (ignored, so probably a mistake): one line
-    /// each, naming the key and why. `firmware-sim` prints them as
-    /// warnings; `firmware-sim schema` says when each key applies.
+    /// The keys that do not apply to this setup (the setup ignores
+    /// them), each with why: `(key, reason)`. A key here is a warning
+    /// where a file gives it ([`Self::warnings`]), and is left out of the
+    /// resolved file ([`Self::to_toml_string`]).
     #[must_use]
-    pub fn warnings(&self) -> Vec<String> {
-        let mut w = Vec::new();
+    pub fn ignored_keys(&self) -> Vec<(&'static str, &'static str)> {
+        const NO_OBSERVER: &str = "ignored with controller.kind = \"state_feedback\" (the heading is measured, no observer runs)";
+        let mut keys = Vec::new();
         if self.controller.kind == ControllerKind::StateFeedback {
-            let observer = ObserverSpec::default();
-            if self.observer.gain_per_m.to_bits() != observer.gain_per_m.to_bits() {
-                w.push("observer.gain_per_m: ignored with controller.kind = \"state_feedback\" (the heading is measured, no observer runs)".to_owned());
-            }
-            if self.observer.min_speed_m_s.to_bits() != observer.min_speed_m_s.to_bits() {
-                w.push("observer.min_speed_m_s: ignored with controller.kind = \"state_feedback\" (the heading is measured, no observer runs)".to_owned());
-            }
-            if self.initial.estimate_cos != 0.0 || self.initial.estimate_sin != 0.0 {
-                w.push("initial.estimate_cos/estimate_sin: ignored with controller.kind = \"state_feedback\" (no observer runs)".to_owned());
-            }
-            if self.controller.law != LawSpec::default() {
-                w.push("controller.law: ignored with controller.kind = \"state_feedback\" (it chooses the output-feedback law)".to_owned());
-            }
+            keys.extend([
+                ("observer.gain_per_m", NO_OBSERVER),
+                ("observer.min_speed_m_s", NO_OBSERVER),
+                ("initial.estimate_cos", "ignored with controller.kind = \"state_feedback\" (no observer runs)"),
+                ("initial.estimate_sin", "ignored with controller.kind = \"state_feedback\" (no observer runs)"),
+                ("controller.law", "ignored with controller.kind = \"state_feedback\" (it chooses the output-feedback law)"),
+            ]);
         }
         if let PositionSpec::Reader {
             mode: ReaderModeSpec::Paper,
-            read_radius_m,
-            repeat_interval_s,
             ..
         } = self.position
         {
-            if read_radius_m.to_bits() != defaults::read_radius_m().to_bits() {
-                w.push("position.read_radius_m: ignored with position.mode = \"paper\" (the nearest tag is read every tick); it applies to mode = \"range\"".to_owned());
-            }
-            if repeat_interval_s.to_bits() != defaults::repeat_interval_s().to_bits() {
-                w.push("position.repeat_interval_s: ignored with position.mode = \"paper\"; it applies to mode = \"range\"".to_owned());
-            }
+            keys.extend([
+                ("position.read_radius_m", "ignored with position.mode = \"paper\" (the nearest tag is read every tick); it applies to mode = \"range\""),
+                ("position.repeat_interval_s", "ignored with position.mode = \"paper\"; it applies to mode = \"range\""),
+            ]);
         }
-        w
+        keys
+    }
+
+    /// The keys the scenario's file gave where they do not apply to this
+    /// setup (ignored, so probably a mistake), whatever their value: one
+    /// line each, naming the key and why. `firmware-sim` prints them as
+    /// warnings; `firmware-sim schema` says when each key applies.
+    #[must_use]
+    pub fn warnings(&self) -> Vec<String> {
+        self.ignored_keys()
+            .into_iter()
+            .filter(|(key, _)| self.given.contains(key))
+            .map(|(key, why)| format!("{key}: {why}"))
+            .collect()
     }
 
     /// Checks every value and builds the core's configurations.
