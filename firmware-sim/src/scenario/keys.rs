@@ -372,12 +372,17 @@ fn text(schema: &Value) -> Option<String> {
         .map(|d| d.split_whitespace().collect::<Vec<_>>().join(" "))
 }
 
+/// The default column of an optional key without a default value (the
+/// key's meaning says what leaving it out does).
+const NOT_GIVEN: &str = "(not given)";
+
 /// A JSON value as it is written in TOML (an `f32` default in its
 /// shortest `f32` form: 0.001, not 0.0010000000474974513).
 fn render(v: &Value) -> String {
     match v {
         Value::String(s) => format!("\"{s}\""),
-        Value::Null => "none".into(),
+        // An optional key without a default: TOML has no null.
+        Value::Null => NOT_GIVEN.into(),
         Value::Number(n) if n.is_f64() => {
             let x = n.as_f64().unwrap_or(f64::NAN);
             #[allow(clippy::cast_possible_truncation)]
@@ -405,9 +410,10 @@ pub fn markdown(keys: &[KeyDoc]) -> String {
     );
     for k in keys {
         let default = match (&k.default, k.required) {
+            (Some(d), _) if d == NOT_GIVEN => d.clone(),
             (Some(d), _) => format!("`{d}`"),
             (None, true) => "required".into(),
-            (None, false) => "none".into(),
+            (None, false) => NOT_GIVEN.into(),
         };
         md.push_str(&format!(
             "| `{}` | {} | {} | {} | {} | {} |\n",
@@ -571,5 +577,24 @@ mod tests {
         );
         assert_eq!(unit_in("Radius, m."), Some("m"));
         assert_eq!(unit_in("Free text."), None);
+    }
+
+    /// Every default the key tables print is a TOML value (or says that
+    /// the key is required or may be left out).
+    #[test]
+    fn defaults_are_printed_as_toml_values() {
+        for k in scenario_keys().into_iter().chain(robot_keys()) {
+            let Some(d) = k.default else { continue };
+            if d == NOT_GIVEN {
+                continue;
+            }
+            assert!(
+                toml::from_str::<toml::Table>(&format!("x = {d}")).is_ok(),
+                "{}: default {d} is no TOML value",
+                k.key
+            );
+        }
+        let md = markdown(&scenario_keys());
+        assert!(!md.contains("`none`") && !md.contains("Some("), "{md}");
     }
 }

@@ -109,7 +109,9 @@ pub enum FloorSpec {
         /// Margin around the reference and start when `extent_m` is not given, m.
         #[serde(default = "defaults::margin_m")]
         margin_m: f64,
-        /// Covered rectangle `[x_min, y_min, x_max, y_max]`, m (default: automatic).
+        /// Covered rectangle `[x_min, y_min, x_max, y_max]`, m (default: automatic). The
+        /// floor is at most 65,535 rows and 65,535 columns of tags (the grid id's
+        /// 16-bit row and column); a larger one is refused.
         #[serde(default)]
         extent_m: Option<[f64; 4]>,
     },

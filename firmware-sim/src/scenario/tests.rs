@@ -668,3 +668,25 @@ fn a_type_error_names_its_key() {
         assert!(e.to_string().contains(path), "{table}: {e}");
     }
 }
+
+/// A floor is at most 65,535 rows and columns of tags, and its tags at
+/// least 1 cm apart: beyond either it is refused, naming the key.
+#[test]
+fn floors_beyond_the_cap_are_refused() {
+    let wide = Scenario::from_toml_str(&format!(
+        "{MINIMAL}\n[position]\nkind = \"nearest_tag\"\nspacing_m = 0.01\nextent_m = [-400.0, -10.0, 400.0, 10.0]\n"
+    ));
+    let e = wide.unwrap_err().to_string();
+    assert!(
+        e.contains("position.extent_m") && e.contains("65535"),
+        "{e}"
+    );
+    let dense = Scenario::from_toml_str(&format!(
+        "{MINIMAL}\n[position]\nkind = \"nearest_tag\"\nspacing_m = 0.001\n"
+    ));
+    let e = dense.unwrap_err().to_string();
+    assert!(
+        e.contains("position.spacing_m") && e.contains("0.001"),
+        "{e}"
+    );
+}
