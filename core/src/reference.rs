@@ -361,42 +361,133 @@ impl From<StraightLine> for Trajectory {
 /// [`crate::plausible::REFERENCE_SPEED_M_S`], points in
 /// [`crate::plausible::COORDINATE_M`] on each axis, angles in
 /// [`crate::plausible::ANGLE_RAD`]).
+///
+/// With the features `serde` and `std` (host tools: serde reads a tagged
+/// table with an allocator) this is a file's `[reference]` table, tagged
+/// by `kind` (`"figure_eight"`, `"circle"`, `"line"`), each key with the
+/// default documented on it. The HIL link and the robot image carry it in
+/// their own compact form, with `serde` alone (`TrajectoryWire`, inside
+/// `TrackerSpec`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    all(feature = "serde", feature = "std"),
+    derive(serde::Serialize, serde::Deserialize),
+    serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)
+)]
+#[cfg_attr(feature = "schemars", derive(schemars::JsonSchema))]
+#[non_exhaustive]
 pub enum TrajectorySpec {
-    /// [`FigureEight::new`]: half-width `h1_m`, rate `h2_rad_s`, phase.
+    /// Paper 001's figure-eight ([`FigureEight::new`]), `x = h1 sin 2s`,
+    /// `y = h1 sin s`, `s = h2 t + φ`.
     FigureEight {
-        /// `h1`, m.
+        /// Half-width `h1`, m (default 5, the paper's).
+        #[cfg_attr(
+            all(feature = "serde", feature = "std"),
+            serde(default = "TrajectorySpec::paper_h1_m")
+        )]
+        #[cfg_attr(feature = "schemars", schemars(range(min = crate::plausible::REFERENCE_SIZE_M.min, max = crate::plausible::REFERENCE_SIZE_M.max)))]
         h1_m: f32,
-        /// `h2`, rad/s.
+        /// Rate `h2`, rad/s (default 0.02, the paper's).
+        #[cfg_attr(
+            all(feature = "serde", feature = "std"),
+            serde(default = "TrajectorySpec::paper_h2_rad_s")
+        )]
+        #[cfg_attr(feature = "schemars", schemars(range(min = crate::plausible::REFERENCE_RATE_RAD_S.min, max = crate::plausible::REFERENCE_RATE_RAD_S.max)))]
         h2_rad_s: f32,
-        /// Phase `φ`, rad.
+        /// Phase `φ`, rad (default −π/2: the start at `(0, −h1)`, as the
+        /// paper's runs).
+        #[cfg_attr(
+            all(feature = "serde", feature = "std"),
+            serde(default = "TrajectorySpec::paper_phase_rad")
+        )]
+        #[cfg_attr(feature = "schemars", schemars(range(min = crate::plausible::ANGLE_RAD.min, max = crate::plausible::ANGLE_RAD.max)))]
         phase_rad: f32,
     },
-    /// [`Circle::new`].
+    /// A circle ([`Circle::new`]).
     Circle {
-        /// Centre, m.
+        /// Centre `[x, y]`, m (default the origin).
+        #[cfg_attr(all(feature = "serde", feature = "std"), serde(default))]
         center_m: [f32; 2],
         /// Radius, m.
+        #[cfg_attr(feature = "schemars", schemars(range(min = crate::plausible::REFERENCE_SIZE_M.min, max = crate::plausible::REFERENCE_SIZE_M.max)))]
         radius_m: f32,
-        /// Angular rate, rad/s (sign gives the sense).
+        /// Angular rate, rad/s (negative: clockwise; its magnitude in the
+        /// reference rates' range, `wmr_core::plausible::REFERENCE_RATE_RAD_S`).
         rate_rad_s: f32,
-        /// Phase at `t = 0`, rad.
+        /// Polar angle of the start point, rad (default 0).
+        #[cfg_attr(all(feature = "serde", feature = "std"), serde(default))]
+        #[cfg_attr(feature = "schemars", schemars(range(min = crate::plausible::ANGLE_RAD.min, max = crate::plausible::ANGLE_RAD.max)))]
         phase_rad: f32,
     },
-    /// [`StraightLine::new`].
+    /// A straight line at constant speed ([`StraightLine::new`]).
     Line {
-        /// Start point, m.
+        /// Start `[x, y]`, m (default the origin).
+        #[cfg_attr(all(feature = "serde", feature = "std"), serde(default))]
         start_m: [f32; 2],
-        /// Direction, rad.
+        /// Direction, rad (default 0: along x).
+        #[cfg_attr(all(feature = "serde", feature = "std"), serde(default))]
+        #[cfg_attr(feature = "schemars", schemars(range(min = crate::plausible::ANGLE_RAD.min, max = crate::plausible::ANGLE_RAD.max)))]
         heading_rad: f32,
         /// Speed, m/s.
+        #[cfg_attr(feature = "schemars", schemars(range(min = crate::plausible::REFERENCE_SPEED_M_S.min, max = crate::plausible::REFERENCE_SPEED_M_S.max)))]
+        speed_m_s: f32,
+    },
+}
+
+/// [`TrajectorySpec`] as the HIL link and the robot image carry it
+/// (postcard, which has no tagged tables): serde's remote form of the
+/// same enum, so the two cannot differ (`#[serde(with =
+/// "TrajectoryWire")]` on a `TrajectorySpec` field).
+#[cfg(feature = "serde")]
+#[derive(serde::Serialize, serde::Deserialize)]
+#[serde(remote = "TrajectorySpec")]
+pub enum TrajectoryWire {
+    /// [`TrajectorySpec::FigureEight`].
+    #[allow(missing_docs)]
+    FigureEight {
+        h1_m: f32,
+        h2_rad_s: f32,
+        phase_rad: f32,
+    },
+    /// [`TrajectorySpec::Circle`].
+    #[allow(missing_docs)]
+    Circle {
+        center_m: [f32; 2],
+        radius_m: f32,
+        rate_rad_s: f32,
+        phase_rad: f32,
+    },
+    /// [`TrajectorySpec::Line`].
+    #[allow(missing_docs)]
+    Line {
+        start_m: [f32; 2],
+        heading_rad: f32,
         speed_m_s: f32,
     },
 }
 
 impl TrajectorySpec {
+    /// Paper 001's half-width `h1`, m.
+    pub const PAPER_H1_M: f32 = 5.0;
+    /// Paper 001's rate `h2`, rad/s.
+    pub const PAPER_H2_RAD_S: f32 = 0.02;
+    /// The phase of paper 001's runs, rad: the start at `(0, −h1)`.
+    pub const PAPER_PHASE_RAD: f32 = -core::f32::consts::FRAC_PI_2;
+
+    #[cfg(all(feature = "serde", feature = "std"))]
+    fn paper_h1_m() -> f32 {
+        Self::PAPER_H1_M
+    }
+    #[cfg(all(feature = "serde", feature = "std"))]
+    fn paper_h2_rad_s() -> f32 {
+        Self::PAPER_H2_RAD_S
+    }
+    #[cfg(all(feature = "serde", feature = "std"))]
+    fn paper_phase_rad() -> f32 {
+        Self::PAPER_PHASE_RAD
+    }
+
     /// The validated trajectory.
     ///
     /// # Errors

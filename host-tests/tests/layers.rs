@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 /// layer's other modules only where no circle results, and from the layers
 /// below it.
 const CORE_LAYERS: &[&[&str]] = &[
-    &["math", "plausible", "builds"],
+    &["math", "plausible", "builds", "fuzzing"],
     &["geometry"],
     &["odometry", "reference"],
     &["devices", "drive", "filters"],

@@ -237,6 +237,7 @@ pub struct TrackerSpec {
     /// Control period `h`, s, in [`crate::plausible::PERIOD_S`].
     pub period_s: f32,
     /// The reference.
+    #[cfg_attr(feature = "serde", serde(with = "crate::reference::TrajectoryWire"))]
     pub trajectory: TrajectorySpec,
     /// Gains `[k1, k2, k3]` of the law (27)–(28), each in [`crate::plausible::GAIN`].
     pub gains: [f32; 3],

@@ -1,19 +1,8 @@
 //! The scenario's default values (serde needs functions): the paper's
 //! section 6.3.2 values where the paper gives one.
 
-use std::f64::consts::FRAC_PI_2;
-
 pub fn period_s() -> f64 {
     0.01
-}
-pub fn h1_m() -> f64 {
-    5.0
-}
-pub fn h2_rad_s() -> f64 {
-    0.02
-}
-pub fn phase_rad() -> f64 {
-    -FRAC_PI_2
 }
 pub fn k12() -> f64 {
     0.11

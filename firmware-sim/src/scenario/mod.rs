@@ -65,7 +65,7 @@ pub use sweep_spec::{
 pub use tables::{
     ControllerKind, ControllerSpec, DriveSpec, DynamicsSpec, FailsafeSpec, FloorTagSpec,
     InitialSpec, MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
-    ReferenceSpec, SpeedObserverSpec,
+    SpeedObserverSpec,
 };
 pub use validate::{PlantSetup, PositionSetup, Setup, reference_bounds};
 pub use wmr_core::control::spec::LawSpec;
@@ -266,7 +266,7 @@ impl Scenario {
     /// value (defaults filled in), and none that this setup ignores
     /// ([`Self::ignored_keys`]), so that the file read back gives the same
     /// run and no warning. The values of the core's `f32` specs (the
-    /// estimator's and the law's tables) are written as their shortest
+    /// reference's, the estimator's and the law's tables) are written as their shortest
     /// decimal (`0.001`, not `0.0010000000474974513`), which reads back as
     /// the same `f32`.
     ///
@@ -277,10 +277,13 @@ impl Scenario {
         for (key, _) in self.ignored_keys() {
             remove_key(&mut value, key);
         }
-        // The core's own specs (the estimator's and the law's tables) hold
-        // f32; the simulator's tables hold f64 and are written as they are.
-        if let Some(estimator) = value.get_mut("estimator") {
-            shortest_f32_floats(estimator);
+        // The core's own specs (the reference's, the estimator's and the
+        // law's tables) hold f32; the simulator's tables hold f64 and are
+        // written as they are.
+        for table in ["reference", "estimator"] {
+            if let Some(spec) = value.get_mut(table) {
+                shortest_f32_floats(spec);
+            }
         }
         if let Some(law) = value.get_mut("controller").and_then(|c| c.get_mut("law")) {
             shortest_f32_floats(law);

@@ -52,6 +52,7 @@ use wmr_core::devices::TagId;
 use wmr_core::devices::tag_grid::TagGridSpec;
 use wmr_core::estimation::spec::EstimatorSpec;
 use wmr_core::pilot::spec::PilotSpec;
+use wmr_core::reference::TrajectorySpec;
 use wmr_link::image;
 
 use super::defaults;
@@ -60,7 +61,6 @@ pub use super::robot_file::{FloorSpec, MappedTag, ReaderSpec, RobotFile, RobotSo
 use super::schema::{GivenKeys, Scenario};
 use super::tables::{
     ControllerSpec, FailsafeSpec, FloorTagSpec, ObserverSpec, PlantSpec, PositionSpec,
-    ReferenceSpec,
 };
 
 /// The faults a scenario injects into its robot's reader link (the
@@ -301,7 +301,7 @@ impl Robot {
     /// the reference, for `duration_s` (what the flash image is validated
     /// as).
     #[must_use]
-    pub fn scenario(&self, reference: ReferenceSpec, duration_s: f64) -> Scenario {
+    pub fn scenario(&self, reference: TrajectorySpec, duration_s: f64) -> Scenario {
         let mut scenario = Scenario {
             name: self.file.name.clone(),
             description: self.file.description.clone(),

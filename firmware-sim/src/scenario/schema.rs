@@ -6,13 +6,14 @@
 use serde::{Deserialize, Serialize};
 use wmr_core::estimation::spec::EstimatorSpec;
 use wmr_core::plausible;
+use wmr_core::reference::TrajectorySpec;
 
 use super::defaults;
 use super::robot_file::RobotSource;
 use super::sweep_spec::SweepSpec;
 use super::tables::{
     ControllerSpec, DriveSpec, FailsafeSpec, FloorTagSpec, InitialSpec, MeasurementSpec,
-    ObserverSpec, PlantSpec, PositionSpec, ReferenceSpec, TelemetrySpec,
+    ObserverSpec, PlantSpec, PositionSpec, TelemetrySpec,
 };
 
 /// A simulation scenario (the TOML file's top level).
@@ -34,7 +35,7 @@ pub struct Scenario {
     #[serde(default)]
     pub transient_s: f64,
     /// The reference trajectory.
-    pub reference: ReferenceSpec,
+    pub reference: TrajectorySpec,
     /// Initial pose and observer estimate.
     #[serde(default)]
     pub initial: InitialSpec,

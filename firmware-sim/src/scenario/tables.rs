@@ -61,55 +61,6 @@ pub struct FloorTagSpec {
     pub y_m: f64,
 }
 
-/// The reference trajectory.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-pub enum ReferenceSpec {
-    /// Paper 001's figure-eight, `x = h1 sin 2s`, `y = h1 sin s`, `s = h2 t + φ`.
-    FigureEight {
-        /// Half-width `h1`, m.
-        #[serde(default = "defaults::h1_m")]
-        #[schemars(range(min = plausible::REFERENCE_SIZE_M.min, max = plausible::REFERENCE_SIZE_M.max))]
-        h1_m: f64,
-        /// Rate `h2`, rad/s.
-        #[serde(default = "defaults::h2_rad_s")]
-        #[schemars(range(min = plausible::REFERENCE_RATE_RAD_S.min, max = plausible::REFERENCE_RATE_RAD_S.max))]
-        h2_rad_s: f64,
-        /// Phase `φ`, rad (−π/2 starts at (0, −h1), as the paper's runs).
-        #[serde(default = "defaults::phase_rad")]
-        #[schemars(range(min = plausible::ANGLE_RAD.min, max = plausible::ANGLE_RAD.max))]
-        phase_rad: f64,
-    },
-    /// A circle.
-    Circle {
-        /// Centre `[x, y]`, m.
-        #[serde(default)]
-        center_m: [f64; 2],
-        /// Radius, m.
-        #[schemars(range(min = plausible::REFERENCE_SIZE_M.min, max = plausible::REFERENCE_SIZE_M.max))]
-        radius_m: f64,
-        /// Angular rate, rad/s (negative: clockwise).
-        rate_rad_s: f64,
-        /// Polar angle of the start point, rad.
-        #[serde(default)]
-        #[schemars(range(min = plausible::ANGLE_RAD.min, max = plausible::ANGLE_RAD.max))]
-        phase_rad: f64,
-    },
-    /// A straight line at constant speed.
-    Line {
-        /// Start `[x, y]`, m.
-        #[serde(default)]
-        start_m: [f64; 2],
-        /// Direction, rad.
-        #[serde(default)]
-        #[schemars(range(min = plausible::ANGLE_RAD.min, max = plausible::ANGLE_RAD.max))]
-        heading_rad: f64,
-        /// Speed, m/s.
-        #[schemars(range(min = plausible::REFERENCE_SPEED_M_S.min, max = plausible::REFERENCE_SPEED_M_S.max))]
-        speed_m_s: f64,
-    },
-}
-
 /// Initial pose of the robot and of the observer's estimate.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]

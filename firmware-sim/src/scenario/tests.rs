@@ -158,6 +158,7 @@ fn the_resolved_file_reads_back_the_same_without_warnings() {
         "{resolved}"
     );
     assert!(resolved.contains("gate_sigma = 3.3\n"), "{resolved}");
+    assert!(resolved.contains("phase_rad = -1.5707964\n"), "{resolved}");
     let again = Scenario::from_toml_str(&resolved).unwrap();
     assert_eq!(again.estimator, fusion.estimator);
     // f64 keys keep their value, bit for bit.

@@ -193,7 +193,7 @@ impl Scenario {
             telemetry.every_ticks()?;
         }
 
-        let trajectory_spec = self.reference.spec()?;
+        let trajectory_spec = reference::checked(&self.reference)?;
         let trajectory = trajectory_spec.build().map_err(|e| {
             ScenarioError::invalid("reference", format!("refused by the core: {e}"))
         })?;

@@ -4,100 +4,88 @@ use wmr_core::reference::Trajectory;
 use wmr_core::reference::TrajectorySpec;
 
 use crate::scenario::error::{ScenarioError, in_range};
-use crate::scenario::tables::ReferenceSpec;
 use wmr_core::plausible::{ANGLE_RAD, REFERENCE_RATE_RAD_S, REFERENCE_SIZE_M, REFERENCE_SPEED_M_S};
 
-use super::{f, floor_point};
+use super::floor_point;
 
-impl ReferenceSpec {
-    /// The core trajectory.
-    ///
-    /// # Errors
-    /// [`ScenarioError::Invalid`] naming the bad `reference.*` field.
-    pub fn build(&self) -> Result<Trajectory, ScenarioError> {
-        self.spec()?
-            .build()
-            .map_err(|e| ScenarioError::invalid("reference", format!("refused by the core: {e}")))
-    }
+/// The value of a core `f32` key as the file wrote it: the shortest
+/// decimal of the `f32`, so that a refusal prints `0.1`, not
+/// `0.10000000149011612`.
+fn written(v: f32) -> f64 {
+    v.to_string().parse().unwrap_or(f64::from(v))
+}
 
-    /// The core's plain spec of the reference (checked field by field).
-    ///
-    /// # Errors
-    /// [`ScenarioError::Invalid`] naming the bad `reference.*` field.
-    pub fn spec(&self) -> Result<TrajectorySpec, ScenarioError> {
-        Ok(match *self {
-            Self::FigureEight {
-                h1_m,
-                h2_rad_s,
-                phase_rad,
-            } => TrajectorySpec::FigureEight {
-                h1_m: f(in_range("reference.h1_m", h1_m, REFERENCE_SIZE_M, "m")?),
-                h2_rad_s: f(in_range(
-                    "reference.h2_rad_s",
-                    h2_rad_s,
-                    REFERENCE_RATE_RAD_S,
-                    "rad/s",
-                )?),
-                phase_rad: f(in_range(
-                    "reference.phase_rad",
-                    phase_rad,
-                    ANGLE_RAD,
-                    "rad",
-                )?),
-            },
-            Self::Circle {
-                center_m,
-                radius_m,
-                rate_rad_s,
-                phase_rad,
-            } => {
-                if !REFERENCE_RATE_RAD_S.contains_magnitude(rate_rad_s as f32) {
-                    return Err(ScenarioError::invalid(
-                        "reference.rate_rad_s",
-                        format!(
-                            "its magnitude must be in {REFERENCE_RATE_RAD_S} rad/s, the sign \
-                             gives the sense (got {rate_rad_s})"
-                        ),
-                    ));
-                }
-                TrajectorySpec::Circle {
-                    center_m: floor_point("reference.center_m", center_m)?,
-                    radius_m: f(in_range(
-                        "reference.radius_m",
-                        radius_m,
-                        REFERENCE_SIZE_M,
-                        "m",
-                    )?),
-                    rate_rad_s: f(rate_rad_s),
-                    phase_rad: f(in_range(
-                        "reference.phase_rad",
-                        phase_rad,
-                        ANGLE_RAD,
-                        "rad",
-                    )?),
-                }
+/// The scenario's `[reference]`, checked key by key (the core checks the
+/// whole when it builds it, but names no key).
+///
+/// # Errors
+/// [`ScenarioError::Invalid`] naming the bad `reference.*` key.
+pub fn checked(reference: &TrajectorySpec) -> Result<TrajectorySpec, ScenarioError> {
+    let point = |key: &str, [x, y]: [f32; 2]| floor_point(key, [written(x), written(y)]);
+    match *reference {
+        TrajectorySpec::FigureEight {
+            h1_m,
+            h2_rad_s,
+            phase_rad,
+        } => {
+            in_range("reference.h1_m", written(h1_m), REFERENCE_SIZE_M, "m")?;
+            in_range(
+                "reference.h2_rad_s",
+                written(h2_rad_s),
+                REFERENCE_RATE_RAD_S,
+                "rad/s",
+            )?;
+            in_range("reference.phase_rad", written(phase_rad), ANGLE_RAD, "rad")?;
+        }
+        TrajectorySpec::Circle {
+            center_m,
+            radius_m,
+            rate_rad_s,
+            phase_rad,
+        } => {
+            if !REFERENCE_RATE_RAD_S.contains_magnitude(rate_rad_s) {
+                return Err(ScenarioError::invalid(
+                    "reference.rate_rad_s",
+                    format!(
+                        "its magnitude must be in {REFERENCE_RATE_RAD_S} rad/s, the sign \
+                         gives the sense (got {})",
+                        written(rate_rad_s)
+                    ),
+                ));
             }
-            Self::Line {
-                start_m,
-                heading_rad,
-                speed_m_s,
-            } => TrajectorySpec::Line {
-                start_m: floor_point("reference.start_m", start_m)?,
-                heading_rad: f(in_range(
-                    "reference.heading_rad",
-                    heading_rad,
-                    ANGLE_RAD,
-                    "rad",
-                )?),
-                speed_m_s: f(in_range(
-                    "reference.speed_m_s",
-                    speed_m_s,
-                    REFERENCE_SPEED_M_S,
-                    "m/s",
-                )?),
-            },
-        })
+            point("reference.center_m", center_m)?;
+            in_range(
+                "reference.radius_m",
+                written(radius_m),
+                REFERENCE_SIZE_M,
+                "m",
+            )?;
+            in_range("reference.phase_rad", written(phase_rad), ANGLE_RAD, "rad")?;
+        }
+        TrajectorySpec::Line {
+            start_m,
+            heading_rad,
+            speed_m_s,
+        } => {
+            point("reference.start_m", start_m)?;
+            in_range(
+                "reference.heading_rad",
+                written(heading_rad),
+                ANGLE_RAD,
+                "rad",
+            )?;
+            in_range(
+                "reference.speed_m_s",
+                written(speed_m_s),
+                REFERENCE_SPEED_M_S,
+                "m/s",
+            )?;
+        }
+        // A reference family the simulator has no per-key checks for: the
+        // core's own refusal names the table.
+        _ => {}
     }
+    Ok(*reference)
 }
 
 /// Bounding box of the reference over `[0, duration_s]`, sampled at
