@@ -415,7 +415,11 @@ pub struct DynamicsSpec {
     pub load_grade_percent: f64,
 }
 
-/// Drive limits and per-wheel speed loops (`diff_drive` plant only).
+/// Drive limits and per-wheel speed loops (`diff_drive` plant only): the
+/// keys of the core's `wmr_core::drive::spec::DriveSpec` less the facts the
+/// plant table states once (wheel radius, track, counts per revolution),
+/// in `f64` so that each is checked and named before it becomes the
+/// core's `f32` (a test holds the two to the same keys).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DriveSpec {
@@ -446,7 +450,9 @@ pub struct DriveSpec {
 }
 
 /// The robot as the wheel-speed observer models it (paper 003, section
-/// 6.1; see `wmr_core::drive::speed_observer`). The wheel radius, track and
+/// 6.1; see `wmr_core::drive::speed_observer`): the keys of the core's
+/// `wmr_core::drive::spec::SpeedObserverSpec` less the motors' no-load
+/// speed. The wheel radius, track and
 /// the motors' no-load speed (`plant.wheel_speed_at_full_duty_rad_s`) come
 /// from the plant table; these may differ from `[plant.dynamics]` to study
 /// a mismatched model.

@@ -691,3 +691,63 @@ fn floors_beyond_the_cap_are_refused() {
         "{e}"
     );
 }
+
+/// The `[drive]` and `[drive.speed_observer]` tables are the core's
+/// `DriveSpec` and `SpeedObserverSpec` as a file writes them: the same
+/// keys, less the facts the plant table states once (wheel radius, track,
+/// counts per revolution, the motors' no-load speed). A key added to the
+/// core's spec and not to the file, or renamed in one of them, fails here.
+#[test]
+fn the_drive_tables_are_the_cores_specs_less_the_plants_facts() {
+    use std::collections::BTreeSet;
+    use wmr_core::drive::spec as core;
+    let keys =
+        |v: toml::Value| -> BTreeSet<String> { v.as_table().unwrap().keys().cloned().collect() };
+    let observer = core::SpeedObserverSpec {
+        mass_kg: 1.0,
+        yaw_inertia_kg_m2: 1.0,
+        wheel_inertia_kg_m2: 0.0,
+        stall_torque_nm: 1.0,
+        no_load_speed_rad_s: 1.0,
+        lambda_per_s: 1.0,
+        friction_gain: 1.0,
+        disturbance_gain: 1.0,
+    };
+    let drive = core::DriveSpec {
+        wheel_radius_m: 0.03,
+        track_width_m: 0.2,
+        encoder_counts_per_rev: 2048,
+        max_wheel_speed_rad_s: 20.0,
+        max_wheel_accel_rad_s2: 40.0,
+        feedforward_duty_per_rad_s: 0.05,
+        kp_duty_per_rad_s: 0.05,
+        ki_duty_per_rad: 0.5,
+        speed_observer: Some(observer),
+    };
+    let file_observer = super::SpeedObserverSpec {
+        mass_kg: 1.0,
+        yaw_inertia_kg_m2: 1.0,
+        wheel_inertia_kg_m2: 0.0,
+        stall_torque_nm: 1.0,
+        lambda_per_s: 1.0,
+        friction_gain: 1.0,
+        disturbance_gain: 1.0,
+    };
+    let file_drive = super::DriveSpec {
+        feedforward_duty_per_rad_s: Some(0.05),
+        speed_observer: Some(file_observer),
+        ..super::DriveSpec::default()
+    };
+    let from_plant = |keys: &[&str]| {
+        keys.iter()
+            .map(|k| (*k).to_owned())
+            .collect::<BTreeSet<_>>()
+    };
+    let core_drive = keys(toml::Value::try_from(drive).unwrap());
+    let file = keys(toml::Value::try_from(file_drive).unwrap());
+    let plant = from_plant(&["wheel_radius_m", "track_width_m", "encoder_counts_per_rev"]);
+    assert_eq!(core_drive, &file | &plant);
+    let core_observer = keys(toml::Value::try_from(observer).unwrap());
+    let file = keys(toml::Value::try_from(file_observer).unwrap());
+    assert_eq!(core_observer, &file | &from_plant(&["no_load_speed_rad_s"]));
+}
