@@ -273,7 +273,11 @@ impl Scenario {
     /// # Errors
     /// Never for a scenario that was parsed (all values representable).
     pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
-        let mut value = toml::Value::try_from(self)?;
+        // A toml::Value holds i64 integers: a u64 seed beyond them (a
+        // sweep's drawn seeds) is written by the typed serializer as it is.
+        let Ok(mut value) = toml::Value::try_from(self) else {
+            return toml::to_string_pretty(self);
+        };
         for (key, _) in self.ignored_keys() {
             remove_key(&mut value, key);
         }
