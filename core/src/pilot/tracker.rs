@@ -84,7 +84,7 @@ pub enum TrackerConfigError {
     FailsafeDecel,
     /// Fix timeout of zero ticks.
     FixTimeout,
-    /// A paper 002 estimator or law with a step other than the tracker's.
+    /// A law whose own step (Proposition 7's) is not the estimator's.
     AlgorithmPeriod,
     /// Antenna offset not finite, or farther than
     /// [`TrackerConfig::MAX_ANTENNA_OFFSET_M`] from the axle midpoint.
@@ -168,11 +168,10 @@ impl TrackerConfig {
     /// [`TrackerConfigError::Period`] for a step outside [`PERIOD_S`],
     /// [`TrackerConfigError::AlgorithmPeriod`] if the law's own step
     /// (Proposition 7's) is not the estimator's.
-    // Inlined: built out of line, the configuration (with the fusion
-    // estimator's settings) is assembled in this function's frame and
-    // copied out, which put 116 B on the firmware's peak stack (its
-    // `Configure` path); inlined into the spec's build, it is assembled
-    // in place.
+    // Inlined so that the spec's build assembles the configuration (with
+    // the fusion estimator's settings) in place rather than in this
+    // function's frame and copying it out: the firmware's `Configure` path
+    // sets its peak stack.
     #[inline(always)]
     pub fn new(
         estimator: EstimatorChoice,
