@@ -329,6 +329,8 @@ impl Trajectory {
 
     /// Bounds of the reference speed over all time (paper 001, eq. (2)).
     #[must_use]
+    // Always inlined so that a compiled-in spec's validation folds away: see `LawSpec::build`.
+    #[inline(always)]
     pub fn speed_bounds(&self) -> SpeedBounds {
         match self {
             Self::FigureEight(f) => f.speed_bounds(),

@@ -61,6 +61,8 @@ impl LawChoice {
     /// reference of speed bounds `bounds` (`None` for the laws it does not
     /// concern).
     #[must_use]
+    // Always inlined so that a compiled-in spec's validation folds away: see `LawSpec::build`.
+    #[inline(always)]
     pub fn gain_bound(&self, bounds: SpeedBounds) -> Option<GainBound> {
         match self {
             Self::Saturated(gains) => Some(gains.check_bound(bounds)),

@@ -178,6 +178,8 @@ impl TrackingGains {
 
     /// Checks the gain bound (15) against the reference's speed bounds (2).
     #[must_use]
+    // Always inlined so that a compiled-in spec's validation folds away: see `LawSpec::build`.
+    #[inline(always)]
     pub fn check_bound(&self, reference: SpeedBounds) -> GainBound {
         if !(reference.min_m_s.is_finite() && reference.min_m_s > 0.0) {
             return GainBound::ReferenceNotExciting;
