@@ -177,13 +177,34 @@
 //!   [`StepOutcome::NonFiniteResult`].
 //!
 //! Everything is stack-allocated: `σf` is an `N × S` matrix, `S = 2N + 1`.
+//!
+//! # Files
+//! * `factor.rs`: the square-root form's small linear algebra (a rank-one
+//!   Cholesky update by Givens rotations, the factor of a semi-definite
+//!   noise matrix);
+//! * `sigma_points.rs`: [`MerweScaledSigmaPoints`], their weights, the
+//!   unscented means and residuals ([`AngleComponents`]);
+//! * `conditioning.rs`: the covariance helpers both steps share
+//!   (finiteness, symmetrising, the check of a noise covariance, the
+//!   gain's solve with `S`);
+//! * `filter.rs`: the [`UnscentedKalmanFilter`] itself: its state,
+//!   construction, settings and accessors;
+//! * `predict.rs`: the time update, with the repair and reset of "Bad
+//!   input and failures";
+//! * `update.rs`: the measurement update and the covariance form's
+//!   correction;
+//! * `square_root.rs`: the square-root form's correction;
+//! * `tests.rs`: the unit tests.
 
+mod conditioning;
 mod factor;
 mod filter;
+mod predict;
 mod sigma_points;
 mod square_root;
 #[cfg(test)]
 mod tests;
+mod update;
 
 pub use super::StepOutcome;
 pub use filter::UnscentedKalmanFilter;

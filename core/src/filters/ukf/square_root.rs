@@ -5,7 +5,8 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::factor::{add_columns, outer};
-use super::filter::{Corrected, UnscentedKalmanFilter};
+use super::filter::UnscentedKalmanFilter;
+use super::update::Corrected;
 use super::{StepOutcome, UkfModel};
 
 impl<Model, const N: usize, const M: usize, const S: usize> UnscentedKalmanFilter<Model, N, M, S>
