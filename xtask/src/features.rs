@@ -15,10 +15,10 @@
 //! including no estimator at all (the `not(feature = "fusion-ekf")` paths,
 //! which the workspace build, where the simulator turns every feature on,
 //! never compiles). The last row turns everything on. `std`, `schemars`
-//! and `arbitrary` are left out: they are for host tools (`schemars` does
-//! not even build for the Cortex-M0, which lacks pointer atomics;
-//! `arbitrary` needs `std`), which the host clippy of the workspace covers
-//! (`host-tests` turns `arbitrary` on).
+//! and `arbitrary` are for host tools (`schemars` does not even build for
+//! the Cortex-M0, which lacks pointer atomics; `arbitrary` needs `std`):
+//! the host clippy of the workspace turns them all on at once, and
+//! [`CORE_HOST`] builds each of them without the others on the host.
 //!
 //! The firmware always takes the core with `defmt` (and `serde` through
 //! the link), so its choices are a board, the math backend (`micromath`,
@@ -61,6 +61,12 @@ pub const CORE: [&[&str]; 6] = [
     ],
 ];
 
+/// The core's host-tool rows (built with `--no-default-features` for the
+/// host): what a host tool may turn on alone, which the workspace build,
+/// turning everything on, never compiles by itself (`serde` with `std`
+/// needs serde's own `std` for the files' tagged tables).
+pub const CORE_HOST: [&[&str]; 4] = [&["std"], &["serde", "std"], &["schemars"], &["arbitrary"]];
+
 /// The rows of `wmr-papers` (the papers' algorithms no robot runs; built
 /// with `--no-default-features`), linted on each of [`crate::TARGETS`]:
 /// each math backend of the core it calls, `defmt` and `serde` on and off.
@@ -101,6 +107,26 @@ pub fn clippy_matrix() -> crate::Result {
                 )?;
             }
         }
+    }
+    for row in CORE_HOST {
+        let features = row.join(",");
+        crate::step(&format!("clippy core host [{features}]"), || {
+            crate::cargo(
+                &[
+                    "clippy",
+                    "-p",
+                    "wmr-core",
+                    "--all-targets",
+                    "--no-default-features",
+                    "--features",
+                    &features,
+                    "--",
+                    "-D",
+                    "warnings",
+                ],
+                &[],
+            )
+        })?;
     }
     for (board, board_feature) in crate::BOARDS {
         for row in FIRMWARE {
@@ -276,6 +302,13 @@ mod tests {
         assert!(CORE.iter().any(|r| has(r, "libm") && !has(r, "micromath")));
         assert!(CORE.iter().any(|r| !has(r, "libm") && has(r, "micromath")));
         assert!(CORE.iter().any(|r| has(r, "libm") && has(r, "micromath")));
+        // Each host-tool feature alone on the host.
+        for host_feature in ["std", "schemars", "arbitrary"] {
+            assert!(
+                super::CORE_HOST.iter().any(|r| r.contains(&host_feature)),
+                "`{host_feature}` never built on the host"
+            );
+        }
     }
 
     #[test]
