@@ -88,6 +88,8 @@ impl SpecError {
             Self::Trajectory(_) => SpecSection::Trajectory,
             Self::Tracker(TrackerConfigError::AntennaOffset) => SpecSection::Sensors,
             Self::Gains(_) | Self::Observer(_) | Self::Tracker(_) => SpecSection::Tracker,
+            // Built by hand rather than through `From`: still the build's.
+            Self::Estimator(EstimatorSpecError::NotInThisBuild) => SpecSection::Build,
             Self::Estimator(e) if e.is_about_sensors() => SpecSection::Sensors,
             Self::SensorTrackWidth => SpecSection::Sensors,
             Self::Estimator(e) => SpecSection::Estimator(e.estimator_key()),
@@ -760,6 +762,14 @@ mod tests {
         assert_eq!(
             s.build(),
             Err(SpecError::Pilot(PilotConfigError::EncoderBits))
+        );
+        // A build's refusal is the build's section however it is wrapped.
+        let wrapped = SpecError::Estimator(EstimatorSpecError::NotInThisBuild);
+        assert_eq!(wrapped.section(), SpecSection::Build);
+        assert_eq!(wrapped.to_string(), SpecError::NotInThisBuild.to_string());
+        assert_eq!(
+            SpecError::from(EstimatorSpecError::NotInThisBuild),
+            SpecError::NotInThisBuild
         );
     }
 
