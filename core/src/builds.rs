@@ -8,8 +8,11 @@
 //! bench's particle-filter rows build theirs), the HIL tests (which find
 //! each firmware by [`OptionalBuild::hil_firmware_env`]) and
 //! `firmware-sim` (the builds a robot's spec needs:
-//! [`crate::pilot::spec::PilotSpec::required_builds`]). A new optional
-//! estimator adds its feature to both manifests and its entry here.
+//! [`crate::pilot::spec::PilotSpec::required_builds`], from each layer's
+//! [`crate::estimation::spec::EstimatorSpec::required_build`] and
+//! [`crate::drive::spec::DriveSpec::required_build`]). A new optional
+//! estimator adds its feature to both manifests, its entry here and its
+//! arm in its layer's `required_build`.
 
 /// An optional build: a cargo feature and what names it in file names and
 /// the environment.

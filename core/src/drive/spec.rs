@@ -3,6 +3,7 @@
 //! file, a scenario, the firmware's compiled-in spec); see
 //! [`crate::pilot::spec`] for why specs are plain data.
 
+use crate::builds::{self, OptionalBuild};
 use crate::drive::momenta_observer::MomentaObserverError;
 use crate::drive::{DriveConfig, DriveConfigError, SpeedLoopGains};
 use crate::geometry::{DiffDriveGeometry, GeometryError};
@@ -118,6 +119,13 @@ impl SpeedObserverSpec {
 }
 
 impl DriveSpec {
+    /// The optional build ([`crate::builds`]) this drive needs: paper
+    /// 003's wheel-speed observer when its speed loops run on it.
+    #[must_use]
+    pub fn required_build(&self) -> Option<OptionalBuild> {
+        self.speed_observer.map(|_| builds::WHEEL_SPEED_OBSERVER)
+    }
+
     /// The validated drive configuration for control period `period_s`.
     ///
     /// # Errors

@@ -4,6 +4,7 @@
 //! estimator's own constructor; see [`crate::pilot::spec`] for why specs
 //! are plain data.
 
+use crate::builds::{self, OptionalBuild};
 use crate::estimation::EstimatorChoice;
 use crate::estimation::fusion::PoseFilterError;
 #[cfg(feature = "fusion-ekf")]
@@ -317,6 +318,29 @@ pub struct SensorSpec {
 }
 
 impl EstimatorSpec {
+    /// The optional build ([`crate::builds`]) this estimator needs beyond
+    /// the fusion EKF both firmware boards carry: the fusion estimator's
+    /// UKF or particle filter.
+    #[must_use]
+    pub fn required_build(&self) -> Option<OptionalBuild> {
+        match self {
+            Self::Fusion(FusionSpec {
+                filter: FusionFilterSpec::Ukf,
+                ..
+            }) => Some(builds::FUSION_UKF),
+            Self::Fusion(FusionSpec {
+                filter: FusionFilterSpec::ParticleFilter,
+                ..
+            }) => Some(builds::FUSION_PARTICLE_FILTER),
+            Self::Fusion(FusionSpec {
+                filter: FusionFilterSpec::Ekf,
+                ..
+            })
+            | Self::HeadingObserver
+            | Self::PoseObserver { .. } => None,
+        }
+    }
+
     /// The validated estimator for control period `period_s` and the
     /// robot's `sensors`; paper 001's observer (5) runs with
     /// `heading_observer`, as the estimator or as the fusion estimator's

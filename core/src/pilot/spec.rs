@@ -24,7 +24,7 @@
 //! simulator and the firmware build bit-identical configurations from the
 //! same spec.
 
-use crate::builds::{self, OptionalBuild};
+use crate::builds::OptionalBuild;
 use crate::control::saturated::{GainError, TrackingGains};
 use crate::control::spec::{LawSpec, LawSpecError};
 use crate::devices::TagGridError;
@@ -33,9 +33,7 @@ use crate::drive::momenta_observer::MomentaObserverError;
 use crate::drive::spec::{DriveSpec, DriveSpecError};
 
 use crate::estimation::heading_observer::{HeadingObserverConfig, ObserverConfigError};
-use crate::estimation::spec::{
-    EstimatorSpec, EstimatorSpecError, FusionFilterSpec, FusionSpec, SensorSpec,
-};
+use crate::estimation::spec::{EstimatorSpec, EstimatorSpecError, SensorSpec};
 use crate::geometry::{GeometryError, Vec2};
 use crate::pilot::tracker::{TrackerConfig, TrackerConfigError};
 use crate::pilot::{PilotConfig, PilotConfigError};
@@ -309,22 +307,10 @@ impl PilotSpec {
     /// both firmware boards carry (the fusion EKF): the fusion estimator's
     /// UKF or particle filter, the wheel-speed observer.
     pub fn required_builds(&self) -> impl Iterator<Item = OptionalBuild> {
-        let filter = match self.tracker.estimator {
-            EstimatorSpec::Fusion(FusionSpec {
-                filter: FusionFilterSpec::Ukf,
-                ..
-            }) => Some(builds::FUSION_UKF),
-            EstimatorSpec::Fusion(FusionSpec {
-                filter: FusionFilterSpec::ParticleFilter,
-                ..
-            }) => Some(builds::FUSION_PARTICLE_FILTER),
-            _ => None,
-        };
-        let observer = self
-            .drive
-            .speed_observer
-            .map(|_| builds::WHEEL_SPEED_OBSERVER);
-        observer.into_iter().chain(filter)
+        let observer = self.drive.required_build();
+        observer
+            .into_iter()
+            .chain(self.tracker.estimator.required_build())
     }
 
     /// The validated pilot configuration.
@@ -393,6 +379,7 @@ mod tests {
     use crate::drive::spec::SpeedObserverSpec;
     #[cfg(feature = "fusion-ekf")]
     use crate::estimation::fusion::{FusionSettings, PoseFilterConfig};
+    use crate::estimation::spec::{FusionFilterSpec, FusionSpec};
     use crate::pilot::Pilot;
     use crate::reference::{FigureEight, Trajectory};
 
