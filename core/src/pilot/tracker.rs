@@ -98,9 +98,9 @@ impl core::fmt::Display for TrackerConfigError {
             Self::Observer(e) => core::fmt::Display::fmt(e, f),
             Self::FailsafeDecel => write!(f, "failsafe_decel_m_s2 must be in {DECEL_M_S2} m/s²"),
             Self::FixTimeout => f.write_str("fix_timeout_ticks must be ≥ 1"),
-            Self::AlgorithmPeriod => {
-                f.write_str("a paper 002 estimator or law must run at the tracker's period_s")
-            }
+            Self::AlgorithmPeriod => f.write_str(
+                "the law's own step (paper 002's Proposition 7) must be the estimator's period_s",
+            ),
             Self::AntennaOffset => {
                 f.write_str("antenna_offset_m must be finite and within 1 m of the axle midpoint")
             }
