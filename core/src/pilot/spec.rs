@@ -264,7 +264,10 @@ impl TrackerSpec {
     /// The validated tracker configuration.
     ///
     /// # Errors
-    /// The first part refused.
+    /// The first part refused, in this order: the trajectory, the gains,
+    /// paper 001's observer, the estimator, the law, then the tracker's
+    /// own fields (fix timeout, estimator and law periods, failsafe
+    /// deceleration, antenna offset).
     pub fn build(&self) -> Result<TrackerConfig, SpecError> {
         let trajectory = self.trajectory.build().map_err(SpecError::Trajectory)?;
         let [k1, k2, k3] = self.gains;
