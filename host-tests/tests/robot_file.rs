@@ -64,6 +64,60 @@ fn an_embedded_robot_is_the_same_robot() {
     assert_eq!(embedded, named);
 }
 
+/// A key the robot's setup ignores is a warning naming the robot file and
+/// the key as the robot file names it, whether the scenario names the
+/// robot, embeds it or the robot is flashed; none without the key.
+#[test]
+fn a_robot_key_that_does_not_apply_is_a_warning_in_the_robot_files_names() {
+    let dir = temp_dir("warnings");
+    let example = std::fs::read_to_string(robots().join("example.toml")).unwrap();
+    assert!(example.contains("mode = \"paper\""));
+    let robot = dir.join("radius.toml");
+    std::fs::write(
+        &robot,
+        example.replace("mode = \"paper\"", "mode = \"paper\"\nread_radius_m = 0.05"),
+    )
+    .unwrap();
+    let scenario = std::fs::read_to_string(robots().join("figure_eight.toml"))
+        .unwrap()
+        .replace("robot = \"example.toml\"", "robot = \"radius.toml\"");
+    std::fs::write(dir.join("scenario.toml"), scenario).unwrap();
+    let expected = format!(
+        "robot file {}: reader.read_radius_m: ignored with reader.mode = \"paper\"",
+        robot.display()
+    );
+    let named = Scenario::from_file(&dir.join("scenario.toml")).unwrap();
+    let w = named.warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(w[0].starts_with(&expected), "{w:?}");
+    let w = Robot::from_file(&robot).unwrap().warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(w[0].starts_with(&expected), "{w:?}");
+    // Embedded as [robot]: the same key, in the robot's names.
+    let robot_table: toml::Table = std::fs::read_to_string(&robot).unwrap().parse().unwrap();
+    let mut scenario: toml::Table = std::fs::read_to_string(robots().join("figure_eight.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    scenario.insert("robot".into(), toml::Value::Table(robot_table));
+    let embedded = Scenario::from_toml_str(&toml::to_string(&scenario).unwrap()).unwrap();
+    let w = embedded.warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].starts_with("robot file [robot]: reader.read_radius_m: ignored"),
+        "{w:?}"
+    );
+    // The shipped robots give no such key.
+    for name in ["example.toml", "blackpill.toml", "surveyed.toml"] {
+        let w = Robot::from_file(&robots().join(name)).unwrap().warnings();
+        assert_eq!(w, Vec::<String>::new(), "{name}");
+    }
+    let w = Scenario::from_file(&robots().join("figure_eight.toml"))
+        .unwrap()
+        .warnings();
+    assert_eq!(w, Vec::<String>::new());
+}
+
 fn temp_dir(name: &str) -> PathBuf {
     let dir = workspace_root()
         .join("target")

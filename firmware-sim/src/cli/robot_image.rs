@@ -17,7 +17,11 @@ impl RobotImageArgs {
     pub fn run(self) -> anyhow::Result<()> {
         let Self { robot, out } = self;
         use firmware_sim::scenario::robot::{FlashFloor, Robot};
-        let image = Robot::from_file(&robot)?.flash_image()?;
+        let robot_file = Robot::from_file(&robot)?;
+        for warning in robot_file.warnings() {
+            eprintln!("warning: {warning}");
+        }
+        let image = robot_file.flash_image()?;
         std::fs::write(&out, &image.bytes)
             .map_err(|e| anyhow::anyhow!("writing {}: {e}", out.display()))?;
         let floor = match &image.floor {

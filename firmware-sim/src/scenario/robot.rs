@@ -165,6 +165,9 @@ pub struct Robot {
     pub path: String,
     /// The tag map, sorted by id (empty for a grid floor).
     pub tags: Vec<MappedTag>,
+    /// The keys the file gave (warnings name a key that does not apply
+    /// only where the file wrote it).
+    pub given: GivenKeys,
 }
 
 /// Most tags a tag map may hold (the flash image's table; 16 bytes each).
@@ -264,9 +267,35 @@ impl Robot {
     pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
         let text = std::fs::read_to_string(path)
             .map_err(|source| ScenarioError::io("robot file", path, source))?;
-        let file: RobotFile = toml::from_str(&text)
-            .map_err(|e| ScenarioError::Parse(format!("robot file {}: {e}", path.display())))?;
-        Self::new(file, path.display().to_string(), path.parent())
+        let parse_error = |e: toml::de::Error| {
+            ScenarioError::Parse(format!("robot file {}: {e}", path.display()))
+        };
+        let file: RobotFile = toml::from_str(&text).map_err(parse_error)?;
+        let given = GivenKeys::of_toml(&text).map_err(parse_error)?;
+        Self::new(file, path.display().to_string(), path.parent()).map(|r| r.given(given))
+    }
+
+    /// This robot, its file having given `keys`.
+    #[must_use]
+    pub fn given(mut self, keys: GivenKeys) -> Self {
+        self.given = keys;
+        self
+    }
+
+    /// The keys the robot file gave where they do not apply to its setup
+    /// (ignored, so probably a mistake): one line each, naming the file,
+    /// the key and why, in the robot file's own names.
+    #[must_use]
+    pub fn warnings(&self) -> Vec<String> {
+        // Which keys apply does not depend on the reference.
+        let reference = self.file.reference.unwrap_or(TrajectorySpec::FigureEight {
+            h1_m: TrajectorySpec::PAPER_H1_M,
+            h2_rad_s: TrajectorySpec::PAPER_H2_RAD_S,
+            phase_rad: TrajectorySpec::PAPER_PHASE_RAD,
+        });
+        let mut scenario = self.scenario(reference, 1.0);
+        scenario.given = GivenKeys::default().with_robot(self.path.clone(), self.given.clone());
+        scenario.warnings()
     }
 
     /// A robot from its parsed tables; `dir` is where a tag map's path is
@@ -294,7 +323,12 @@ impl Robot {
                 parse_tag_map(&csv_path.display().to_string(), &text)?
             }
         };
-        Ok(Self { file, path, tags })
+        Ok(Self {
+            file,
+            path,
+            tags,
+            given: GivenKeys::default(),
+        })
     }
 
     /// A scenario tracking `reference` with this robot, from the start of
@@ -378,7 +412,7 @@ impl Robot {
 
     /// The robot file's key a scenario key of a filled-in scenario came
     /// from (`position.spacing_m` → `floor.spacing_m`).
-    fn key_of(field: &str) -> Option<String> {
+    pub(crate) fn key_of(field: &str) -> Option<String> {
         let (head, rest) = field.split_once('.').unwrap_or((field, ""));
         let robot_key = match head {
             "period_s" | "plant" | "drive" | "controller" | "observer" | "estimator"
@@ -453,7 +487,9 @@ impl Scenario {
                 Robot::from_file(&dir.join(&name))
                     .map_err(|e| e.named_by(format!("the scenario's `robot = \"{name}\"`")))?
             }
-            RobotSource::Inline(file) => Robot::new(*file, "[robot]".to_owned(), dir)?,
+            RobotSource::Inline(file) => {
+                Robot::new(*file, "[robot]".to_owned(), dir)?.given(self.given.under("robot"))
+            }
         };
         if !matches!(robot.file.plant, PlantSpec::DiffDrive { .. }) {
             return Err(robot_error(
@@ -473,6 +509,8 @@ impl Scenario {
         }
         let faults = ReaderFaults::of_scenario(&self.position, &robot.path)?;
         robot.fill(self, faults);
+        self.given =
+            std::mem::take(&mut self.given).with_robot(robot.path.clone(), robot.given.clone());
         Ok(Some(robot))
     }
 }

@@ -106,7 +106,13 @@ pub struct Scenario {
 /// content: any two compare equal, so that a scenario and its re-read
 /// resolved file are the same scenario.
 #[derive(Debug, Clone, Default)]
-pub struct GivenKeys(std::collections::BTreeSet<String>);
+pub struct GivenKeys {
+    /// The file's own keys.
+    keys: std::collections::BTreeSet<String>,
+    /// The robot file whose tables the scenario holds (its path as errors
+    /// name it, and its keys in its own names), when it names one.
+    robot: Option<(String, Box<GivenKeys>)>,
+}
 
 impl GivenKeys {
     /// The keys of a TOML text (which has parsed as a scenario already).
@@ -114,14 +120,47 @@ impl GivenKeys {
     /// # Errors
     /// The TOML parser's, for a text that is not TOML.
     pub(crate) fn of_toml(text: &str) -> Result<Self, toml::de::Error> {
-        toml::from_str::<KeyTree>(text).map(|tree| Self(tree.0))
+        toml::from_str::<KeyTree>(text).map(|tree| Self {
+            keys: tree.0,
+            robot: None,
+        })
+    }
+
+    /// The keys under `table` (`robot` for an inline robot), in the
+    /// table's own names.
+    pub(crate) fn under(&self, table: &str) -> Self {
+        let prefix = format!("{table}.");
+        Self {
+            keys: self
+                .keys
+                .iter()
+                .filter_map(|k| k.strip_prefix(&prefix).map(str::to_owned))
+                .collect(),
+            robot: None,
+        }
+    }
+
+    /// Records the keys of the robot file at `path` whose tables the
+    /// scenario took.
+    pub(crate) fn with_robot(mut self, path: String, robot: GivenKeys) -> Self {
+        self.robot = Some((path, Box::new(robot)));
+        self
     }
 
     /// Whether the file gave `key` (a table counts as given when the file
     /// wrote it or any key under it).
     #[must_use]
     pub fn contains(&self, key: &str) -> bool {
-        self.0.contains(key)
+        self.keys.contains(key)
+    }
+
+    /// The robot file's path and keys, when the scenario took a robot's
+    /// tables.
+    #[must_use]
+    pub fn robot(&self) -> Option<(&str, &GivenKeys)> {
+        self.robot
+            .as_ref()
+            .map(|(path, keys)| (path.as_str(), &**keys))
     }
 }
 

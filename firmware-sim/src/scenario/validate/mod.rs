@@ -155,11 +155,23 @@ impl Scenario {
     /// warnings; `firmware-sim schema` says when each key applies.
     #[must_use]
     pub fn warnings(&self) -> Vec<String> {
-        self.ignored_keys()
+        let mut warnings: Vec<String> = self
+            .ignored_keys()
             .into_iter()
             .filter(|(key, _)| self.given.contains(key))
             .map(|(key, why)| format!("{key}: {why}"))
-            .collect()
+            .collect();
+        // The robot's keys, named as its file names them.
+        if let Some((path, keys)) = self.given.robot() {
+            warnings.extend(self.ignored_keys().into_iter().filter_map(|(key, why)| {
+                let robot_key = super::robot::Robot::key_of(key)?;
+                keys.contains(&robot_key).then(|| {
+                    let why = why.replace("position.mode", "reader.mode");
+                    format!("robot file {path}: {robot_key}: {why}")
+                })
+            }));
+        }
+        warnings
     }
 
     /// Checks every value and builds the core's configurations.
