@@ -306,6 +306,53 @@ pub struct PilotSpec {
 }
 
 impl PilotSpec {
+    /// A complete, valid spec to start from in tests, examples and fuzz
+    /// seeds (`PilotSpec { drive: …, ..PilotSpec::EXAMPLE }`): paper 001's
+    /// figure-eight (`h1` = 5 m, `h2` = 0.02 rad/s, from `(0, −5)` m)
+    /// tracked at 100 Hz by paper 001's observer (gain 10 /m) and law
+    /// (`k1, k2, k3` = 0.5, 0.5, 1), on a robot with 5 cm wheels, a 30 cm
+    /// track and 2048-count encoders on 16-bit counters, over a 10 cm tag
+    /// grid. Not a tuning for a robot: a robot file states its own.
+    pub const EXAMPLE: Self = Self {
+        tracker: TrackerSpec {
+            period_s: 0.01,
+            trajectory: TrajectorySpec::FigureEight {
+                h1_m: TrajectorySpec::PAPER_H1_M,
+                h2_rad_s: TrajectorySpec::PAPER_H2_RAD_S,
+                phase_rad: TrajectorySpec::PAPER_PHASE_RAD,
+            },
+            gains: [0.5, 0.5, 1.0],
+            observer_gain_per_m: 10.0,
+            observer_min_speed_m_s: 1e-3,
+            fix_timeout_ticks: 50,
+            failsafe_decel_m_s2: 0.5,
+            max_fix_age_ticks: 2,
+            estimator: EstimatorSpec::HeadingObserver,
+            law: LawSpec::Saturated,
+            sensors: SensorSpec {
+                track_width_m: 0.3,
+                // Count quantum q = 2π·0.05 m / 2048: q²/12.
+                wheel_variance_floor_m2: 1.96e-9,
+                tag_spacing_m: 0.1,
+                read_radius_m: 0.0,
+                antenna_offset_m: [0.0; 2],
+            },
+        },
+        drive: DriveSpec {
+            wheel_radius_m: 0.05,
+            track_width_m: 0.3,
+            encoder_counts_per_rev: 2048,
+            max_wheel_speed_rad_s: 20.0,
+            max_wheel_accel_rad_s2: 40.0,
+            feedforward_duty_per_rad_s: 0.05,
+            kp_duty_per_rad_s: 0.05,
+            ki_duty_per_rad: 0.5,
+            speed_observer: None,
+        },
+        encoder_bits: 16,
+        max_encoder_fault_ticks: 5,
+    };
+
     /// The optional builds ([`crate::builds`]) this spec needs beyond what
     /// both firmware boards carry (the fusion EKF): the fusion estimator's
     /// UKF or particle filter, the wheel-speed observer.
@@ -386,53 +433,12 @@ mod tests {
     use crate::pilot::Pilot;
     use crate::reference::{FigureEight, Trajectory};
 
-    fn paper_spec() -> PilotSpec {
-        PilotSpec {
-            tracker: TrackerSpec {
-                period_s: 0.01,
-                trajectory: TrajectorySpec::FigureEight {
-                    h1_m: 5.0,
-                    h2_rad_s: 0.02,
-                    phase_rad: -core::f32::consts::FRAC_PI_2,
-                },
-                gains: [0.5, 0.5, 1.0],
-                observer_gain_per_m: 10.0,
-                observer_min_speed_m_s: 1e-3,
-                fix_timeout_ticks: 50,
-                failsafe_decel_m_s2: 0.5,
-                max_fix_age_ticks: 2,
-                estimator: EstimatorSpec::HeadingObserver,
-                law: LawSpec::Saturated,
-                sensors: SensorSpec {
-                    track_width_m: 0.3,
-                    wheel_variance_floor_m2: 2.5e-10,
-                    tag_spacing_m: 0.1,
-                    read_radius_m: 0.0,
-                    antenna_offset_m: [0.0; 2],
-                },
-            },
-            drive: DriveSpec {
-                wheel_radius_m: 0.05,
-                track_width_m: 0.3,
-                encoder_counts_per_rev: 2048,
-                max_wheel_speed_rad_s: 20.0,
-                max_wheel_accel_rad_s2: 40.0,
-                feedforward_duty_per_rad_s: 0.05,
-                kp_duty_per_rad_s: 0.05,
-                ki_duty_per_rad: 0.5,
-                speed_observer: None,
-            },
-            encoder_bits: 16,
-            max_encoder_fault_ticks: 5,
-        }
-    }
-
     /// Errors name the spec field and the rule, in the spec's words.
     #[test]
     fn errors_say_which_field_and_why() {
         extern crate std;
         use std::string::ToString;
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.drive.max_wheel_speed_rad_s = -1.0;
         let e = s.build().unwrap_err();
         assert_eq!(
@@ -440,32 +446,32 @@ mod tests {
             "drive: max_wheel_speed_rad_s must be in [0.001, 10000] rad/s"
         );
         assert!(core::error::Error::source(&e).is_some());
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.tracker.gains[1] = f32::NAN;
         assert_eq!(
             s.build().unwrap_err().to_string(),
             "tracker: gains[1] (k2) must be in [0.000001, 10000] m/s"
         );
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.encoder_bits = 40;
         assert_eq!(
             s.build().unwrap_err().to_string(),
             "encoder_bits must be 2..=32"
         );
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.tracker.fix_timeout_ticks = 0;
         assert_eq!(
             s.build().unwrap_err().to_string(),
             "tracker: fix_timeout_ticks must be ≥ 1"
         );
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.tracker.sensors.track_width_m = 0.31;
         assert_eq!(
             s.build().unwrap_err().to_string(),
             "tracker.sensors: track_width_m must equal drive.track_width_m"
         );
         if cfg!(feature = "fusion-ekf") {
-            let mut s = paper_spec();
+            let mut s = PilotSpec::EXAMPLE;
             s.tracker.estimator = EstimatorSpec::Fusion(FusionSpec {
                 gate_sigma: 0.5,
                 ..FusionSpec::default()
@@ -637,7 +643,7 @@ mod tests {
         ];
         for (key, range, set) in cases {
             for inside in [range.min, range.max] {
-                let mut s = paper_spec();
+                let mut s = PilotSpec::EXAMPLE;
                 set(&mut s, inside);
                 let built = s.build();
                 // The ends build, but for parts of this build that are
@@ -650,7 +656,7 @@ mod tests {
                 );
             }
             for outside in [range.min.next_down(), range.max.next_up(), f32::NAN] {
-                let mut s = paper_spec();
+                let mut s = PilotSpec::EXAMPLE;
                 set(&mut s, outside);
                 match s.build() {
                     Err(SpecError::NotInThisBuild) => {}
@@ -669,7 +675,7 @@ mod tests {
     /// reader, none for the nearest-tag reader, and an explicit value wins.
     #[test]
     fn fusion_blind_distance_default_follows_the_reader() {
-        let mut sensors = paper_spec().tracker.sensors;
+        let mut sensors = PilotSpec::EXAMPLE.tracker.sensors;
         let fusion = FusionSpec::default();
         assert_eq!(fusion.max_blind_distance_m(&sensors), 0.0);
         sensors.tag_spacing_m = 0.2;
@@ -685,7 +691,7 @@ mod tests {
 
     #[test]
     fn paper_spec_builds_the_same_as_the_constructors() {
-        let spec = paper_spec();
+        let spec = PilotSpec::EXAMPLE;
         let config = spec.build().unwrap();
         assert_eq!(config.tracker().clock().period_s(), 0.01);
         assert_eq!(
@@ -699,41 +705,41 @@ mod tests {
 
     #[test]
     fn each_refusal_names_its_part() {
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.tracker.gains[1] = f32::NAN;
         assert_eq!(s.build(), Err(SpecError::Gains(GainError::K2)));
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.tracker.trajectory = TrajectorySpec::Line {
             start_m: [0.0, 0.0],
             heading_rad: 0.0,
             speed_m_s: -1.0,
         };
         assert_eq!(s.build(), Err(SpecError::Trajectory(ReferenceError::Rate)));
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.tracker.observer_gain_per_m = 0.0;
         assert_eq!(
             s.build(),
             Err(SpecError::Observer(ObserverConfigError::Gain))
         );
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.tracker.fix_timeout_ticks = 0;
         assert_eq!(
             s.build(),
             Err(SpecError::Tracker(TrackerConfigError::FixTimeout))
         );
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.drive.track_width_m = f32::INFINITY;
         assert_eq!(
             s.build(),
             Err(SpecError::Geometry(GeometryError::TrackWidth))
         );
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.drive.ki_duty_per_rad = -1.0;
         assert_eq!(
             s.build(),
             Err(SpecError::Drive(DriveConfigError::SpeedLoopGain))
         );
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.tracker.estimator = EstimatorSpec::Fusion(FusionSpec::default());
         s.tracker.sensors.tag_spacing_m = -0.1;
         let expected = if cfg!(feature = "fusion-ekf") {
@@ -744,10 +750,10 @@ mod tests {
             SpecError::NotInThisBuild
         };
         assert_eq!(s.build(), Err(expected));
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.tracker.sensors.track_width_m = 0.31;
         assert_eq!(s.build(), Err(SpecError::SensorTrackWidth));
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.encoder_bits = 33;
         assert_eq!(
             s.build(),
@@ -770,7 +776,7 @@ mod tests {
     #[test]
     fn fusion_on_a_tag_map_needs_a_range_reader_and_a_blind_distance() {
         use crate::estimation::fusion::PoseFilterError;
-        let mut s = paper_spec();
+        let mut s = PilotSpec::EXAMPLE;
         s.tracker.estimator = EstimatorSpec::Fusion(FusionSpec::default());
         s.tracker.sensors.tag_spacing_m = 0.0;
         // The nearest-tag reader's cells need a grid.

@@ -20,52 +20,12 @@ fn crc_is_crc32_iso_hdlc() {
 }
 use proptest::prelude::*;
 use wmr_core::devices::tag_grid::TagGridSpec;
-use wmr_core::drive::spec::DriveSpec;
-use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
-use wmr_core::reference::TrajectorySpec;
+use wmr_core::pilot::spec::PilotSpec;
 
 pub(crate) fn configure() -> HostMessage {
     HostMessage::Configure(Configure {
         protocol: PROTOCOL_VERSION,
-        pilot: PilotSpec {
-            tracker: TrackerSpec {
-                period_s: 0.01,
-                trajectory: TrajectorySpec::FigureEight {
-                    h1_m: 5.0,
-                    h2_rad_s: 0.02,
-                    phase_rad: -core::f32::consts::FRAC_PI_2,
-                },
-                gains: [0.5, 0.5, 1.0],
-                observer_gain_per_m: 10.0,
-                observer_min_speed_m_s: 1e-3,
-                fix_timeout_ticks: 50,
-                failsafe_decel_m_s2: 0.5,
-                max_fix_age_ticks: 2,
-                estimator: wmr_core::estimation::spec::EstimatorSpec::HeadingObserver,
-                law: wmr_core::control::spec::LawSpec::Saturated,
-                sensors: wmr_core::estimation::spec::SensorSpec {
-                    track_width_m: 0.3,
-                    // Count quantum q = 2π·0.05 m / 2048: q²/12.
-                    wheel_variance_floor_m2: 1.96e-9,
-                    tag_spacing_m: 0.1,
-                    read_radius_m: 0.0,
-                    antenna_offset_m: [0.0; 2],
-                },
-            },
-            drive: DriveSpec {
-                wheel_radius_m: 0.05,
-                track_width_m: 0.3,
-                encoder_counts_per_rev: 2048,
-                max_wheel_speed_rad_s: 20.0,
-                max_wheel_accel_rad_s2: 40.0,
-                feedforward_duty_per_rad_s: 0.05,
-                kp_duty_per_rad_s: 0.05,
-                ki_duty_per_rad: 0.5,
-                speed_observer: None,
-            },
-            encoder_bits: 16,
-            max_encoder_fault_ticks: 5,
-        },
+        pilot: PilotSpec::EXAMPLE,
         floor: FloorSpec::Grid(TagGridSpec {
             origin_m: [-6.0, -6.0],
             spacing_m: 0.1,
