@@ -1,26 +1,32 @@
 //! Writes the structured seeds of the committed corpus (`fuzz/corpus/`):
 //! valid RFID streams and link frames of both sides. Run from `fuzz/`:
-//! `cargo run --example make_seeds`. The scenario seeds are the
+//! `cargo run --example make_seeds` (or `-- DIR` to write them under
+//! `DIR` instead: `cargo xtask fuzz` does, and checks that the committed
+//! seeds are the same, so that they follow the link protocol). The scenario seeds are the
 //! simulator's embedded scenarios, copied; the seeds of the targets that
 //! draw their input with `arbitrary` are random bytes.
 
 use std::fs;
-use std::path::Path;
+use std::path::PathBuf;
 
-use wmr_core::control::spec::LawSpec;
 use wmr_core::devices::tag_grid::TagGridSpec;
 use wmr_core::devices::{TagGrid, TagId, encode_frame};
-use wmr_core::drive::spec::DriveSpec;
-use wmr_core::estimation::spec::{EstimatorSpec, SensorSpec};
 use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
 use wmr_core::reference::TrajectorySpec;
 use wmr_link::{
-    Configure, Diagnostics, Finished, HostMessage, MAX_FRAME_BYTES, MotorOutput, PROTOCOL_VERSION,
-    Refusal, Sender, TargetMessage, TickInput, TickOutput,
+    Configure, Diagnostics, Finished, FloorSpec, HostMessage, MAX_FRAME_BYTES, MotorOutput,
+    PROTOCOL_VERSION, Refusal, Sender, TargetMessage, TickInput, TickOutput,
 };
 
+/// Where the seeds go: the first argument, or the committed corpus.
+fn corpus_dir() -> PathBuf {
+    std::env::args_os()
+        .nth(1)
+        .map_or_else(|| PathBuf::from("corpus"), PathBuf::from)
+}
+
 fn write(dir: &str, name: &str, bytes: &[u8]) {
-    let dir = Path::new("corpus").join(dir);
+    let dir = corpus_dir().join(dir);
     fs::create_dir_all(&dir).expect("corpus directory");
     fs::write(dir.join(name), bytes).expect("seed written");
 }
@@ -61,51 +67,24 @@ fn main() {
     // Link: host and target messages, each framed.
     let pilot = PilotSpec {
         tracker: TrackerSpec {
-            period_s: 0.01,
             trajectory: TrajectorySpec::Line {
                 start_m: [0.0, 0.0],
                 heading_rad: 0.0,
                 speed_m_s: 0.2,
             },
-            gains: [0.5, 0.5, 1.0],
-            observer_gain_per_m: 10.0,
-            observer_min_speed_m_s: 1e-3,
-            fix_timeout_ticks: 50,
-            failsafe_decel_m_s2: 0.5,
-            max_fix_age_ticks: 2,
-            estimator: EstimatorSpec::HeadingObserver,
-            law: LawSpec::Saturated,
-            sensors: SensorSpec {
-                track_width_m: 0.3,
-                wheel_variance_floor_m2: 1.96e-9,
-                tag_spacing_m: 0.1,
-                read_radius_m: 0.0,
-                antenna_offset_m: [0.0; 2],
-            },
+            ..PilotSpec::EXAMPLE.tracker
         },
-        drive: DriveSpec {
-            wheel_radius_m: 0.05,
-            track_width_m: 0.3,
-            encoder_counts_per_rev: 2048,
-            max_wheel_speed_rad_s: 20.0,
-            max_wheel_accel_rad_s2: 40.0,
-            feedforward_duty_per_rad_s: 0.05,
-            kp_duty_per_rad_s: 0.05,
-            ki_duty_per_rad: 0.5,
-            speed_observer: None,
-        },
-        encoder_bits: 16,
-        max_encoder_fault_ticks: 5,
+        ..PilotSpec::EXAMPLE
     };
     let configure = HostMessage::Configure(Configure {
         protocol: PROTOCOL_VERSION,
         pilot,
-        grid: TagGridSpec {
+        floor: FloorSpec::Grid(TagGridSpec {
             origin_m: [-1.0, -1.0],
             spacing_m: 0.1,
             rows: 21,
             columns: 21,
-        },
+        }),
         pwm_max_duty: 1000,
         telemetry_every_ticks: 1,
     });

@@ -12,7 +12,10 @@
 //! new corpus entries and crash artifacts to `target/fuzz-corpus/<target>/`
 //! and `target/fuzz-artifacts/<target>/`; the committed corpus
 //! `fuzz/corpus/<target>/` is only read (libFuzzer writes into the first
-//! corpus directory it is given, which is the scratch one). Every committed
+//! corpus directory it is given, which is the scratch one); the seed writer
+//! `fuzz/examples/make_seeds.rs` writes to `target/fuzz-seeds/`, and its
+//! seeds must equal the committed ones (a changed link message makes them
+//! stale: regenerate with `cd fuzz && cargo run --example make_seeds`). Every committed
 //! input runs first, so a crash that was fixed, with its input committed to
 //! the corpus, cannot come back unnoticed. The long runs (millions of
 //! executions) are done by hand: `fuzz/README.md`.
@@ -80,6 +83,9 @@ pub fn fuzz(seconds: u64) -> Result {
             )
         })
     })?;
+    step("fuzz: the committed seeds are make_seeds' own", || {
+        committed_seeds_are_current(&root)
+    })?;
     step("fuzz: build every target (nightly, libFuzzer)", || {
         cargo_fuzz(
             &root,
@@ -92,6 +98,56 @@ pub fn fuzz(seconds: u64) -> Result {
         })?;
     }
     Ok(())
+}
+
+/// Runs the seed writer into `target/fuzz-seeds/` and compares each seed
+/// it writes with the committed one.
+fn committed_seeds_are_current(root: &Path) -> Result {
+    let fuzz = root.join("fuzz");
+    let fresh = root.join("target").join("fuzz-seeds");
+    if fresh.exists() {
+        std::fs::remove_dir_all(&fresh).map_err(|e| format!("{}: {e}", fresh.display()))?;
+    }
+    let target_dir = root.join("target").join("fuzz-seeds-build");
+    let status = Command::new("cargo")
+        .arg(format!("+{NIGHTLY}"))
+        .args(["run", "-q", "--example", "make_seeds", "--target-dir"])
+        .arg(&target_dir)
+        .arg("--")
+        .arg(&fresh)
+        .current_dir(&fuzz)
+        .status()
+        .map_err(|e| format!("cargo run --example make_seeds: {e}"))?;
+    if !status.success() {
+        return Err(format!("cargo run --example make_seeds: {status}"));
+    }
+    let mut stale = Vec::new();
+    let mut count = 0_usize;
+    for target in std::fs::read_dir(&fresh).map_err(|e| format!("{}: {e}", fresh.display()))? {
+        let target = target.map_err(|e| e.to_string())?.path();
+        for seed in std::fs::read_dir(&target).map_err(|e| format!("{}: {e}", target.display()))? {
+            let seed = seed.map_err(|e| e.to_string())?.path();
+            let relative = seed.strip_prefix(&fresh).map_err(|e| e.to_string())?;
+            let committed = fuzz.join("corpus").join(relative);
+            let fresh_bytes =
+                std::fs::read(&seed).map_err(|e| format!("{}: {e}", seed.display()))?;
+            count += 1;
+            if std::fs::read(&committed).ok() != Some(fresh_bytes) {
+                stale.push(relative.display().to_string());
+            }
+        }
+    }
+    if stale.is_empty() {
+        println!("    {count} seeds equal the committed ones");
+        Ok(())
+    } else {
+        stale.sort();
+        Err(format!(
+            "fuzz/corpus is stale ({}); regenerate with `cd fuzz && cargo run --example \
+             make_seeds` and commit",
+            stale.join(", ")
+        ))
+    }
 }
 
 fn run_target(root: &Path, target_dir: &str, name: &str, seconds: u64) -> Result {
