@@ -230,6 +230,27 @@ fn ci() -> Result {
             &[("RUSTDOCFLAGS", "-D warnings")],
         )
     })?;
+    // The tools' docs are read by the people who extend them: their
+    // private items too.
+    step(
+        "rustdoc -D warnings (firmware-sim, host-tests, xtask; private items)",
+        || {
+            cargo(
+                &[
+                    "doc",
+                    "-p",
+                    "firmware-sim",
+                    "-p",
+                    "host-tests",
+                    "-p",
+                    "xtask",
+                    "--no-deps",
+                    "--document-private-items",
+                ],
+                &[("RUSTDOCFLAGS", "-D warnings")],
+            )
+        },
+    )?;
     // Gates: a figure over its budget in firmware/budgets.toml fails CI.
     step("size (budgets)", size::size)?;
     step("bench-target (budgets)", || {

@@ -12,7 +12,7 @@
 //!
 //! The matrix: each board in its default configuration, and each board
 //! with each estimator feature of `firmware/Cargo.toml` alone (the rows
-//! of [`ROWS`]; a test checks them against the manifest). Each row is one
+//! of [`rows`]; a test checks them against the manifest). Each row is one
 //! release build of the firmware crate and the core with that feature set,
 //! in xtask's own target directory.
 

@@ -10,7 +10,7 @@
 //! at the receiver (what delimiter loss does, resynchronisation at the next
 //! `0x00`, is covered by the link's unit tests and fuzz targets). On top, an
 //! outage keeps the host silent for longer than the firmware's
-//! [`LINK_TIMEOUT_MS`] before a tick.
+//! [`LINK_TIMEOUT_MS`](wmr_link::LINK_TIMEOUT_MS) before a tick.
 //!
 //! [`ExpectedCounters`] replays each direction's frames in the order they
 //! arrive, from what was injected (a frame's sequence number and whether

@@ -514,7 +514,7 @@ pub enum ReaderModeSpec {
 
 /// Where the position measurement comes from. A key under `kind =
 /// "exact"`, which serde's tagged enum would pass over, is refused by the
-/// scenario's parser ([`only_kind`], on the file's keys).
+/// scenario's parser (on the file's keys).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum PositionSpec {

@@ -1,6 +1,6 @@
 //! The ways a tick runs ([`Rig`]): the core's tracker or controller on the
 //! unicycle, its `Robot` or `Pilot` on the diff drive, or the firmware's
-//! tick over a [`TargetLink`](super::TargetLink), and the record of a tick.
+//! tick over a [`super::TargetLink`], and the record of a tick.
 
 use wmr_core::control::saturated::TrackingController;
 use wmr_core::devices::{QuadratureCounter, RfidReader};

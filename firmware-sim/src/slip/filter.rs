@@ -16,7 +16,7 @@ pub const PARTICLES: usize = 100;
 /// The particle counts a scenario may ask for (the paper's 100, and 300
 /// and 1,000). The count is a const generic of the core's
 /// `ParticleFilter`, so each is one instantiation built into the
-/// simulator ([`Particles`]); others are refused at validation.
+/// simulator (the enum `Particles`); others are refused at validation.
 pub const PARTICLE_COUNTS: [usize; 3] = [100, 300, 1000];
 
 /// A particle filter with one of [`PARTICLE_COUNTS`] particles, boxed (the

@@ -55,7 +55,7 @@
 //! drift, through `p̂` in (8), made 3 of 5 seeded runs diverge.
 //!
 //! # Outputs
-//! [`run`] gives a [`SlipRecord`] every `record_every_steps` steps (50 ms
+//! [`run()`] gives a [`SlipRecord`] every `record_every_steps` steps (50 ms
 //! by default) and a [`SlipSummary`] (RMS tracking errors before, during
 //! and after the slip, mean `p̂` during and after it, the estimate error),
 //! computed over the records; [`write_outputs`] writes `run.csv`,
@@ -67,7 +67,7 @@
 //! run, [`PARTICLES`], [`PARTICLE_COUNTS`]), `scenario` (the paper's constants, the TOML tables
 //! with their defaults, the embedded scenarios), `validate`
 //! ([`SlipScenario::validate`] and what a run needs), `summary` (records
-//! and statistics), `run` ([`run`]), `output` ([`write_outputs`]: files
+//! and statistics), `run` ([`run()`]), `output` ([`write_outputs`]: files
 //! and plots); this file parses and loads scenarios. Of the rest of the
 //! crate, slip uses only [`crate::scenario`]'s error type and value checks
 //! and [`crate::output`]'s plot helpers.

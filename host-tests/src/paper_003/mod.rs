@@ -24,7 +24,7 @@ pub mod scaled;
 /// The 2-D spider crane gantry cart of section 6.3: a ring of mass `m_r`
 /// at `(q1, q2)` and a payload of mass `m` on a cable of length `L3` at
 /// angle `q3`, payload at `(q1 + L3 sin q3, q2 − L3 cos q3)`. The paper
-/// gives no potential energy (its constants are in its reference [9]); the
+/// gives no potential energy (its constants are in its reference \[9\]); the
 /// simulations here take the motion in a horizontal plane, `V = 0`. The
 /// observer uses `∇V` exactly as the plant does, so this only shapes the
 /// excitation.
