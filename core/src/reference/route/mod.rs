@@ -95,8 +95,14 @@
 
 mod bounds;
 mod error;
+mod geometry;
+mod plan;
+mod profile;
+#[cfg(test)]
+mod tests;
 mod waypoints;
 
 pub use bounds::{MAX_ROUTE_TICKS, MAX_SEGMENTS, ROUTE_CAPACITY};
 pub use error::{LimitKey, RouteError, RouteLimitsError, WaypointKey};
+pub use plan::{RouteCursor, RouteMode, RoutePlan, RouteSample};
 pub use waypoints::{RouteLimits, RouteLimitsSpec, Stop, Waypoint, Waypoints};
