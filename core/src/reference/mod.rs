@@ -549,6 +549,9 @@ impl<'a> arbitrary::Arbitrary<'a> for TrajectorySpec {
 }
 
 #[cfg(test)]
+mod tick_phase_tests;
+
+#[cfg(test)]
 mod tests {
     use super::*;
 
