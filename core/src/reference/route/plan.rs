@@ -197,18 +197,39 @@ impl Segment {
 }
 
 /// A route planned in time: segments, each starting at an integer tick.
-/// About 18 KB (256 segments); build it where it is to stay (a `static`
-/// or the task's state), as the samples borrow it.
+///
+/// Up to [`MAX_SEGMENTS`] segments in a fixed-capacity vector (about 20 KB
+/// in all): on the robot, keep one where it is to stay (a `static` or the
+/// task's state) and plan into it with [`RoutePlan::replan`], which
+/// neither initialises nor copies the storage; [`RoutePlan::new`] returns
+/// the plan by value (a copy of it on most targets).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RoutePlan {
-    segments: [Segment; MAX_SEGMENTS],
-    len: usize,
+    segments: heapless::Vec<Segment, MAX_SEGMENTS>,
     period_s: f32,
     end_tick: u32,
     peak_speed_m_s: f32,
 }
 
+impl Default for RoutePlan {
+    fn default() -> Self {
+        Self::empty()
+    }
+}
+
 impl RoutePlan {
+    /// A plan with no segments: sampled, it is done at once, at rest at
+    /// the origin. Fill it with [`RoutePlan::replan`].
+    #[must_use]
+    pub const fn empty() -> Self {
+        Self {
+            segments: heapless::Vec::new(),
+            period_s: 0.0,
+            end_tick: 0,
+            peak_speed_m_s: 0.0,
+        }
+    }
+
     /// Plans the route through `waypoints` under `limits`, sampled every
     /// `period_s` seconds.
     ///
@@ -223,21 +244,49 @@ impl RoutePlan {
         limits: &RouteLimits,
         period_s: f32,
     ) -> Result<Self, RouteError> {
-        let mut plan = Self {
-            segments: [EMPTY; MAX_SEGMENTS],
-            len: 0,
-            period_s,
-            end_tick: 0,
-            peak_speed_m_s: 0.0,
-        };
+        let mut plan = Self::empty();
+        plan.replan(waypoints, limits, period_s)?;
+        Ok(plan)
+    }
+
+    /// [`RoutePlan::new`] in place, replacing this plan (start a new
+    /// [`RouteCursor`] with it). On a refusal the plan is left empty
+    /// (done at once).
+    ///
+    /// # Errors
+    /// As [`RoutePlan::new`].
+    pub fn replan(
+        &mut self,
+        waypoints: &[Waypoint],
+        limits: &RouteLimits,
+        period_s: f32,
+    ) -> Result<(), RouteError> {
+        self.segments.clear();
+        self.period_s = period_s;
+        self.end_tick = 0;
+        self.peak_speed_m_s = 0.0;
+        let planned = self.plan(waypoints, limits, period_s);
+        if planned.is_err() {
+            self.segments.clear();
+            self.end_tick = 0;
+            self.peak_speed_m_s = 0.0;
+        }
+        planned
+    }
+
+    fn plan(
+        &mut self,
+        waypoints: &[Waypoint],
+        limits: &RouteLimits,
+        period_s: f32,
+    ) -> Result<(), RouteError> {
         if !PERIOD_S.contains(period_s) {
             return Err(RouteError::Period);
         }
         check_waypoints(waypoints)?;
-        plan.lay_out(waypoints, limits)?;
-        plan.profile(limits);
-        plan.schedule()?;
-        Ok(plan)
+        self.lay_out(waypoints, limits)?;
+        self.profile(limits);
+        self.schedule()
     }
 
     /// The control period `h`, s.
@@ -256,7 +305,7 @@ impl RoutePlan {
     /// dwells), at most [`MAX_SEGMENTS`].
     #[must_use]
     pub fn segment_count(&self) -> usize {
-        self.len
+        self.segments.len()
     }
 
     /// Bounds of the reference speed `v_r`: `v_rm = 0` (the route stops),
@@ -286,7 +335,7 @@ impl RoutePlan {
             cursor.done = true;
             return self.final_sample();
         }
-        let segments = self.segments.get(..self.len).unwrap_or(&[]);
+        let segments = self.segments.as_slice();
         let mut j = usize::from(cursor.segment);
         if segments.get(j).is_none_or(|s| s.first_tick > elapsed_ticks) {
             j = segments
@@ -329,11 +378,7 @@ impl RoutePlan {
 
     /// At rest on the last waypoint, done.
     fn final_sample(&self) -> RouteSample {
-        let last = self
-            .len
-            .checked_sub(1)
-            .and_then(|j| self.segments.get(j))
-            .unwrap_or(&EMPTY);
+        let last = self.segments.last().unwrap_or(&EMPTY);
         let mut sample = last.sample(last.duration_s);
         sample.done = true;
         sample
@@ -342,17 +387,14 @@ impl RoutePlan {
     /// The segments, for the tests' `f64` evaluation.
     #[cfg(test)]
     pub(super) fn segments(&self) -> &[Segment] {
-        self.segments.get(..self.len).unwrap_or(&[])
+        self.segments.as_slice()
     }
 
     fn push(&mut self, segment: Segment) -> Result<(), RouteError> {
-        let slot = self
-            .segments
-            .get_mut(self.len)
-            .ok_or(RouteError::TooManyWaypoints)?;
-        *slot = segment;
-        self.len += 1;
-        Ok(())
+        // Never full: at most 4 segments per waypoint (`MAX_SEGMENTS`).
+        self.segments
+            .push(segment)
+            .map_err(|_| RouteError::TooManyWaypoints)
     }
 
     /// The path's segments in order (geometry and caps; no timing yet).
@@ -542,8 +584,7 @@ impl RoutePlan {
     /// trapezoid on each segment; the pivots' trapezoids; the durations.
     fn profile(&mut self, limits: &RouteLimits) {
         let accel = limits.max_tangential_accel_m_s2();
-        let len = self.len;
-        let segments = self.segments.get_mut(..len).unwrap_or(&mut []);
+        let segments = self.segments.as_mut_slice();
         let moving_cap = |s: Option<&Segment>| match s {
             Some(s) if s.kind.is_moving() => s.cap,
             _ => 0.0,
@@ -578,6 +619,9 @@ impl RoutePlan {
             }
         }
         let mut peak = 0.0_f32;
+        // The last moving segment's end speed, squared and not: the next
+        // segment starts at it (one square root per boundary).
+        let mut boundary = (0.0_f32, 0.0_f32);
         for s in segments.iter_mut() {
             s.profile = match s.kind {
                 Kind::Dwell { .. } => Trapezoid::default(),
@@ -589,17 +633,22 @@ impl RoutePlan {
                     limits.pivot_accel_rad_s2(),
                 ),
                 _ => {
-                    let p = Trapezoid::new(
-                        s.length,
-                        math::sqrt(s.profile.v0),
-                        math::sqrt(s.profile.v1),
-                        s.cap,
-                        accel,
-                    );
+                    let (w0, w1) = (s.profile.v0, s.profile.v1);
+                    let v0 = if w0 == boundary.0 {
+                        boundary.1
+                    } else {
+                        math::sqrt(w0)
+                    };
+                    let v1 = math::sqrt(w1);
+                    boundary = (w1, v1);
+                    let p = Trapezoid::new(s.length, v0, v1, s.cap, accel);
                     peak = peak.max(p.peak);
                     p
                 }
             };
+            if !s.kind.is_moving() {
+                boundary = (0.0, 0.0);
+            }
             s.duration_s = match s.kind {
                 Kind::Dwell { .. } => s.length,
                 _ => s.profile.duration_s(),
@@ -614,10 +663,9 @@ impl RoutePlan {
     /// integer and a sub-tick remainder (never as a large `f32` time).
     fn schedule(&mut self) -> Result<(), RouteError> {
         let h = self.period_s;
-        let len = self.len;
         let mut first_tick: u32 = 0;
         let mut offset = 0.0_f32;
-        for s in self.segments.get_mut(..len).unwrap_or(&mut []) {
+        for s in self.segments.as_mut_slice() {
             s.first_tick = first_tick;
             s.offset_s = offset;
             let d = s.duration_s;

@@ -37,7 +37,14 @@ impl Trapezoid {
     #[must_use]
     pub fn new(length: f32, v0: f32, v1: f32, cap: f32, accel: f32) -> Self {
         let peak_sq = accel * length + 0.5 * (v0 * v0 + v1 * v1);
-        let peak = math::sqrt(peak_sq).min(cap).max(v0).max(v1);
+        // At the cap (the common case on long segments) without a root.
+        let peak = if peak_sq >= cap * cap {
+            cap
+        } else {
+            math::sqrt(peak_sq)
+        }
+        .max(v0)
+        .max(v1);
         let t_accel_s = (peak - v0) / accel;
         let t_decel_s = (peak - v1) / accel;
         let d_accel = 0.5 * (v0 + peak) * t_accel_s;

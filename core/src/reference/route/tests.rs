@@ -752,3 +752,19 @@ fn planning_and_sampling_costs_on_the_host() {
     );
     assert!(plan.segment_count() > 64);
 }
+
+/// Planning in place gives the plan `new` gives; a refusal leaves the
+/// plan empty, done at once.
+#[test]
+fn replanning_in_place() {
+    let mut plan = RoutePlan::empty();
+    let mut cursor = RouteCursor::new();
+    assert!(plan.sample(&mut cursor, 0).done);
+    plan.replan(&waypoints(), &limits(), H).unwrap();
+    assert_eq!(plan, RoutePlan::new(&waypoints(), &limits(), H).unwrap());
+    let refused = plan.replan(&waypoints()[..1], &limits(), H);
+    assert_eq!(refused, Err(RouteError::TooFewWaypoints));
+    assert_eq!(plan.segment_count(), 0);
+    let mut cursor = RouteCursor::new();
+    assert!(plan.sample(&mut cursor, 0).done);
+}
