@@ -80,12 +80,21 @@
 //! # Costs
 //!
 //! No heap, no `unsafe`, no panic on any input (checked indexing only).
-//! [`RoutePlan`] holds up to [`MAX_SEGMENTS`] segments (about 18 KB).
-//! Planning is one pass over the waypoints (an `atan2`, a `sincos` and
-//! the blend's series per corner) and three over the segments (two
-//! square roots per moving segment): `O(n)`, no iteration to converge.
-//! A sample is a cursor step, a trapezoid lookup and, on a blend, 13
-//! multiply–adds of the Fresnel series and one `sincos`.
+//! [`RoutePlan`] holds up to [`MAX_SEGMENTS`] segments in a
+//! `heapless::Vec` (20.5 KB; [`Waypoints`] 1.8 KB). Planning is one pass
+//! over the waypoints (an `atan2`, a `sincos` and the blend's series per
+//! corner) and three over the segments (one square root per boundary):
+//! `O(n)`, no iteration to converge. A sample is a cursor step, a
+//! trapezoid lookup and, on a blend, 13 multiply–adds of the Fresnel
+//! series and one `sincos`.
+//!
+//! Measured on QEMU's Cortex-M4F (`netduinoplus2`, `-icount shift=0`,
+//! SysTick counting 0.168 per instruction, release build, default math
+//! backend) for 64 waypoints on a spiral (8 stops facing a heading, 197
+//! segments, 434 s at 100 Hz): [`RoutePlan::replan`] 123,550
+//! instructions, [`RoutePlan::new`] 148,040 (its 20 KB result is copied
+//! out); a sample 184 instructions on average, 285 at most, over every
+//! tick of the route.
 //!
 //! # Speed bounds
 //!

@@ -153,6 +153,7 @@ impl Segment {
             mode,
             done: false,
         };
+        let (s, v, a) = self.profile.at(t_s);
         let (offset, tangent, curvature) = match self.kind {
             Kind::Dwell { hold_rad } => {
                 return at_rest(RouteMode::Stopped {
@@ -160,27 +161,16 @@ impl Segment {
                 });
             }
             Kind::Pivot { from_rad, sign } => {
-                let (angle, rate, accel) = self.profile.at(t_s);
                 return at_rest(RouteMode::Pivoting {
-                    heading_rad: math::wrap_angle(from_rad + sign * angle),
-                    rate_rad_s: sign * rate,
-                    accel_rad_s2: sign * accel,
+                    heading_rad: math::wrap_angle(from_rad + sign * s),
+                    rate_rad_s: sign * v,
+                    accel_rad_s2: sign * a,
                 });
             }
-            Kind::Line => {
-                let (s, _, _) = self.profile.at(t_s);
-                (self.dir.scaled(s), self.dir, 0.0)
-            }
-            Kind::BlendIn { phi, sign } => {
-                let (s, _, _) = self.profile.at(t_s);
-                geometry::entering(self.dir, self.length, phi, sign, s)
-            }
-            Kind::BlendOut { phi, sign } => {
-                let (s, _, _) = self.profile.at(t_s);
-                geometry::leaving(self.dir, self.length, phi, sign, s)
-            }
+            Kind::Line => (self.dir.scaled(s), self.dir, 0.0),
+            Kind::BlendIn { phi, sign } => geometry::entering(self.dir, self.length, phi, sign, s),
+            Kind::BlendOut { phi, sign } => geometry::leaving(self.dir, self.length, phi, sign, s),
         };
-        let (_, v, a) = self.profile.at(t_s);
         let normal = Vec2::new(-tangent.y, tangent.x);
         RouteSample {
             reference: ReferenceSample {
