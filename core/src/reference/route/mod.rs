@@ -70,6 +70,11 @@
 //! A segment shorter than a tick may be skipped by the samples (not by
 //! the plan).
 //!
+//! With the `micromath` backend (sin/cos/atan2 off by ~1e-3) the path's
+//! tangent is off unit length by as much, and so are the sampled speed
+//! and accelerations against their limits; the default and `libm`
+//! backends keep them to `f32` rounding (the tests run on both).
+//!
 //! # Units and angles
 //!
 //! SI units, `f32`: metres, seconds, m/s, m/s², radians, rad/s, rad/s².

@@ -768,3 +768,69 @@ fn replanning_in_place() {
     let mut cursor = RouteCursor::new();
     assert!(plan.sample(&mut cursor, 0).done);
 }
+
+/// An `f32` that is any bit pattern (NaN, ±∞, subnormal, huge) one time
+/// in ten, a plausible value otherwise.
+fn wild(plausible: core::ops::Range<f32>) -> impl proptest::strategy::Strategy<Value = f32> {
+    use proptest::prelude::*;
+    prop_oneof![1 => proptest::num::f32::ANY, 9 => plausible]
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::test_runner::Config::with_cases(2_000))]
+
+    /// Whatever the numbers, planning returns (a plan or a refusal) and a
+    /// plan samples finite values, at rest on the last waypoint at its end.
+    #[test]
+    fn any_numbers_plan_or_refuse_without_panic(
+        points in proptest::collection::vec(
+            (wild(-20.0..20.0), wild(-20.0..20.0), wild(-1.0..3.0), wild(-4.0..4.0), wild(-0.5..2.0), 0_u8..8),
+            0..6,
+        ),
+        l in (wild(0.01..2.0), wild(0.01..2.0), wild(0.01..2.0), wild(0.001..0.5), wild(-0.2..3.3), wild(0.01..3.0), wild(0.01..5.0)),
+        period_s in wild(0.001..0.1),
+    ) {
+        let wps: Vec<Waypoint> = points
+            .iter()
+            .map(|&(x, y, dwell, face, limit, flags)| {
+                let mut w = if flags & 1 == 1 {
+                    Waypoint::stop(x, y, dwell)
+                } else {
+                    Waypoint::pass(x, y)
+                };
+                if flags & 2 == 2 {
+                    w = w.facing(face);
+                }
+                if flags & 4 == 4 {
+                    w = w.with_speed_limit(limit);
+                }
+                w
+            })
+            .collect();
+        let spec = RouteLimitsSpec {
+            max_speed_m_s: l.0,
+            max_tangential_accel_m_s2: l.1,
+            max_lateral_accel_m_s2: l.2,
+            blend_deviation_m: l.3,
+            pivot_threshold_rad: l.4,
+            pivot_rate_rad_s: l.5,
+            pivot_accel_rad_s2: l.6,
+        };
+        let Ok(limits) = RouteLimits::new(&spec) else { return Ok(()) };
+        let Ok(plan) = RoutePlan::new(&wps, &limits, period_s) else { return Ok(()) };
+        let mut cursor = RouteCursor::new();
+        let end = plan.duration_ticks();
+        let step = (end / 500).max(1);
+        let mut k = 0_u32;
+        while k <= end {
+            let s = plan.sample(&mut cursor, k);
+            proptest::prop_assert!(s.reference.position.is_finite());
+            proptest::prop_assert!(s.reference.velocity.is_finite());
+            proptest::prop_assert!(s.reference.acceleration.is_finite());
+            k += step;
+        }
+        let s = plan.sample(&mut cursor, end);
+        proptest::prop_assert!(s.done);
+        proptest::prop_assert_eq!(s.reference.position, wps.last().unwrap().position_m);
+    }
+}
