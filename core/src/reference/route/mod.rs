@@ -48,7 +48,8 @@
 //!   `pivot_accel_rad_s2`. At the first waypoint the robot is assumed to
 //!   face the heading to face, if given, else the first leg.
 //! * **Speed profile.** Each moving segment (line, half blend) has a speed
-//!   cap: `max_speed_m_s`, the leg's `speed_limit_m_s`, and on a blend
+//!   cap: `max_speed_m_s`, the `speed_limit_m_s` of the leg it lies on
+//!   (a blend's halves lie on the two legs of its corner), and on a blend
 //!   `√(a_lat/κ_peak)` (so `v² κ ≤ a_lat` everywhere on it). A forward
 //!   and a backward pass over the segments' boundary speeds (in squares,
 //!   `v1² ≤ v0² + 2aL` and back) give the largest boundary speeds under
