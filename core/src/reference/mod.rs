@@ -9,6 +9,11 @@
 //! Assumption 1 needs `ẋr, ẏr` and bounded `ẍr, ÿr`; the corrected `θ̇*` of
 //! (14)/(28) uses the accelerations) and the bounds `v_rm ≤ v_r ≤ v_rM` of
 //! (2) that the gain bound (15) is checked against.
+//!
+//! [`route`] adds routes through waypoints (lines, clothoid corner
+//! blends, stops and pivots), sampled from integer ticks.
+
+pub mod route;
 
 use crate::geometry::Vec2;
 use crate::math;
@@ -542,6 +547,9 @@ impl<'a> arbitrary::Arbitrary<'a> for TrajectorySpec {
         })
     }
 }
+
+#[cfg(test)]
+mod tick_phase_tests;
 
 #[cfg(test)]
 mod tests {
