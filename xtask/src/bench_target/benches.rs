@@ -11,7 +11,7 @@ pub const BACKENDS: [(&str, &[&str]); 3] = [
 ];
 
 /// Stages of the main table: the bench's name and the row label.
-pub(super) const STAGES: [(&str, &str); 10] = [
+pub(super) const STAGES: [(&str, &str); 12] = [
     (
         "odometry",
         "odometry (2 counter deltas + `OdometryStep::from_counts`)",
@@ -48,6 +48,14 @@ pub(super) const STAGES: [(&str, &str); 10] = [
     (
         "robot_tick_fusion_pf_dead_reckoned",
         "whole tick, fusion particle filter (100 particles; a build with `fusion-particle-filter`), dead-reckoned tick (no frame)",
+    ),
+    (
+        "route_plan",
+        "planning a route of 64 waypoints in place (`RoutePlan::replan`; 20 plans)",
+    ),
+    (
+        "route_sample",
+        "sampling that route at a tick (`RoutePlan::sample`)",
     ),
 ];
 

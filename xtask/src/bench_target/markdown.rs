@@ -125,8 +125,9 @@ pub fn m0_markdown(m0: &Report) -> String {
          instruction, expected 1.024). Mean (min–max) over {} calls; both \
          whole ticks, each robot in a function of its own (paper 001's \
          estimator, and the fusion EKF with a tag frame every other tick); \
-         paper 004's filters are not run (their states and stacks do not fit \
-         beside the bench in 16 KiB of RAM).\n",
+         paper 004's filters and the route are not run (their states and \
+         stacks, and a route plan's 20 KB, do not fit beside the bench in 16 KiB \
+         of RAM).\n",
         m0.backend, m0.counts_per_instruction, m0.samples
     );
     md.push_str("| stage or function | Cortex-M0 |\n| --- | ---: |\n");

@@ -48,7 +48,9 @@
 //!    starts after 2 s (the particle filters converge from their prior in
 //!    about 1 s). Each filter must skip no step and track the robot (RMS
 //!    position error below the measurements');
-//! 5. paints a window below the stack pointer, runs one call (a tick, a
+//! 5. plans a route of 64 waypoints in place (`route_plan`) and samples it
+//!    at 200 ticks spread over its duration (`route_sample`);
+//! 6. paints a window below the stack pointer, runs one call (a tick, a
 //!    filter step) and reports the bytes it used below its caller's stack
 //!    pointer.
 //!
@@ -75,8 +77,8 @@
 //! The entry (below) runs, in this order, the modules of `on_target/`:
 //! `tick.rs` (paper 001's robot, stage by stage and whole, on `world.rs`),
 //! `fusion_tick.rs` (the fusion estimator's whole tick), `math_backend.rs`,
-//! `paper_004.rs` and `fusion_filters.rs` (the filters, on the arc of
-//! `filters.rs`). `timing.rs` counts instructions and calibrates,
+//! `route.rs` (planning and sampling a 64-waypoint route), `paper_004.rs`
+//! and `fusion_filters.rs` (the filters, on the arc of `filters.rs`). `timing.rs` counts instructions and calibrates,
 //! `stage.rs` reports a stage's samples and `stack.rs` measures stack.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
@@ -89,6 +91,7 @@ mod on_target {
     mod fusion_tick;
     mod math_backend;
     mod paper_004;
+    mod route;
     mod stack;
     mod stage;
     mod tick;
@@ -110,6 +113,7 @@ mod on_target {
     use fusion_tick::{FUSION_EKF_TICK, bench_fusion_tick};
     use math_backend::bench_math;
     use paper_004::bench_paper_004;
+    use route::bench_route;
     use stage::SAMPLES;
     use tick::bench_tick;
     use timing::{MACHINE, SYSTICK_MASK, calibrate};
@@ -155,11 +159,12 @@ mod on_target {
         #[cfg(all(feature = "fusion-particle-filter", target_abi = "eabihf"))]
         bench_fusion_tick(cal, &FUSION_PF_TICK);
         bench_math(cal);
-        // The filters' states and stacks (up to 5 KB and 2.4 KB each) do
-        // not fit beside the bench in the nRF51's 16 KiB of RAM: the M0
-        // measures the ticks and the math only.
+        // The filters' states and stacks (up to 5 KB and 2.4 KB each) and
+        // a route plan (20 KB) do not fit beside the bench in the nRF51's
+        // 16 KiB of RAM: the M0 measures the ticks and the math only.
         #[cfg(target_abi = "eabihf")]
         {
+            bench_route(cal);
             bench_paper_004(cal);
             bench_fusion(cal);
         }
