@@ -29,6 +29,20 @@ impl LawSpecError {
         }
     }
 
+    /// The refused field's key in its law's spec (`c1_per_s`, `gamma`,
+    /// …), or `None` for the control period (the tracker's `period_s`).
+    #[must_use]
+    pub fn field_key(&self) -> Option<&'static str> {
+        match self {
+            Self::Cascaded(CascadedGainsError::C1) => Some("c1_per_s"),
+            Self::Cascaded(CascadedGainsError::C2)
+            | Self::HeadingErrorSine(HeadingErrorSineConfigError::C2) => Some("c2_per_s"),
+            Self::HeadingErrorSine(HeadingErrorSineConfigError::Gain) => Some("a_s_per_m2"),
+            Self::HeadingErrorSine(HeadingErrorSineConfigError::Gamma) => Some("gamma"),
+            Self::HeadingErrorSine(HeadingErrorSineConfigError::Period) => None,
+        }
+    }
+
     fn inner(&self) -> &(dyn core::error::Error + 'static) {
         match self {
             Self::Cascaded(e) => e,

@@ -40,6 +40,25 @@ impl EstimatorSpecError {
         }
     }
 
+    /// The refused field's key in its estimator's spec (`gains` of
+    /// [`EstimatorSpec::PoseObserver`], `wheel_variance_per_m` of
+    /// [`FusionSpec`], …), or `None` when the refusal is not about one of
+    /// the estimator's own fields (the sensors', the period, the build).
+    #[must_use]
+    pub fn field_key(&self) -> Option<&'static str> {
+        match self {
+            Self::PoseObserver(PoseObserverConfigError::Period) => None,
+            Self::PoseObserver(_) => Some("gains"),
+            Self::Fusion(PoseFilterError::WheelNoise) => Some("wheel_variance_per_m"),
+            Self::Fusion(PoseFilterError::Gate) => Some("gate_sigma"),
+            Self::Fusion(PoseFilterError::InitialVariance) => Some("scale_prior"),
+            Self::Fusion(PoseFilterError::BlindDistance | PoseFilterError::TagMapBlindDistance) => {
+                Some("max_blind_distance_m")
+            }
+            Self::Fusion(_) | Self::NotInThisBuild => None,
+        }
+    }
+
     /// Whether the refused value is a fact of the robot's sensors
     /// ([`SensorSpec`]) rather than the estimator's own tuning.
     #[must_use]

@@ -501,23 +501,23 @@ fn estimator_and_law_tables_are_the_cores_specs() {
     let cases = [
         (
             format!("{TAGS}[estimator.fusion]\ngate_sigma = 0.5"),
-            "estimator.fusion",
-            "gate_sigma must be finite and ≥ 1",
+            "estimator.fusion.gate_sigma",
+            "gate_sigma must be finite and ≥ 1 (got 0.5)",
         ),
         (
             "[estimator.pose_observer]\ngains = [0.0, 1.5, 100.0, 100.0]".to_string(),
-            "estimator.pose_observer",
-            "a1",
+            "estimator.pose_observer.gains",
+            "a1, the x injection) must be in [0.000001, 10000] 1/s (got [0.0, 1.5, 100.0, 100.0])",
         ),
         (
             "[controller.law.cascaded]\nc1_per_s = -1.0".to_string(),
-            "controller.law.cascaded",
-            "c1",
+            "controller.law.cascaded.c1_per_s",
+            "c1_per_s must be in [0.000001, 10000] 1/s (got -1)",
         ),
         (
             "[controller.law.heading_error_sine]\ngamma = 1.5".to_string(),
-            "controller.law.heading_error_sine",
-            "γ",
+            "controller.law.heading_error_sine.gamma",
+            "γ) must be in (0, 1) (got 1.5)",
         ),
         (
             "[estimator.fusion]".to_string(),
@@ -605,6 +605,37 @@ fn implausible_values_are_refused_naming_key_range_and_value() {
             "[observer]\ngain_per_m = 2e4\n",
             "observer.gain_per_m",
             "(got 20000)",
+        ),
+    ];
+    for (extra, field, text) in cases {
+        let (head, tail) = MINIMAL.split_at(MINIMAL.find("[reference]").unwrap());
+        let e = err_of(&format!("{head}{extra}{tail}"));
+        assert_eq!(e.field(), Some(field), "{e}");
+        assert!(e.to_string().contains(text), "{e}");
+    }
+}
+
+/// The fusion estimator's other fields are named with their value too
+/// (the table's test above names the gate, the pose observer's gains and
+/// the laws' gains).
+#[test]
+fn estimator_and_law_refusals_name_their_field_and_value() {
+    let reader = "[position]\nkind = \"nearest_tag\"\n";
+    let cases = [
+        (
+            format!("{reader}[estimator.fusion]\nwheel_variance_per_m = -1.0\n"),
+            "estimator.fusion.wheel_variance_per_m",
+            "(got -1)",
+        ),
+        (
+            format!("{reader}[estimator.fusion]\nscale_prior = -1.0\n"),
+            "estimator.fusion.scale_prior",
+            "(got -1)",
+        ),
+        (
+            format!("{reader}[estimator.fusion]\nmax_blind_distance_m = -1.0\n"),
+            "estimator.fusion.max_blind_distance_m",
+            "(got -1)",
         ),
     ];
     for (extra, field, text) in cases {

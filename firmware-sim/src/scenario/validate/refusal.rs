@@ -20,11 +20,25 @@ pub(super) fn spec_refusal(e: SpecError, scenario: &Scenario) -> ScenarioError {
     let field = match e.section() {
         SpecSection::Trajectory => "reference",
         SpecSection::Estimator(key) => {
-            table = format!("estimator.{key}");
+            let field = match e {
+                SpecError::Estimator(inner) => inner.field_key(),
+                _ => None,
+            };
+            table = match field {
+                Some(field) => format!("estimator.{key}.{field}"),
+                None => format!("estimator.{key}"),
+            };
             &table
         }
         SpecSection::Law(key) => {
-            table = format!("controller.law.{key}");
+            let field = match e {
+                SpecError::Law(inner) => inner.field_key(),
+                _ => None,
+            };
+            table = match field {
+                Some(field) => format!("controller.law.{key}.{field}"),
+                None => format!("controller.law.{key}"),
+            };
             &table
         }
         // The sensor facts come from the plant and the floor.
