@@ -114,8 +114,8 @@ mod on_target {
     use math_backend::bench_math;
     use paper_004::bench_paper_004;
     use route::bench_route;
-    use stage::SAMPLES;
     use tick::bench_tick;
+    use timing::SAMPLES;
     use timing::{MACHINE, SYSTICK_MASK, calibrate};
 
     /// Math backend this binary was built with.

@@ -12,7 +12,8 @@ use wmr_papers::slip_tracking::TrackedRobot;
 
 use super::fail;
 use super::stack::stack_bytes;
-use super::stage::{SAMPLES, Stage};
+use super::stage::Stage;
+use super::timing::SAMPLES;
 use super::timing::{Calibration, timed};
 
 /// Paper 004's step `h`, s.

@@ -12,8 +12,9 @@ use wmr_link::proxy::ProxyBus;
 
 use super::fail;
 use super::stack::stack_bytes;
-use super::stage::{SAMPLES, Stage};
+use super::stage::Stage;
 use super::tick::{STACK_TICKS, WARMUP_TICKS, proxy_robot, robot_tick};
+use super::timing::SAMPLES;
 use super::timing::{Calibration, timed};
 use super::world::{GRID, Reading, World, pilot_spec};
 

@@ -2,7 +2,8 @@
 
 use wmr_core::math;
 
-use super::stage::{SAMPLES, Stage};
+use super::stage::Stage;
+use super::timing::SAMPLES;
 use super::timing::{Calibration, timed};
 
 /// One math-backend call per sample, over a spread of arguments.

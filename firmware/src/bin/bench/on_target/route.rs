@@ -15,7 +15,8 @@ use wmr_core::reference::route::{
 };
 
 use super::fail;
-use super::stage::{SAMPLES, Stage};
+use super::stage::Stage;
+use super::timing::SAMPLES;
 use super::timing::{Calibration, timed};
 use super::world::PERIOD_S;
 

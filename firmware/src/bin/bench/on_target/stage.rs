@@ -4,10 +4,7 @@
 use cortex_m_semihosting::hprintln;
 use wmr_core::math;
 
-use super::timing::Calibration;
-
-/// Timed calls per stage.
-pub(super) const SAMPLES: usize = 200;
+use super::timing::{Calibration, SAMPLES};
 
 /// Per-call SysTick counts of one stage.
 pub(super) struct Stage {

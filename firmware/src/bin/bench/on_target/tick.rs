@@ -22,7 +22,8 @@ use wmr_link::session::{ProxyRobot, SessionFloor};
 
 use super::fail;
 use super::stack::stack_bytes;
-use super::stage::{SAMPLES, Stage};
+use super::stage::Stage;
+use super::timing::SAMPLES;
 use super::timing::{Calibration, timed};
 use super::world::{GRID, PERIOD_S, Reading, World, pilot_spec};
 

@@ -8,7 +8,9 @@ use cortex_m::peripheral::SYST;
 use cortex_m_semihosting::hprintln;
 
 use super::fail;
-use super::stage::SAMPLES;
+
+/// Timed calls per stage (`stage::Stage` holds this many).
+pub(super) const SAMPLES: usize = 200;
 
 /// The machine: QEMU's `netduinoplus2` (STM32F405, Cortex-M4F) for
 /// `thumbv7em-none-eabihf`, its `microbit` (nRF51822, Cortex-M0) for
