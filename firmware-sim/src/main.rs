@@ -107,9 +107,9 @@ enum Command {
     /// List every key of a scenario file, then of a robot file: when it
     /// applies, its type or allowed values, default, unit and meaning
     /// (generated from the types that parse the files, so it cannot
-    /// drift). `--json` prints the scenario's JSON Schema instead, for
-    /// editors that check TOML against one (`--json --robot`: the robot
-    /// file's).
+    /// drift). `--robot`: the robot file's keys only; `--slip`: the slip
+    /// scenario file's (`firmware-sim slip FILE`). `--json` prints the
+    /// file's JSON Schema instead, for editors that check TOML against one.
     Schema(cli::schema::SchemaArgs),
     /// Validate a robot file as every simulation of it is validated (the
     /// core's constructors included) and write its flash image, what

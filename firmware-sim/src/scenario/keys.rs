@@ -53,7 +53,12 @@ pub fn robot_keys() -> Vec<KeyDoc> {
     keys_of(&robot_schema())
 }
 
-fn keys_of(schema: &Value) -> Vec<KeyDoc> {
+/// Every key of the TOML file a JSON Schema describes (its `$defs`
+/// followed), in the order of the file's tables: the key table of any
+/// file whose types derive `schemars::JsonSchema` (the slip scenario's
+/// too).
+#[must_use]
+pub fn keys_of(schema: &Value) -> Vec<KeyDoc> {
     let defs = schema
         .get("$defs")
         .and_then(Value::as_object)

@@ -69,8 +69,9 @@
 //! ([`SlipScenario::validate`] and what a run needs), `summary` (records
 //! and statistics), `run` ([`run`]), `output` ([`write_outputs`]: files
 //! and plots); this file parses and loads scenarios. Of the rest of the
-//! crate, slip uses only [`crate::scenario`]'s error type and value checks
-//! and [`crate::output`]'s plot helpers.
+//! crate, slip uses only [`crate::scenario`]'s error type, value checks
+//! and key tables ([`crate::scenario::keys`]) and [`crate::output`]'s plot
+//! helpers.
 
 use std::path::Path;
 
@@ -94,7 +95,8 @@ pub use scenario::{
     InitialState, MAX_SEGMENTS, MEASUREMENT_VARIANCE, MeasurementSpec, PARTICLE_PROCESS_STD,
     PARTICLE_REGULARIZATION, PERIOD_S, PROCESS_NOISE, ParticleFilterSpec, ProposalSpec,
     ReferenceSpec, RobotSpec, SLIP_RATIO, SLIP_WINDOW_S, SegmentSpec, SlipScenario, SlipStep,
-    UKF_INITIAL_VARIANCE, UkfFormSpec, UkfSpec, WindowsSpec, embedded_slip_source, slip_ratio,
+    UKF_INITIAL_VARIANCE, UkfFormSpec, UkfSpec, WindowsSpec, embedded_slip_source, slip_keys,
+    slip_ratio, slip_schema,
 };
 pub use summary::{
     DIVERGED_TRACKING_ERROR_M, SlipEstimateWindow, SlipRecord, SlipResult, SlipSummary,

@@ -14,7 +14,7 @@ pub(in crate::slip) fn ratio_at(steps: &[SlipStep], t: f64) -> f64 {
 }
 
 /// From `start_s` on, the slip ratio is `slip_ratio`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SlipStep {
     /// s.
@@ -24,7 +24,7 @@ pub struct SlipStep {
 }
 
 /// One constant-input piece of the reference.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SegmentSpec {
     /// Start time, s.

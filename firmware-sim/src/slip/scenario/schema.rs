@@ -10,7 +10,7 @@ use super::tables::{
 };
 
 /// A slip scenario (the TOML file's top level).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SlipScenario {
     /// Short name (used for the default output directory).

@@ -13,7 +13,7 @@ use super::paper::{INITIAL_VARIANCE, MEASUREMENT_VARIANCE, PROCESS_NOISE, UKF_IN
 use super::schedule::SegmentSpec;
 
 /// Initial pose and wheel speeds of the robot (and the filters' `x̂0`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InitialState {
     /// `X`, m.
@@ -67,7 +67,7 @@ impl InitialState {
 
 /// The reference: a unicycle from a start pose driven by piecewise
 /// constant `(v_r, ω_r)`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ReferenceSpec {
     /// Start `X`, m.
@@ -98,7 +98,7 @@ impl Default for ReferenceSpec {
 
 /// The tracked robot (default: the paper's, `b = 0.65 m, r = 0.35 m,
 /// m = 0.80 kg, J = 0.0608 kg m²`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RobotSpec {
     /// `r`, m.
@@ -128,7 +128,7 @@ impl Default for RobotSpec {
 
 /// Gains of (5)–(7) and (9) (default the paper's: `k1 = k3 = 6, k2 = 8,
 /// k4 = k5 = 4, ρ = 3`) and `p̂(0)`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GainsSpec {
     /// `k1`, 1/s.
@@ -169,7 +169,7 @@ impl Default for GainsSpec {
 }
 
 /// Gaussian noise on the measured state.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MeasurementSpec {
     /// Variances of `X, Y` (m²), `ψ` (rad²), `ω_L, ω_R` (rad²/s²): the
@@ -188,7 +188,7 @@ impl Default for MeasurementSpec {
 
 /// The filters' settings (scenario 1 uses the first three entries of each
 /// array).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FilterSpec {
     /// EKF `P0` diagonal; the particle filter's prior spread is its square
@@ -219,7 +219,7 @@ impl Default for FilterSpec {
 }
 
 /// The UKF's sigma points and `P0`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct UkfSpec {
     /// `α` (paper 0.01).
@@ -243,7 +243,9 @@ pub struct UkfSpec {
 /// The form of the core's UKF (`wmr_core::filters::ukf::UkfForm`). The
 /// covariance form is the default: the square-root form does no better
 /// on either scenario (docs/paper-004.md) and costs more.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum UkfFormSpec {
     /// `P` propagated (FilterPy's equations, Joseph-type update).
@@ -266,7 +268,7 @@ impl Default for UkfSpec {
 }
 
 /// The particle filter's settings.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ParticleFilterSpec {
     /// One of [`PARTICLE_COUNTS`](crate::slip::PARTICLE_COUNTS) (a const
@@ -297,7 +299,9 @@ pub struct ParticleFilterSpec {
 }
 
 /// The particle filter's proposal (`wmr_core::filters::particle_filter::Proposal`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum ProposalSpec {
     /// `f(x) + σ_q ξ`, weighted by the likelihood (the paper's).
@@ -321,7 +325,7 @@ impl Default for ParticleFilterSpec {
 }
 
 /// The summary's windows, `[from, to)` in s.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct WindowsSpec {
     /// Tracking errors before the slip (default 15–22.5 s).
