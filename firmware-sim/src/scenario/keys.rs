@@ -179,7 +179,7 @@ impl Walker<'_> {
     /// One property: a leaf, a table, or a choice of variants.
     fn entry(&mut self, key: &str, sub: &Value, applies_when: Option<&str>, required: bool) {
         let own_description = text(sub);
-        let default = sub.get("default").map(render);
+        let default = sub.get("default");
         let schema = self.resolve(&without_null(&self.resolve(sub)));
         let description = own_description.unwrap_or_else(|| text(&schema).unwrap_or_default());
         if let Some(variants) = schema
@@ -191,7 +191,14 @@ impl Walker<'_> {
         } else if schema.get("properties").is_some() {
             self.table(key, &schema, applies_when);
         } else {
-            self.leaf(key, &schema, applies_when, required, default, description);
+            self.leaf(
+                key,
+                &schema,
+                applies_when,
+                required,
+                default.map(render),
+                description,
+            );
         }
     }
 
@@ -213,6 +220,14 @@ impl Walker<'_> {
             unit: unit_in(&description).unwrap_or_else(|| unit_of(key)),
             description,
         });
+        // An array of tables (`[[slip]]`, `segments = [{ … }]`): the keys
+        // of each of its tables.
+        if let Some(items) = schema.get("items") {
+            let items = self.resolve(items);
+            if items.get("properties").is_some() {
+                self.table(key, &items, Some(&format!("each `[[{key}]]`")));
+            }
+        }
     }
 
     /// A serde enum: unit variants (strings), internally tagged tables
@@ -223,7 +238,7 @@ impl Walker<'_> {
         variants: &[Value],
         applies_when: Option<&str>,
         required: bool,
-        default: Option<String>,
+        default: Option<&Value>,
         description: String,
     ) {
         let variants: Vec<Value> = variants.iter().map(|v| self.resolve(v)).collect();
@@ -235,12 +250,7 @@ impl Walker<'_> {
             // Internally tagged: `key.kind` chooses, each variant's keys
             // apply under it.
             // A default table shows as its tag.
-            let default = default.map(|d| {
-                serde_json::from_str::<Value>(&d)
-                    .ok()
-                    .and_then(|v| v.get("kind").map(render))
-                    .unwrap_or(d)
-            });
+            let default = default.map(|d| d.get("kind").map_or_else(|| render(d), render));
             self.keys.push(KeyDoc {
                 key: format!("{key}.kind"),
                 applies_when: applies_when.map(str::to_owned),
@@ -283,7 +293,7 @@ impl Walker<'_> {
             key: key.to_owned(),
             applies_when: applies_when.map(str::to_owned),
             kind: choices.join(" | "),
-            default,
+            default: default.map(render),
             required,
             unit: unit_of(key),
             description,
@@ -402,6 +412,15 @@ fn render(v: &Value) -> String {
             "[{}]",
             items.iter().map(render).collect::<Vec<_>>().join(", ")
         ),
+        // A table in an array (`[[slip]]`'s default) as an inline table.
+        Value::Object(fields) => format!(
+            "{{ {} }}",
+            fields
+                .iter()
+                .map(|(k, v)| format!("{k} = {}", render(v)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
         other => other.to_string(),
     }
 }
@@ -433,25 +452,36 @@ pub fn markdown(keys: &[KeyDoc]) -> String {
     md
 }
 
+/// The dotted keys a TOML table gives (`a.b.c`), an array of tables as
+/// its own key and its tables' keys under it (`slip`, `slip.start_s`):
+/// what a file holds, to check against its key table.
+#[cfg(test)]
+pub(crate) fn dotted_keys(prefix: &str, table: &toml::Table, out: &mut Vec<String>) {
+    for (k, v) in table {
+        let key = if prefix.is_empty() {
+            k.clone()
+        } else {
+            format!("{prefix}.{k}")
+        };
+        match v {
+            toml::Value::Table(t) => dotted_keys(&key, t, out),
+            toml::Value::Array(items) => {
+                for item in items {
+                    if let toml::Value::Table(t) = item {
+                        dotted_keys(&key, t, out);
+                    }
+                }
+                out.push(key);
+            }
+            _ => out.push(key),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::scenario::EMBEDDED;
-
-    /// Flattened keys of a TOML table: `a.b.c`.
-    fn flat(prefix: &str, table: &toml::Table, out: &mut Vec<String>) {
-        for (k, v) in table {
-            let key = if prefix.is_empty() {
-                k.clone()
-            } else {
-                format!("{prefix}.{k}")
-            };
-            match v {
-                toml::Value::Table(t) => flat(&key, t, out),
-                _ => out.push(key),
-            }
-        }
-    }
 
     /// Every key of every shipped scenario is in the list: it is generated
     /// from what parses them.
@@ -462,7 +492,7 @@ mod tests {
         for (name, text) in EMBEDDED {
             let table: toml::Table = text.parse().unwrap();
             let mut used = Vec::new();
-            flat("", &table, &mut used);
+            dotted_keys("", &table, &mut used);
             for key in used {
                 // `[estimator] = "heading_observer"` style string variants
                 // are the table's own key.
@@ -497,7 +527,7 @@ mod tests {
             robots += 1;
             let table: toml::Table = text.parse().unwrap();
             let mut used = Vec::new();
-            flat("", &table, &mut used);
+            dotted_keys("", &table, &mut used);
             for key in used {
                 assert!(
                     listed.contains(&key.as_str()),
