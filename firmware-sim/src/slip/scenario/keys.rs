@@ -20,3 +20,110 @@ pub fn slip_schema() -> Value {
 pub fn slip_keys() -> Vec<KeyDoc> {
     keys_of(&slip_schema())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::keys::{dotted_keys, markdown};
+    use crate::slip::{EMBEDDED_SLIP, PARTICLE_COUNTS};
+
+    fn find<'a>(keys: &'a [KeyDoc], key: &str) -> &'a KeyDoc {
+        keys.iter()
+            .find(|k| k.key == key)
+            .unwrap_or_else(|| panic!("`{key}` not listed"))
+    }
+
+    /// Every key of every embedded slip scenario, arrays of tables walked
+    /// into, is in the table: it is generated from what parses them.
+    #[test]
+    fn every_key_of_the_embedded_slip_scenarios_is_listed() {
+        let keys = slip_keys();
+        let listed: Vec<&str> = keys.iter().map(|k| k.key.as_str()).collect();
+        for (name, text) in EMBEDDED_SLIP {
+            let table: toml::Table = text.parse().unwrap();
+            let mut used = Vec::new();
+            dotted_keys("", &table, &mut used);
+            assert!(used.len() > 40, "{name}: {used:?}");
+            for key in used {
+                assert!(listed.contains(&key.as_str()), "{name}: `{key}` not listed");
+            }
+        }
+    }
+
+    /// Each key states its unit where it has one, its default where it
+    /// may be left out, and the values it takes where only some parse or
+    /// run.
+    #[test]
+    fn the_slip_table_states_units_defaults_and_choices() {
+        let keys = slip_keys();
+        for (key, unit) in [
+            ("duration_s", "s"),
+            ("period_s", "s"),
+            ("robot.wheel_radius_m", "m"),
+            ("robot.yaw_inertia_kg_m2", "kg m²"),
+            ("gains.k1", "1/s"),
+            ("slip.start_s", "s"),
+            ("reference.segments.v_m_s", "m/s"),
+            ("reference.segments.omega_rad_s", "rad/s"),
+            ("initial.left_rad_s", "rad/s"),
+            ("windows.during_slip_s", "s"),
+        ] {
+            assert_eq!(find(&keys, key).unit, unit, "{key}");
+        }
+        assert_eq!(find(&keys, "period_s").default.as_deref(), Some("0.005"));
+        assert_eq!(find(&keys, "estimator").default.as_deref(), Some("\"ekf\""));
+        assert!(find(&keys, "name").required);
+        assert!(find(&keys, "controller").required);
+        let start = find(&keys, "slip.start_s");
+        assert!(start.required, "{start:?}");
+        assert_eq!(start.applies_when.as_deref(), Some("each `[[slip]]`"));
+        assert_eq!(find(&keys, "plant_substeps").kind, "integer ≥ 1");
+        let counts: Vec<String> = PARTICLE_COUNTS.iter().map(usize::to_string).collect();
+        assert_eq!(
+            find(&keys, "filter.particle_filter.particles").kind,
+            counts.join(" | ")
+        );
+        let estimator = &find(&keys, "estimator").kind;
+        for e in crate::slip::Estimator::ALL {
+            assert!(
+                estimator.contains(&format!("\"{}\"", e.name())),
+                "{estimator}"
+            );
+        }
+        // JSON has no infinity: the gate's default is in its meaning, not
+        // a `null` that would say it has none.
+        let gate = find(&keys, "filter.particle_filter.collapse_gate");
+        assert!(gate.default.is_none() && !gate.required, "{gate:?}");
+        assert!(gate.description.contains("`inf`"), "{gate:?}");
+    }
+
+    /// Every key that may be left out says its default (in the default
+    /// column or, where JSON cannot state it, in its meaning), every
+    /// default is a TOML value, and no meaning holds a rustdoc link (the table is for the file's
+    /// writer).
+    #[test]
+    fn every_optional_slip_key_has_its_default() {
+        for k in slip_keys() {
+            assert!(
+                k.required || k.default.is_some() || k.description.contains("default"),
+                "{}: no default stated",
+                k.key
+            );
+            if let Some(d) = &k.default {
+                assert!(
+                    toml::from_str::<toml::Table>(&format!("x = {d}")).is_ok(),
+                    "{}: default {d} is no TOML value",
+                    k.key
+                );
+            }
+            assert!(
+                !k.description.contains("](") && !k.description.contains("[`"),
+                "{}: {}",
+                k.key,
+                k.description
+            );
+        }
+        let md = markdown(&slip_keys());
+        assert!(md.contains("| `slip.slip_ratio` |"), "{md}");
+    }
+}

@@ -17,9 +17,10 @@ pub(in crate::slip) fn ratio_at(steps: &[SlipStep], t: f64) -> f64 {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SlipStep {
-    /// s.
+    /// When the step starts, s (≥ 0, later than the step before).
     pub start_s: f64,
-    /// `i ∈ [0, 1)`.
+    /// The longitudinal slip ratio `i` from then on, no unit, in `[0, 1)`
+    /// (`p = 1/(1 − i)`).
     pub slip_ratio: f64,
 }
 
@@ -27,10 +28,11 @@ pub struct SlipStep {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SegmentSpec {
-    /// Start time, s.
+    /// When the segment starts, s (the first at 0, later than the segment
+    /// before).
     pub start_s: f64,
-    /// `v_r`, m/s.
+    /// The reference's speed `v_r`, m/s.
     pub v_m_s: f64,
-    /// `ω_r`, rad/s.
+    /// The reference's turn rate `ω_r`, rad/s.
     pub omega_rad_s: f64,
 }
