@@ -452,11 +452,30 @@ pub fn markdown(keys: &[KeyDoc]) -> String {
     md
 }
 
-/// The dotted keys a TOML table gives (`a.b.c`), an array of tables as
-/// its own key and its tables' keys under it (`slip`, `slip.start_s`):
-/// what a file holds, to check against its key table.
+/// The keys TOML files (`(name, text)`) give that a key table does not
+/// list, as `name: key`: none, for files the table's types parse.
 #[cfg(test)]
-pub(crate) fn dotted_keys(prefix: &str, table: &toml::Table, out: &mut Vec<String>) {
+pub(crate) fn unlisted_keys(keys: &[KeyDoc], files: &[(&str, &str)]) -> Vec<String> {
+    let mut unlisted = Vec::new();
+    for (name, text) in files {
+        let table: toml::Table = text
+            .parse()
+            .unwrap_or_else(|e| panic!("{name} is no TOML: {e}"));
+        let mut used = Vec::new();
+        dotted_keys("", &table, &mut used);
+        unlisted.extend(
+            used.iter()
+                .filter(|key| !keys.iter().any(|k| &k.key == *key))
+                .map(|key| format!("{name}: {key}")),
+        );
+    }
+    unlisted
+}
+
+/// The dotted keys a TOML table gives (`a.b.c`), an array of tables as
+/// its own key and its tables' keys under it (`slip`, `slip.start_s`).
+#[cfg(test)]
+fn dotted_keys(prefix: &str, table: &toml::Table, out: &mut Vec<String>) {
     for (k, v) in table {
         let key = if prefix.is_empty() {
             k.clone()
@@ -487,18 +506,10 @@ mod tests {
     /// from what parses them.
     #[test]
     fn every_key_of_the_shipped_scenarios_is_listed() {
-        let keys = scenario_keys();
-        let listed: Vec<&str> = keys.iter().map(|k| k.key.as_str()).collect();
-        for (name, text) in EMBEDDED {
-            let table: toml::Table = text.parse().unwrap();
-            let mut used = Vec::new();
-            dotted_keys("", &table, &mut used);
-            for key in used {
-                // `[estimator] = "heading_observer"` style string variants
-                // are the table's own key.
-                assert!(listed.contains(&key.as_str()), "{name}: `{key}` not listed");
-            }
-        }
+        // `[estimator] = "heading_observer"` style string variants are the
+        // table's own key.
+        let unlisted = unlisted_keys(&scenario_keys(), EMBEDDED);
+        assert!(unlisted.is_empty(), "not listed: {unlisted:?}");
     }
 
     /// Every key of every shipped robot file is in the robot list.
@@ -525,16 +536,9 @@ mod tests {
                 continue; // tag maps and scenarios
             }
             robots += 1;
-            let table: toml::Table = text.parse().unwrap();
-            let mut used = Vec::new();
-            dotted_keys("", &table, &mut used);
-            for key in used {
-                assert!(
-                    listed.contains(&key.as_str()),
-                    "{}: `{key}` not listed",
-                    path.display()
-                );
-            }
+            let name = path.display().to_string();
+            let unlisted = unlisted_keys(&keys, &[(&name, &text)]);
+            assert!(unlisted.is_empty(), "not listed: {unlisted:?}");
         }
         assert!(robots >= 2, "{robots} robot files in {}", dir.display());
     }
