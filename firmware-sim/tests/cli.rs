@@ -104,11 +104,11 @@ fn scenarios_are_listed_and_shown() {
 fn schema_lists_the_slip_file_keys() {
     let table = stdout_of_success(&sim().args(["schema", "--slip"]).output().unwrap());
     for row in [
-        "| `duration_s` |  | number | `60.0` | s |",
-        "| `robot.wheel_radius_m` |  | number | `0.35` | m |",
+        "| `duration_s` |  | number > 0.0 | `60.0` | s |",
+        "| `robot.wheel_radius_m` |  | number > 0.0 | `0.35` | m |",
         "| `reference.segments.v_m_s` | each `[[reference.segments]]` | number | required | m/s |",
-        "| `slip.start_s` | each `[[slip]]` | number | required | s |",
-        "| `gains.k1` |  | number | `6.0` | 1/s |",
+        "| `slip.start_s` | each `[[slip]]` | number ≥ 0.0 | required | s |",
+        "| `gains.k1` |  | number > 0.0 | `6.0` | 1/s |",
     ] {
         assert!(table.contains(row), "no `{row}` in\n{table}");
     }

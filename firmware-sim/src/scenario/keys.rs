@@ -353,10 +353,7 @@ fn kind_of(schema: &Value) -> String {
         _ => Vec::new(),
     };
     match types.first().map(String::as_str) {
-        Some("number") => match (schema.get("minimum"), schema.get("maximum")) {
-            (Some(min), Some(max)) => format!("number in [{}, {}]", render(min), render(max)),
-            _ => "number".into(),
-        },
+        Some("number") => number_range(schema),
         Some("integer") => {
             match (
                 schema.get("minimum").map(render),
@@ -377,6 +374,37 @@ fn kind_of(schema: &Value) -> String {
             }
         }
         _ => "table".into(),
+    }
+}
+
+/// A number's type with its bounds, inclusive (`minimum`, `maximum`) or
+/// exclusive (`exclusiveMinimum`, `exclusiveMaximum`): `number in [0.0,
+/// 1.0)`, `number > 0.0`, `number`.
+fn number_range(schema: &Value) -> String {
+    let lower = schema
+        .get("minimum")
+        .map(|v| ("[", "≥", render(v)))
+        .or_else(|| {
+            schema
+                .get("exclusiveMinimum")
+                .map(|v| ("(", ">", render(v)))
+        });
+    let upper = schema
+        .get("maximum")
+        .map(|v| ("]", "≤", render(v)))
+        .or_else(|| {
+            schema
+                .get("exclusiveMaximum")
+                .map(|v| (")", "<", render(v)))
+        });
+    match (lower, upper) {
+        (Some((open, _, min)), Some((close, _, max))) => {
+            format!("number in {open}{min}, {max}{close}")
+        }
+        (Some((_, cmp, bound)), None) | (None, Some((_, cmp, bound))) => {
+            format!("number {cmp} {bound}")
+        }
+        (None, None) => "number".into(),
     }
 }
 
@@ -602,6 +630,25 @@ mod tests {
             estimator.kind.contains("[estimator.fusion]"),
             "{estimator:?}"
         );
+    }
+
+    #[test]
+    fn exclusive_bounds_are_stated_as_such() {
+        let kind = |schema: Value| kind_of(&schema);
+        use serde_json::json;
+        assert_eq!(
+            kind(json!({"type": "number", "minimum": 0.0, "exclusiveMaximum": 1.0})),
+            "number in [0.0, 1.0)"
+        );
+        assert_eq!(
+            kind(json!({"type": "number", "exclusiveMinimum": 0.0})),
+            "number > 0.0"
+        );
+        assert_eq!(
+            kind(json!({"type": "number", "maximum": 2.0})),
+            "number ≤ 2.0"
+        );
+        assert_eq!(kind(json!({"type": "number"})), "number");
     }
 
     #[test]

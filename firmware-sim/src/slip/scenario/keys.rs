@@ -71,7 +71,14 @@ mod tests {
         let start = find(&keys, "slip.start_s");
         assert!(start.required, "{start:?}");
         assert_eq!(start.applies_when.as_deref(), Some("each `[[slip]]`"));
+        // The bounds `validate` checks.
         assert_eq!(find(&keys, "plant_substeps").kind, "integer ≥ 1");
+        assert_eq!(find(&keys, "period_s").kind, "number > 0.0");
+        assert_eq!(find(&keys, "slip.slip_ratio").kind, "number in [0.0, 1.0)");
+        assert_eq!(
+            find(&keys, "gains.initial_slip_estimate").kind,
+            "number in [1.0, 20.0]"
+        );
         let counts: Vec<String> = PARTICLE_COUNTS.iter().map(usize::to_string).collect();
         assert_eq!(
             find(&keys, "filter.particle_filter.particles").kind,

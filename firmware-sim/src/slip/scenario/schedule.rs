@@ -18,9 +18,11 @@ pub(in crate::slip) fn ratio_at(steps: &[SlipStep], t: f64) -> f64 {
 #[serde(deny_unknown_fields)]
 pub struct SlipStep {
     /// When the step starts, s (≥ 0, later than the step before).
+    #[schemars(range(min = 0.0))]
     pub start_s: f64,
     /// The longitudinal slip ratio `i` from then on, no unit, in `[0, 1)`
     /// (`p = 1/(1 − i)`).
+    #[schemars(range(min = 0.0), extend("exclusiveMaximum" = 1.0))]
     pub slip_ratio: f64,
 }
 

@@ -31,9 +31,11 @@ pub struct SlipScenario {
     pub seed: u64,
     /// Simulated time, s (default 60).
     #[serde(default = "defaults::duration_s")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub duration_s: f64,
     /// Control and filter step `h`, s (default 0.005).
     #[serde(default = "defaults::period_s")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub period_s: f64,
     /// RK4 substeps of the plant per step, inputs held (default 10).
     #[serde(default = "defaults::plant_substeps")]

@@ -5,6 +5,7 @@
 use std::f64::consts::{FRAC_PI_4, FRAC_PI_6};
 
 use serde::{Deserialize, Serialize};
+use wmr_papers::slip_tracking::P_MAX;
 
 use super::super::filter::PARTICLES;
 use super::choices::Controller;
@@ -107,15 +108,19 @@ impl Default for ReferenceSpec {
 pub struct RobotSpec {
     /// Wheel radius `r`, m (default 0.35; > 0).
     #[serde(default = "defaults::wheel_radius_m")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub wheel_radius_m: f64,
     /// Track width `b`, m (default 0.65; > 0).
     #[serde(default = "defaults::track_width_m")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub track_width_m: f64,
     /// Mass `m`, kg (default 0.80; > 0).
     #[serde(default = "defaults::mass_kg")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub mass_kg: f64,
     /// Yaw inertia `J`, kg m² (default 0.0608; > 0).
     #[serde(default = "defaults::yaw_inertia_kg_m2")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub yaw_inertia_kg_m2: f64,
 }
 
@@ -137,25 +142,33 @@ impl Default for RobotSpec {
 pub struct GainsSpec {
     /// `k1`, 1/s (default 6; > 0).
     #[serde(default = "defaults::k1")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub k1: f64,
     /// `k2`, no unit (default 8; > 0).
     #[serde(default = "defaults::k2")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub k2: f64,
     /// `k3`, 1/s (default 6; > 0).
     #[serde(default = "defaults::k3")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub k3: f64,
     /// `k4` of (9), 1/s (default 4; > 0; scenario 2 only).
     #[serde(default = "defaults::k45")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub k4: f64,
     /// `k5` of (9), 1/s (default 4; > 0; scenario 2 only).
     #[serde(default = "defaults::k45")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub k5: f64,
     /// `ρ` of (7), the adaptation gain, no unit (default 3; > 0).
     #[serde(default = "defaults::rho")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub rho: f64,
-    /// `p̂(0)`, the slip estimate's start, no unit, in `[1, P_MAX]`
+    /// `p̂(0)`, the slip estimate's start, no unit, in `[1, P_MAX]` (`P_MAX`
+    /// 20)
     /// (default 1, the paper's).
     #[serde(default = "defaults::initial_slip_estimate")]
+    #[schemars(range(min = 1.0, max = P_MAX))]
     pub initial_slip_estimate: f64,
 }
 
@@ -232,6 +245,7 @@ impl Default for FilterSpec {
 pub struct UkfSpec {
     /// Sigma-point spread `α`, no unit (default 0.01, the paper's; > 0).
     #[serde(default = "defaults::alpha")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub alpha: f64,
     /// Prior-distribution weight `β`, no unit (default 2, the paper's).
     #[serde(default = "defaults::beta")]
@@ -302,6 +316,7 @@ pub struct ParticleFilterSpec {
     /// of the optimal one, no unit (default 1, `PARTICLE_REGULARIZATION`;
     /// 0: off).
     #[serde(default = "defaults::regularization")]
+    #[schemars(range(min = 0.0))]
     pub regularization: f64,
     /// How the particles are drawn: `optimal` (the optimal importance
     /// density, closed-form here because every state is measured; core
