@@ -96,7 +96,7 @@ enum Command {
     /// Paper 004's tracked robot under slip: run a slip scenario (embedded
     /// `paper_004_velocity` or `paper_004_torque`, or a file) and write
     /// run.csv, summary.json, scenario.toml, errors.png, slip.png and
-    /// trajectory.png.
+    /// trajectory.png. The file's keys: `firmware-sim schema --slip`.
     Slip(cli::slip::SlipArgs),
     /// List the embedded scenarios (the tracking ones, then paper 004's
     /// slip scenarios).
