@@ -145,8 +145,9 @@ fn a_closed_output_pipe_ends_quietly() {
     let merged_dir = dir.path().join("merged").to_string_lossy().into_owned();
     let short_sweep = ["sweep", "--runs", "2", "--duration-s", "1", "--no-plot"];
     let shard: Vec<&str> = [&short_sweep[..], &["--shard", "0/1", "--out", &shard_dir]].concat();
-    let cases: [&[&str]; 5] = [
+    let cases: [&[&str]; 6] = [
         &["scenarios"],
+        &["schema", "--slip"],
         &["show", "figure_eight_rfid"],
         &[
             "run",

@@ -5,7 +5,8 @@
 //! particle filter, fed with noisy full-state measurements.
 //!
 //! A [`SlipScenario`] (TOML, its own schema: `firmware-sim slip`, not
-//! `run`) names the controller, the estimator, the noise seed, the slip
+//! `run`; its keys listed by `firmware-sim schema --slip`, [`slip_keys`])
+//! names the controller, the estimator, the noise seed, the slip
 //! schedule, the reference segments, the robot, the gains, the measurement
 //! noise and the filters' settings; every key but `name` and `controller`
 //! has a default, the paper's value, and the defaults reproduce the paper's
