@@ -381,22 +381,15 @@ fn kind_of(schema: &Value) -> String {
 /// exclusive (`exclusiveMinimum`, `exclusiveMaximum`): `number in [0.0,
 /// 1.0)`, `number > 0.0`, `number`.
 fn number_range(schema: &Value) -> String {
-    let lower = schema
-        .get("minimum")
-        .map(|v| ("[", "≥", render(v)))
-        .or_else(|| {
-            schema
-                .get("exclusiveMinimum")
-                .map(|v| ("(", ">", render(v)))
-        });
-    let upper = schema
-        .get("maximum")
-        .map(|v| ("]", "≤", render(v)))
-        .or_else(|| {
-            schema
-                .get("exclusiveMaximum")
-                .map(|v| (")", "<", render(v)))
-        });
+    // The inclusive bound if given, else the exclusive one, as (bracket,
+    // comparison, value).
+    let bound = |bounds: [(&str, &'static str, &'static str); 2]| {
+        bounds
+            .into_iter()
+            .find_map(|(key, bracket, cmp)| schema.get(key).map(|v| (bracket, cmp, render(v))))
+    };
+    let lower = bound([("minimum", "[", "≥"), ("exclusiveMinimum", "(", ">")]);
+    let upper = bound([("maximum", "]", "≤"), ("exclusiveMaximum", ")", "<")]);
     match (lower, upper) {
         (Some((open, _, min)), Some((close, _, max))) => {
             format!("number in {open}{min}, {max}{close}")
