@@ -96,7 +96,7 @@ enum Command {
     /// Paper 004's tracked robot under slip: run a slip scenario (embedded
     /// `paper_004_velocity` or `paper_004_torque`, or a file) and write
     /// run.csv, summary.json, scenario.toml, errors.png, slip.png and
-    /// trajectory.png.
+    /// trajectory.png. The file's keys: `firmware-sim schema --slip`.
     Slip(cli::slip::SlipArgs),
     /// List the embedded scenarios (the tracking ones, then paper 004's
     /// slip scenarios).
@@ -107,9 +107,9 @@ enum Command {
     /// List every key of a scenario file, then of a robot file: when it
     /// applies, its type or allowed values, default, unit and meaning
     /// (generated from the types that parse the files, so it cannot
-    /// drift). `--json` prints the scenario's JSON Schema instead, for
-    /// editors that check TOML against one (`--json --robot`: the robot
-    /// file's).
+    /// drift). `--robot`: the robot file's keys only; `--slip`: the slip
+    /// scenario file's (`firmware-sim slip FILE`). `--json` prints the
+    /// file's JSON Schema instead, for editors that check TOML against one.
     Schema(cli::schema::SchemaArgs),
     /// Validate a robot file as every simulation of it is validated (the
     /// core's constructors included) and write its flash image, what

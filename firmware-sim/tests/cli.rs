@@ -97,6 +97,43 @@ fn scenarios_are_listed_and_shown() {
     assert!(!out.status.success());
 }
 
+/// `schema --slip` lists the slip scenario file's keys with their units
+/// and defaults, `--json --slip` is its JSON Schema, `--robot` alone the
+/// robot file's table, and `--robot --slip` is refused by name.
+#[test]
+fn schema_lists_the_slip_file_keys() {
+    let table = stdout_of_success(&sim().args(["schema", "--slip"]).output().unwrap());
+    for row in [
+        "| `duration_s` |  | number > 0.0 | `60.0` | s |",
+        "| `robot.wheel_radius_m` |  | number > 0.0 | `0.35` | m |",
+        "| `reference.segments.v_m_s` | each `[[reference.segments]]` | number | required | m/s |",
+        "| `slip.start_s` | each `[[slip]]` | number ≥ 0.0 | required | s |",
+        "| `gains.k1` |  | number > 0.0 | `6.0` | 1/s |",
+    ] {
+        assert!(table.contains(row), "no `{row}` in\n{table}");
+    }
+    // The slip file's own keys, not the scenario file's.
+    assert!(!table.contains("`reference.kind`"), "{table}");
+
+    let json = stdout_of_success(&sim().args(["schema", "--json", "--slip"]).output().unwrap());
+    let schema: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(schema["title"], "SlipScenario", "{json}");
+    assert!(schema["properties"]["slip"].is_object(), "{json}");
+
+    let robot = stdout_of_success(&sim().args(["schema", "--robot"]).output().unwrap());
+    assert!(robot.contains("`plant.wheel_radius_m`"), "{robot}");
+    // The robot table alone: no scenario-only key such as `transient_s`.
+    assert!(!robot.contains("`transient_s`"), "{robot}");
+
+    let out = sim()
+        .args(["schema", "--robot", "--slip"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--slip") && err.contains("--robot"), "{err}");
+}
+
 /// `firmware-sim … | head`: a reader that closes the pipe early ends the
 /// program quietly and successfully, for every subcommand that prints.
 #[test]
@@ -108,8 +145,9 @@ fn a_closed_output_pipe_ends_quietly() {
     let merged_dir = dir.path().join("merged").to_string_lossy().into_owned();
     let short_sweep = ["sweep", "--runs", "2", "--duration-s", "1", "--no-plot"];
     let shard: Vec<&str> = [&short_sweep[..], &["--shard", "0/1", "--out", &shard_dir]].concat();
-    let cases: [&[&str]; 5] = [
+    let cases: [&[&str]; 6] = [
         &["scenarios"],
+        &["schema", "--slip"],
         &["show", "figure_eight_rfid"],
         &[
             "run",

@@ -7,7 +7,8 @@ use firmware_sim::slip::{self, Estimator, SlipScenario};
 /// The arguments of `slip`.
 #[derive(Debug, clap::Args)]
 pub struct SlipArgs {
-    /// Slip scenario file (TOML) or embedded name.
+    /// Slip scenario file (TOML; its keys: `firmware-sim schema --slip`)
+    /// or embedded name.
     scenario: String,
     /// Override the estimator: exact, ekf, ukf or particle_filter.
     #[arg(long)]

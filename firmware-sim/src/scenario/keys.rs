@@ -53,7 +53,12 @@ pub fn robot_keys() -> Vec<KeyDoc> {
     keys_of(&robot_schema())
 }
 
-fn keys_of(schema: &Value) -> Vec<KeyDoc> {
+/// Every key of the TOML file a JSON Schema describes (its `$defs`
+/// followed), in the order of the file's tables: the key table of any
+/// file whose types derive `schemars::JsonSchema` (the slip scenario's
+/// too).
+#[must_use]
+pub fn keys_of(schema: &Value) -> Vec<KeyDoc> {
     let defs = schema
         .get("$defs")
         .and_then(Value::as_object)
@@ -174,7 +179,7 @@ impl Walker<'_> {
     /// One property: a leaf, a table, or a choice of variants.
     fn entry(&mut self, key: &str, sub: &Value, applies_when: Option<&str>, required: bool) {
         let own_description = text(sub);
-        let default = sub.get("default").map(render);
+        let default = sub.get("default");
         let schema = self.resolve(&without_null(&self.resolve(sub)));
         let description = own_description.unwrap_or_else(|| text(&schema).unwrap_or_default());
         if let Some(variants) = schema
@@ -186,7 +191,14 @@ impl Walker<'_> {
         } else if schema.get("properties").is_some() {
             self.table(key, &schema, applies_when);
         } else {
-            self.leaf(key, &schema, applies_when, required, default, description);
+            self.leaf(
+                key,
+                &schema,
+                applies_when,
+                required,
+                default.map(render),
+                description,
+            );
         }
     }
 
@@ -208,6 +220,14 @@ impl Walker<'_> {
             unit: unit_in(&description).unwrap_or_else(|| unit_of(key)),
             description,
         });
+        // An array of tables (`[[slip]]`, `segments = [{ … }]`): the keys
+        // of each of its tables.
+        if let Some(items) = schema.get("items") {
+            let items = self.resolve(items);
+            if items.get("properties").is_some() {
+                self.table(key, &items, Some(&format!("each `[[{key}]]`")));
+            }
+        }
     }
 
     /// A serde enum: unit variants (strings), internally tagged tables
@@ -218,7 +238,7 @@ impl Walker<'_> {
         variants: &[Value],
         applies_when: Option<&str>,
         required: bool,
-        default: Option<String>,
+        default: Option<&Value>,
         description: String,
     ) {
         let variants: Vec<Value> = variants.iter().map(|v| self.resolve(v)).collect();
@@ -230,12 +250,7 @@ impl Walker<'_> {
             // Internally tagged: `key.kind` chooses, each variant's keys
             // apply under it.
             // A default table shows as its tag.
-            let default = default.map(|d| {
-                serde_json::from_str::<Value>(&d)
-                    .ok()
-                    .and_then(|v| v.get("kind").map(render))
-                    .unwrap_or(d)
-            });
+            let default = default.map(|d| d.get("kind").map_or_else(|| render(d), render));
             self.keys.push(KeyDoc {
                 key: format!("{key}.kind"),
                 applies_when: applies_when.map(str::to_owned),
@@ -278,7 +293,7 @@ impl Walker<'_> {
             key: key.to_owned(),
             applies_when: applies_when.map(str::to_owned),
             kind: choices.join(" | "),
-            default,
+            default: default.map(render),
             required,
             unit: unit_of(key),
             description,
@@ -338,10 +353,7 @@ fn kind_of(schema: &Value) -> String {
         _ => Vec::new(),
     };
     match types.first().map(String::as_str) {
-        Some("number") => match (schema.get("minimum"), schema.get("maximum")) {
-            (Some(min), Some(max)) => format!("number in [{}, {}]", render(min), render(max)),
-            _ => "number".into(),
-        },
+        Some("number") => number_range(schema),
         Some("integer") => {
             match (
                 schema.get("minimum").map(render),
@@ -362,6 +374,30 @@ fn kind_of(schema: &Value) -> String {
             }
         }
         _ => "table".into(),
+    }
+}
+
+/// A number's type with its bounds, inclusive (`minimum`, `maximum`) or
+/// exclusive (`exclusiveMinimum`, `exclusiveMaximum`): `number in [0.0,
+/// 1.0)`, `number > 0.0`, `number`.
+fn number_range(schema: &Value) -> String {
+    // The inclusive bound if given, else the exclusive one, as (bracket,
+    // comparison, value).
+    let bound = |bounds: [(&str, &'static str, &'static str); 2]| {
+        bounds
+            .into_iter()
+            .find_map(|(key, bracket, cmp)| schema.get(key).map(|v| (bracket, cmp, render(v))))
+    };
+    let lower = bound([("minimum", "[", "≥"), ("exclusiveMinimum", "(", ">")]);
+    let upper = bound([("maximum", "]", "≤"), ("exclusiveMaximum", ")", "<")]);
+    match (lower, upper) {
+        (Some((open, _, min)), Some((close, _, max))) => {
+            format!("number in {open}{min}, {max}{close}")
+        }
+        (Some((_, cmp, bound)), None) | (None, Some((_, cmp, bound))) => {
+            format!("number {cmp} {bound}")
+        }
+        (None, None) => "number".into(),
     }
 }
 
@@ -397,6 +433,15 @@ fn render(v: &Value) -> String {
             "[{}]",
             items.iter().map(render).collect::<Vec<_>>().join(", ")
         ),
+        // A table in an array (`[[slip]]`'s default) as an inline table.
+        Value::Object(fields) => format!(
+            "{{ {} }}",
+            fields
+                .iter()
+                .map(|(k, v)| format!("{k} = {}", render(v)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
         other => other.to_string(),
     }
 }
@@ -428,42 +473,64 @@ pub fn markdown(keys: &[KeyDoc]) -> String {
     md
 }
 
+/// The keys TOML files (`(name, text)`) give that a key table does not
+/// list, as `name: key`: none, for files the table's types parse.
+#[cfg(test)]
+pub(crate) fn unlisted_keys(keys: &[KeyDoc], files: &[(&str, &str)]) -> Vec<String> {
+    let mut unlisted = Vec::new();
+    for (name, text) in files {
+        let table: toml::Table = text
+            .parse()
+            .unwrap_or_else(|e| panic!("{name} is no TOML: {e}"));
+        let mut used = Vec::new();
+        dotted_keys("", &table, &mut used);
+        unlisted.extend(
+            used.iter()
+                .filter(|key| !keys.iter().any(|k| &k.key == *key))
+                .map(|key| format!("{name}: {key}")),
+        );
+    }
+    unlisted
+}
+
+/// The dotted keys a TOML table gives (`a.b.c`), an array of tables as
+/// its own key and its tables' keys under it (`slip`, `slip.start_s`).
+#[cfg(test)]
+fn dotted_keys(prefix: &str, table: &toml::Table, out: &mut Vec<String>) {
+    for (k, v) in table {
+        let key = if prefix.is_empty() {
+            k.clone()
+        } else {
+            format!("{prefix}.{k}")
+        };
+        match v {
+            toml::Value::Table(t) => dotted_keys(&key, t, out),
+            toml::Value::Array(items) => {
+                for item in items {
+                    if let toml::Value::Table(t) = item {
+                        dotted_keys(&key, t, out);
+                    }
+                }
+                out.push(key);
+            }
+            _ => out.push(key),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::scenario::EMBEDDED;
 
-    /// Flattened keys of a TOML table: `a.b.c`.
-    fn flat(prefix: &str, table: &toml::Table, out: &mut Vec<String>) {
-        for (k, v) in table {
-            let key = if prefix.is_empty() {
-                k.clone()
-            } else {
-                format!("{prefix}.{k}")
-            };
-            match v {
-                toml::Value::Table(t) => flat(&key, t, out),
-                _ => out.push(key),
-            }
-        }
-    }
-
     /// Every key of every shipped scenario is in the list: it is generated
     /// from what parses them.
     #[test]
     fn every_key_of_the_shipped_scenarios_is_listed() {
-        let keys = scenario_keys();
-        let listed: Vec<&str> = keys.iter().map(|k| k.key.as_str()).collect();
-        for (name, text) in EMBEDDED {
-            let table: toml::Table = text.parse().unwrap();
-            let mut used = Vec::new();
-            flat("", &table, &mut used);
-            for key in used {
-                // `[estimator] = "heading_observer"` style string variants
-                // are the table's own key.
-                assert!(listed.contains(&key.as_str()), "{name}: `{key}` not listed");
-            }
-        }
+        // `[estimator] = "heading_observer"` style string variants are the
+        // table's own key.
+        let unlisted = unlisted_keys(&scenario_keys(), EMBEDDED);
+        assert!(unlisted.is_empty(), "not listed: {unlisted:?}");
     }
 
     /// Every key of every shipped robot file is in the robot list.
@@ -490,16 +557,9 @@ mod tests {
                 continue; // tag maps and scenarios
             }
             robots += 1;
-            let table: toml::Table = text.parse().unwrap();
-            let mut used = Vec::new();
-            flat("", &table, &mut used);
-            for key in used {
-                assert!(
-                    listed.contains(&key.as_str()),
-                    "{}: `{key}` not listed",
-                    path.display()
-                );
-            }
+            let name = path.display().to_string();
+            let unlisted = unlisted_keys(&keys, &[(&name, &text)]);
+            assert!(unlisted.is_empty(), "not listed: {unlisted:?}");
         }
         assert!(robots >= 2, "{robots} robot files in {}", dir.display());
     }
@@ -563,6 +623,25 @@ mod tests {
             estimator.kind.contains("[estimator.fusion]"),
             "{estimator:?}"
         );
+    }
+
+    #[test]
+    fn exclusive_bounds_are_stated_as_such() {
+        let kind = |schema: Value| kind_of(&schema);
+        use serde_json::json;
+        assert_eq!(
+            kind(json!({"type": "number", "minimum": 0.0, "exclusiveMaximum": 1.0})),
+            "number in [0.0, 1.0)"
+        );
+        assert_eq!(
+            kind(json!({"type": "number", "exclusiveMinimum": 0.0})),
+            "number > 0.0"
+        );
+        assert_eq!(
+            kind(json!({"type": "number", "maximum": 2.0})),
+            "number ≤ 2.0"
+        );
+        assert_eq!(kind(json!({"type": "number"})), "number");
     }
 
     #[test]

@@ -5,7 +5,8 @@
 //! particle filter, fed with noisy full-state measurements.
 //!
 //! A [`SlipScenario`] (TOML, its own schema: `firmware-sim slip`, not
-//! `run`) names the controller, the estimator, the noise seed, the slip
+//! `run`; its keys listed by `firmware-sim schema --slip`, [`slip_keys`])
+//! names the controller, the estimator, the noise seed, the slip
 //! schedule, the reference segments, the robot, the gains, the measurement
 //! noise and the filters' settings; every key but `name` and `controller`
 //! has a default, the paper's value, and the defaults reproduce the paper's
@@ -69,8 +70,9 @@
 //! ([`SlipScenario::validate`] and what a run needs), `summary` (records
 //! and statistics), `run` ([`run()`]), `output` ([`write_outputs`]: files
 //! and plots); this file parses and loads scenarios. Of the rest of the
-//! crate, slip uses only [`crate::scenario`]'s error type and value checks
-//! and [`crate::output`]'s plot helpers.
+//! crate, slip uses only [`crate::scenario`]'s error type, value checks
+//! and key tables ([`crate::scenario::keys`]) and [`crate::output`]'s plot
+//! helpers.
 
 use std::path::Path;
 
@@ -94,7 +96,8 @@ pub use scenario::{
     InitialState, MAX_SEGMENTS, MEASUREMENT_VARIANCE, MeasurementSpec, PARTICLE_PROCESS_STD,
     PARTICLE_REGULARIZATION, PERIOD_S, PROCESS_NOISE, ParticleFilterSpec, ProposalSpec,
     ReferenceSpec, RobotSpec, SLIP_RATIO, SLIP_WINDOW_S, SegmentSpec, SlipScenario, SlipStep,
-    UKF_INITIAL_VARIANCE, UkfFormSpec, UkfSpec, WindowsSpec, embedded_slip_source, slip_ratio,
+    UKF_INITIAL_VARIANCE, UkfFormSpec, UkfSpec, WindowsSpec, embedded_slip_source, slip_keys,
+    slip_ratio, slip_schema,
 };
 pub use summary::{
     DIVERGED_TRACKING_ERROR_M, SlipEstimateWindow, SlipRecord, SlipResult, SlipSummary,

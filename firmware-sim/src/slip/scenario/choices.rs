@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 /// Which adaptive controller (and so which plant and filter state).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Controller {
     /// Scenario 1: adaptive velocity-based control (5)–(7); the wheels
@@ -36,7 +36,9 @@ impl Controller {
 }
 
 /// How the controller gets its state.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum Estimator {
     /// The true state, no noise (the controllers' own behaviour).

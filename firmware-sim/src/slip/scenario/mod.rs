@@ -14,17 +14,21 @@
 //! * `tables`: the tables a scenario holds (`[initial]`, `[reference]`,
 //!   `[robot]`, `[gains]`, `[measurement]`, `[filter]`, `[windows]`);
 //! * `schema`: the scenario's top level ([`SlipScenario`]);
+//! * `keys`: the file's key table ([`slip_keys`], `firmware-sim schema
+//!   --slip`), from the JSON Schema of the types above ([`slip_schema`]);
 //! * this file: the embedded scenarios ([`EMBEDDED_SLIP`]) and the paper's
 //!   slip ratio over time ([`slip_ratio`]).
 
 mod choices;
 mod defaults;
+mod keys;
 mod paper;
 mod schedule;
 mod schema;
 mod tables;
 
 pub use choices::{Controller, Estimator};
+pub use keys::{slip_keys, slip_schema};
 pub use paper::{
     DURATION_S, INITIAL_VARIANCE, MAX_SEGMENTS, MEASUREMENT_VARIANCE, PARTICLE_PROCESS_STD,
     PARTICLE_REGULARIZATION, PERIOD_S, PROCESS_NOISE, SLIP_RATIO, SLIP_WINDOW_S,

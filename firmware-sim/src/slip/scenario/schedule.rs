@@ -14,23 +14,27 @@ pub(in crate::slip) fn ratio_at(steps: &[SlipStep], t: f64) -> f64 {
 }
 
 /// From `start_s` on, the slip ratio is `slip_ratio`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SlipStep {
-    /// s.
+    /// When the step starts, s (≥ 0, later than the step before).
+    #[schemars(range(min = 0.0))]
     pub start_s: f64,
-    /// `i ∈ [0, 1)`.
+    /// The longitudinal slip ratio `i` from then on, no unit, in `[0, 1)`
+    /// (`p = 1/(1 − i)`).
+    #[schemars(range(min = 0.0), extend("exclusiveMaximum" = 1.0))]
     pub slip_ratio: f64,
 }
 
 /// One constant-input piece of the reference.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SegmentSpec {
-    /// Start time, s.
+    /// When the segment starts, s (the first at 0, later than the segment
+    /// before).
     pub start_s: f64,
-    /// `v_r`, m/s.
+    /// The reference's speed `v_r`, m/s.
     pub v_m_s: f64,
-    /// `ω_r`, rad/s.
+    /// The reference's turn rate `ω_r`, rad/s.
     pub omega_rad_s: f64,
 }

@@ -10,7 +10,7 @@ use super::tables::{
 };
 
 /// A slip scenario (the TOML file's top level).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SlipScenario {
     /// Short name (used for the default output directory).
@@ -18,26 +18,33 @@ pub struct SlipScenario {
     /// Free text.
     #[serde(default)]
     pub description: String,
-    /// `velocity` (scenario 1) or `torque` (scenario 2).
+    /// Which adaptive controller runs: `velocity` (scenario 1) or `torque`
+    /// (scenario 2).
     pub controller: Controller,
-    /// `exact`, `ekf` (default), `ukf` or `particle_filter`.
+    /// What feeds the controller its state: `exact`, `ekf` (default), `ukf`
+    /// or `particle_filter` (`firmware-sim slip --estimator` overrides it).
     #[serde(default)]
     pub estimator: Estimator,
-    /// Seed of the measurement noise (and of the particle filter).
+    /// Seed of the measurement noise (and of the particle filter) (default
+    /// 1; `firmware-sim slip --seed` overrides it).
     #[serde(default = "defaults::seed")]
     pub seed: u64,
     /// Simulated time, s (default 60).
     #[serde(default = "defaults::duration_s")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub duration_s: f64,
     /// Control and filter step `h`, s (default 0.005).
     #[serde(default = "defaults::period_s")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub period_s: f64,
-    /// RK4 substeps of the plant per step (default 10).
+    /// RK4 substeps of the plant per step, inputs held (default 10).
     #[serde(default = "defaults::plant_substeps")]
+    #[schemars(range(min = 1))]
     pub plant_substeps: u32,
     /// A record (CSV row, and sample of the summary's statistics) every
     /// this many steps (default 10: 50 ms).
     #[serde(default = "defaults::record_every_steps")]
+    #[schemars(range(min = 1))]
     pub record_every_steps: u32,
     /// Initial pose and wheel speeds; absent: the paper's for the
     /// controller (scenario 1 `(0, −1.5, π/4)`, 2 `(0, −1, π/6, 0, 0)`).
@@ -47,7 +54,8 @@ pub struct SlipScenario {
     /// the first. Default: 0.25 from 22.5 s, 0 from 45 s.
     #[serde(default = "defaults::slip")]
     pub slip: Vec<SlipStep>,
-    /// The reference (3).
+    /// The reference (3): a unicycle from a start pose driven by piecewise
+    /// constant speeds (default the paper's).
     #[serde(default)]
     pub reference: ReferenceSpec,
     /// The robot (default the paper's `TrackedRobot::PAPER`).
@@ -59,10 +67,12 @@ pub struct SlipScenario {
     /// Measurement noise (default the paper's `R`).
     #[serde(default)]
     pub measurement: MeasurementSpec,
-    /// Filter settings.
+    /// The filters' settings (default the paper's, and the choices
+    /// docs/paper-004.md measured).
     #[serde(default)]
     pub filter: FilterSpec,
-    /// Windows of the summary's statistics.
+    /// Windows of the summary's statistics, s (default the paper's
+    /// phases).
     #[serde(default)]
     pub windows: WindowsSpec,
 }
