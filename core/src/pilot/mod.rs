@@ -25,12 +25,14 @@
 //! allows; its counter origin is then dropped and re-taken.
 
 pub mod robot;
+pub mod route;
 pub mod spec;
 pub mod tracker;
 
 use crate::devices::MotorCommand;
 use crate::drive::{Drive, DriveConfig, DriveOutput};
 use crate::odometry::{CounterError, OdometryStep, WrappingCounter};
+use crate::pilot::route::RouteFollower;
 use crate::pilot::tracker::{OutputFeedbackTracker, TagFix, TrackerConfig, TrackerOutput};
 
 /// Why a [`PilotConfig`] was refused.
@@ -225,10 +227,34 @@ impl Pilot {
 
     /// One control tick.
     pub fn step(&mut self, measurement: &Measurement) -> PilotOutput {
+        self.step_on(measurement, None)
+    }
+
+    /// One control tick on the route `route` instead of the configured
+    /// trajectory ([`OutputFeedbackTracker::step_route`]; load it with
+    /// [`RouteFollower::load`]). The follower is the caller's, lent each
+    /// tick, so a `Pilot` is no larger for routes (module [`route`]).
+    pub fn step_route(
+        &mut self,
+        measurement: &Measurement,
+        route: &mut RouteFollower,
+    ) -> PilotOutput {
+        self.step_on(measurement, Some(route))
+    }
+
+    fn step_on(
+        &mut self,
+        measurement: &Measurement,
+        route: Option<&mut RouteFollower>,
+    ) -> PilotOutput {
         let odometry = self.odometry(measurement);
-        let tracker = self
-            .tracker
-            .step(&odometry.unwrap_or_default(), measurement.fix);
+        let odometry_step = odometry.unwrap_or_default();
+        let tracker = match route {
+            None => self.tracker.step(&odometry_step, measurement.fix),
+            Some(route) => self
+                .tracker
+                .step_route(&odometry_step, measurement.fix, route),
+        };
 
         let encoder_halt = self.fault_run > self.config.max_encoder_fault_ticks;
         let drive = if encoder_halt {
