@@ -31,6 +31,7 @@ pub mod tracker;
 
 use crate::devices::MotorCommand;
 use crate::drive::{Drive, DriveConfig, DriveOutput};
+use crate::geometry::WheelSpeeds;
 use crate::odometry::{CounterError, OdometryStep, WrappingCounter};
 use crate::pilot::route::RouteFollower;
 use crate::pilot::tracker::{OutputFeedbackTracker, TagFix, TrackerConfig, TrackerOutput};
@@ -249,11 +250,14 @@ impl Pilot {
     ) -> PilotOutput {
         let odometry = self.odometry(measurement);
         let odometry_step = odometry.unwrap_or_default();
-        let tracker = match route {
-            None => self.tracker.step(&odometry_step, measurement.fix),
-            Some(route) => self
-                .tracker
-                .step_route(&odometry_step, measurement.fix, route),
+        let (tracker, holding) = match route {
+            None => (self.tracker.step(&odometry_step, measurement.fix), false),
+            Some(route) => {
+                let out = self
+                    .tracker
+                    .step_route(&odometry_step, measurement.fix, route);
+                (out, route.status().holding)
+            }
         };
 
         let encoder_halt = self.fault_run > self.config.max_encoder_fault_ticks;
@@ -262,7 +266,19 @@ impl Pilot {
             self.drive.halt();
             DriveOutput::default()
         } else {
-            self.drive.step(tracker.command, odometry.map(|o| o.wheels))
+            let drive = self.drive.step(tracker.command, odometry.map(|o| o.wheels));
+            if holding && drive.wheel_targets == WheelSpeeds::ZERO {
+                // Settled at a route's stop: the motors at exactly zero
+                // (no speed loop holding a duty from its integral).
+                self.drive.halt();
+                DriveOutput {
+                    left_duty: 0.0,
+                    right_duty: 0.0,
+                    ..drive
+                }
+            } else {
+                drive
+            }
         };
         PilotOutput {
             left: MotorCommand::from_signed(drive.left_duty),

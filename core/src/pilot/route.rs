@@ -270,6 +270,11 @@ pub struct RouteStatus {
     /// The route rests on its last waypoint and the robot has settled
     /// there (its command exactly zero).
     pub done: bool,
+    /// This tick's command was a settled hold, exactly zero: at a stop
+    /// (or the end) once the ramp reached zero, or held with no route
+    /// running. [`super::Pilot::step_route`] then also zeroes the motors
+    /// once the drive's wheel targets are zero.
+    pub holding: bool,
     /// The running route's reference mode this tick.
     pub mode: Option<RouteMode>,
     /// Ticks the running route has been followed.
@@ -330,6 +335,7 @@ pub struct RouteFollower {
     rest: Option<Rest>,
     sample: Option<RouteSample>,
     done: bool,
+    holding: bool,
     refused: Option<RouteError>,
     last_stop: Option<StopError>,
     counters: RouteCounters,
@@ -352,6 +358,7 @@ impl RouteFollower {
             rest: None,
             sample: None,
             done: false,
+            holding: false,
             refused: None,
             last_stop: None,
             counters: RouteCounters {
@@ -402,6 +409,7 @@ impl RouteFollower {
         RouteStatus {
             running: self.running,
             done: self.done,
+            holding: self.holding,
             mode: self.sample.map(|s| s.mode),
             elapsed_ticks: self.elapsed_ticks,
             pending: self.pending.is_some(),
@@ -475,7 +483,9 @@ impl RouteFollower {
         heading: HeadingEstimate,
     ) {
         let at_zero = command.v_m_s == 0.0 && command.omega_rad_s == 0.0;
+        self.holding = false;
         let Some(sample) = self.sample.filter(|_| self.running) else {
+            self.holding = tracking && at_zero;
             return;
         };
         let RouteMode::Stopped { hold_heading_rad } = sample.mode else {
@@ -487,6 +497,7 @@ impl RouteFollower {
         if !(tracking && at_zero) {
             return;
         }
+        self.holding = true;
         if sample.done && !self.done {
             self.done = true;
             self.counters.routes_done = self.counters.routes_done.saturating_add(1);

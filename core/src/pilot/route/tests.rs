@@ -166,6 +166,8 @@ struct Square {
     /// True position error (m) and heading error from the held heading
     /// (rad) at each stop's first settled tick after the last pivot.
     settled: Vec<(f32, f32)>,
+    /// The tracker's counters at the end.
+    tracker: crate::pilot::tracker::TrackerCounters,
 }
 
 fn run_square(estimator: EstimatorChoice, initial: HeadingEstimate, quantum_m: f32) -> Square {
@@ -173,6 +175,7 @@ fn run_square(estimator: EstimatorChoice, initial: HeadingEstimate, quantum_m: f
     run.route.load(&square(), &limits(), RouteStart::AsGiven);
     let ticks = run.until_done(quantum_m, 20_000, 100);
     let counters = run.route.counters();
+    let tracker = run.tracker.counters();
     let mut settled = Vec::new();
     for pair in ticks.windows(2) {
         let [before, now] = [pair[0], pair[1]];
@@ -193,6 +196,7 @@ fn run_square(estimator: EstimatorChoice, initial: HeadingEstimate, quantum_m: f
         ticks,
         counters,
         settled,
+        tracker,
     }
 }
 
@@ -221,6 +225,7 @@ fn assert_held(square: &Square) {
 }
 
 fn report(label: &str, square: &Square) {
+    std::println!("{label}: tracker {:?}", square.tracker);
     let worst_p = square.settled.iter().map(|s| s.0).fold(0.0, f32::max);
     let worst_h = square.settled.iter().map(|s| s.1).fold(0.0, f32::max);
     std::println!(
@@ -538,4 +543,135 @@ fn options_are_validated() {
             Err(RouteOptionsError::Tolerance)
         );
     }
+}
+
+/// The fusion EKF (its heading turned by the odometry at the stops, its
+/// variance grown): the square with an exact fix and with fixes on a 1 cm
+/// grid, every stop within 1 cm and 1° of the truth. (On nearest-tag
+/// fixes of its own 10 cm grid it is not yet good enough: measured, a stop
+/// 0.43 m and another 150° off after heading resets to its guide: the
+/// route's stops and pivots on the fusion estimator on a coarse grid are
+/// still to be made to work.)
+#[cfg(feature = "fusion-ekf")]
+#[test]
+fn the_fusion_ekf_drives_the_square() {
+    use crate::estimation::fusion::{FusionSettings, PoseFilterConfig};
+    let filter = PoseFilterConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap();
+    let estimator = EstimatorChoice::Fusion {
+        settings: FusionSettings::new(filter, 0.1, 0.0).unwrap(),
+        guide: HeadingObserverConfig::new(5.0, H).unwrap(),
+    };
+    assert_eq!(
+        estimator.heading_at_standstill(),
+        crate::estimation::StandstillHeading::EncoderRotatedFiltered
+    );
+    for quantum_m in [0.0, 0.01] {
+        let square = run_square(estimator, EAST, quantum_m);
+        report(&std::format!("fusion EKF, fix grid {quantum_m} m"), &square);
+        let c = square.counters;
+        assert_eq!(
+            (c.stops_reached, c.pivots, c.routes_done),
+            (4, 4, 1),
+            "{c:?}"
+        );
+        assert_eq!(c.stop_errors, 0, "{c:?}");
+        for (position_m, heading_rad) in &square.settled {
+            assert!(*position_m <= 0.01, "{:?}", square.settled);
+            assert!(heading_rad.to_degrees() <= 1.0, "{:?}", square.settled);
+        }
+        assert_held(&square);
+    }
+}
+
+/// Through the whole pilot (encoders, tracker, drive), on ideal wheels
+/// that turn at the drive's targets: once settled at a stop the motors'
+/// duties are exactly zero for the rest of the dwell (no speed loop
+/// holding a duty from its integral), and the route ends done with the
+/// motors at zero. The pilot's pose observer starts from `(0, 0)` and
+/// after the 0.5 m first leg its estimate is still short (measured
+/// `(0.41, 0)`, below [`MIN_HEADING_NORM`]), so the pivot runs open loop;
+/// through the drive's acceleration limits it overshoots (measured 11.7°),
+/// which the stop's heading error reports.
+#[test]
+fn the_pilot_zeroes_the_motors_once_settled() {
+    use crate::drive::{DriveConfig, SpeedLoopGains};
+    use crate::geometry::DiffDriveGeometry;
+    use crate::pilot::{Measurement, Pilot, PilotConfig};
+    let geometry = DiffDriveGeometry::new(0.03, 0.2, 2048).unwrap();
+    let drive = DriveConfig::new(
+        geometry,
+        H,
+        20.0,
+        100.0,
+        SpeedLoopGains {
+            feedforward_duty_per_rad_s: 0.05,
+            kp_duty_per_rad_s: 0.02,
+            ki_duty_per_rad: 0.1,
+        },
+    )
+    .unwrap();
+    let tracker = *tracker(pose_observer(), EAST).config();
+    let mut pilot = Pilot::new(PilotConfig::new(tracker, drive, 16).unwrap()).unwrap();
+    let mut follower = RouteFollower::new(RouteOptions::default());
+    let route = Waypoints::from_slice(&[
+        Waypoint::stop(0.0, 0.0, 0.0),
+        Waypoint::stop(0.5, 0.0, 1.0),
+        Waypoint::stop(0.5, 0.5, 0.5),
+    ])
+    .unwrap();
+    follower.load(&route, &limits(), RouteStart::AsGiven);
+    let mut robot = Pose::new(0.0, 0.0, 0.0);
+    let (mut left, mut right) = (0.0_f64, 0.0_f64);
+    let per_count = f64::from(geometry.rad_per_count());
+    let mut held_ticks = 0;
+    let mut motors_stopped = false;
+    let mut done = false;
+    for _ in 0..10_000 {
+        let out = pilot.step_route(
+            &Measurement {
+                left_count: Some((left / per_count).floor() as i64 as u32),
+                right_count: Some((right / per_count).floor() as i64 as u32),
+                fix: Some(TagFix {
+                    position: robot.position,
+                    age_ticks: 0,
+                }),
+            },
+            &mut follower,
+        );
+        let status = follower.status();
+        let zero = out.left.duty == 0.0 && out.right.duty == 0.0;
+        if !status.holding {
+            motors_stopped = false;
+        } else if motors_stopped || zero {
+            // Once the drive's targets have ramped down, zero to the end
+            // of the hold.
+            motors_stopped = true;
+            held_ticks += 1;
+            assert_eq!((out.drive.left_duty, out.drive.right_duty), (0.0, 0.0));
+            assert!(zero, "{out:?}");
+        }
+        let wheels = out.drive.wheel_targets;
+        left += f64::from(wheels.left_rad_s * H);
+        right += f64::from(wheels.right_rad_s * H);
+        let body = geometry.body_from_wheels(wheels);
+        robot = robot.advance_arc(body.v_m_s * H, body.omega_rad_s * H);
+        if status.done {
+            done = true;
+            break;
+        }
+    }
+    let c = follower.counters();
+    std::println!("pilot: {held_ticks} ticks held, {c:?}, robot {robot:?}");
+    assert!(done, "{c:?}");
+    assert_eq!(
+        (c.stops_reached, c.pivots, c.stop_errors),
+        (2, 1, 1),
+        "{c:?}"
+    );
+    assert!(c.open_loop_pivot_ticks > 100, "{c:?}");
+    assert!(held_ticks > 50, "{held_ticks}");
+    assert!(
+        (robot.position - Vec2::new(0.5, 0.5)).norm() < 0.01,
+        "{robot:?}"
+    );
 }
