@@ -50,6 +50,14 @@
 //! configuration and finite measurements do not produce) is replaced by
 //! zero and counted.
 //!
+//! # Routes
+//! [`OutputFeedbackTracker::step_route`] follows a route
+//! ([`crate::pilot::route::RouteFollower`], lent by the caller each tick)
+//! instead of the configured trajectory: the same fix checks, estimator
+//! and failsafe; the law while the route's reference moves, and the
+//! route's own hold and pivot where it rests (module [`crate::pilot::route`]).
+//! [`OutputFeedbackTracker::step`] is unchanged by it.
+//!
 //! # The reader's antenna
 //! A tag is read where the antenna is, at `d = (d_x, d_y)` from the axle
 //! midpoint in the robot's frame (`x` ahead, `y` to the left;
