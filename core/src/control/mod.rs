@@ -74,8 +74,9 @@ impl LawChoice {
     /// route's stops and pivots), and so whether it may be left in charge
     /// there. A route's tracker never is: it holds the robot still at a
     /// stop and turns it in place itself (module `pilot::route`), and runs
-    /// the law only while the reference moves, down to the last tick of a
-    /// deceleration where `v_r` reaches zero.
+    /// the law only while the reference moves faster than
+    /// `pilot::route::SLOW_SPEED_M_S` (below it, leaving and reaching a
+    /// rest, it holds the path's tangent).
     #[must_use]
     pub fn at_rest(&self) -> LawAtRest {
         match self {

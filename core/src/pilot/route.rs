@@ -64,7 +64,10 @@
 //! after the route is done.
 //!
 //! # At rest: stops, pivots, the end
-//! While the reference moves the law drives. Where it rests, the law is
+//! While the reference moves the law drives, except below
+//! [`SLOW_SPEED_M_S`] (leaving and reaching a rest), where the robot holds
+//! the path's tangent instead (`v = v_r·cos e`, `ω = k_θ·e`, with the
+//! estimator's heading; the law where it has none). Where it rests, the law is
 //! not asked ([`crate::control::LawChoice::at_rest`]: paper 001's law
 //! would creep after position noise, paper 002's are undefined there):
 //!
@@ -115,6 +118,16 @@ use crate::reference::route::{
 /// (paper 001's observer before the robot has driven, `(0, 0)`) the
 /// heading is unknown and a pivot runs open loop.
 pub const MIN_HEADING_NORM: f32 = 0.5;
+
+/// The reference speed below which a moving route's reference is not
+/// given to the law, m/s: the first and last ticks of a leg, leaving or
+/// reaching a rest. There paper 001's law (14) steers toward `u = ṗ_r −
+/// f(ζ)`, which a millimetre of position error turns around (measured: a
+/// 1 mm arrival error made it command 33 rad/s on the first tick of the
+/// next leg, and spin the robot); instead the robot holds the path's
+/// tangent, `v = v_r·cos e` and `ω = k_θ·e`. At the limits' 0.5 m/s² the
+/// reference covers 0.4 mm and 40 ms below this speed.
+pub const SLOW_SPEED_M_S: f32 = 0.02;
 
 /// Where a loaded route's first leg starts, when no route has run before
 /// it (a replacement always starts where the running route rests).
@@ -336,6 +349,8 @@ pub struct RouteFollower {
     sample: Option<RouteSample>,
     done: bool,
     holding: bool,
+    /// The last tick was slow (below [`SLOW_SPEED_M_S`]): the law restarts.
+    was_slow: bool,
     refused: Option<RouteError>,
     last_stop: Option<StopError>,
     counters: RouteCounters,
@@ -359,6 +374,7 @@ impl RouteFollower {
             sample: None,
             done: false,
             holding: false,
+            was_slow: false,
             refused: None,
             last_stop: None,
             counters: RouteCounters {
@@ -446,8 +462,18 @@ impl RouteFollower {
         let steer = match sample.mode {
             RouteMode::Moving { .. } => {
                 self.rest_point = None;
-                let restart = self.rest.take().is_some();
-                Steer::Law { restart }
+                let left_rest = self.rest.take().is_some();
+                match self.slow(&sample.reference, heading, period_s) {
+                    Some(command) => {
+                        self.was_slow = true;
+                        Steer::Pivot(command)
+                    }
+                    None => {
+                        let restart = left_rest || self.was_slow;
+                        self.was_slow = false;
+                        Steer::Law { restart }
+                    }
+                }
             }
             RouteMode::Stopped { hold_heading_rad } => {
                 self.rest_point = Some((sample.reference.position, hold_heading_rad));
@@ -528,6 +554,38 @@ impl RouteFollower {
             rest.error_counted = true;
             self.counters.stop_errors = self.counters.stop_errors.saturating_add(1);
         }
+    }
+
+    /// Below [`SLOW_SPEED_M_S`] (leaving or reaching a rest), where the
+    /// estimator has a heading: `v = v_r·cos e`, `ω = k_θ·e` with `e =
+    /// wrap(θ_t − θ̂)` toward the path's tangent `θ_t` (the reference
+    /// velocity's direction, or its acceleration's at rest); `None` to
+    /// leave it to the law.
+    fn slow(
+        &self,
+        reference: &ReferenceSample,
+        heading: HeadingEstimate,
+        period_s: f32,
+    ) -> Option<BodyVelocity> {
+        let speed = reference.velocity.norm();
+        if speed.is_nan() || speed >= SLOW_SPEED_M_S {
+            return None;
+        }
+        let estimate = heading_rad(heading)?;
+        let tangent = if speed > 0.0 {
+            reference.velocity
+        } else {
+            reference.acceleration
+        };
+        if tangent == Vec2::ZERO || !tangent.is_finite() {
+            return None;
+        }
+        let error = math::wrap_angle(math::atan2(tangent.y, tangent.x) - estimate);
+        let gain = self.options.pivot_gain_per_s.min(1.0 / period_s);
+        Some(BodyVelocity {
+            v_m_s: speed * math::cos(error),
+            omega_rad_s: gain * error,
+        })
     }
 
     /// `v = 0`, `ω = ω_r + k_θ·wrap(θ_r − θ̂)`, or `ω_r` open loop.
