@@ -672,3 +672,18 @@ fn the_pilot_zeroes_the_motors_once_settled() {
         "{robot:?}"
     );
 }
+
+/// What a route costs in RAM, where the caller keeps it: the follower is
+/// the plan, a pending route's waypoints and some bookkeeping; the
+/// tracker and the pilot are no larger for routes.
+#[test]
+fn a_follower_is_a_plan_and_a_pending_route() {
+    use core::mem::size_of;
+    let follower = size_of::<RouteFollower>();
+    let (plan, waypoints) = (size_of::<RoutePlan>(), size_of::<Waypoints>());
+    std::println!(
+        "RouteFollower {follower} B = RoutePlan {plan} B + Waypoints {waypoints} B + {} B",
+        follower - plan - waypoints
+    );
+    assert!(follower <= plan + waypoints + 256, "{follower}");
+}
