@@ -32,9 +32,9 @@
 //!   the robot's heading starts with a pivot (a face heading given on the
 //!   first waypoint is not kept). With [`RouteStart::AsGiven`] the planner
 //!   assumes the robot faces the first leg (or the first stop's heading
-//!   to face): a heading that differs is the law's to absorb, and paper
-//!   001's law, starting from a reference at rest, does so by turning on
-//!   the spot ([`crate::control::LawAtRest::SeeksPoint`]).
+//!   to face): a heading that differs is absorbed while leaving (below
+//!   [`SLOW_SPEED_M_S`], the tangent hold, for a few ticks) and then by
+//!   the law, which may well turn on the spot to do it.
 //! * **A route is running or has run.** The robot stops first: the
 //!   running route goes on until its reference is at rest on a waypoint
 //!   (`Stopped`, after any pivot, or its end; every route ends in a stop,
@@ -85,7 +85,9 @@
 //!   [`RouteOptions::heading_tolerance_rad`] (1 cm and 1°, the product
 //!   goals) the stop counts once in [`RouteCounters::stop_errors`]. The
 //!   errors are the estimator's, as the robot knows them; a test measures
-//!   the true ones.
+//!   the true ones. [`super::Pilot::step_route`] then also halts the
+//!   drive once its wheel targets are zero ([`RouteStatus::holding`]), so
+//!   the motors' duties are exactly zero, not a speed loop's integral.
 //! * **Pivoting** to `θ_r` at `ω_r`: `v = 0`, `ω = ω_r + k_θ·wrap(θ_r − θ̂)`
 //!   with `θ̂` the estimator's heading and `k_θ`
 //!   [`RouteOptions::pivot_gain_per_s`] (capped at `1/h`, so that one tick
@@ -98,7 +100,11 @@
 //!   (5) starts from `(0, 0)` and only learns the heading while driving:
 //!   while its estimate is shorter than [`MIN_HEADING_NORM`] (no heading
 //!   yet, e.g. a pivot at the first waypoint) the pivot is open loop,
-//!   `ω = ω_r` ([`RouteCounters::open_loop_pivot_ticks`]).
+//!   `ω = ω_r` ([`RouteCounters::open_loop_pivot_ticks`]). Paper 002's
+//!   pose observer, started from `(0, 0)`, grows its `(ĉ, ŝ)` slowly
+//!   (measured `(0.41, 0)` after 0.5 m at `a3 = a4 = 20`), so its first
+//!   pivots may be open loop too; an open-loop pivot through the drive's
+//!   acceleration limits overshot by 4.2° in a test.
 //! * **Done.** Once the reference rests on the last waypoint and the robot
 //!   has settled, [`RouteStatus::done`] is set and the robot stays held,
 //!   its command exactly zero; [`RouteCounters::routes_done`] counts it.
