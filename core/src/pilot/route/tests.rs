@@ -687,3 +687,39 @@ fn a_follower_is_a_plan_and_a_pending_route() {
     );
     assert!(follower <= plan + waypoints + 256, "{follower}");
 }
+
+/// Garbage in, no garbage out: non-finite fixes and odometry through a
+/// route's moving legs, stops and pivots never make a non-finite command
+/// (the tracker's own checks and the estimators' guards hold; a pivot
+/// without a finite heading runs open loop).
+#[test]
+fn non_finite_input_never_reaches_the_command() {
+    for estimator in [pose_observer(), observer_001()] {
+        let mut run = Run::new(tracker(estimator, EAST), Pose::new(0.0, 0.0, 0.0));
+        run.route.load(&square(), &limits(), RouteStart::AsGiven);
+        for k in 0..4000_u32 {
+            let fix = match k % 7 {
+                0 => Some(Vec2::new(f32::NAN, 0.0)),
+                1 => Some(Vec2::new(0.0, f32::INFINITY)),
+                _ => Some(run.robot.position),
+            };
+            if k % 11 == 0 {
+                run.odometry.body.v_m_s = f32::NAN;
+                run.odometry.ds_m = f32::NAN;
+            }
+            if k % 13 == 0 {
+                run.odometry.body.omega_rad_s = f32::INFINITY;
+                run.odometry.dtheta_rad = f32::NEG_INFINITY;
+            }
+            let t = run.tick(fix);
+            assert!(t.out.command.is_finite(), "{k}: {:?}", t.out);
+            assert!(t.out.reference.position.is_finite(), "{k}: {:?}", t.out);
+        }
+        assert!(run.tracker.counters().invalid_fixes > 1000);
+        assert!(
+            run.route.counters().pivots > 0,
+            "{:?}",
+            run.route.counters()
+        );
+    }
+}
