@@ -70,6 +70,21 @@ impl LawChoice {
         }
     }
 
+    /// What the law does when the reference stands still (`v_r = 0`, a
+    /// route's stops and pivots), and so whether it may be left in charge
+    /// there. A route's tracker never is: it holds the robot still at a
+    /// stop and turns it in place itself (module `pilot::route`), and runs
+    /// the law only while the reference moves faster than
+    /// `pilot::route::SLOW_SPEED_M_S` (below it, leaving and reaching a
+    /// rest, it holds the path's tangent).
+    #[must_use]
+    pub fn at_rest(&self) -> LawAtRest {
+        match self {
+            Self::Saturated(_) => LawAtRest::SeeksPoint,
+            Self::Cascaded(_) | Self::HeadingErrorSine(_) => LawAtRest::Undefined,
+        }
+    }
+
     /// The law's name in reports: `law 001`, `cascaded law` or
     /// `sin θe law`.
     #[must_use]
@@ -80,6 +95,26 @@ impl LawChoice {
             Self::HeadingErrorSine(_) => "sin θe law",
         }
     }
+}
+
+/// What a law does with a reference at rest ([`LawChoice::at_rest`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum LawAtRest {
+    /// Paper 001's law (14)/(27)–(28): with `ẋ_r = ẏ_r = 0` it commands
+    /// `u = −f(ζ)`, toward the point, and `V̇ ≤ 0` (25) still holds; but
+    /// its speed floor `v ≥ (1 − γ)·v_rm` (21) is gone (`v_rm = 0`, the
+    /// gain bound (15) does not apply) and at the point `θ* = atan2(u)` is
+    /// undefined, so position noise turns into creeping and turning on
+    /// the spot: it supports a stop only until it is reached.
+    SeeksPoint,
+    /// Paper 002's laws on the robot-frame error (30): the reference's
+    /// heading, and so the error, is undefined at rest; the tracker
+    /// commands zero and counts the tick
+    /// (`TrackerCounters::reference_standstill_ticks`). Neither their
+    /// convergence nor a pivot is defined there.
+    Undefined,
 }
 
 /// The running law: [`LawChoice`] built.

@@ -84,6 +84,21 @@ impl EstimatorChoice {
         }
     }
 
+    /// What the estimator's heading does while the robot stands or turns
+    /// in place (`v = 0`), which a route's stops and pivots rely on: no
+    /// estimator here observes the heading from position fixes at
+    /// standstill (a position that does not change says nothing of the
+    /// direction the robot faces), so each carries the heading it had on
+    /// arrival, turned by the encoders' rotation.
+    #[must_use]
+    pub fn heading_at_standstill(&self) -> StandstillHeading {
+        match self {
+            Self::HeadingObserver(_) | Self::PoseObserver(_) => StandstillHeading::EncoderRotated,
+            #[cfg(feature = "fusion-ekf")]
+            Self::Fusion { .. } => StandstillHeading::EncoderRotatedFiltered,
+        }
+    }
+
     /// Paper 001's observer (5) where it runs: as the estimator, or as the
     /// fusion estimator's heading guide.
     #[must_use]
@@ -95,6 +110,31 @@ impl EstimatorChoice {
             Self::Fusion { guide, .. } => Some(guide),
         }
     }
+}
+
+/// What an estimator's heading does while the robot stands or turns in
+/// place ([`EstimatorChoice::heading_at_standstill`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum StandstillHeading {
+    /// Not observed, not corrected: turned exactly by the encoders'
+    /// rotation `ω·h` each tick, so its error on arrival is kept through a
+    /// stop and a pivot (plus the encoders' own rotation error). Paper
+    /// 001's observer (5): below `min_speed_m_s` its innovation is off and
+    /// `ẑ⁺ = R(ωh)·ẑ`, `|e⁺| = |e|` (module `heading_observer`); paper
+    /// 002's Proposition 4 observer: its injection into `(ĉ, ŝ)` is
+    /// proportional to `v`, zero at standstill. Pivots on it are pivots by
+    /// encoder rotation, as good as the heading was when the robot stopped;
+    /// before the robot has driven, paper 001's estimate is `(0, 0)` (no
+    /// heading at all) and a pivot is open loop (module
+    /// `pilot::route`).
+    EncoderRotated,
+    /// As [`Self::EncoderRotated`], inside a filter: the odometry turns
+    /// the heading and grows its variance; a fix at standstill corrects it
+    /// only through the position–heading correlation the motion before the
+    /// stop left in the covariance (the fusion estimators).
+    EncoderRotatedFiltered,
 }
 
 /// The running estimator: [`EstimatorChoice`] built.

@@ -25,12 +25,15 @@
 //! allows; its counter origin is then dropped and re-taken.
 
 pub mod robot;
+pub mod route;
 pub mod spec;
 pub mod tracker;
 
 use crate::devices::MotorCommand;
 use crate::drive::{Drive, DriveConfig, DriveOutput};
+use crate::geometry::WheelSpeeds;
 use crate::odometry::{CounterError, OdometryStep, WrappingCounter};
+use crate::pilot::route::RouteFollower;
 use crate::pilot::tracker::{OutputFeedbackTracker, TagFix, TrackerConfig, TrackerOutput};
 
 /// Why a [`PilotConfig`] was refused.
@@ -225,10 +228,37 @@ impl Pilot {
 
     /// One control tick.
     pub fn step(&mut self, measurement: &Measurement) -> PilotOutput {
+        self.step_on(measurement, None)
+    }
+
+    /// One control tick on the route `route` instead of the configured
+    /// trajectory ([`OutputFeedbackTracker::step_route`]; load it with
+    /// [`RouteFollower::load`]). The follower is the caller's, lent each
+    /// tick, so a `Pilot` is no larger for routes (module [`route`]).
+    pub fn step_route(
+        &mut self,
+        measurement: &Measurement,
+        route: &mut RouteFollower,
+    ) -> PilotOutput {
+        self.step_on(measurement, Some(route))
+    }
+
+    fn step_on(
+        &mut self,
+        measurement: &Measurement,
+        route: Option<&mut RouteFollower>,
+    ) -> PilotOutput {
         let odometry = self.odometry(measurement);
-        let tracker = self
-            .tracker
-            .step(&odometry.unwrap_or_default(), measurement.fix);
+        let odometry_step = odometry.unwrap_or_default();
+        let (tracker, holding) = match route {
+            None => (self.tracker.step(&odometry_step, measurement.fix), false),
+            Some(route) => {
+                let out = self
+                    .tracker
+                    .step_route(&odometry_step, measurement.fix, route);
+                (out, route.status().holding)
+            }
+        };
 
         let encoder_halt = self.fault_run > self.config.max_encoder_fault_ticks;
         let drive = if encoder_halt {
@@ -236,7 +266,19 @@ impl Pilot {
             self.drive.halt();
             DriveOutput::default()
         } else {
-            self.drive.step(tracker.command, odometry.map(|o| o.wheels))
+            let drive = self.drive.step(tracker.command, odometry.map(|o| o.wheels));
+            if holding && drive.wheel_targets == WheelSpeeds::ZERO {
+                // Settled at a route's stop: the motors at exactly zero
+                // (no speed loop holding a duty from its integral).
+                self.drive.halt();
+                DriveOutput {
+                    left_duty: 0.0,
+                    right_duty: 0.0,
+                    ..drive
+                }
+            } else {
+                drive
+            }
         };
         PilotOutput {
             left: MotorCommand::from_signed(drive.left_duty),

@@ -50,6 +50,14 @@
 //! configuration and finite measurements do not produce) is replaced by
 //! zero and counted.
 //!
+//! # Routes
+//! [`OutputFeedbackTracker::step_route`] follows a route
+//! ([`crate::pilot::route::RouteFollower`], lent by the caller each tick)
+//! instead of the configured trajectory: the same fix checks, estimator
+//! and failsafe; the law while the route's reference moves, and the
+//! route's own hold and pivot where it rests (module [`crate::pilot::route`]).
+//! [`OutputFeedbackTracker::step`] is unchanged by it.
+//!
 //! # The reader's antenna
 //! A tag is read where the antenna is, at `d = (d_x, d_y)` from the axle
 //! midpoint in the robot's frame (`x` ahead, `y` to the left;
@@ -68,6 +76,7 @@ use crate::estimation::{Estimator, EstimatorChoice, PoseEstimator};
 use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::odometry::OdometryStep;
+use crate::pilot::route::{RouteFollower, Steer};
 use crate::plausible::{DECEL_M_S2, PERIOD_S};
 use crate::reference::{ReferenceError, ReferenceSample, TickClock, Trajectory};
 
@@ -447,6 +456,41 @@ impl OutputFeedbackTracker {
 
     /// One control step; `odometry` covers the last period, `fix` is this tick's.
     pub fn step(&mut self, odometry: &OdometryStep, fix: Option<TagFix>) -> TrackerOutput {
+        let (tick, fix_used) = self.estimate(odometry, fix);
+        let reference = self
+            .config
+            .trajectory
+            .sample(self.config.clock.time_s(tick));
+        let mut out = self.drive(tick, odometry, reference, Steer::Law { restart: false });
+        out.fix_used = fix_used;
+        out
+    }
+
+    /// One control step on the route `route` instead of the configured
+    /// trajectory (module [`crate::pilot::route`]: its clock, stops,
+    /// pivots, loading and replacement); the fix handling, estimator and
+    /// failsafe are [`Self::step`]'s. The output's reference is the
+    /// route's; where the route is, and its counters, `route` tells.
+    pub fn step_route(
+        &mut self,
+        odometry: &OdometryStep,
+        fix: Option<TagFix>,
+        route: &mut RouteFollower,
+    ) -> TrackerOutput {
+        let (tick, fix_used) = self.estimate(odometry, fix);
+        let tracking = self.position.is_some() && !self.fix_lost();
+        let heading = self.estimator.heading();
+        let period_s = self.config.clock.period_s();
+        let (reference, steer) = route.begin(tracking, self.position, heading, period_s);
+        let mut out = self.drive(tick, odometry, reference, steer);
+        out.fix_used = fix_used;
+        route.end(tracking, out.command, self.position, heading);
+        out
+    }
+
+    /// Fix checks and the estimator's step; the tick and whether a fix
+    /// was used.
+    fn estimate(&mut self, odometry: &OdometryStep, fix: Option<TagFix>) -> (u32, bool) {
         let tick = self.tick;
         self.tick = self.tick.saturating_add(1);
 
@@ -460,18 +504,19 @@ impl OutputFeedbackTracker {
             self.counters.dead_reckoned_steps = self.counters.dead_reckoned_steps.saturating_add(1);
         }
         self.position = self.estimator.step(odometry, fix, previous, after_gap);
-        let mut out = self.drive(tick, odometry);
-        out.fix_used = fix.is_some();
-        out
+        (tick, fix.is_some())
     }
 
-    /// The law (or the failsafe) from the position and heading estimate.
-    fn drive(&mut self, tick: u32, odometry: &OdometryStep) -> TrackerOutput {
+    /// The law (or the failsafe, or a route's hold or pivot: `steer`) from
+    /// the position and heading estimate.
+    fn drive(
+        &mut self,
+        tick: u32,
+        odometry: &OdometryStep,
+        reference: ReferenceSample,
+        steer: Steer,
+    ) -> TrackerOutput {
         let current = self.position;
-        let reference = self
-            .config
-            .trajectory
-            .sample(self.config.clock.time_s(tick));
         let heading = self.estimator.heading();
         let mut out = TrackerOutput {
             tick,
@@ -495,22 +540,29 @@ impl OutputFeedbackTracker {
             self.mode = TrackerMode::FixLost;
             self.last_command = self.ramp_down(self.last_command);
         } else {
-            if self.mode != TrackerMode::Tracking {
+            let restart = matches!(steer, Steer::Law { restart: true });
+            if self.mode != TrackerMode::Tracking || restart {
                 self.law.restart();
             }
             self.mode = TrackerMode::Tracking;
-            out.law = match self
-                .law
-                .command(&reference, position, heading, odometry.body)
-            {
-                LawCommand::Drive(command) => command,
-                LawCommand::ReferenceStandstill => {
-                    self.counters.reference_standstill_ticks =
-                        self.counters.reference_standstill_ticks.saturating_add(1);
-                    TrackingCommand::default()
+            let body = match steer {
+                Steer::Law { .. } => {
+                    out.law = match self
+                        .law
+                        .command(&reference, position, heading, odometry.body)
+                    {
+                        LawCommand::Drive(command) => command,
+                        LawCommand::ReferenceStandstill => {
+                            self.counters.reference_standstill_ticks =
+                                self.counters.reference_standstill_ticks.saturating_add(1);
+                            TrackingCommand::default()
+                        }
+                    };
+                    out.law.body
                 }
+                Steer::Hold => self.ramp_down(self.last_command),
+                Steer::Pivot(command) => command,
             };
-            let body = out.law.body;
             self.last_command = if body.is_finite() {
                 body
             } else {

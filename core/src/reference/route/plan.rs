@@ -73,6 +73,14 @@ impl RouteCursor {
             done: false,
         }
     }
+
+    /// The index of the segment the last sample fell in (0 at the start):
+    /// two samples in the same segment share it, so a caller can tell one
+    /// pivot (or stop) from the next even with no other sample between.
+    #[must_use]
+    pub const fn segment_index(&self) -> u16 {
+        self.segment
+    }
 }
 
 /// What a segment is.

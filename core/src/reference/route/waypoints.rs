@@ -136,6 +136,12 @@ impl Waypoints {
         self.items.get(..self.len).unwrap_or(&[])
     }
 
+    /// The waypoints held, to change in place (e.g. a route that starts
+    /// where the robot is: its first position replaced).
+    pub fn as_mut_slice(&mut self) -> &mut [Waypoint] {
+        self.items.get_mut(..self.len).unwrap_or(&mut [])
+    }
+
     /// How many.
     #[must_use]
     pub fn len(&self) -> usize {

@@ -1,0 +1,711 @@
+//! Following a route ([`crate::reference::route`]) through its stops and
+//! pivots: the storage the route is planned into, the route's own clock,
+//! what the tracker commands at rest, and the counters of stops and pivots.
+//!
+//! # Where the route lives
+//! A [`RoutePlan`] is about 20 KB. The tracker and the [`super::Pilot`]
+//! are built in place by the firmware and their configuration is a `Copy`
+//! value passed around, so neither holds one: a [`RouteFollower`] does,
+//! owned by the caller (a `static`, or the task's state), and lent to
+//! [`OutputFeedbackTracker::step_route`](super::tracker::OutputFeedbackTracker::step_route)
+//! (or [`super::Pilot::step_route`]) each tick. A robot without routes
+//! pays nothing, and the tracker on an analytic
+//! [`crate::reference::Trajectory`] ([`super::tracker::OutputFeedbackTracker::step`])
+//! is unchanged, bit for bit.
+//!
+//! # Loading and replacing a route
+//! [`RouteFollower::load`] copies the waypoints (1.8 KB) and the limits;
+//! the next step plans them in place ([`RoutePlan::replan`], about 124,000
+//! instructions on a Cortex-M4F for 64 waypoints: under a millisecond at
+//! 168 MHz, in that one tick), at a tick boundary:
+//!
+//! * **No route has run yet.** [`RouteStart::AsGiven`]: the route is
+//!   planned as loaded, at the next step where the tracker knows the
+//!   robot's position (the law joins it from wherever the robot is, as on
+//!   an analytic reference). [`RouteStart::FromFirstFix`]: the first
+//!   waypoint's position is replaced by the estimated position at that
+//!   step (the first accepted fix, moved to the axle midpoint, or the
+//!   estimate the tracker already has), so the first leg starts where
+//!   the robot is, and its heading to face becomes the estimator's
+//!   heading (where it has one): the planner takes the robot to face it
+//!   there, so a first leg that turns more than the pivot threshold from
+//!   the robot's heading starts with a pivot (a face heading given on the
+//!   first waypoint is not kept). With [`RouteStart::AsGiven`] the planner
+//!   assumes the robot faces the first leg (or the first stop's heading
+//!   to face): a heading that differs is absorbed while leaving (below
+//!   [`SLOW_SPEED_M_S`], the tangent hold, for a few ticks) and then by
+//!   the law, which may well turn on the spot to do it.
+//! * **A route is running or has run.** The robot stops first: the
+//!   running route goes on until its reference is at rest on a waypoint
+//!   (`Stopped`, after any pivot, or its end; every route ends in a stop,
+//!   so that comes), and at that tick the new route is planned with its
+//!   first waypoint's position replaced by the rest point and its heading
+//!   to face by the heading the reference holds there (so the new route
+//!   pivots first where its first leg turns away from it). The reference
+//!   is then continuous in position (the same point) and velocity (zero
+//!   on both sides) across the switch. A replacement loaded before the
+//!   previous one started replaces it.
+//! * **Refused.** A route the planner refuses (a [`RouteError`]: also
+//!   the case when the replaced first waypoint equals the second) is
+//!   counted ([`RouteCounters::routes_refused`], [`RouteStatus::refused`])
+//!   and the robot is held still where the reference rests (or where it
+//!   is, before any route): never at the empty plan's origin.
+//!
+//! # The route's clock
+//! Time is the integer count of ticks the route has been followed,
+//! sampled with [`RoutePlan::sample`]: 0 at the tick it is planned, one
+//! more after each step in which the tracker drove it (`Tracking`). While
+//! the tracker awaits a fix or is in its failsafe (`FixLost`, ramping
+//! down) the route's clock stands, so the reference waits for the robot
+//! rather than running away from it; the law rejoins it when fixes return.
+//! The count starts from zero with each route, so the tracker's own tick
+//! counter and its wrap do not concern it, and a plan is shorter than
+//! [`crate::reference::route::MAX_ROUTE_TICKS`] (2³¹): it saturates long
+//! after the route is done.
+//!
+//! # At rest: stops, pivots, the end
+//! While the reference moves the law drives, except below
+//! [`SLOW_SPEED_M_S`] (leaving and reaching a rest), where the robot holds
+//! the path's tangent instead (`v = v_r·cos e`, `ω = k_θ·e`, with the
+//! estimator's heading; the law where it has none). Where it rests, the law is
+//! not asked ([`crate::control::LawChoice::at_rest`]: paper 001's law
+//! would creep after position noise, paper 002's are undefined there):
+//!
+//! * **Stopped.** The command ramps to zero from the last one at the
+//!   tracker's failsafe deceleration (`v` lowered by `a·h` a tick, `ω`
+//!   scaled with it; a pure turn slowed by `a·h` rad/s a tick) and, once
+//!   it is zero, is exactly zero until the reference moves again: the
+//!   robot has *settled* (no law output, no creeping after position
+//!   noise). At the first settle of a stop it is counted
+//!   ([`RouteCounters::stops_reached`]). At every settle (after arrival,
+//!   after a pivot) the stop's error is measured: the estimated position
+//!   from the reference point and, where the reference holds a heading and
+//!   the estimator has one, the heading's; beyond
+//!   [`RouteOptions::position_tolerance_m`] or
+//!   [`RouteOptions::heading_tolerance_rad`] (1 cm and 1°, the product
+//!   goals) the stop counts once in [`RouteCounters::stop_errors`]. The
+//!   errors are the estimator's, as the robot knows them; a test measures
+//!   the true ones. [`super::Pilot::step_route`] then also halts the
+//!   drive once its wheel targets are zero ([`RouteStatus::holding`]), so
+//!   the motors' duties are exactly zero, not a speed loop's integral.
+//! * **Pivoting** to `θ_r` at `ω_r`: `v = 0`, `ω = ω_r + k_θ·wrap(θ_r − θ̂)`
+//!   with `θ̂` the estimator's heading and `k_θ`
+//!   [`RouteOptions::pivot_gain_per_s`] (capped at `1/h`, so that one tick
+//!   never turns past the reference: the discrete heading error obeys
+//!   `e⁺ = (1 − k_θ h)·e`). Each pivot segment counts once
+//!   ([`RouteCounters::pivots`]). No estimator observes the heading at
+//!   standstill ([`crate::estimation::EstimatorChoice::heading_at_standstill`]):
+//!   each turns its heading by the encoders' rotation, so a pivot is as
+//!   good as the heading was when the robot stopped. Paper 001's observer
+//!   (5) starts from `(0, 0)` and only learns the heading while driving:
+//!   while its estimate is shorter than [`MIN_HEADING_NORM`] (no heading
+//!   yet, e.g. a pivot at the first waypoint) the pivot is open loop,
+//!   `ω = ω_r` ([`RouteCounters::open_loop_pivot_ticks`]). Paper 002's
+//!   pose observer, started from `(0, 0)`, grows its `(ĉ, ŝ)` slowly
+//!   (measured `(0.41, 0)` after 0.5 m at `a3 = a4 = 20`), so its first
+//!   pivots may be open loop too; an open-loop pivot through the drive's
+//!   acceleration limits overshot by 4.2° in a test.
+//! * **Done.** Once the reference rests on the last waypoint and the robot
+//!   has settled, [`RouteStatus::done`] is set and the robot stays held,
+//!   its command exactly zero; [`RouteCounters::routes_done`] counts it.
+//!
+//! A non-finite estimate or command keeps the tracker's own handling
+//! (its failsafe, its zero for a non-finite command); a non-finite
+//! heading estimate makes a pivot open loop.
+
+use crate::geometry::{BodyVelocity, HeadingEstimate, Vec2};
+use crate::math;
+use crate::reference::ReferenceSample;
+use crate::reference::route::{
+    RouteCursor, RouteError, RouteLimits, RouteMode, RoutePlan, RouteSample, Stop, Waypoints,
+};
+
+/// The shortest heading estimate `|(ĉ, ŝ)|` a pivot steers by: below it
+/// (paper 001's observer before the robot has driven, `(0, 0)`) the
+/// heading is unknown and a pivot runs open loop.
+pub const MIN_HEADING_NORM: f32 = 0.5;
+
+/// The reference speed below which a moving route's reference is not
+/// given to the law, m/s: the first and last ticks of a leg, leaving or
+/// reaching a rest. There paper 001's law (14) steers toward `u = ṗ_r −
+/// f(ζ)`, which a millimetre of position error turns around (measured: a
+/// 1 mm arrival error made it command 33 rad/s on the first tick of the
+/// next leg, and spin the robot); instead the robot holds the path's
+/// tangent, `v = v_r·cos e` and `ω = k_θ·e`. At the limits' 0.5 m/s² the
+/// reference covers 0.4 mm and 40 ms below this speed.
+pub const SLOW_SPEED_M_S: f32 = 0.02;
+
+/// Where a loaded route's first leg starts, when no route has run before
+/// it (a replacement always starts where the running route rests).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum RouteStart {
+    /// At the first waypoint, as loaded.
+    #[default]
+    AsGiven,
+    /// At the estimated position when the route starts (the robot's first
+    /// accepted fix, or its estimate if it has one already): the first
+    /// waypoint's position is replaced by it.
+    FromFirstFix,
+}
+
+/// Why [`RouteOptions`] were refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum RouteOptionsError {
+    /// Pivot gain not finite or outside `(0, 1000]` 1/s.
+    PivotGain,
+    /// A tolerance not finite or not positive.
+    Tolerance,
+}
+
+impl core::fmt::Display for RouteOptionsError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::PivotGain => "pivot_gain_per_s must be in (0, 1000] 1/s",
+            Self::Tolerance => "the stop tolerances must be finite and positive",
+        })
+    }
+}
+
+impl core::error::Error for RouteOptionsError {}
+
+/// How a route is followed at rest: the pivot gain and the stop
+/// tolerances, each checked once.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RouteOptions {
+    pivot_gain_per_s: f32,
+    position_tolerance_m: f32,
+    heading_tolerance_rad: f32,
+}
+
+impl Default for RouteOptions {
+    fn default() -> Self {
+        Self {
+            pivot_gain_per_s: Self::DEFAULT_PIVOT_GAIN_PER_S,
+            position_tolerance_m: Self::DEFAULT_POSITION_TOLERANCE_M,
+            heading_tolerance_rad: Self::DEFAULT_HEADING_TOLERANCE_RAD,
+        }
+    }
+}
+
+impl RouteOptions {
+    /// Default `k_θ`, 1/s: a heading error decays with a 0.2 s time
+    /// constant, well inside a pivot's ramps at 1 rad/s² and 1 rad/s, and
+    /// `k_θ·h = 0.05` at 100 Hz (a tenth of the stability limit `k_θ h <
+    /// 2` of `e⁺ = (1 − k_θ h)·e`).
+    pub const DEFAULT_PIVOT_GAIN_PER_S: f32 = 5.0;
+    /// Default stop position tolerance, m (the product goal, 1 cm).
+    pub const DEFAULT_POSITION_TOLERANCE_M: f32 = 0.01;
+    /// Default stop heading tolerance, rad (the product goal, 1°).
+    pub const DEFAULT_HEADING_TOLERANCE_RAD: f32 = core::f32::consts::PI / 180.0;
+
+    /// Options with the pivot gain `k_θ` (1/s) and the stop tolerances
+    /// (m, rad).
+    ///
+    /// # Errors
+    /// [`RouteOptionsError::PivotGain`] outside `(0, 1000]`,
+    /// [`RouteOptionsError::Tolerance`] for a tolerance not finite and
+    /// positive.
+    pub fn new(
+        pivot_gain_per_s: f32,
+        position_tolerance_m: f32,
+        heading_tolerance_rad: f32,
+    ) -> Result<Self, RouteOptionsError> {
+        if !(pivot_gain_per_s > 0.0 && pivot_gain_per_s <= 1000.0) {
+            return Err(RouteOptionsError::PivotGain);
+        }
+        let positive = |x: f32| x.is_finite() && x > 0.0;
+        if !(positive(position_tolerance_m) && positive(heading_tolerance_rad)) {
+            return Err(RouteOptionsError::Tolerance);
+        }
+        Ok(Self {
+            pivot_gain_per_s,
+            position_tolerance_m,
+            heading_tolerance_rad,
+        })
+    }
+
+    /// The pivot's heading gain `k_θ`, 1/s.
+    #[must_use]
+    pub fn pivot_gain_per_s(&self) -> f32 {
+        self.pivot_gain_per_s
+    }
+
+    /// The stop position tolerance, m.
+    #[must_use]
+    pub fn position_tolerance_m(&self) -> f32 {
+        self.position_tolerance_m
+    }
+
+    /// The stop heading tolerance, rad.
+    #[must_use]
+    pub fn heading_tolerance_rad(&self) -> f32 {
+        self.heading_tolerance_rad
+    }
+}
+
+/// Counters of a [`RouteFollower`] since it was made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct RouteCounters {
+    /// Stops at which the robot settled (once per stop).
+    pub stops_reached: u32,
+    /// Stops whose error at a settle exceeded the tolerances (once per stop).
+    pub stop_errors: u32,
+    /// Pivot segments turned (once each).
+    pub pivots: u32,
+    /// Pivot ticks run open loop (`ω = ω_r`: no heading estimate).
+    pub open_loop_pivot_ticks: u32,
+    /// Routes planned and started (replacements included).
+    pub routes_started: u32,
+    /// Routes the planner refused.
+    pub routes_refused: u32,
+    /// Routes finished: at rest on their last waypoint, settled.
+    pub routes_done: u32,
+}
+
+/// A stop's error at a settle, as the estimator knows it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StopError {
+    /// Distance of the estimated position from the stop, m.
+    pub position_m: f32,
+    /// `|wrap(θ̂ − θ_hold)|`, rad, where the reference holds a heading and
+    /// the estimator has one.
+    pub heading_rad: Option<f32>,
+}
+
+/// Where a [`RouteFollower`] is.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RouteStatus {
+    /// A route is planned and being followed (or done and held).
+    pub running: bool,
+    /// The route rests on its last waypoint and the robot has settled
+    /// there (its command exactly zero).
+    pub done: bool,
+    /// This tick's command was a settled hold, exactly zero: at a stop
+    /// (or the end) once the ramp reached zero, or held with no route
+    /// running. [`super::Pilot::step_route`] then also zeroes the motors
+    /// once the drive's wheel targets are zero.
+    pub holding: bool,
+    /// The running route's reference mode this tick.
+    pub mode: Option<RouteMode>,
+    /// Ticks the running route has been followed.
+    pub elapsed_ticks: u32,
+    /// A loaded route waits to start (for a position, or for the running
+    /// route's next rest).
+    pub pending: bool,
+    /// Why the last loaded route was refused, until one is accepted.
+    pub refused: Option<RouteError>,
+    /// The error at the last settle.
+    pub last_stop: Option<StopError>,
+}
+
+/// What the tracker does this tick on a route.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Steer {
+    /// The law, on the reference (`restart`: first tick after a rest).
+    Law { restart: bool },
+    /// Ramp the command to zero, then hold it at exactly zero.
+    Hold,
+    /// Turn in place: this body command.
+    Pivot(BodyVelocity),
+}
+
+/// A route waiting for its tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Pending {
+    waypoints: Waypoints,
+    limits: RouteLimits,
+    start: RouteStart,
+}
+
+/// The stop (rest phase) the reference is in.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Rest {
+    settled: bool,
+    reached: bool,
+    error_counted: bool,
+    pivot_segment: Option<u16>,
+}
+
+/// A route's storage and progress: the plan (planned in place), its
+/// cursor and clock, a route waiting to replace it, the counters. Owned by
+/// the caller and lent to the tracker each tick (module documentation).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RouteFollower {
+    options: RouteOptions,
+    plan: RoutePlan,
+    cursor: RouteCursor,
+    running: bool,
+    elapsed_ticks: u32,
+    pending: Option<Pending>,
+    /// Where the robot is held with no route running (after a refusal).
+    hold_at: Option<Vec2>,
+    /// The reference's rest point and the heading it holds there, where
+    /// a replacement starts.
+    rest_point: Option<(Vec2, Option<f32>)>,
+    rest: Option<Rest>,
+    sample: Option<RouteSample>,
+    done: bool,
+    holding: bool,
+    /// The last tick was slow (below [`SLOW_SPEED_M_S`]): the law restarts.
+    was_slow: bool,
+    refused: Option<RouteError>,
+    last_stop: Option<StopError>,
+    counters: RouteCounters,
+}
+
+impl RouteFollower {
+    /// No route yet; loads are followed with `options`. Build it where it
+    /// is to stay (about 22 KB).
+    #[must_use]
+    pub const fn new(options: RouteOptions) -> Self {
+        Self {
+            options,
+            plan: RoutePlan::empty(),
+            cursor: RouteCursor::new(),
+            running: false,
+            elapsed_ticks: 0,
+            pending: None,
+            hold_at: None,
+            rest_point: None,
+            rest: None,
+            sample: None,
+            done: false,
+            holding: false,
+            was_slow: false,
+            refused: None,
+            last_stop: None,
+            counters: RouteCounters {
+                stops_reached: 0,
+                stop_errors: 0,
+                pivots: 0,
+                open_loop_pivot_ticks: 0,
+                routes_started: 0,
+                routes_refused: 0,
+                routes_done: 0,
+            },
+        }
+    }
+
+    /// Queues `waypoints` under `limits` to start at the next tick
+    /// boundary where it can (module documentation, "Loading and
+    /// replacing a route"); planned by the step that starts it, which
+    /// reports a refusal in [`RouteStatus::refused`].
+    pub fn load(&mut self, waypoints: &Waypoints, limits: &RouteLimits, start: RouteStart) {
+        self.pending = Some(Pending {
+            waypoints: *waypoints,
+            limits: *limits,
+            start,
+        });
+    }
+
+    /// The options.
+    #[must_use]
+    pub fn options(&self) -> &RouteOptions {
+        &self.options
+    }
+
+    /// The running plan (empty before a route has started).
+    #[must_use]
+    pub fn plan(&self) -> &RoutePlan {
+        &self.plan
+    }
+
+    /// Counters since the follower was made.
+    #[must_use]
+    pub fn counters(&self) -> RouteCounters {
+        self.counters
+    }
+
+    /// Where the follower is, after the last step.
+    #[must_use]
+    pub fn status(&self) -> RouteStatus {
+        RouteStatus {
+            running: self.running,
+            done: self.done,
+            holding: self.holding,
+            mode: self.sample.map(|s| s.mode),
+            elapsed_ticks: self.elapsed_ticks,
+            pending: self.pending.is_some(),
+            refused: self.refused,
+            last_stop: self.last_stop,
+        }
+    }
+
+    /// The tick's reference and what to do with it. `tracking`: the
+    /// tracker drives this tick (it has a position and the fix is not
+    /// lost); the route's clock advances only then.
+    pub(crate) fn begin(
+        &mut self,
+        tracking: bool,
+        position: Option<Vec2>,
+        heading: HeadingEstimate,
+        period_s: f32,
+    ) -> (ReferenceSample, Steer) {
+        if tracking {
+            self.start_pending(position, heading, period_s);
+        }
+        if !self.running {
+            let at = self.hold_at.or(position).unwrap_or(Vec2::ZERO);
+            if tracking {
+                self.hold_at = Some(at);
+            }
+            return (at_rest(at), Steer::Hold);
+        }
+        let sample = self.plan.sample(&mut self.cursor, self.elapsed_ticks);
+        if tracking {
+            self.elapsed_ticks = self.elapsed_ticks.saturating_add(1);
+        }
+        self.sample = Some(sample);
+        let steer = match sample.mode {
+            RouteMode::Moving { .. } => {
+                self.rest_point = None;
+                let left_rest = self.rest.take().is_some();
+                match self.slow(&sample.reference, heading, period_s) {
+                    Some(command) => {
+                        self.was_slow = true;
+                        Steer::Pivot(command)
+                    }
+                    None => {
+                        let restart = left_rest || self.was_slow;
+                        self.was_slow = false;
+                        Steer::Law { restart }
+                    }
+                }
+            }
+            RouteMode::Stopped { hold_heading_rad } => {
+                self.rest_point = Some((sample.reference.position, hold_heading_rad));
+                self.rest.get_or_insert_with(Rest::default);
+                Steer::Hold
+            }
+            RouteMode::Pivoting {
+                heading_rad,
+                rate_rad_s,
+                ..
+            } => {
+                self.rest_point = None;
+                let segment = self.cursor.segment_index();
+                let rest = self.rest.get_or_insert_with(Rest::default);
+                rest.settled = false;
+                if tracking && rest.pivot_segment != Some(segment) {
+                    rest.pivot_segment = Some(segment);
+                    self.counters.pivots = self.counters.pivots.saturating_add(1);
+                }
+                Steer::Pivot(self.pivot(heading_rad, rate_rad_s, heading, period_s, tracking))
+            }
+        };
+        (sample.reference, steer)
+    }
+
+    /// After the tracker's command: a hold that reached exactly zero has
+    /// settled (counted, its error measured, the route done at its end).
+    pub(crate) fn end(
+        &mut self,
+        tracking: bool,
+        command: BodyVelocity,
+        position: Option<Vec2>,
+        heading: HeadingEstimate,
+    ) {
+        let at_zero = command.v_m_s == 0.0 && command.omega_rad_s == 0.0;
+        self.holding = false;
+        let Some(sample) = self.sample.filter(|_| self.running) else {
+            self.holding = tracking && at_zero;
+            return;
+        };
+        let RouteMode::Stopped { hold_heading_rad } = sample.mode else {
+            return;
+        };
+        let (Some(rest), Some(position)) = (self.rest.as_mut(), position) else {
+            return;
+        };
+        if !(tracking && at_zero) {
+            return;
+        }
+        self.holding = true;
+        if sample.done && !self.done {
+            self.done = true;
+            self.counters.routes_done = self.counters.routes_done.saturating_add(1);
+        }
+        if rest.settled {
+            return;
+        }
+        rest.settled = true;
+        let heading_error = hold_heading_rad
+            .zip(heading_rad(heading))
+            .map(|(hold, estimate)| math::wrap_angle(estimate - hold).abs());
+        let error = StopError {
+            position_m: (position - sample.reference.position).norm(),
+            heading_rad: heading_error,
+        };
+        self.last_stop = Some(error);
+        if !rest.reached {
+            rest.reached = true;
+            self.counters.stops_reached = self.counters.stops_reached.saturating_add(1);
+        }
+        // Not within: a NaN error counts too.
+        let within = |e: f32, tolerance: f32| e <= tolerance;
+        let beyond = !within(error.position_m, self.options.position_tolerance_m)
+            || error
+                .heading_rad
+                .is_some_and(|e| !within(e, self.options.heading_tolerance_rad));
+        if beyond && !rest.error_counted {
+            rest.error_counted = true;
+            self.counters.stop_errors = self.counters.stop_errors.saturating_add(1);
+        }
+    }
+
+    /// Below [`SLOW_SPEED_M_S`] (leaving or reaching a rest), where the
+    /// estimator has a heading: `v = v_r·cos e`, `ω = k_θ·e` with `e =
+    /// wrap(θ_t − θ̂)` toward the path's tangent `θ_t` (the reference
+    /// velocity's direction, or its acceleration's at rest); `None` to
+    /// leave it to the law.
+    fn slow(
+        &self,
+        reference: &ReferenceSample,
+        heading: HeadingEstimate,
+        period_s: f32,
+    ) -> Option<BodyVelocity> {
+        let speed = reference.velocity.norm();
+        if speed.is_nan() || speed >= SLOW_SPEED_M_S {
+            return None;
+        }
+        let estimate = heading_rad(heading)?;
+        let tangent = if speed > 0.0 {
+            reference.velocity
+        } else {
+            reference.acceleration
+        };
+        if tangent == Vec2::ZERO || !tangent.is_finite() {
+            return None;
+        }
+        let error = math::wrap_angle(math::atan2(tangent.y, tangent.x) - estimate);
+        let gain = self.options.pivot_gain_per_s.min(1.0 / period_s);
+        Some(BodyVelocity {
+            v_m_s: speed * math::cos(error),
+            omega_rad_s: gain * error,
+        })
+    }
+
+    /// `v = 0`, `ω = ω_r + k_θ·wrap(θ_r − θ̂)`, or `ω_r` open loop.
+    fn pivot(
+        &mut self,
+        heading_rad_r: f32,
+        rate_rad_s: f32,
+        heading: HeadingEstimate,
+        period_s: f32,
+        tracking: bool,
+    ) -> BodyVelocity {
+        let omega = match heading_rad(heading) {
+            Some(estimate) => {
+                let gain = self.options.pivot_gain_per_s.min(1.0 / period_s);
+                rate_rad_s + gain * math::wrap_angle(heading_rad_r - estimate)
+            }
+            None => {
+                if tracking {
+                    self.counters.open_loop_pivot_ticks =
+                        self.counters.open_loop_pivot_ticks.saturating_add(1);
+                }
+                rate_rad_s
+            }
+        };
+        BodyVelocity {
+            v_m_s: 0.0,
+            omega_rad_s: omega,
+        }
+    }
+
+    /// Plans the pending route if it may start now.
+    fn start_pending(&mut self, position: Option<Vec2>, heading: HeadingEstimate, period_s: f32) {
+        let Some(start) = self.pending.as_ref().map(|p| p.start) else {
+            return;
+        };
+        // A replacement starts where the running reference rests; the
+        // first route where it is loaded or where the robot is.
+        let estimated = heading_rad(heading);
+        let from = if self.running {
+            match self.rest_point {
+                Some((at, held)) => Some((at, held.or(estimated))),
+                None => return,
+            }
+        } else if let Some(at) = self.hold_at.filter(|_| self.counters.routes_started > 0) {
+            Some((at, estimated))
+        } else {
+            match start {
+                RouteStart::AsGiven => None,
+                RouteStart::FromFirstFix => match position {
+                    Some(at) => Some((at, estimated)),
+                    None => return,
+                },
+            }
+        };
+        let hold = from.map(|(at, _)| at).or(self.hold_at).or(position);
+        self.cursor = RouteCursor::new();
+        self.elapsed_ticks = 0;
+        self.rest = None;
+        self.rest_point = None;
+        self.sample = None;
+        self.done = false;
+        // Changed and planned where it is (1.8 KB of waypoints, 20 KB of
+        // plan): no copy on the stack.
+        let Some(pending) = self.pending.as_mut() else {
+            return;
+        };
+        if let (Some(first), Some((at, facing))) =
+            (pending.waypoints.as_mut_slice().first_mut(), from)
+        {
+            first.position_m = at;
+            if let Some(facing) = facing {
+                let dwell_s = first.stop.map_or(0.0, |stop| stop.dwell_s);
+                first.stop = Some(Stop {
+                    dwell_s,
+                    face_heading_rad: Some(facing),
+                });
+            }
+        }
+        let planned = self
+            .plan
+            .replan(pending.waypoints.as_slice(), &pending.limits, period_s);
+        self.pending = None;
+        match planned {
+            Ok(()) => {
+                self.running = true;
+                self.refused = None;
+                self.hold_at = None;
+                self.counters.routes_started = self.counters.routes_started.saturating_add(1);
+            }
+            Err(e) => {
+                self.running = false;
+                self.refused = Some(e);
+                self.hold_at = hold;
+                self.counters.routes_refused = self.counters.routes_refused.saturating_add(1);
+            }
+        }
+    }
+}
+
+/// The estimate's heading, rad, if it is finite and long enough to mean one.
+fn heading_rad(heading: HeadingEstimate) -> Option<f32> {
+    let (c, s) = (heading.cos_theta, heading.sin_theta);
+    let norm = math::hypot(c, s);
+    (norm.is_finite() && norm >= MIN_HEADING_NORM).then(|| math::atan2(s, c))
+}
+
+/// A reference at rest at `at`.
+fn at_rest(at: Vec2) -> ReferenceSample {
+    ReferenceSample {
+        position: at,
+        velocity: Vec2::ZERO,
+        acceleration: Vec2::ZERO,
+    }
+}
+
+#[cfg(test)]
+mod tests;
