@@ -92,12 +92,31 @@ fn simulate(
     let mut records = Vec::with_capacity(setup.ticks as usize);
     let mut progress = progress;
     let total = u64::from(setup.ticks);
+    // A route run ends `settle_s` after the route is done, or at the
+    // scenario's duration (a route not done by then is reported so).
+    let settle_ticks = setup
+        .route
+        .as_ref()
+        .map(|r| (r.settle_s / setup.period_s).round() as u64);
+    let mut route_ticks = Vec::new();
+    let mut done_at: Option<u32> = None;
     for k in 0..setup.ticks {
         let t = f64::from(k) * setup.period_s;
         records.push(rig.tick(k, t)?);
+        if let Some(status) = rig.route().map(|f| f.status()) {
+            route_ticks.push(status);
+            if status.done && done_at.is_none() {
+                done_at = Some(k);
+            }
+        }
         rig.advance(setup.period_s);
         if (k + 1) % PROGRESS_EVERY == 0 {
             progress(u64::from(k) + 1, total);
+        }
+        if let (Some(done), Some(settle)) = (done_at, settle_ticks)
+            && u64::from(k - done) >= settle
+        {
+            break;
         }
     }
     progress(total, total);
@@ -108,6 +127,7 @@ fn simulate(
         scenario,
         &setup,
         &records,
+        &route_ticks,
         &rig,
         wall.elapsed().as_secs_f64(),
     );
