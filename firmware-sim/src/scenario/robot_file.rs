@@ -26,7 +26,9 @@ pub struct RobotFile {
     #[serde(default = "defaults::period_s")]
     pub period_s: f64,
     /// The trajectory the flashed firmware tracks (needed to flash; a
-    /// scenario naming the robot tracks its own `[reference]`).
+    /// scenario naming the robot tracks its own `[reference]`). A route
+    /// (`kind = "route"`) is read and checked, but not flashed yet: the
+    /// flash image and the HIL link carry analytic references only.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reference: Option<ReferenceSpec>,
     /// Geometry (wheel radius, track), encoders and motors:

@@ -233,11 +233,10 @@ pub struct RouteSpec {
     #[serde(default = "RouteSpec::default_pivot_threshold_deg")]
     #[schemars(range(min = 0.0, max = 180.0))]
     pub pivot_threshold_deg: f64,
-    /// Largest angular rate of a pivot, degrees per second (unit: deg/s).
+    /// Largest angular rate of a pivot, degrees per second.
     #[serde(default = "RouteSpec::default_pivot_rate_deg_s")]
     pub pivot_rate_deg_s: f64,
-    /// Largest angular acceleration of a pivot, degrees per second squared
-    /// (unit: deg/s²).
+    /// Largest angular acceleration of a pivot, degrees per second squared.
     #[serde(default = "RouteSpec::default_pivot_accel_deg_s2")]
     pub pivot_accel_deg_s2: f64,
     /// The pivot's heading gain `k_θ`, 1/s, in (0, 1000].
@@ -248,7 +247,7 @@ pub struct RouteSpec {
     #[serde(default = "RouteSpec::default_position_tolerance_m")]
     pub position_tolerance_m: f64,
     /// A stop whose estimated heading error at a settle exceeds this is
-    /// counted, degrees (unit: deg).
+    /// counted, degrees.
     #[serde(default = "RouteSpec::default_heading_tolerance_deg")]
     pub heading_tolerance_deg: f64,
     /// Where the first leg starts.

@@ -224,7 +224,7 @@ fn route_report(
             face_heading_deg: w
                 .stop
                 .and_then(|s| s.face_heading_rad)
-                .map(|h| f64::from(h).to_degrees()),
+                .map(|h| f64::from(h.to_degrees())),
             settled_at_s: None,
             position_error_m: None,
             heading_error_deg: None,
