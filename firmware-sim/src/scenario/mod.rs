@@ -109,6 +109,10 @@ pub const EMBEDDED: &[(&str, &str)] = &[
     ("circle", include_str!("../../scenarios/circle.toml")),
     ("line", include_str!("../../scenarios/line.toml")),
     ("route", include_str!("../../scenarios/route.toml")),
+    (
+        "warehouse_loop",
+        include_str!("../../scenarios/warehouse_loop.toml"),
+    ),
 ];
 
 /// The TOML text of an embedded scenario, by file name (without `.toml`).

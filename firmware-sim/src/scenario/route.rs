@@ -349,8 +349,10 @@ impl RouteSpec {
     fn default_pivot_gain_per_s() -> f64 {
         f64::from(RouteOptions::DEFAULT_PIVOT_GAIN_PER_S)
     }
+    /// The core's default (`RouteOptions::DEFAULT_POSITION_TOLERANCE_M`),
+    /// as a file writes it.
     fn default_position_tolerance_m() -> f64 {
-        f64::from(RouteOptions::DEFAULT_POSITION_TOLERANCE_M)
+        0.01
     }
     fn default_heading_tolerance_deg() -> f64 {
         1.0
