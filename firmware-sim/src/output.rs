@@ -474,9 +474,12 @@ fn trajectory_panel(
             "route (planned path)",
         )?;
         chart
-            .draw_series(route.stops.iter().map(|stop| {
-                TriangleMarker::new((stop.x_m, stop.y_m), 8, MAGENTA.filled())
-            }))
+            .draw_series(
+                route
+                    .stops
+                    .iter()
+                    .map(|stop| TriangleMarker::new((stop.x_m, stop.y_m), 8, MAGENTA.filled())),
+            )
             .map_err(plot_err)?
             .label("stops")
             .legend(|(x, y)| TriangleMarker::new((x + 10, y), 6, MAGENTA.filled()));

@@ -75,7 +75,9 @@ fn refusal(route: &str) -> ScenarioError {
 }
 
 fn field(e: &ScenarioError) -> String {
-    e.field().unwrap_or_else(|| panic!("no field: {e}")).to_owned()
+    e.field()
+        .unwrap_or_else(|| panic!("no field: {e}"))
+        .to_owned()
 }
 
 #[test]
@@ -121,8 +123,9 @@ fn unknown_keys_are_refused_by_name() {
         matches!(&e, ScenarioError::Parse(m) if m.contains("max_speed")),
         "{e}"
     );
-    let e = Scenario::from_toml_str(&scenario(INLINE).replace("kind = \"route\"", "kind = \"rout\""))
-        .unwrap_err();
+    let e =
+        Scenario::from_toml_str(&scenario(INLINE).replace("kind = \"route\"", "kind = \"rout\""))
+            .unwrap_err();
     assert!(e.to_string().contains("`rout`"), "{e}");
 }
 
@@ -175,7 +178,10 @@ fn a_bad_csv_waypoint_is_named_by_file_line_and_key() {
     );
     std::fs::write(d.join("w.csv"), CSV.replace("1.0,0.0,1.0", "1.0,zero,1.0")).unwrap();
     let text = Scenario::from_file(&path).unwrap_err().to_string();
-    assert!(text.contains("line 4") && text.contains("`y_m` = `zero`"), "{text}");
+    assert!(
+        text.contains("line 4") && text.contains("`y_m` = `zero`"),
+        "{text}"
+    );
     std::fs::write(d.join("w.csv"), CSV.replace("speed_m_s", "speed")).unwrap();
     let text = Scenario::from_file(&path).unwrap_err().to_string();
     assert!(text.contains("unknown column `speed`"), "{text}");
@@ -186,7 +192,11 @@ fn both_inline_and_csv_waypoints_are_refused() {
     let d = dir("both");
     std::fs::write(d.join("w.csv"), CSV).unwrap();
     let path = d.join("s.toml");
-    std::fs::write(&path, scenario(&format!("waypoints_csv = \"w.csv\"\n{INLINE}"))).unwrap();
+    std::fs::write(
+        &path,
+        scenario(&format!("waypoints_csv = \"w.csv\"\n{INLINE}")),
+    )
+    .unwrap();
     let e = Scenario::from_file(&path).unwrap_err();
     assert_eq!(field(&e), "reference.waypoints_csv");
     assert!(e.to_string().contains("give one"), "{e}");
@@ -240,7 +250,9 @@ fn a_robot_file_reads_its_route_and_refuses_to_flash_it() {
     std::fs::write(d.join("w.csv"), CSV).unwrap();
     // The example's own [reference] table, replaced by a route.
     let start = example.find("\n[reference]").unwrap();
-    let end = example[start + 1..].find("\n[").map_or(example.len(), |e| start + 1 + e);
+    let end = example[start + 1..]
+        .find("\n[")
+        .map_or(example.len(), |e| start + 1 + e);
     let robot_text = format!(
         "{}{}\n[reference]\nkind = \"route\"\nwaypoints_csv = \"w.csv\"\n",
         &example[..start],
@@ -249,17 +261,26 @@ fn a_robot_file_reads_its_route_and_refuses_to_flash_it() {
     std::fs::write(d.join("robot.toml"), &robot_text).unwrap();
     let robot = Robot::from_file(&d.join("robot.toml")).unwrap();
     let e = robot.flash_image().unwrap_err().to_string();
-    assert!(e.contains("reference.kind") && e.contains("routes do not reach the firmware"), "{e}");
+    assert!(
+        e.contains("reference.kind") && e.contains("routes do not reach the firmware"),
+        "{e}"
+    );
     // A bad waypoint is named in the robot file.
     std::fs::write(d.join("w.csv"), CSV.replace("0.5,180.0", "-0.5,180.0")).unwrap();
     let e = Robot::from_file(&d.join("robot.toml")).unwrap_err();
     let text = e.to_string();
     assert!(
-        text.contains("robot file") && text.contains("reference.waypoints_csv") && text.contains("stop_s"),
+        text.contains("robot file")
+            && text.contains("reference.waypoints_csv")
+            && text.contains("stop_s"),
         "{text}"
     );
     let listed: Vec<String> = keys::robot_keys().into_iter().map(|k| k.key).collect();
-    for key in ["reference.waypoints.heading_deg", "reference.waypoints_csv", "reference.pivot_threshold_deg"] {
+    for key in [
+        "reference.waypoints.heading_deg",
+        "reference.waypoints_csv",
+        "reference.pivot_threshold_deg",
+    ] {
         assert!(listed.iter().any(|k| k == key), "{key} not listed");
     }
 }

@@ -56,6 +56,7 @@ mod tests;
 
 pub use error::ScenarioError;
 pub(crate) use error::{non_negative, positive};
+pub use route::{ReferenceSpec, RouteSetup, RouteSpec, RouteStartSpec, WaypointSpec};
 use schema::GivenKeys;
 pub use schema::Scenario;
 pub use sweep_spec::{
@@ -68,7 +69,6 @@ pub use tables::{
     InitialSpec, MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
     SpeedObserverSpec,
 };
-pub use route::{ReferenceSpec, RouteSetup, RouteSpec, RouteStartSpec, WaypointSpec};
 pub use validate::{PlantSetup, PositionSetup, Setup, reference_bounds, route_bounds, route_path};
 pub use wmr_core::control::spec::LawSpec;
 /// The core's estimator and law specs, which the scenario's `[estimator]`

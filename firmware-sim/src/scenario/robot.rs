@@ -300,13 +300,15 @@ impl Robot {
     #[must_use]
     pub fn warnings(&self) -> Vec<String> {
         // Which keys apply does not depend on the reference.
-        let reference = self.file.reference.clone().unwrap_or(ReferenceSpec::Trajectory(
-            TrajectorySpec::FigureEight {
+        let reference = self
+            .file
+            .reference
+            .clone()
+            .unwrap_or(ReferenceSpec::Trajectory(TrajectorySpec::FigureEight {
                 h1_m: TrajectorySpec::PAPER_H1_M,
                 h2_rad_s: TrajectorySpec::PAPER_H2_RAD_S,
                 phase_rad: TrajectorySpec::PAPER_PHASE_RAD,
-            },
-        ));
+            }));
         let mut scenario = self.scenario(reference, 1.0);
         scenario.given = GivenKeys::default().with_robot(self.path.clone(), self.given.clone());
         scenario.warnings()

@@ -50,8 +50,7 @@ use serde::{Deserialize, Serialize};
 use wmr_core::pilot::route::{RouteOptions, RouteStart};
 use wmr_core::reference::TrajectorySpec;
 use wmr_core::reference::route::{
-    LimitKey, RouteError, RouteLimits, RouteLimitsSpec, RoutePlan, Waypoint, WaypointKey,
-    Waypoints,
+    LimitKey, RouteError, RouteLimits, RouteLimitsSpec, RoutePlan, Waypoint, WaypointKey, Waypoints,
 };
 
 use super::error::{ScenarioError, non_negative, shown};
@@ -150,7 +149,9 @@ impl schemars::JsonSchema for ReferenceSpec {
 }
 
 /// How the route's first leg starts (the core's [`RouteStart`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, schemars::JsonSchema)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum RouteStartSpec {
     /// At the first waypoint, as given: the law joins the route from
@@ -552,10 +553,8 @@ impl RouteSpec {
         }
         let core = self.core_waypoints();
         let waypoints = Waypoints::from_slice(&core).map_err(|e| self.route_error(e))?;
-        let plan =
-            RoutePlan::new(waypoints.as_slice(), &limits, period_s as f32).map_err(|e| {
-                self.route_error(e)
-            })?;
+        let plan = RoutePlan::new(waypoints.as_slice(), &limits, period_s as f32)
+            .map_err(|e| self.route_error(e))?;
         Ok(RouteSetup {
             waypoints,
             limits,
@@ -584,12 +583,22 @@ impl RouteSpec {
                     WaypointKey::Position => {
                         let bad_x = !(wmr_core::plausible::COORDINATE_M.contains(wp.x_m as f32));
                         if bad_x {
-                            ("x_m", wp.x_m, format!("{} m", wmr_core::plausible::COORDINATE_M))
+                            (
+                                "x_m",
+                                wp.x_m,
+                                format!("{} m", wmr_core::plausible::COORDINATE_M),
+                            )
                         } else {
-                            ("y_m", wp.y_m, format!("{} m", wmr_core::plausible::COORDINATE_M))
+                            (
+                                "y_m",
+                                wp.y_m,
+                                format!("{} m", wmr_core::plausible::COORDINATE_M),
+                            )
                         }
                     }
-                    WaypointKey::Dwell => ("stop_s", wp.stop_s.unwrap_or(f64::NAN), "[0, ∞) s".into()),
+                    WaypointKey::Dwell => {
+                        ("stop_s", wp.stop_s.unwrap_or(f64::NAN), "[0, ∞) s".into())
+                    }
                     WaypointKey::FaceHeading => {
                         let r = wmr_core::plausible::ANGLE_RAD;
                         (
@@ -602,9 +611,11 @@ impl RouteSpec {
                             ),
                         )
                     }
-                    WaypointKey::SpeedLimit => {
-                        ("speed_m_s", wp.speed_m_s.unwrap_or(f64::NAN), "(0, ∞) m/s".into())
-                    }
+                    WaypointKey::SpeedLimit => (
+                        "speed_m_s",
+                        wp.speed_m_s.unwrap_or(f64::NAN),
+                        "(0, ∞) m/s".into(),
+                    ),
                 };
                 self.waypoint_error(
                     usize::from(index),
@@ -674,7 +685,10 @@ pub fn parse_waypoints_csv(
     text: &str,
 ) -> Result<(Vec<WaypointSpec>, Vec<usize>), ScenarioError> {
     let error = |line: usize, reason: String| {
-        ScenarioError::invalid("reference.waypoints_csv", format!("{path} line {line}: {reason}"))
+        ScenarioError::invalid(
+            "reference.waypoints_csv",
+            format!("{path} line {line}: {reason}"),
+        )
     };
     let mut rows = text
         .lines()
@@ -684,7 +698,10 @@ pub fn parse_waypoints_csv(
     let Some((header_line, header)) = rows.next() else {
         return Err(error(
             1,
-            format!("no header: the first row names the columns ({})", CSV_COLUMNS.join(",")),
+            format!(
+                "no header: the first row names the columns ({})",
+                CSV_COLUMNS.join(",")
+            ),
         ));
     };
     let mut columns: Vec<usize> = Vec::new();
@@ -692,7 +709,10 @@ pub fn parse_waypoints_csv(
         let Some(c) = CSV_COLUMNS.iter().position(|k| *k == name) else {
             return Err(error(
                 header_line,
-                format!("unknown column `{name}` (the columns: {})", CSV_COLUMNS.join(", ")),
+                format!(
+                    "unknown column `{name}` (the columns: {})",
+                    CSV_COLUMNS.join(", ")
+                ),
             ));
         };
         if columns.contains(&c) {
@@ -715,7 +735,11 @@ pub fn parse_waypoints_csv(
         if cells.len() != columns.len() {
             return Err(error(
                 line,
-                format!("{} cells, the header has {} columns", cells.len(), columns.len()),
+                format!(
+                    "{} cells, the header has {} columns",
+                    cells.len(),
+                    columns.len()
+                ),
             ));
         }
         let mut values = [None; 5];
@@ -724,7 +748,10 @@ pub fn parse_waypoints_csv(
                 continue;
             }
             let v: f64 = cell.parse().map_err(|_| {
-                error(line, format!("`{}` = `{cell}` is not a number", CSV_COLUMNS[c]))
+                error(
+                    line,
+                    format!("`{}` = `{cell}` is not a number", CSV_COLUMNS[c]),
+                )
             })?;
             values[c] = Some(v);
         }

@@ -108,7 +108,10 @@ fn simulate(
             // a default sample at the origin: the record shows the first
             // waypoint, where the route will start, instead.
             if !status.running
-                && let Some(first) = setup.route.as_ref().and_then(|r| r.waypoints.as_slice().first())
+                && let Some(first) = setup
+                    .route
+                    .as_ref()
+                    .and_then(|r| r.waypoints.as_slice().first())
             {
                 record.ref_x_m = f64::from(first.position_m.x);
                 record.ref_y_m = f64::from(first.position_m.y);

@@ -3,11 +3,11 @@
 //! tick over a [`super::TargetLink`], and the record of a tick.
 
 use wmr_core::control::saturated::TrackingController;
+use wmr_core::devices::TagLocator as _;
 use wmr_core::devices::{QuadratureCounter, RfidReader};
 use wmr_core::geometry::HeadingEstimate;
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
 use wmr_core::odometry::OdometryStep;
-use wmr_core::devices::TagLocator as _;
 use wmr_core::pilot::robot::{Motor, Robot, RobotCounters};
 use wmr_core::pilot::route::RouteFollower;
 use wmr_core::pilot::tracker::TagFix;

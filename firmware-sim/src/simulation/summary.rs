@@ -256,9 +256,9 @@ fn route_report(
                 let e = status.elapsed_ticks as usize;
                 let lo = e.saturating_sub(CROSS_TRACK_WINDOW_TICKS);
                 let hi = (e + CROSS_TRACK_WINDOW_TICKS).min(path.len().saturating_sub(1));
-                let d = path
-                    .get(lo..=hi)
-                    .map_or(f64::NAN, |w| distance_to_polyline([record.x_m, record.y_m], w));
+                let d = path.get(lo..=hi).map_or(f64::NAN, |w| {
+                    distance_to_polyline([record.x_m, record.y_m], w)
+                });
                 if d.is_finite() {
                     max_ct = max_ct.max(d);
                     sum_sq += d * d;

@@ -352,8 +352,10 @@ impl RouteSweepSummary {
     /// Of the rows holding route figures (`None`: none does, e.g. rows
     /// read back from a shard's `runs.csv`, which has no route columns).
     fn of(rows: &[SweepRun]) -> Option<Self> {
-        let routes: Vec<(&SweepRun, RouteRun)> =
-            rows.iter().filter_map(|r| r.route.map(|f| (r, f))).collect();
+        let routes: Vec<(&SweepRun, RouteRun)> = rows
+            .iter()
+            .filter_map(|r| r.route.map(|f| (r, f)))
+            .collect();
         if routes.is_empty() {
             return None;
         }

@@ -20,8 +20,8 @@ use crate::plant::{DiffDriveParams, PlantPose};
 use crate::tags::{Floor, FloorTags};
 
 use super::error::{ScenarioError, finite, in_range, non_negative, positive};
-use super::schema::Scenario;
 use super::route::{ReferenceSpec, RouteSetup};
+use super::schema::Scenario;
 use super::sweep_spec::SweepPlan;
 use super::tables::{ControllerKind, MeasurementSpec, PositionSpec, ReaderModeSpec};
 use wmr_core::plausible::{COORDINATE_M, DECEL_M_S2, GAIN, MIN_SPEED_M_S, PERIOD_S};
