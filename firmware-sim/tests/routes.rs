@@ -154,6 +154,8 @@ fn a_bad_waypoint_is_named_by_its_index_from_1_and_key_with_its_value() {
     assert!(e.to_string().contains("200"), "{e}");
     let e = refusal(&INLINE.replace("max_speed_m_s = 0.3", "max_speed_m_s = -1.0"));
     assert_eq!(field(&e), "reference.max_speed_m_s");
+    let e = refusal(&INLINE.replace("max_speed_m_s = 0.3", "max_speed_m_s = 500.0"));
+    assert_eq!(field(&e), "reference.max_speed_m_s");
     let e = refusal(&format!("heading_tolerance_deg = 0.0\n{INLINE}"));
     assert_eq!(field(&e), "reference.heading_tolerance_deg");
     let e = refusal(&format!("pivot_gain_per_s = 2000.0\n{INLINE}"));
@@ -323,4 +325,32 @@ fn a_route_not_done_within_the_duration_is_reported() {
     let route = r.summary.route.unwrap();
     assert!(!route.done && route.time_taken_s.is_none() && route.stops_missed > 0);
     assert_eq!(r.records.len(), 500);
+}
+
+/// A sweep of a route aggregates its figures: the worst over all stops of
+/// all runs, each with its run, and the runs done.
+#[test]
+fn a_route_sweep_aggregates_the_route_figures() {
+    use firmware_sim::sweep::{SweepOptions, run_sweep};
+    let s = Scenario::embedded("route").unwrap();
+    let options = SweepOptions {
+        runs: 3,
+        seed: 1,
+        threads: 1,
+    };
+    let result = run_sweep(&s, &options, &|| {}).unwrap();
+    let route = result.summary.route.clone().unwrap();
+    assert_eq!(route.runs_done + route.not_done.len() as u64, 3);
+    let per_run: Vec<f64> = result
+        .rows
+        .iter()
+        .map(|r| r.route.unwrap().max_stop_position_error_m.unwrap())
+        .collect();
+    let worst = route.worst_stop_position_error_m.unwrap();
+    assert_eq!(worst.value, per_run.iter().copied().fold(0.0, f64::max));
+    assert_eq!(per_run[worst.index as usize], worst.value);
+    assert!(route.worst_cross_track_error_m.is_some() && route.worst_time_ratio.is_some());
+    // The route figures are in summary.json, not in runs.csv.
+    let json = serde_json::to_value(&result.summary).unwrap();
+    assert!(json["route"]["worst_stop_heading_error_deg"]["value"].is_number());
 }

@@ -391,7 +391,8 @@ pub struct RouteReport {
     pub counters: wmr_core::pilot::route::RouteCounters,
     /// Why the planner refused the route at its start, if it did.
     pub refused: Option<String>,
-    /// The run's planned path, the plan's position every tick, m (the plot's).
+    /// The run's planned path, the plan's position every tick, m (the
+    /// plot's), as far as the run went (its ticks and 3 s more).
     #[serde(skip)]
     pub path_m: Vec<[f64; 2]>,
 }

@@ -53,7 +53,7 @@ use wmr_core::reference::route::{
     LimitKey, RouteError, RouteLimits, RouteLimitsSpec, RoutePlan, Waypoint, WaypointKey, Waypoints,
 };
 
-use super::error::{ScenarioError, non_negative, shown};
+use super::error::{ScenarioError, in_range, non_negative, shown};
 
 /// The `[reference]` table: one of the core's analytic references
 /// ([`TrajectorySpec`]: `figure_eight`, `circle`, `line`) or a route
@@ -491,6 +491,14 @@ impl RouteSpec {
                 format!("\"{csv}\" was not read: load the file from disk"),
             ));
         }
+        // The plausible range of a reference speed (the tracker's stand-in
+        // line is built at it, `RouteSetup::stand_in`).
+        in_range(
+            "reference.max_speed_m_s",
+            self.max_speed_m_s,
+            wmr_core::plausible::REFERENCE_SPEED_M_S,
+            "m/s",
+        )?;
         let limits = RouteLimits::new(&self.limits_spec()).map_err(|e| {
             let (key, value) = self.limit_key(e.0);
             let range = match e.0 {

@@ -204,7 +204,10 @@ fn route_report(
     period_s: f64,
 ) -> RouteReport {
     let plan = follower.plan();
-    let path = route_path(plan);
+    // The path as far as the run can have followed it (a plan may last
+    // far longer than the run): its ticks plus the search window.
+    let reach = u32::try_from(records.len() + CROSS_TRACK_WINDOW_TICKS).unwrap_or(u32::MAX);
+    let path = route_path(plan, reach);
     let started = route_ticks.iter().position(|s| s.running);
     let done = route_ticks.iter().position(|s| s.done);
     let planned_duration_s = f64::from(plan.duration_ticks()) * period_s;

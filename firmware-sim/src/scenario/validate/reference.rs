@@ -113,26 +113,29 @@ pub fn reference_bounds(
     (lo, hi)
 }
 
-/// Bounding box of a route's plan as given, sampled at every tick of it,
-/// `([x_min, y_min], [x_max, y_max])`.
+/// Bounding box of a route, `([x_min, y_min], [x_max, y_max])`: its
+/// waypoints' (the path is inside it: straight legs between waypoints,
+/// each corner blend inside the triangle of its corner and its two tangent
+/// points, pivots in place), without sampling a plan that may last days.
 #[must_use]
 pub fn route_bounds(route: &RouteSetup) -> ([f64; 2], [f64; 2]) {
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
-    for p in route_path(&route.plan) {
-        lo = [lo[0].min(p[0]), lo[1].min(p[1])];
-        hi = [hi[0].max(p[0]), hi[1].max(p[1])];
+    for w in route.waypoints.as_slice() {
+        let (x, y) = (f64::from(w.position_m.x), f64::from(w.position_m.y));
+        lo = [lo[0].min(x), lo[1].min(y)];
+        hi = [hi[0].max(x), hi[1].max(y)];
     }
     (lo, hi)
 }
 
 /// A plan's path: its reference position at every tick from the start to
-/// the end (the path sampled every `v·h`: at most 5 mm apart at 0.5 m/s and
-/// 100 Hz), m.
+/// its end or `max_ticks`, whichever comes first (the path sampled every
+/// `v·h`: at most 5 mm apart at 0.5 m/s and 100 Hz), m.
 #[must_use]
-pub fn route_path(plan: &RoutePlan) -> Vec<[f64; 2]> {
+pub fn route_path(plan: &RoutePlan, max_ticks: u32) -> Vec<[f64; 2]> {
     let mut cursor = RouteCursor::new();
-    (0..=plan.duration_ticks())
+    (0..=plan.duration_ticks().min(max_ticks))
         .map(|k| {
             let p = plan.sample(&mut cursor, k).reference.position;
             [f64::from(p.x), f64::from(p.y)]
