@@ -68,6 +68,58 @@ pub fn write_summary(path: &Path, summary: &Summary) -> anyhow::Result<()> {
     std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))
 }
 
+/// A route run's lines of the summary (ground truth).
+fn format_route(o: &mut String, r: &crate::report::RouteReport) {
+    let opt = |v: Option<f64>, digits: usize| {
+        v.map_or_else(|| "-".to_owned(), |v| format!("{v:.digits$}"))
+    };
+    let _ = writeln!(
+        o,
+        "route         {} (start {}): planned {:.2} s, taken {} s (ratio {}){}",
+        if r.done { "done" } else { "NOT DONE" },
+        r.start,
+        r.planned_duration_s,
+        opt(r.time_taken_s, 2),
+        opt(r.time_ratio, 4),
+        r.refused
+            .as_ref()
+            .map(|e| format!("; REFUSED: {e}"))
+            .unwrap_or_default()
+    );
+    for stop in &r.stops {
+        let _ = writeln!(
+            o,
+            "  stop {:<7} ({:.3}, {:.3}) m: true error {} m{}",
+            format!("#{}", stop.waypoint),
+            stop.x_m,
+            stop.y_m,
+            opt(stop.position_error_m, 4),
+            stop.heading_error_deg
+                .map(|h| format!(", heading {h:.3}°"))
+                .unwrap_or_default()
+        );
+    }
+    let _ = writeln!(
+        o,
+        "cross-track   max {} m  rms {} m over {} moving ticks (true distance from the planned path)",
+        opt(r.max_cross_track_error_m, 4),
+        opt(r.rms_cross_track_error_m, 4),
+        r.moving_ticks
+    );
+    let c = &r.counters;
+    let _ = writeln!(
+        o,
+        "route counts  stops reached {}  stop errors {}  pivots {}  open-loop pivot ticks {}  started {}  refused {}  done {}",
+        c.stops_reached,
+        c.stop_errors,
+        c.pivots,
+        c.open_loop_pivot_ticks,
+        c.routes_started,
+        c.routes_refused,
+        c.routes_done
+    );
+}
+
 /// The summary as text for a terminal.
 #[must_use]
 pub fn format_summary(s: &Summary) -> String {
@@ -173,6 +225,9 @@ pub fn format_summary(s: &Summary) -> String {
             p.reversals_under_drive,
             p.out_of_range_pwm_writes
         );
+    }
+    if let Some(r) = &s.route {
+        format_route(&mut o, r);
     }
     if let Some(h) = &s.hil {
         let (f, l) = (&h.firmware_link, &h.host_link);
@@ -408,6 +463,27 @@ fn trajectory_panel(
             .flat_map(|r| [(r.x_m, r.y_m), (r.ref_x_m, r.ref_y_m)]),
     )?;
     let step = (records.len() / 20_000).max(1);
+    if let Some(route) = &result.summary.route {
+        // The route's planned path, under the rest, and its stops.
+        let path_step = (route.path_m.len() / 20_000).max(1);
+        draw_line(
+            &mut chart,
+            route.path_m.iter().step_by(path_step).map(|p| (p[0], p[1])),
+            GREEN,
+            4,
+            "route (planned path)",
+        )?;
+        chart
+            .draw_series(
+                route
+                    .stops
+                    .iter()
+                    .map(|stop| TriangleMarker::new((stop.x_m, stop.y_m), 8, MAGENTA.filled())),
+            )
+            .map_err(plot_err)?
+            .label("stops")
+            .legend(|(x, y)| TriangleMarker::new((x + 10, y), 6, MAGENTA.filled()));
+    }
     draw_line(
         &mut chart,
         records.iter().step_by(step).map(|r| (r.ref_x_m, r.ref_y_m)),

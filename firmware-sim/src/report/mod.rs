@@ -344,6 +344,76 @@ pub struct Summary {
     /// Hardware-in-the-loop figures (`hil` runs only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub hil: Option<HilReport>,
+    /// The route's figures (`reference.kind = "route"` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub route: Option<RouteReport>,
+}
+
+/// What a route run adds to the summary. Every error here is the
+/// simulator's ground truth (the plant's true pose, its axle midpoint),
+/// not the estimate the robot steers by (that is what
+/// `counters.stop_errors` counts).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RouteReport {
+    /// The route was finished (at rest on its last waypoint, settled).
+    pub done: bool,
+    /// `as_given` or `from_first_fix`.
+    pub start: &'static str,
+    /// The run's plan's duration (the reference's, from its first tick
+    /// to rest on the last waypoint), s.
+    pub planned_duration_s: f64,
+    /// Time from the tick the route started (planned) to the tick it was
+    /// done (the robot settled on the last waypoint), s; `None` if not done.
+    pub time_taken_s: Option<f64>,
+    /// `time_taken_s / planned_duration_s`.
+    pub time_ratio: Option<f64>,
+    /// When the route started, s of simulated time.
+    pub started_at_s: Option<f64>,
+    /// When it was done, s of simulated time.
+    pub done_at_s: Option<f64>,
+    /// Each stop after the first waypoint (where the route starts), in
+    /// order.
+    pub stops: Vec<StopReport>,
+    /// Largest `position_error_m` over the stops reached, m.
+    pub max_stop_position_error_m: Option<f64>,
+    /// Largest `heading_error_deg` over the stops facing a heading, degrees.
+    pub max_stop_heading_error_deg: Option<f64>,
+    /// Stops never settled at.
+    pub stops_missed: usize,
+    /// Largest true distance from the planned path while the reference
+    /// moves, m (`cross_track` in docs/routes.md).
+    pub max_cross_track_error_m: Option<f64>,
+    /// RMS of the same, m.
+    pub rms_cross_track_error_m: Option<f64>,
+    /// Ticks the cross-track figures cover (the reference moving).
+    pub moving_ticks: u64,
+    /// The core's route counters.
+    pub counters: wmr_core::pilot::route::RouteCounters,
+    /// Why the planner refused the route at its start, if it did.
+    pub refused: Option<String>,
+    /// The run's planned path, the plan's position every tick, m (the
+    /// plot's), as far as the run went (its ticks and 3 s more).
+    #[serde(skip)]
+    pub path_m: Vec<[f64; 2]>,
+}
+
+/// One stop of a route run, as the robot truly stood there.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct StopReport {
+    /// The waypoint, 1-based in file order.
+    pub waypoint: usize,
+    /// Its position, m.
+    pub x_m: f64,
+    /// Its position, m.
+    pub y_m: f64,
+    /// The heading it faces, degrees, if it faces one.
+    pub face_heading_deg: Option<f64>,
+    /// When the robot last settled there (after any pivot), s.
+    pub settled_at_s: Option<f64>,
+    /// True distance of the robot from the stop then, m.
+    pub position_error_m: Option<f64>,
+    /// True `|wrap(θ − face)|` then, degrees, where the stop faces a heading.
+    pub heading_error_deg: Option<f64>,
 }
 
 /// What the HIL run adds to the summary.

@@ -94,7 +94,10 @@ pub fn unit_in(description: &str) -> Option<&'static str> {
 /// The unit a key's name states (the project's naming convention).
 #[must_use]
 pub fn unit_of(key: &str) -> &'static str {
-    const SUFFIXES: [(&str, &str); 24] = [
+    const SUFFIXES: [(&str, &str); 27] = [
+        ("_deg_s2", "°/s²"),
+        ("_deg_s", "°/s"),
+        ("_deg", "°"),
         ("_nm_s_per_rad", "N·m·s/rad"),
         ("_duty_per_rad_s", "duty/(rad/s)"),
         ("_duty_per_rad", "duty/rad"),

@@ -45,6 +45,7 @@ pub mod keys;
 mod legacy;
 pub mod robot;
 mod robot_file;
+pub mod route;
 mod schema;
 mod sweep_spec;
 mod tables;
@@ -55,6 +56,7 @@ mod tests;
 
 pub use error::ScenarioError;
 pub(crate) use error::{non_negative, positive};
+pub use route::{ReferenceSpec, RouteSetup, RouteSpec, RouteStartSpec, WaypointSpec};
 use schema::GivenKeys;
 pub use schema::Scenario;
 pub use sweep_spec::{
@@ -67,7 +69,7 @@ pub use tables::{
     InitialSpec, MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
     SpeedObserverSpec,
 };
-pub use validate::{PlantSetup, PositionSetup, Setup, reference_bounds};
+pub use validate::{PlantSetup, PositionSetup, Setup, reference_bounds, route_bounds, route_path};
 pub use wmr_core::control::spec::LawSpec;
 /// The core's estimator and law specs, which the scenario's `[estimator]`
 /// table and `controller.law` key deserialize into.
@@ -106,6 +108,11 @@ pub const EMBEDDED: &[(&str, &str)] = &[
     ),
     ("circle", include_str!("../../scenarios/circle.toml")),
     ("line", include_str!("../../scenarios/line.toml")),
+    ("route", include_str!("../../scenarios/route.toml")),
+    (
+        "warehouse_loop",
+        include_str!("../../scenarios/warehouse_loop.toml"),
+    ),
 ];
 
 /// The TOML text of an embedded scenario, by file name (without `.toml`).
@@ -220,6 +227,9 @@ impl Scenario {
             }
         }
         scenario.given = GivenKeys::of_toml(text).map_err(parse_error)?;
+        if let ReferenceSpec::Route(route) = &mut scenario.reference {
+            route.load_waypoints(dir)?;
+        }
         let robot = scenario.resolve_robot(dir, |key| keys.given(key))?;
         scenario.validate().map_err(|e| match &robot {
             Some(robot) => robot.name_in(e),

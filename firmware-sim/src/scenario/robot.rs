@@ -53,6 +53,8 @@ use wmr_core::devices::tag_grid::TagGridSpec;
 use wmr_core::estimation::spec::EstimatorSpec;
 use wmr_core::pilot::spec::PilotSpec;
 use wmr_core::reference::TrajectorySpec;
+
+use super::route::ReferenceSpec;
 use wmr_link::image;
 
 use super::defaults;
@@ -181,6 +183,16 @@ fn robot_error(path: &str, field: &str, reason: impl Into<String>) -> ScenarioEr
     }
 }
 
+/// Why a robot file whose reference is a route has no flash image yet.
+fn route_not_flashed(path: &str) -> ScenarioError {
+    robot_error(
+        path,
+        "reference.kind",
+        "routes do not reach the firmware yet (neither its flash image nor the HIL link \
+         carries one): flash an analytic reference, or simulate the route with `firmware-sim run`",
+    )
+}
+
 /// Parses a tag map CSV (`id,x_m,y_m`; `#` comments, blank lines and one
 /// header row allowed), sorted by id.
 ///
@@ -288,11 +300,15 @@ impl Robot {
     #[must_use]
     pub fn warnings(&self) -> Vec<String> {
         // Which keys apply does not depend on the reference.
-        let reference = self.file.reference.unwrap_or(TrajectorySpec::FigureEight {
-            h1_m: TrajectorySpec::PAPER_H1_M,
-            h2_rad_s: TrajectorySpec::PAPER_H2_RAD_S,
-            phase_rad: TrajectorySpec::PAPER_PHASE_RAD,
-        });
+        let reference = self
+            .file
+            .reference
+            .clone()
+            .unwrap_or(ReferenceSpec::Trajectory(TrajectorySpec::FigureEight {
+                h1_m: TrajectorySpec::PAPER_H1_M,
+                h2_rad_s: TrajectorySpec::PAPER_H2_RAD_S,
+                phase_rad: TrajectorySpec::PAPER_PHASE_RAD,
+            }));
         let mut scenario = self.scenario(reference, 1.0);
         scenario.given = GivenKeys::default().with_robot(self.path.clone(), self.given.clone());
         scenario.warnings()
@@ -303,7 +319,21 @@ impl Robot {
     ///
     /// # Errors
     /// The tag map cannot be read or is refused.
-    pub fn new(file: RobotFile, path: String, dir: Option<&Path>) -> Result<Self, ScenarioError> {
+    pub fn new(
+        mut file: RobotFile,
+        path: String,
+        dir: Option<&Path>,
+    ) -> Result<Self, ScenarioError> {
+        // A route's CSV is read now (relative to the robot file) and the
+        // route checked at the robot's period, naming the robot file's keys.
+        if let Some(ReferenceSpec::Route(route)) = &mut file.reference {
+            let in_robot = |e: ScenarioError| match e {
+                ScenarioError::Invalid { field, reason } => robot_error(&path, &field, reason),
+                other => other,
+            };
+            route.load_waypoints(dir).map_err(in_robot)?;
+            route.validate(file.period_s).map_err(in_robot)?;
+        }
         let tags = match &file.floor {
             FloorSpec::Grid { .. } => Vec::new(),
             FloorSpec::TagMap { file: csv } => {
@@ -335,7 +365,7 @@ impl Robot {
     /// the reference, for `duration_s` (what the flash image is validated
     /// as).
     #[must_use]
-    pub fn scenario(&self, reference: TrajectorySpec, duration_s: f64) -> Scenario {
+    pub fn scenario(&self, reference: ReferenceSpec, duration_s: f64) -> Scenario {
         let mut scenario = Scenario {
             name: self.file.name.clone(),
             description: self.file.description.clone(),
@@ -559,13 +589,17 @@ impl Robot {
     /// measurements need a grid's spacing) or no
     /// `estimator.fusion.max_blind_distance_m`.
     pub fn flash_image(&self) -> Result<FlashImage, ScenarioError> {
-        let reference = self.file.reference.ok_or_else(|| {
-            robot_error(
-                &self.path,
-                "reference",
-                "the firmware needs the trajectory it tracks: add a [reference] table",
-            )
-        })?;
+        let reference = match &self.file.reference {
+            None => {
+                return Err(robot_error(
+                    &self.path,
+                    "reference",
+                    "the firmware needs the trajectory it tracks: add a [reference] table",
+                ));
+            }
+            Some(ReferenceSpec::Route(_)) => return Err(route_not_flashed(&self.path)),
+            Some(reference @ ReferenceSpec::Trajectory(_)) => reference.clone(),
+        };
         // A tag map is validated on a stand-in grid, then the estimators
         // are told there is none (tag spacing 0).
         let mut stand_in = self.clone();

@@ -6,9 +6,9 @@
 use serde::{Deserialize, Serialize};
 use wmr_core::devices::TagId;
 use wmr_core::estimation::spec::EstimatorSpec;
-use wmr_core::reference::TrajectorySpec;
 
 use super::defaults;
+use super::route::ReferenceSpec;
 use super::tables::{
     ControllerSpec, DriveSpec, FailsafeSpec, ObserverSpec, PlantSpec, ReaderModeSpec, TelemetrySpec,
 };
@@ -26,9 +26,11 @@ pub struct RobotFile {
     #[serde(default = "defaults::period_s")]
     pub period_s: f64,
     /// The trajectory the flashed firmware tracks (needed to flash; a
-    /// scenario naming the robot tracks its own `[reference]`).
+    /// scenario naming the robot tracks its own `[reference]`). A route
+    /// (`kind = "route"`) is read and checked, but not flashed yet: the
+    /// flash image and the HIL link carry analytic references only.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub reference: Option<TrajectorySpec>,
+    pub reference: Option<ReferenceSpec>,
     /// Geometry (wheel radius, track), encoders and motors:
     /// `kind = "diff_drive"` and its keys.
     pub plant: PlantSpec,

@@ -6,10 +6,10 @@
 use serde::{Deserialize, Serialize};
 use wmr_core::estimation::spec::EstimatorSpec;
 use wmr_core::plausible;
-use wmr_core::reference::TrajectorySpec;
 
 use super::defaults;
 use super::robot_file::RobotSource;
+use super::route::ReferenceSpec;
 use super::sweep_spec::SweepSpec;
 use super::tables::{
     ControllerSpec, DriveSpec, FailsafeSpec, FloorTagSpec, InitialSpec, MeasurementSpec,
@@ -34,8 +34,9 @@ pub struct Scenario {
     /// Error statistics are taken over `t ≥ transient_s`, s.
     #[serde(default)]
     pub transient_s: f64,
-    /// The reference trajectory.
-    pub reference: TrajectorySpec,
+    /// The reference: an analytic trajectory of the core, or a route
+    /// (`kind = "route"`).
+    pub reference: ReferenceSpec,
     /// Initial pose and observer estimate.
     #[serde(default)]
     pub initial: InitialSpec,

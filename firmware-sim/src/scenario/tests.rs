@@ -16,7 +16,7 @@ fn err_of(text: &str) -> ScenarioError {
 
 #[test]
 fn embedded_scenarios_parse_and_validate() {
-    assert_eq!(EMBEDDED.len(), 9);
+    assert_eq!(EMBEDDED.len(), 11);
     for (name, text) in EMBEDDED {
         let s = Scenario::from_toml_str(text).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(&s.name, name);

@@ -92,12 +92,45 @@ fn simulate(
     let mut records = Vec::with_capacity(setup.ticks as usize);
     let mut progress = progress;
     let total = u64::from(setup.ticks);
+    // A route run ends `settle_s` after the route is done, or at the
+    // scenario's duration (a route not done by then is reported so).
+    let settle_ticks = setup
+        .route
+        .as_ref()
+        .map(|r| (r.settle_s / setup.period_s).round() as u64);
+    let mut route_ticks = Vec::new();
+    let mut done_at: Option<u32> = None;
     for k in 0..setup.ticks {
         let t = f64::from(k) * setup.period_s;
-        records.push(rig.tick(k, t)?);
+        let mut record = rig.tick(k, t)?;
+        if let Some(status) = rig.route().map(|f| f.status()) {
+            // Before the route starts (no fix yet) the core's reference is
+            // a default sample at the origin: the record shows the first
+            // waypoint, where the route will start, instead.
+            if !status.running
+                && let Some(first) = setup
+                    .route
+                    .as_ref()
+                    .and_then(|r| r.waypoints.as_slice().first())
+            {
+                record.ref_x_m = f64::from(first.position_m.x);
+                record.ref_y_m = f64::from(first.position_m.y);
+                record.error_m = (record.x_m - record.ref_x_m).hypot(record.y_m - record.ref_y_m);
+            }
+            route_ticks.push(status);
+            if status.done && done_at.is_none() {
+                done_at = Some(k);
+            }
+        }
+        records.push(record);
         rig.advance(setup.period_s);
         if (k + 1) % PROGRESS_EVERY == 0 {
             progress(u64::from(k) + 1, total);
+        }
+        if let (Some(done), Some(settle)) = (done_at, settle_ticks)
+            && u64::from(k - done) >= settle
+        {
+            break;
         }
     }
     progress(total, total);
@@ -108,6 +141,7 @@ fn simulate(
         scenario,
         &setup,
         &records,
+        &route_ticks,
         &rig,
         wall.elapsed().as_secs_f64(),
     );

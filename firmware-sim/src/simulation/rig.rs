@@ -3,11 +3,14 @@
 //! tick over a [`super::TargetLink`], and the record of a tick.
 
 use wmr_core::control::saturated::TrackingController;
+use wmr_core::devices::TagLocator as _;
 use wmr_core::devices::{QuadratureCounter, RfidReader};
 use wmr_core::geometry::HeadingEstimate;
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
 use wmr_core::odometry::OdometryStep;
-use wmr_core::pilot::robot::{Motor, Robot};
+use wmr_core::pilot::robot::{Motor, Robot, RobotCounters};
+use wmr_core::pilot::route::RouteFollower;
+use wmr_core::pilot::tracker::TagFix;
 use wmr_core::pilot::tracker::{OutputFeedbackTracker, TrackerMode};
 use wmr_core::pilot::{Measurement, Pilot, PilotConfig};
 use wmr_core::reference::{TickClock, Trajectory};
@@ -22,7 +25,7 @@ use crate::report::{Mode, Record};
 use crate::scenario::{ControllerKind, PlantSetup, PositionSetup, Setup};
 use crate::tags::Floor;
 
-use super::hardware::{Devices, Hardware, SimRobot};
+use super::hardware::{Devices, Hardware, SimRobot, VirtualMotor};
 use super::sources::FixSource;
 use super::target::{TargetLink, hil_configuration};
 
@@ -62,6 +65,7 @@ pub(super) enum Rig<'t> {
         source: FixSource,
         last: BodyVelocity,
         period_s: f32,
+        route: Option<Box<RouteFollower>>,
     },
     /// Unicycle + the core's state-feedback law.
     Controller {
@@ -86,6 +90,15 @@ pub(super) enum Rig<'t> {
         pilot: Pilot,
         source: FixSource,
         motor_faults: u32,
+        route: Option<Box<RouteFollower>>,
+    },
+    /// Diff drive + the core's Pilot on a route, with the reader: the
+    /// core's `Robot::tick` (which steps the pilot on its configured
+    /// trajectory) with `Pilot::step_route` in its place.
+    RouteRobot {
+        hw: Hardware,
+        robot: Box<RouteRobot>,
+        reader: VirtualRfidReader,
     },
     /// Diff drive + reader, with the robot's tick on a [`TargetLink`].
     Remote {
@@ -160,6 +173,7 @@ impl<'t> Rig<'t> {
                 source: FixSource::new(setup),
                 last: BodyVelocity::ZERO,
                 period_s: setup.period_s as f32,
+                route: follower(setup),
             },
             (PlantSetup::Unicycle, ControllerKind::StateFeedback) => Self::Controller {
                 plant: Unicycle::new(pose),
@@ -190,16 +204,33 @@ impl<'t> Rig<'t> {
                     encoder_glitches,
                 );
                 let pilot = new_pilot(pilot);
-                match &setup.position {
-                    PositionSetup::Reader(floor, config) => {
+                match (&setup.position, follower(setup)) {
+                    (PositionSetup::Reader(floor, config), Some(route)) => {
+                        let (reader, uart) = VirtualRfidReader::new(*config, floor.clone());
+                        Self::RouteRobot {
+                            hw,
+                            robot: Box::new(RouteRobot {
+                                pilot,
+                                encoders: devices.encoders,
+                                motors: devices.motors,
+                                rfid: RfidReader::new(uart),
+                                floor: floor.clone(),
+                                route,
+                                counters: RobotCounters::default(),
+                            }),
+                            reader,
+                        }
+                    }
+                    (PositionSetup::Reader(floor, config), None) => {
                         Self::robot(hw, devices, pilot, floor.clone(), *config)
                     }
-                    _ => Self::Pilot {
+                    (_, route) => Self::Pilot {
                         hw,
                         devices,
                         pilot,
                         source: FixSource::new(setup),
                         motor_faults: 0,
+                        route,
                     },
                 }
             }
@@ -232,9 +263,10 @@ impl<'t> Rig<'t> {
     fn pose(&self) -> PlantPose {
         match self {
             Self::Tracker { plant, .. } | Self::Controller { plant, .. } => plant.pose(),
-            Self::Robot { hw, .. } | Self::Pilot { hw, .. } | Self::Remote { hw, .. } => {
-                hw.plant.pose()
-            }
+            Self::Robot { hw, .. }
+            | Self::Pilot { hw, .. }
+            | Self::RouteRobot { hw, .. }
+            | Self::Remote { hw, .. } => hw.plant.pose(),
         }
     }
 
@@ -246,6 +278,7 @@ impl<'t> Rig<'t> {
                 source,
                 last,
                 period_s,
+                route,
                 ..
             } => {
                 let h = *period_s;
@@ -256,7 +289,10 @@ impl<'t> Rig<'t> {
                     wheels: Default::default(),
                 };
                 let fix = source.measure(t_s, &pose);
-                let out = tracker.step(&odometry, fix);
+                let out = match route {
+                    Some(route) => tracker.step_route(&odometry, fix, route),
+                    None => tracker.step(&odometry, fix),
+                };
                 *last = out.command;
                 Outcome::of_tracker(&out)
             }
@@ -312,6 +348,7 @@ impl<'t> Rig<'t> {
                 pilot,
                 source,
                 motor_faults,
+                route,
             } => {
                 let fix = source.measure(t_s, &pose);
                 let measurement = Measurement {
@@ -319,13 +356,25 @@ impl<'t> Rig<'t> {
                     right_count: devices.encoders.1.raw_count().ok(),
                     fix,
                 };
-                let out = pilot.step(&measurement);
+                let out = match route {
+                    Some(route) => pilot.step_route(&measurement, route),
+                    None => pilot.step(&measurement),
+                };
                 for result in [
                     drive(&mut devices.motors.0, out.left),
                     drive(&mut devices.motors.1, out.right),
                 ] {
                     *motor_faults += u32::from(!result);
                 }
+                hw.note(out.drive.speed_limited, out.drive.accel_limited);
+                Outcome {
+                    duties: Some(hw.duties()),
+                    ..Outcome::of_tracker(&out.tracker)
+                }
+            }
+            Self::RouteRobot { hw, robot, reader } => {
+                reader.update(t_s, &pose);
+                let out = robot.tick();
                 hw.note(out.drive.speed_limited, out.drive.accel_limited);
                 Outcome {
                     duties: Some(hw.duties()),
@@ -389,9 +438,21 @@ impl<'t> Rig<'t> {
             Self::Tracker { plant, last, .. } | Self::Controller { plant, last, .. } => {
                 plant.step(f64::from(last.v_m_s), f64::from(last.omega_rad_s), dt_s);
             }
-            Self::Robot { hw, .. } | Self::Pilot { hw, .. } | Self::Remote { hw, .. } => {
+            Self::Robot { hw, .. }
+            | Self::Pilot { hw, .. }
+            | Self::RouteRobot { hw, .. }
+            | Self::Remote { hw, .. } => {
                 hw.advance(dt_s);
             }
+        }
+    }
+
+    /// The route's follower, on a route run.
+    pub(super) fn route(&self) -> Option<&RouteFollower> {
+        match self {
+            Self::Tracker { route, .. } | Self::Pilot { route, .. } => route.as_deref(),
+            Self::RouteRobot { robot, .. } => Some(&robot.route),
+            _ => None,
         }
     }
 
@@ -399,10 +460,77 @@ impl<'t> Rig<'t> {
         match self {
             Self::Tracker { .. } => "tracker",
             Self::Controller { .. } => "controller",
-            Self::Robot { .. } => "robot",
+            Self::Robot { .. } | Self::RouteRobot { .. } => "robot",
             Self::Pilot { .. } => "pilot",
             Self::Remote { .. } => "firmware",
         }
+    }
+}
+
+/// A route's follower for `setup`, loaded with its route (none for an
+/// analytic reference): allocated once, on the heap (about 22 KB).
+fn follower(setup: &Setup) -> Option<Box<RouteFollower>> {
+    let route = setup.route.as_ref()?;
+    let mut follower = Box::new(RouteFollower::new(route.options));
+    follower.load(&route.waypoints, &route.limits, route.start);
+    Some(follower)
+}
+
+/// The core's `Robot::tick` on a route: the same devices and counters, the
+/// pilot stepped with `Pilot::step_route` (the core's `Robot` steps its
+/// configured trajectory).
+pub(super) struct RouteRobot {
+    pub(super) pilot: Pilot,
+    encoders: (VirtualEncoder, VirtualEncoder),
+    motors: (VirtualMotor, VirtualMotor),
+    pub(super) rfid: RfidReader<VirtualUart>,
+    pub(super) floor: Floor,
+    pub(super) route: Box<RouteFollower>,
+    pub(super) counters: RobotCounters,
+}
+
+impl RouteRobot {
+    /// `Robot::tick`, line for line, with `step_route`.
+    fn tick(&mut self) -> wmr_core::pilot::PilotOutput {
+        let c = &mut self.counters;
+        let left_count = self.encoders.0.raw_count().ok();
+        if left_count.is_none() {
+            c.left_encoder_errors = c.left_encoder_errors.saturating_add(1);
+        }
+        let right_count = self.encoders.1.raw_count().ok();
+        if right_count.is_none() {
+            c.right_encoder_errors = c.right_encoder_errors.saturating_add(1);
+        }
+        let fix = self
+            .rfid
+            .poll_read()
+            .and_then(|read| match self.floor.locate(read.id) {
+                Some(position) => Some(TagFix {
+                    position,
+                    age_ticks: read.age_ticks,
+                }),
+                None => {
+                    c.unknown_tags = c.unknown_tags.saturating_add(1);
+                    None
+                }
+            });
+        let out = self.pilot.step_route(
+            &Measurement {
+                left_count,
+                right_count,
+                fix,
+            },
+            &mut self.route,
+        );
+        for result in [
+            drive(&mut self.motors.0, out.left),
+            drive(&mut self.motors.1, out.right),
+        ] {
+            if !result {
+                c.motor_faults = c.motor_faults.saturating_add(1);
+            }
+        }
+        out
     }
 }
 

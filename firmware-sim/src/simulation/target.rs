@@ -37,9 +37,17 @@ pub trait TargetLink {
 /// ([`FloorSpec::Map`]); its tags follow in [`hil_map_chunks`].
 ///
 /// # Errors
-/// A scenario whose position source or plant no device delivers, or a tag
-/// map larger than the firmware holds ([`MAP_CAPACITY`]).
+/// A route (which the link does not carry yet), a scenario whose position
+/// source or plant no device delivers, or a tag map larger than the
+/// firmware holds ([`MAP_CAPACITY`]).
 pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
+    // The link's `Configure` carries an analytic reference only.
+    if setup.route.is_some() {
+        anyhow::bail!(
+            "routes do not cross the HIL link yet (reference.kind = \"route\"): the firmware \
+             is configured with an analytic reference only; run the route with `firmware-sim run`"
+        );
+    }
     let (
         PlantSetup::DiffDrive {
             pwm_max_duty,

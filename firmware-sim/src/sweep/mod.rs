@@ -288,6 +288,110 @@ pub struct SweepRun {
     pub final_error_m: f64,
     /// Ticks with a non-finite value (expect 0).
     pub non_finite_ticks: u64,
+    /// A route run's figures (not a `runs.csv` column: the sweep's
+    /// `summary.json` aggregates them).
+    #[serde(skip)]
+    pub route: Option<RouteRun>,
+}
+
+/// A route run's figures in a sweep (ground truth, as in its
+/// [`crate::report::RouteReport`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RouteRun {
+    /// The route was finished within the duration.
+    pub done: bool,
+    /// Stops never settled at.
+    pub stops_missed: usize,
+    /// Largest true stop position error, m.
+    pub max_stop_position_error_m: Option<f64>,
+    /// Largest true stop heading error (stops facing a heading), degrees.
+    pub max_stop_heading_error_deg: Option<f64>,
+    /// Largest true cross-track error while moving, m.
+    pub max_cross_track_error_m: Option<f64>,
+    /// Time taken over the planned duration.
+    pub time_ratio: Option<f64>,
+}
+
+/// The worst of a route figure over a sweep's runs, and the run it came
+/// from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct WorstRun {
+    /// The figure.
+    pub value: f64,
+    /// The run's index.
+    pub index: u64,
+    /// The sweep's seed.
+    pub seed: u64,
+}
+
+/// A route sweep's figures (`summary.json`'s `route`): the worst over all
+/// stops of all runs, and the runs that did not finish.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RouteSweepSummary {
+    /// Runs whose route was done within the duration.
+    pub runs_done: u64,
+    /// Runs whose route was not done.
+    pub not_done: Vec<RunId>,
+    /// Stops never settled at, over all runs.
+    pub stops_missed: u64,
+    /// Largest true stop position error over all stops of all runs, m.
+    pub worst_stop_position_error_m: Option<WorstRun>,
+    /// Largest true stop heading error over all stops facing a heading, degrees.
+    pub worst_stop_heading_error_deg: Option<WorstRun>,
+    /// Largest true cross-track error while moving, m.
+    pub worst_cross_track_error_m: Option<WorstRun>,
+    /// Largest time taken over the planned duration (done runs).
+    pub worst_time_ratio: Option<WorstRun>,
+    /// Per-run largest stop position error, over the runs, m.
+    pub stop_position_error_m: Percentiles,
+    /// Per-run largest cross-track error, over the runs, m.
+    pub cross_track_error_m: Percentiles,
+}
+
+impl RouteSweepSummary {
+    /// Of the rows holding route figures (`None`: none does, e.g. rows
+    /// read back from a shard's `runs.csv`, which has no route columns).
+    fn of(rows: &[SweepRun]) -> Option<Self> {
+        let routes: Vec<(&SweepRun, RouteRun)> = rows
+            .iter()
+            .filter_map(|r| r.route.map(|f| (r, f)))
+            .collect();
+        if routes.is_empty() {
+            return None;
+        }
+        let worst = |f: fn(&RouteRun) -> Option<f64>| {
+            routes
+                .iter()
+                .filter_map(|(r, route)| f(route).map(|v| (v, r)))
+                .max_by(|a, b| a.0.total_cmp(&b.0).then(b.1.index.cmp(&a.1.index)))
+                .map(|(value, r)| WorstRun {
+                    value,
+                    index: r.index,
+                    seed: r.seed,
+                })
+        };
+        let per_run = |f: fn(&RouteRun) -> Option<f64>| {
+            Percentiles::of(routes.iter().map(|(_, r)| f(r).unwrap_or(f64::NAN)))
+        };
+        Some(Self {
+            runs_done: routes.iter().filter(|(_, r)| r.done).count() as u64,
+            not_done: routes
+                .iter()
+                .filter(|(_, r)| !r.done)
+                .map(|(r, _)| RunId {
+                    seed: r.seed,
+                    index: r.index,
+                })
+                .collect(),
+            stops_missed: routes.iter().map(|(_, r)| r.stops_missed as u64).sum(),
+            worst_stop_position_error_m: worst(|r| r.max_stop_position_error_m),
+            worst_stop_heading_error_deg: worst(|r| r.max_stop_heading_error_deg),
+            worst_cross_track_error_m: worst(|r| r.max_cross_track_error_m),
+            worst_time_ratio: worst(|r| r.time_ratio),
+            stop_position_error_m: per_run(|r| r.max_stop_position_error_m),
+            cross_track_error_m: per_run(|r| r.max_cross_track_error_m),
+        })
+    }
 }
 
 impl SweepRun {
@@ -347,6 +451,14 @@ impl SweepRun {
             rms_error_m: s.rms_error_m,
             final_error_m: s.final_error_m,
             non_finite_ticks: s.non_finite_ticks,
+            route: s.route.as_ref().map(|r| RouteRun {
+                done: r.done,
+                stops_missed: r.stops_missed,
+                max_stop_position_error_m: r.max_stop_position_error_m,
+                max_stop_heading_error_deg: r.max_stop_heading_error_deg,
+                max_cross_track_error_m: r.max_cross_track_error_m,
+                time_ratio: r.time_ratio,
+            }),
         }
     }
 }
@@ -460,6 +572,9 @@ pub struct SweepSummary {
     pub mean_error_m: Percentiles,
     /// Per-run final error, over the runs, m.
     pub final_error_m: Percentiles,
+    /// A route sweep's figures.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub route: Option<RouteSweepSummary>,
 }
 
 impl SweepSummary {
@@ -512,6 +627,7 @@ impl SweepSummary {
             max_error_m: Percentiles::of(rows.iter().map(|r| r.max_error_m)),
             mean_error_m: Percentiles::of(rows.iter().map(|r| r.mean_error_m)),
             final_error_m: Percentiles::of(rows.iter().map(|r| r.final_error_m)),
+            route: RouteSweepSummary::of(rows),
         }
     }
 }

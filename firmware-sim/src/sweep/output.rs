@@ -205,6 +205,28 @@ pub fn format_sweep_summary(s: &SweepSummary) -> String {
     o += &line(&format!("mean t≥{}s", s.transient_s), &s.mean_error_m);
     o += &line("final error", &s.final_error_m);
     o += &line("start dist.", &s.initial_distance_m);
+    if let Some(r) = &s.route {
+        let worst = |w: &Option<crate::sweep::WorstRun>, unit: &str| {
+            w.map_or_else(
+                || "-".to_owned(),
+                |w| format!("{:.4} {unit} (run {})", w.value, w.index),
+            )
+        };
+        let _ = writeln!(
+            o,
+            "route         done {}/{}, stops missed {}; worst over all stops of all runs: \
+             position {}, heading {}; worst cross-track {}; worst time ratio {}",
+            r.runs_done,
+            s.runs,
+            r.stops_missed,
+            worst(&r.worst_stop_position_error_m, "m"),
+            worst(&r.worst_stop_heading_error_deg, "°"),
+            worst(&r.worst_cross_track_error_m, "m"),
+            worst(&r.worst_time_ratio, ""),
+        );
+        o += &line("stop pos.", &r.stop_position_error_m);
+        o += &line("cross-track", &r.cross_track_error_m);
+    }
     if s.non_finite_runs > 0 {
         let _ = writeln!(
             o,

@@ -20,6 +20,7 @@ use crate::plant::{DiffDriveParams, PlantPose};
 use crate::tags::{Floor, FloorTags};
 
 use super::error::{ScenarioError, finite, in_range, non_negative, positive};
+use super::route::{ReferenceSpec, RouteSetup};
 use super::schema::Scenario;
 use super::sweep_spec::SweepPlan;
 use super::tables::{ControllerKind, MeasurementSpec, PositionSpec, ReaderModeSpec};
@@ -32,7 +33,7 @@ mod reference;
 mod refusal;
 mod sweep;
 
-pub use reference::reference_bounds;
+pub use reference::{reference_bounds, route_bounds, route_path};
 use refusal::spec_refusal;
 
 /// The validated plant.
@@ -83,8 +84,11 @@ pub struct Setup {
     pub transient_s: f64,
     /// Which law.
     pub controller: ControllerKind,
-    /// The reference.
+    /// The reference (for a route, its stand-in,
+    /// [`RouteSetup::stand_in`], which a run does not sample).
     pub trajectory: Trajectory,
+    /// The route, when the reference is one (`kind = "route"`).
+    pub route: Option<RouteSetup>,
     /// The gains.
     pub gains: TrackingGains,
     /// The output-feedback tracker's configuration (also built for state
@@ -205,7 +209,13 @@ impl Scenario {
             telemetry.every_ticks()?;
         }
 
-        let trajectory_spec = reference::checked(&self.reference)?;
+        let (trajectory_spec, route) = match &self.reference {
+            ReferenceSpec::Trajectory(t) => (reference::checked(t)?, None),
+            ReferenceSpec::Route(r) => {
+                let route = r.validate(period_s)?;
+                (route.stand_in(), Some(route))
+            }
+        };
         let trajectory = trajectory_spec.build().map_err(|e| {
             ScenarioError::invalid("reference", format!("refused by the core: {e}"))
         })?;
@@ -270,7 +280,7 @@ impl Scenario {
         };
 
         let plant = self.plant_setup(tracker_spec)?;
-        let position = self.position_setup(&trajectory, duration_s, period_s)?;
+        let position = self.position_setup(&trajectory, route.as_ref(), duration_s, period_s)?;
 
         if matches!(plant, PlantSetup::DiffDrive { .. })
             && initial_estimate != HeadingEstimate::default()
@@ -278,6 +288,13 @@ impl Scenario {
             return Err(ScenarioError::invalid(
                 "initial.estimate_cos",
                 "the diff_drive plant runs the core's Pilot, whose observer always starts at (0, 0)",
+            ));
+        }
+        if route.is_some() && self.controller.kind == ControllerKind::StateFeedback {
+            return Err(ScenarioError::invalid(
+                "controller.kind",
+                "a route (reference.kind = \"route\") runs on the output-feedback tracker: \
+                 use \"output_feedback\"",
             ));
         }
         match (self.controller.kind, &plant, &position) {
@@ -303,6 +320,7 @@ impl Scenario {
             transient_s,
             controller: self.controller.kind,
             trajectory,
+            route,
             gains,
             tracker,
             initial_estimate,

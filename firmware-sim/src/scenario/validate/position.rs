@@ -17,12 +17,14 @@ use crate::scenario::schema::Scenario;
 use crate::scenario::tables::{ControllerKind, MeasurementSpec, PositionSpec, ReaderModeSpec};
 use wmr_core::plausible::{READ_RADIUS_M, TAG_SPACING_M};
 
-use super::{PositionSetup, floor_point, reference_bounds};
+use super::{PositionSetup, floor_point, reference_bounds, route_bounds};
+use crate::scenario::route::RouteSetup;
 
 impl Scenario {
     pub(super) fn position_setup(
         &self,
         trajectory: &Trajectory,
+        route: Option<&RouteSetup>,
         duration_s: f64,
         period_s: f64,
     ) -> Result<PositionSetup, ScenarioError> {
@@ -39,7 +41,10 @@ impl Scenario {
                     }
                     None => {
                         let margin = non_negative("position.margin_m", margin_m)?;
-                        let (mut lo, mut hi) = reference_bounds(trajectory, duration_s, period_s);
+                        let (mut lo, mut hi) = match route {
+                            Some(route) => route_bounds(route),
+                            None => reference_bounds(trajectory, duration_s, period_s),
+                        };
                         lo = [lo[0].min(self.initial.x_m), lo[1].min(self.initial.y_m)];
                         hi = [hi[0].max(self.initial.x_m), hi[1].max(self.initial.y_m)];
                         (

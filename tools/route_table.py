@@ -1,0 +1,54 @@
+#!/usr/bin/env python3
+"""The warehouse-loop table of docs/routes.md: 100-run sweeps of
+firmware-sim/scenarios/warehouse_loop.toml for each estimator, the start
+heading swept (the scenario's [sweep]: any) and known (initial.heading_rad).
+
+    python3 tools/route_table.py [RUNS]   # from the repository root; default 100
+
+Each variant is the scenario file with its [estimator.fusion] table
+replaced, written to target/route-table/; the sweeps' outputs go there too.
+"""
+
+import json
+import pathlib
+import subprocess
+import sys
+
+RUNS = int(sys.argv[1]) if len(sys.argv) > 1 else 100
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+OUT = ROOT / "target" / "route-table"
+SCENARIO = (ROOT / "firmware-sim/scenarios/warehouse_loop.toml").read_text()
+EKF = '[estimator.fusion]\nfilter = "ekf"\n'
+ESTIMATORS = [
+    ("fusion EKF", EKF),
+    ("paper 001's observer (5)", ""),
+    ("paper 002's pose observer", "[estimator.pose_observer]\n"),
+    ("fusion UKF", '[estimator.fusion]\nfilter = "ukf"\n'),
+    ("fusion particle filter (100)", '[estimator.fusion]\nfilter = "particle_filter"\n'),
+]
+HEADINGS = [("any", 'initial_heading = "any"'), ("known", 'initial_heading = "scenario"')]
+
+assert EKF in SCENARIO, "warehouse_loop.toml no longer has its EKF table"
+OUT.mkdir(parents=True, exist_ok=True)
+print("| estimator | start heading | done | stop position p50 / p90 / worst (m) "
+      "| worst stop heading (°) | cross-track p50 / worst (m) | worst time ratio |")
+print("| --- | --- | ---: | --- | ---: | --- | ---: |")
+for e, (label, table) in enumerate(ESTIMATORS):
+    for heading, line in HEADINGS:
+        name = f"{e}-{heading}"
+        text = SCENARIO.replace(EKF, table).replace('initial_heading = "any"', line)
+        path = OUT / f"{name}.toml"
+        path.write_text(text)
+        subprocess.run(
+            ["cargo", "run", "--release", "-q", "-p", "firmware-sim", "--", "sweep", str(path),
+             "--runs", str(RUNS), "--no-plot", "--out", str(OUT / name)],
+            cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+        s = json.loads((OUT / name / "summary.json").read_text())
+        r = s["route"]
+        sp, ct = r["stop_position_error_m"], r["cross_track_error_m"]
+        worst = lambda k: r[k]["value"] if r[k] else float("nan")
+        print(f"| {label} | {heading} | {r['runs_done']}/{s['runs']} "
+              f"| {sp['p50']:.4f} / {sp['p90']:.4f} / {worst('worst_stop_position_error_m'):.4f} "
+              f"| {worst('worst_stop_heading_error_deg'):.2f} "
+              f"| {ct['p50']:.4f} / {worst('worst_cross_track_error_m'):.4f} "
+              f"| {worst('worst_time_ratio'):.4f} |")
