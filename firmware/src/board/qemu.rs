@@ -46,7 +46,7 @@ use host_file::HostFile;
 // this board uses no peripheral of it.
 use stm32f4xx_hal as _;
 use wmr_link::proxy::ProxyBus;
-use wmr_link::session::{LinkTagMap, Session};
+use wmr_link::session::{LinkTagMap, RouteStore, Session};
 use wmr_link::{
     HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, HostMessage, LINK_TIMEOUT_MS, LinkError, MAX_FRAME_BYTES,
     PROTOCOL_VERSION, Receiver, Sender, TargetMessage,
@@ -196,7 +196,8 @@ fn fail() -> ! {
 ///
 /// The long-lived state (the proxy bus, the session with its robot, the
 /// link receiver: about 1.9 KB; the tag map a run may load,
-/// `wmr_link::MAP_CAPACITY` tags, 64 KiB) lives in statics
+/// `wmr_link::MAP_CAPACITY` tags, 64 KiB; the route a run may follow,
+/// its `RouteStore`) lives in statics
 /// (`cortex_m::singleton!`, in `.bss`), not in this function's frame, so
 /// the stack holds only what a message's handling needs (docs/budgets.md,
 /// "Stack").
@@ -224,7 +225,13 @@ pub fn run() -> ! {
         fail()
     };
     let map: &'static RefCell<LinkTagMap> = map;
-    let Some(session) = cortex_m::singleton!(: Session<'static> = Session::new(bus, map)) else {
+    // The route's waypoints, scratch plan and follower (about 45 KB), in
+    // place for the same reason.
+    let Some(route) = cortex_m::singleton!(: RouteStore = RouteStore::new()) else {
+        fail()
+    };
+    let Some(session) = cortex_m::singleton!(: Session<'static> = Session::new(bus, map, route))
+    else {
         fail()
     };
     let Some(rx) = cortex_m::singleton!(: Receiver = Receiver::new()) else {
