@@ -22,7 +22,7 @@ use wmr_core::geometry::Vec2;
 use wmr_core::pilot::Pilot;
 use wmr_core::pilot::route::{RouteFollower, RouteOptions, RouteStart, RouteStatus};
 use wmr_core::pilot::spec::SpecError;
-use wmr_core::reference::route::{ROUTE_CAPACITY, RouteLimits, RoutePlan, Waypoints};
+use wmr_core::reference::route::{ROUTE_CAPACITY, RouteLimits, RoutePlan, Waypoint, Waypoints};
 
 use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
 use crate::robot::RouteRobot;
@@ -81,19 +81,33 @@ impl MapLoad {
     }
 }
 
-/// Where a session's route lives (about 45 KB: keep it in a `static`):
-/// the waypoints as they arrive, a scratch plan that checks them, and the
-/// follower the robot follows them with.
+/// Where a session's route lives (24.3 KB: keep it in a `static`): the
+/// waypoints as they arrive, and one slot that holds either a scratch plan
+/// (while a route is checked) or the follower the robot follows it with.
+/// The check needs the plan only until the follower exists, so both share
+/// the slot: the store is a plan smaller than a plan and a follower side
+/// by side.
 #[derive(Debug, Clone)]
 pub struct RouteStore {
     /// The route's waypoints, loaded in place chunk by chunk.
     waypoints: Waypoints,
-    /// Where the loaded route is planned once, to check it whole before
-    /// `Configured` (the follower plans it again, in its own, at its
-    /// start).
-    plan: RoutePlan,
-    /// The follower of the run's route, new for each route.
-    follower: RouteFollower,
+    /// The options of the route being loaded (its follower's).
+    options: RouteOptions,
+    /// The scratch plan or the follower.
+    slot: Slot,
+}
+
+/// A [`RouteStore`]'s shared storage.
+#[derive(Debug, Clone)]
+// Both variants are about 20 KB, on purpose: one holds the other's place.
+#[allow(clippy::large_enum_variant)]
+enum Slot {
+    /// Where a loaded route is planned once, to check it whole before the
+    /// follower takes it (the follower plans it again, in its own plan,
+    /// when it starts).
+    Plan(RoutePlan),
+    /// The follower of the last route checked.
+    Follower(RouteFollower),
 }
 
 impl Default for RouteStore {
@@ -103,21 +117,97 @@ impl Default for RouteStore {
 }
 
 impl RouteStore {
-    /// Empty: no waypoints, an empty plan, a follower with the default
-    /// options and no route.
+    /// Empty: no waypoints, an empty plan, no follower.
     #[must_use]
     pub fn new() -> Self {
         Self {
             waypoints: Waypoints::new(),
-            plan: RoutePlan::empty(),
-            follower: RouteFollower::new(RouteOptions::default()),
+            options: RouteOptions::default(),
+            slot: Slot::Plan(RoutePlan::empty()),
         }
     }
 
-    /// The follower of the last route loaded.
+    /// The follower of the last route loaded (`None` before one, or while
+    /// one is checked).
     #[must_use]
-    pub fn follower(&self) -> &RouteFollower {
-        &self.follower
+    pub fn follower(&self) -> Option<&RouteFollower> {
+        match &self.slot {
+            Slot::Follower(f) => Some(f),
+            Slot::Plan(_) => None,
+        }
+    }
+
+    /// The follower, to lend the robot's tick ([`RouteRobot::tick`]).
+    pub fn follower_mut(&mut self) -> Option<&mut RouteFollower> {
+        match &mut self.slot {
+            Slot::Follower(f) => Some(f),
+            Slot::Plan(_) => None,
+        }
+    }
+
+    /// Starts loading the route `spec` announces: checks its count (2 to
+    /// [`ROUTE_CAPACITY`]), its limits (`RouteLimits::new`) and its
+    /// options (`RouteOptions::new`) and empties the waypoints. Returns
+    /// the validated limits, for [`Self::finish`].
+    ///
+    /// # Errors
+    /// [`RouteRefusal::Size`], [`RouteRefusal::Limits`],
+    /// [`RouteRefusal::Options`]; nothing is changed then.
+    pub fn begin(&mut self, spec: &RouteSpec) -> Result<RouteLimits, RouteRefusal> {
+        if spec.waypoints < 2 || usize::from(spec.waypoints) > ROUTE_CAPACITY {
+            return Err(RouteRefusal::Size {
+                waypoints: spec.waypoints,
+                capacity: CAPACITY_U8,
+            });
+        }
+        let limits = RouteLimits::new(&spec.limits).map_err(RouteRefusal::Limits)?;
+        self.options = spec.options.build().map_err(RouteRefusal::Options)?;
+        self.waypoints = Waypoints::new();
+        Ok(limits)
+    }
+
+    /// Appends a waypoint of the route being loaded, in place.
+    ///
+    /// # Errors
+    /// [`RouteRefusal::Route`] with `TooManyWaypoints` past
+    /// [`ROUTE_CAPACITY`].
+    pub fn push(&mut self, waypoint: Waypoint) -> Result<(), RouteRefusal> {
+        self.waypoints.push(waypoint).map_err(RouteRefusal::Route)
+    }
+
+    /// The waypoints loaded so far.
+    #[must_use]
+    pub fn waypoints(&self) -> &Waypoints {
+        &self.waypoints
+    }
+
+    /// Ends loading: plans the waypoints once under `limits` at the
+    /// control period `period_s` (`RoutePlan::replan`, in the slot) to
+    /// check them whole, then makes the slot a new follower (with the
+    /// options [`Self::begin`] checked) and loads them into it, to start
+    /// as `start` says.
+    ///
+    /// # Errors
+    /// [`RouteRefusal::Route`]: the planner's refusal, naming the waypoint
+    /// and its key; there is then no follower.
+    pub fn finish(
+        &mut self,
+        limits: &RouteLimits,
+        start: RouteStart,
+        period_s: f32,
+    ) -> Result<(), RouteRefusal> {
+        if let Slot::Follower(_) = self.slot {
+            self.slot = Slot::Plan(RoutePlan::empty());
+        }
+        if let Slot::Plan(plan) = &mut self.slot {
+            plan.replan(self.waypoints.as_slice(), limits, period_s)
+                .map_err(RouteRefusal::Route)?;
+        }
+        self.slot = Slot::Follower(RouteFollower::new(self.options));
+        if let Slot::Follower(follower) = &mut self.slot {
+            follower.load(&self.waypoints, limits, start);
+        }
+        Ok(())
     }
 }
 
@@ -228,7 +318,9 @@ impl<'a> Session<'a> {
     /// The route's status (`None`: the run has no route).
     #[must_use]
     pub fn route_status(&self) -> Option<RouteStatus> {
-        self.route_load.map(|_| self.route.follower.status())
+        self.route_load
+            .and_then(|_| self.route.follower())
+            .map(RouteFollower::status)
     }
 
     /// Handles one message; `link` are the receiver's counters and
@@ -268,7 +360,7 @@ impl<'a> Session<'a> {
                     }
                     (Some(robot), _) => {
                         self.bus.load(input);
-                        let route = self.route_load.map(|_| &mut self.route.follower);
+                        let route = self.route_load.and_then(|_| self.route.follower_mut());
                         let out = robot.tick(route);
                         // A few scalars, not `&out`: taking the tick's address
                         // kept all of it in this (inlined, deepest) frame.
@@ -345,8 +437,8 @@ impl<'a> Session<'a> {
             d.tracker = robot.pilot().tracker().counters();
             d.observer_rejected_updates = robot.pilot().tracker().observer_rejected_updates();
         }
-        if self.route_load.is_some() {
-            d.route = self.route.follower.counters();
+        if let Some(follower) = self.route_load.and_then(|_| self.route.follower()) {
+            d.route = follower.counters();
         }
         d
     }
@@ -498,22 +590,10 @@ impl<'a> Session<'a> {
         if !configured || self.last_answer.is_some() || self.route_load.is_some() {
             return TargetMessage::Refused(Refusal::Route(RouteRefusal::NotExpected));
         }
-        if spec.waypoints < 2 || usize::from(spec.waypoints) > ROUTE_CAPACITY {
-            return self.refuse_route(RouteRefusal::Size {
-                waypoints: spec.waypoints,
-                capacity: CAPACITY_U8,
-            });
-        }
-        let limits = match RouteLimits::new(&spec.limits) {
+        let limits = match self.route.begin(spec) {
             Ok(limits) => limits,
-            Err(e) => return self.refuse_route(RouteRefusal::Limits(e)),
+            Err(e) => return self.refuse_route(e),
         };
-        let options = match spec.options.build() {
-            Ok(options) => options,
-            Err(e) => return self.refuse_route(RouteRefusal::Options(e)),
-        };
-        self.route.waypoints = Waypoints::new();
-        self.route.follower = RouteFollower::new(options);
         self.route_load = Some(RouteLoad {
             announced: spec.waypoints,
             loaded: 0,
@@ -578,9 +658,8 @@ impl<'a> Session<'a> {
         }
         for w in &chunk.waypoints {
             // At most `announced` ≤ `ROUTE_CAPACITY` (checked above and
-            // at the announcement): the push cannot fail; if it did, the
-            // planner's own error says so.
-            self.route.waypoints.push(*w).map_err(RouteRefusal::Route)?;
+            // at the announcement): the push cannot fail.
+            self.route.push(*w)?;
             load.loaded += 1;
         }
         if !load.complete() {
@@ -592,14 +671,7 @@ impl<'a> Session<'a> {
             .robot
             .as_ref()
             .map_or(0.0, |r| r.pilot().tracker().config().clock().period_s());
-        let store = &mut *self.route;
-        store
-            .plan
-            .replan(store.waypoints.as_slice(), &load.limits, period_s)
-            .map_err(RouteRefusal::Route)?;
-        store
-            .follower
-            .load(&store.waypoints, &load.limits, load.start);
+        self.route.finish(&load.limits, load.start, period_s)?;
         Ok(TargetMessage::Configured)
     }
 }

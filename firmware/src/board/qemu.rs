@@ -173,7 +173,9 @@ impl SilenceTimer {
 
 /// Encodes and sends one message (a frame that does not fit is a bug in
 /// the message sizes, caught by the link's tests; it is logged and dropped).
-fn send(link: &mut HostLink, tx: &mut Sender, message: TargetMessage) {
+/// By reference: a `TargetMessage` (184 B, its `Finished` the largest) is
+/// not copied into each frame on the way out.
+fn send(link: &mut HostLink, tx: &mut Sender, message: &TargetMessage) {
     let mut out = [0_u8; MAX_FRAME_BYTES];
     match tx.frame(message, &mut out) {
         Ok(bytes) => link.write(bytes),
@@ -225,7 +227,7 @@ pub fn run() -> ! {
         fail()
     };
     let map: &'static RefCell<LinkTagMap> = map;
-    // The route's waypoints, scratch plan and follower (about 45 KB), in
+    // The route's waypoints and its scratch plan or follower (24 KB), in
     // place for the same reason.
     let Some(route) = cortex_m::singleton!(: RouteStore = RouteStore::new()) else {
         fail()
@@ -245,7 +247,7 @@ pub fn run() -> ! {
     send(
         &mut link,
         &mut tx,
-        TargetMessage::Hello {
+        &TargetMessage::Hello {
             protocol: PROTOCOL_VERSION,
         },
     );
@@ -262,7 +264,7 @@ pub fn run() -> ! {
                     if worth_logging(n) {
                         defmt::warn!("corrupt frame dropped ({} so far): {}", n, e);
                     }
-                    send(&mut link, &mut tx, TargetMessage::Nack);
+                    send(&mut link, &mut tx, &TargetMessage::Nack);
                 }
                 Some(Ok(message)) => {
                     silence.restart();
@@ -288,7 +290,7 @@ pub fn run() -> ! {
                         _ => {}
                     }
                     let configured = matches!(answer, TargetMessage::Configured);
-                    send(&mut link, &mut tx, answer);
+                    send(&mut link, &mut tx, &answer);
                     // Telemetry after the answer: the host is not kept
                     // waiting for the log.
                     if let Some(record) = session.telemetry() {
@@ -311,7 +313,7 @@ pub fn run() -> ! {
                 if worth_logging(rx.counters().timeouts) {
                     defmt::warn!("link silent for {} ms: motors stopped", silent_ms);
                 }
-                send(&mut link, &mut tx, report);
+                send(&mut link, &mut tx, &report);
             }
         }
     }
