@@ -12,6 +12,7 @@ use crate::plausible::{COUNTS_PER_REV, TRACK_WIDTH_M, WHEEL_RADIUS_M};
 /// A planar vector in metres (or m/s, m/s², as the field it sits in says).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Vec2 {
     /// x component.
     pub x: f32,

@@ -11,11 +11,14 @@ use std::path::PathBuf;
 
 use wmr_core::devices::tag_grid::TagGridSpec;
 use wmr_core::devices::{TagGrid, TagId, encode_frame};
+use wmr_core::pilot::route::{RouteOptions, RouteStart};
 use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
 use wmr_core::reference::TrajectorySpec;
+use wmr_core::reference::route::{RouteError, RouteLimitsSpec, Waypoint, WaypointKey, Waypoints};
 use wmr_link::{
     Configure, Diagnostics, Finished, FloorSpec, HostMessage, MAX_FRAME_BYTES, MotorOutput,
-    PROTOCOL_VERSION, Refusal, Sender, TargetMessage, TickInput, TickOutput,
+    PROTOCOL_VERSION, Refusal, RouteRefusal, Sender, TargetMessage, TickInput, TickOutput,
+    route_messages,
 };
 
 /// Where the seeds go: the first argument, or the committed corpus.
@@ -94,9 +97,36 @@ fn main() {
         right_count: None,
         uart: heapless::Vec::from_slice(&b).expect("fits"),
     });
+    // A route of three waypoints: its announcement and its one chunk.
+    let waypoints = Waypoints::from_slice(&[
+        Waypoint::stop(0.0, 0.0, 0.0),
+        Waypoint::pass(0.5, 0.1).with_speed_limit(0.2),
+        Waypoint::stop(1.0, 0.0, 0.5).facing(1.5),
+    ])
+    .expect("fits");
+    let limits = RouteLimitsSpec {
+        max_speed_m_s: 0.3,
+        max_tangential_accel_m_s2: 0.5,
+        max_lateral_accel_m_s2: 0.5,
+        blend_deviation_m: 0.02,
+        pivot_threshold_rad: 0.5,
+        pivot_rate_rad_s: 1.0,
+        pivot_accel_rad_s2: 2.0,
+    };
+    let mut route = route_messages(
+        &waypoints,
+        limits,
+        &RouteOptions::default(),
+        RouteStart::AsGiven,
+    );
+    let (Some(announce), Some(chunk)) = (route.next(), route.next()) else {
+        unreachable!("an announcement and a chunk")
+    };
     let mut tx = Sender::default();
     let host = [
         ("configure", frame(&mut tx, configure)),
+        ("route", frame(&mut tx, announce)),
+        ("route_chunk", frame(&mut tx, chunk)),
         ("tick", frame(&mut tx, tick)),
         ("finish", frame(&mut tx, HostMessage::Finish)),
     ];
@@ -121,6 +151,7 @@ fn main() {
         peak_stack_bytes: 4096,
         motors: [MotorOutput::default(); 2],
         counters: Diagnostics::default(),
+        route_done: true,
     });
     let mut tx = Sender::default();
     let target = [
@@ -136,6 +167,22 @@ fn main() {
         (
             "refused",
             frame(&mut tx, TargetMessage::Refused(Refusal::NotConfigured)),
+        ),
+        (
+            "route_loaded",
+            frame(&mut tx, TargetMessage::RouteLoaded { waypoints: 7 }),
+        ),
+        (
+            "refused_route",
+            frame(
+                &mut tx,
+                TargetMessage::Refused(Refusal::Route(RouteRefusal::Route(
+                    RouteError::NotFinite {
+                        index: 3,
+                        key: WaypointKey::Dwell,
+                    },
+                ))),
+            ),
         ),
         ("ticked", frame(&mut tx, ticked)),
         ("finished", frame(&mut tx, finished)),

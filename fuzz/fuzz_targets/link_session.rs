@@ -13,7 +13,11 @@
 //! configured full scale and its command finite; a configuration is
 //! accepted exactly when the core builds it; a tick before any accepted
 //! configuration is refused; motors without a configured run are stopped;
-//! a map chunk when no map loads changes nothing; a silent link stops the
+//! a map chunk when no map loads changes nothing; a route (announced
+//! with arbitrary limits and options, its waypoints in chunks, in order or
+//! not) is taken only right after a configuration, loads until its count,
+//! and a refusal while loading leaves the run unconfigured with its motors
+//! stopped, while a stray one changes nothing; a silent link stops the
 //! motors.
 
 #![no_main]
@@ -24,13 +28,16 @@ use arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
 use wmr_core::devices::TagGrid;
 use wmr_core::devices::encode_frame;
+use wmr_core::pilot::route::RouteStart;
+use wmr_core::reference::route::{RouteLimitsSpec, Waypoint};
 use wmr_fuzz::{encoder_count, light_pilot_spec, tag_grid_spec};
 use wmr_link::FloorSpec;
 use wmr_link::proxy::{ProxyBus, Side};
-use wmr_link::session::{LinkTagMap, Session};
+use wmr_link::session::{LinkTagMap, RouteStore, Session};
 use wmr_link::{
     Configure, Frame, HostMessage, MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, MapRefusal,
-    PROTOCOL_VERSION, Receiver, Refusal, Sender, TargetMessage, TickInput, decode, encode,
+    PROTOCOL_VERSION, ROUTE_CHUNK_WAYPOINTS, Receiver, Refusal, RouteChunk, RouteOptionsSpec,
+    RouteRefusal, RouteSpec, Sender, TargetMessage, TickInput, decode, encode,
 };
 
 /// Operations per input at most.
@@ -48,6 +55,14 @@ struct Harness<'a> {
     pwm_max_duty: Option<u16>,
     /// The full-scale duty of a tag map's run while its map loads.
     loading_duty: Option<u16>,
+    /// The full-scale duty of a run while its route loads.
+    route_loading_duty: Option<u16>,
+    /// A run that has ticked since its configuration (takes no route).
+    ticked: bool,
+    /// The next waypoint of the route loading, as the last answer said.
+    route_next: u8,
+    /// The configured run has a route (takes no other).
+    routed: bool,
     counts: (u32, u32),
     tick: u32,
 }
@@ -127,6 +142,9 @@ impl Harness<'_> {
                     assert!(c.pilot.build().is_ok(), "{c:?}");
                     self.pwm_max_duty = None;
                     self.loading_duty = Some(c.pwm_max_duty);
+                    self.route_loading_duty = None;
+                    self.ticked = false;
+                    self.routed = false;
                 }
                 TargetMessage::Refused(Refusal::Spec(_) | Refusal::Map(_)) => {}
                 _ => panic!("{c:?} answered with {answer:?}"),
@@ -161,10 +179,61 @@ impl Harness<'_> {
                 if builds {
                     self.pwm_max_duty = Some(c.pwm_max_duty);
                     self.loading_duty = None;
+                    self.route_loading_duty = None;
+                    self.ticked = false;
+                    self.routed = false;
                 } else {
                     assert!(matches!(answer, TargetMessage::Refused(Refusal::Spec(_))));
                 }
             }
+            (HostMessage::Route(spec), _) => match answer {
+                TargetMessage::RouteLoaded { waypoints: 0 } => {
+                    assert!(self.pwm_max_duty.is_some() && !self.ticked);
+                    assert!(self.route_loading_duty.is_none());
+                    assert!((2..=64).contains(&spec.waypoints), "{spec:?}");
+                    self.route_loading_duty = self.pwm_max_duty.take();
+                    self.route_next = 0;
+                }
+                // Outside its window: nothing changes.
+                TargetMessage::Refused(Refusal::Route(RouteRefusal::NotExpected)) => {
+                    assert!(
+                        self.pwm_max_duty.is_none()
+                            || self.ticked
+                            || self.routed
+                            || self.route_loading_duty.is_some()
+                    );
+                }
+                TargetMessage::Refused(Refusal::Route(
+                    RouteRefusal::Size { .. } | RouteRefusal::Limits(_) | RouteRefusal::Options(_),
+                )) => {
+                    assert!(self.pwm_max_duty.is_some() && !self.ticked);
+                    self.pwm_max_duty = None;
+                }
+                _ => panic!("{message:?} answered with {answer:?}"),
+            },
+            (HostMessage::RouteChunk(_), _) => match answer {
+                TargetMessage::RouteLoaded { waypoints } => {
+                    assert!(self.route_loading_duty.is_some());
+                    self.route_next = waypoints;
+                }
+                TargetMessage::Configured => {
+                    // The last chunk, or the last sent again.
+                    if self.route_loading_duty.is_some() {
+                        self.pwm_max_duty = self.route_loading_duty.take();
+                    }
+                    self.routed = true;
+                    assert!(self.pwm_max_duty.is_some());
+                }
+                TargetMessage::Refused(Refusal::Route(RouteRefusal::NotLoading)) => {
+                    assert!(self.route_loading_duty.is_none());
+                }
+                TargetMessage::Refused(Refusal::Route(_)) => {
+                    assert!(self.route_loading_duty.is_some());
+                    self.pwm_max_duty = None;
+                    self.route_loading_duty = None;
+                }
+                _ => panic!("{message:?} answered with {answer:?}"),
+            },
             (HostMessage::Tick(_), TargetMessage::Refused(Refusal::NotConfigured)) => {
                 assert!(self.pwm_max_duty.is_none());
             }
@@ -174,6 +243,7 @@ impl Harness<'_> {
             }
             (HostMessage::Tick(input), TargetMessage::Ticked(t)) => {
                 assert!(self.pwm_max_duty.is_some());
+                self.ticked = true;
                 assert_eq!(t.tick, input.tick);
                 let full = max(self.pwm_max_duty);
                 assert!(
@@ -221,6 +291,79 @@ impl Harness<'_> {
         }))
     }
 
+    /// A route's announcement: mostly plausible, sometimes arbitrary.
+    fn route(&mut self, u: &mut Unstructured) -> Result<HostMessage> {
+        let plausible = u.ratio(3, 4)?;
+        let f = |u: &mut Unstructured, typical: f32| -> Result<f32> {
+            Ok(if plausible { typical } else { u.arbitrary()? })
+        };
+        Ok(HostMessage::Route(RouteSpec {
+            waypoints: if plausible {
+                u.int_in_range(2..=64)?
+            } else {
+                u.arbitrary()?
+            },
+            limits: RouteLimitsSpec {
+                max_speed_m_s: f(u, 0.3)?,
+                max_tangential_accel_m_s2: f(u, 0.5)?,
+                max_lateral_accel_m_s2: f(u, 0.5)?,
+                blend_deviation_m: f(u, 0.005)?,
+                pivot_threshold_rad: f(u, 0.5)?,
+                pivot_rate_rad_s: f(u, 1.0)?,
+                pivot_accel_rad_s2: f(u, 2.0)?,
+            },
+            options: RouteOptionsSpec {
+                pivot_gain_per_s: f(u, 5.0)?,
+                position_tolerance_m: f(u, 0.01)?,
+                heading_tolerance_rad: f(u, 0.02)?,
+            },
+            start: if u.arbitrary()? {
+                RouteStart::AsGiven
+            } else {
+                RouteStart::FromFirstFix
+            },
+        }))
+    }
+
+    /// A chunk of a route: mostly the next waypoints, on a zig-zag from
+    /// the origin, each a pass or a stop; sometimes anywhere, with
+    /// arbitrary values.
+    fn route_chunk(&mut self, u: &mut Unstructured) -> Result<HostMessage> {
+        let first = if u.ratio(7, 8)? {
+            self.route_next
+        } else {
+            u.arbitrary()?
+        };
+        let n = u.int_in_range(0..=ROUTE_CHUNK_WAYPOINTS)?;
+        let mut waypoints = heapless::Vec::new();
+        for i in 0..n {
+            let at = usize::from(first) + i;
+            let w = if u.ratio(15, 16)? {
+                let x = 0.1 * at as f32;
+                let y = if at % 2 == 0 { 0.0 } else { 0.05 };
+                match u.int_in_range(0_u8..=3)? {
+                    0 => Waypoint::stop(x, y, 0.0),
+                    1 => Waypoint::stop(x, y, 0.1).facing(0.3),
+                    _ => Waypoint::pass(x, y),
+                }
+            } else {
+                let stop = u.arbitrary::<bool>()?;
+                let w = if stop {
+                    Waypoint::stop(u.arbitrary()?, u.arbitrary()?, u.arbitrary()?)
+                } else {
+                    Waypoint::pass(u.arbitrary()?, u.arbitrary()?)
+                };
+                if u.arbitrary()? {
+                    w.with_speed_limit(u.arbitrary()?)
+                } else {
+                    w
+                }
+            };
+            let _ = waypoints.push(w);
+        }
+        Ok(HostMessage::RouteChunk(RouteChunk { first, waypoints }))
+    }
+
     fn tick(&mut self, u: &mut Unstructured) -> Result<HostMessage> {
         let left = encoder_count(u, self.counts.0)?;
         let right = encoder_count(u, self.counts.1)?;
@@ -263,14 +406,19 @@ impl Harness<'_> {
 
 fn run(u: &mut Unstructured, bus: &ProxyBus) -> Result<()> {
     let map = RefCell::new(LinkTagMap::new());
+    let mut route = Box::new(RouteStore::new());
     let mut h = Harness {
-        session: Session::new(bus, &map),
+        session: Session::new(bus, &map, &mut route),
         bus,
         rx: Receiver::new(),
         host_tx: Sender::default(),
         firmware_tx: Sender::default(),
         pwm_max_duty: None,
         loading_duty: None,
+        route_loading_duty: None,
+        ticked: false,
+        route_next: 0,
+        routed: false,
         counts: (0, 0),
         tick: 0,
     };
@@ -283,7 +431,7 @@ fn run(u: &mut Unstructured, bus: &ProxyBus) -> Result<()> {
         } else {
             None
         };
-        match u.int_in_range(0_u8..=15)? {
+        match u.int_in_range(0_u8..=18)? {
             0..=1 => {
                 let m = h.configure(u)?;
                 h.send(m, corrupt);
@@ -293,6 +441,14 @@ fn run(u: &mut Unstructured, bus: &ProxyBus) -> Result<()> {
                 h.send(m, corrupt);
             }
             12 => h.send(HostMessage::Finish, corrupt),
+            16 => {
+                let m = h.route(u)?;
+                h.send(m, corrupt);
+            }
+            17 | 18 => {
+                let m = h.route_chunk(u)?;
+                h.send(m, corrupt);
+            }
             13 => {
                 // An arbitrary payload, framed correctly.
                 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);

@@ -139,6 +139,7 @@ pub const SLOW_SPEED_M_S: f32 = 0.02;
 /// it (a replacement always starts where the running route rests).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[non_exhaustive]
 pub enum RouteStart {
     /// At the first waypoint, as loaded.
@@ -153,6 +154,7 @@ pub enum RouteStart {
 /// Why [`RouteOptions`] were refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[non_exhaustive]
 pub enum RouteOptionsError {
     /// Pivot gain not finite or outside `(0, 1000]` 1/s.

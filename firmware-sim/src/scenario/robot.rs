@@ -668,7 +668,7 @@ impl Robot {
             .telemetry
             .every_ticks()
             .map_err(|e| self.name_in(e))?;
-        let len = image::encode(&pilot, telemetry_every_ticks, &encoded, &mut bytes)
+        let len = image::encode(&pilot, telemetry_every_ticks, None, &encoded, &mut bytes)
             .map_err(|e| robot_error(&self.path, "floor", e.to_string()))?;
         bytes.truncate(len);
         Ok(FlashImage {

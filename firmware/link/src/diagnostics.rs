@@ -5,6 +5,7 @@ use serde::{Deserialize, Serialize};
 use wmr_core::devices::RfidCounters;
 use wmr_core::pilot::PilotCounters;
 use wmr_core::pilot::robot::RobotCounters;
+use wmr_core::pilot::route::RouteCounters;
 use wmr_core::pilot::tracker::TrackerCounters;
 
 /// Every counter of the firmware, cumulative since configuration.
@@ -36,10 +37,12 @@ pub struct Diagnostics {
     pub repeated_ticks: u32,
     /// Ticks older than the last one answered: refused, never run.
     pub stale_ticks: u32,
+    /// The run's route follower (all zero for a run without a route).
+    pub route: RouteCounters,
 }
 
 /// Counters in [`Diagnostics`], all `u32`.
-pub const DIAGNOSTIC_COUNTERS: usize = 34;
+pub const DIAGNOSTIC_COUNTERS: usize = 41;
 
 impl Diagnostics {
     /// Every counter, in the order of the fields (nested structs' fields
@@ -98,6 +101,16 @@ impl Diagnostics {
             uart_overruns,
             repeated_ticks,
             stale_ticks,
+            route:
+                RouteCounters {
+                    stops_reached,
+                    stop_errors,
+                    pivots,
+                    open_loop_pivot_ticks,
+                    routes_started,
+                    routes_refused,
+                    routes_done,
+                },
         } = *self;
         [
             rfid_frames_ok,
@@ -134,6 +147,13 @@ impl Diagnostics {
             uart_overruns,
             repeated_ticks,
             stale_ticks,
+            stops_reached,
+            stop_errors,
+            pivots,
+            open_loop_pivot_ticks,
+            routes_started,
+            routes_refused,
+            routes_done,
         ]
     }
 }

@@ -10,26 +10,35 @@
 //! ```text
 //! MAGIC (8 bytes) | IMAGE_VERSION u16 | pilot length u16 | pilot (postcard PilotSpec)
 //! | telemetry decimation u16 (a record every N ticks; 0: none)
+//! | route kind u8: 0 none, 1 a route
+//! | route: postcard RouteSpec (length u16 first),
+//!          then RouteSpec::waypoints × postcard Waypoint (each length u16 first)
 //! | floor kind u8: 0 grid, 1 tag map
 //! | grid: postcard TagGridSpec (length u16 first)
 //! | tag map: count u32, then count × (id u64, x f32, y f32), ids strictly increasing
 //! ```
 //!
 //! The tag records stay in flash: [`ImageTags`] looks ids up by binary
-//! search over the bytes, with no copy in RAM. Decoding never panics: a
-//! malformed image is an [`ImageError`].
+//! search over the bytes, with no copy in RAM. A route's waypoints are
+//! checked to decode; the board loads them into its `RouteStore` with the
+//! core's checks ([`ImageRoute::load_into`]), as the HIL link's session
+//! does. Decoding never panics: a malformed image is an [`ImageError`].
 
 use serde::{Deserialize, Serialize};
 use wmr_core::devices::tag_grid::TagGridSpec;
 use wmr_core::devices::{TagGrid, TagId, TagLocator};
 use wmr_core::geometry::Vec2;
 use wmr_core::pilot::spec::{PilotSpec, SpecError};
+use wmr_core::reference::route::Waypoint;
+
+use crate::session::RouteStore;
+use crate::{RouteRefusal, RouteSpec};
 
 /// The image's first bytes.
 pub const MAGIC: [u8; 8] = *b"WMRROBOT";
 /// Bump when the layout (or [`PilotSpec`]'s shape) changes (what each
 /// version changed: `CHANGELOG.md`, "Robot image versions").
-pub const IMAGE_VERSION: u16 = 2;
+pub const IMAGE_VERSION: u16 = 3;
 /// Bytes of one tag record: id `u64`, `x`, `y` `f32`.
 pub const TAG_RECORD_BYTES: usize = 16;
 
@@ -47,6 +56,9 @@ pub enum ImageError {
     Encoding,
     /// A floor kind other than 0 or 1.
     FloorKind,
+    /// A route kind other than 0 or 1, or a route or waypoint that does
+    /// not decode.
+    Route,
     /// Tag ids not strictly increasing, wider than 40 bits, or a position
     /// not finite.
     Tags,
@@ -68,6 +80,7 @@ impl core::fmt::Display for ImageError {
             Self::Length => f.write_str("robot image truncated or over-long"),
             Self::Encoding => f.write_str("robot image: the pilot or grid does not decode"),
             Self::FloorKind => f.write_str("robot image: unknown floor kind"),
+            Self::Route => f.write_str("robot image: the route does not decode"),
             Self::Tags => f.write_str(
                 "robot image: tag ids must be 40-bit and strictly increasing, positions finite",
             ),
@@ -151,6 +164,44 @@ impl TagLocator for ImageTags<'_> {
     }
 }
 
+/// A route inside an image (its waypoints checked to decode by
+/// [`decode`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImageRoute<'a> {
+    /// The route's count, limits, options and start.
+    pub spec: RouteSpec,
+    /// `spec.waypoints` length-prefixed postcard waypoints.
+    waypoints: &'a [u8],
+}
+
+impl<'a> ImageRoute<'a> {
+    /// The waypoints, in route order.
+    pub fn waypoints(&self) -> impl Iterator<Item = Waypoint> + 'a {
+        let mut rest = self.waypoints;
+        core::iter::from_fn(move || {
+            let (len, tail) = u16_at(rest).ok()?;
+            let (bytes, tail) = split(tail, usize::from(len)).ok()?;
+            rest = tail;
+            postcard::from_bytes(bytes).ok()
+        })
+    }
+
+    /// Loads the route into `store` with the core's checks, as a HIL
+    /// session loads one ([`RouteStore::begin`], [`RouteStore::push`],
+    /// [`RouteStore::finish`]) at the control period `period_s`.
+    ///
+    /// # Errors
+    /// The first [`RouteRefusal`]: the count, a limit or an option, or
+    /// the planner's refusal naming the waypoint and its key.
+    pub fn load_into(&self, store: &mut RouteStore, period_s: f32) -> Result<(), RouteRefusal> {
+        let limits = store.begin(&self.spec)?;
+        for w in self.waypoints() {
+            store.push(w)?;
+        }
+        store.finish(&limits, self.spec.start, period_s)
+    }
+}
+
 /// A decoded image.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RobotImage<'a> {
@@ -158,6 +209,9 @@ pub struct RobotImage<'a> {
     pub pilot: PilotSpec,
     /// A telemetry record every this many ticks (0: none).
     pub telemetry_every_ticks: u16,
+    /// The route the robot follows instead of the pilot's trajectory, if
+    /// any.
+    pub route: Option<ImageRoute<'a>>,
     /// The floor.
     pub floor: ImageFloor<'a>,
 }
@@ -194,6 +248,26 @@ pub fn decode(bytes: &[u8]) -> Result<RobotImage<'_>, ImageError> {
     let (pilot, rest) = split(rest, usize::from(pilot_len))?;
     let pilot: PilotSpec = postcard::from_bytes(pilot).map_err(|_| ImageError::Encoding)?;
     let (telemetry_every_ticks, rest) = u16_at(rest)?;
+    let (route_kind, rest) = split(rest, 1)?;
+    let (route, rest) = match route_kind {
+        [0] => (None, rest),
+        [1] => {
+            let (len, rest) = u16_at(rest)?;
+            let (spec, rest) = split(rest, usize::from(len))?;
+            let spec: RouteSpec = postcard::from_bytes(spec).map_err(|_| ImageError::Route)?;
+            let mut end = rest;
+            for _ in 0..spec.waypoints {
+                let (len, tail) = u16_at(end)?;
+                let (w, tail) = split(tail, usize::from(len))?;
+                let _: Waypoint = postcard::from_bytes(w).map_err(|_| ImageError::Route)?;
+                end = tail;
+            }
+            let used = rest.len() - end.len();
+            let (waypoints, rest) = split(rest, used)?;
+            (Some(ImageRoute { spec, waypoints }), rest)
+        }
+        _ => return Err(ImageError::Route),
+    };
     let (kind, rest) = split(rest, 1)?;
     let floor = match kind {
         [0] => {
@@ -231,6 +305,7 @@ pub fn decode(bytes: &[u8]) -> Result<RobotImage<'_>, ImageError> {
     Ok(RobotImage {
         pilot,
         telemetry_every_ticks,
+        route,
         floor,
     })
 }
@@ -244,10 +319,26 @@ pub enum ImageFloorSpec<'a> {
     Map(&'a [(TagId, [f32; 2])]),
 }
 
-/// Bytes an image of `tags` mapped tags takes at most.
+/// Bytes a route section takes at most beyond its kind byte: the spec and
+/// [`ROUTE_CAPACITY`](wmr_core::reference::route::ROUTE_CAPACITY)
+/// waypoints, each with its length (a waypoint is at most 23 B of
+/// postcard).
+const MAX_ROUTE_BYTES: usize = 2 + 64 + wmr_core::reference::route::ROUTE_CAPACITY * (2 + 32);
+
+/// Bytes an image of `tags` mapped tags (and a route, if it has one)
+/// takes at most.
 #[must_use]
 pub const fn max_image_bytes(tags: usize) -> usize {
-    MAGIC.len() + 2 + 2 + crate::MAX_FRAME_BYTES + 2 + 1 + 4 + tags * TAG_RECORD_BYTES
+    MAGIC.len()
+        + 2
+        + 2
+        + crate::MAX_FRAME_BYTES
+        + 2
+        + 1
+        + MAX_ROUTE_BYTES
+        + 1
+        + 4
+        + tags * TAG_RECORD_BYTES
 }
 
 struct Writer<'a> {
@@ -280,13 +371,17 @@ impl Writer<'_> {
 /// Encodes an image into `out` (at least [`max_image_bytes`] long for the
 /// tag count) and checks it as the firmware will ([`decode`]); returns
 /// its length. `telemetry_every_ticks`: a telemetry record every this many
-/// ticks (0: none).
+/// ticks (0: none). `route`: its spec and waypoints (the spec's count is
+/// set from them); the core's checks of it are the board's, at start-up
+/// ([`ImageRoute::load_into`]), and the robot file's, before.
 ///
 /// # Errors
-/// [`ImageError::Length`] if `out` is too short, or what [`decode`] finds.
+/// [`ImageError::Length`] if `out` is too short, [`ImageError::Route`]
+/// for more waypoints than a `u8` counts, or what [`decode`] finds.
 pub fn encode(
     pilot: &PilotSpec,
     telemetry_every_ticks: u16,
+    route: Option<(&RouteSpec, &[Waypoint])>,
     floor: &ImageFloorSpec<'_>,
     out: &mut [u8],
 ) -> Result<usize, ImageError> {
@@ -295,6 +390,20 @@ pub fn encode(
     w.put(&IMAGE_VERSION.to_le_bytes())?;
     w.put_postcard(pilot)?;
     w.put(&telemetry_every_ticks.to_le_bytes())?;
+    match route {
+        None => w.put(&[0])?,
+        Some((spec, waypoints)) => {
+            w.put(&[1])?;
+            let count = u8::try_from(waypoints.len()).map_err(|_| ImageError::Route)?;
+            w.put_postcard(&RouteSpec {
+                waypoints: count,
+                ..*spec
+            })?;
+            for waypoint in waypoints {
+                w.put_postcard(waypoint)?;
+            }
+        }
+    }
     match floor {
         ImageFloorSpec::Grid(grid) => {
             w.put(&[0])?;
@@ -348,7 +457,7 @@ mod tests {
             (TagId(TagId::MASK), [0.0, -1.0]),
         ];
         let mut buf = [0_u8; max_image_bytes(3)];
-        let n = encode(&spec(), 7, &ImageFloorSpec::Map(&tags), &mut buf).unwrap();
+        let n = encode(&spec(), 7, None, &ImageFloorSpec::Map(&tags), &mut buf).unwrap();
         let image = decode(&buf[..n]).unwrap();
         assert_eq!(image.pilot, spec());
         assert_eq!(image.telemetry_every_ticks, 7);
@@ -367,7 +476,7 @@ mod tests {
         assert_eq!(decode(&bad[..n]), Err(ImageError::Magic));
         let unsorted = [tags[1], tags[0]];
         assert_eq!(
-            encode(&spec(), 7, &ImageFloorSpec::Map(&unsorted), &mut buf),
+            encode(&spec(), 7, None, &ImageFloorSpec::Map(&unsorted), &mut buf),
             Err(ImageError::Tags)
         );
         for len in 0..n {
@@ -384,8 +493,102 @@ mod tests {
             columns: 120,
         };
         let mut buf = [0_u8; max_image_bytes(0)];
-        let n = encode(&spec(), 10, &ImageFloorSpec::Grid(grid), &mut buf).unwrap();
+        let n = encode(&spec(), 10, None, &ImageFloorSpec::Grid(grid), &mut buf).unwrap();
         let image = decode(&buf[..n]).unwrap();
         assert_eq!(image.floor, ImageFloor::Grid(grid.build().unwrap()));
+    }
+
+    /// A route travels in the image: decoded as encoded, loaded into a
+    /// `RouteStore` through the core's checks; a route the core refuses
+    /// is refused at the load naming the waypoint and key (the image
+    /// itself decodes); a waypoint that does not decode, or a route kind
+    /// other than 0 or 1, is an image error.
+    #[test]
+    fn an_image_carries_a_route_loaded_through_the_cores_checks() {
+        use crate::RouteOptionsSpec;
+        use wmr_core::pilot::route::{RouteOptions, RouteStart};
+        use wmr_core::reference::route::{RouteError, RouteLimitsSpec, WaypointKey};
+        let route = RouteSpec {
+            waypoints: 0,
+            limits: RouteLimitsSpec {
+                max_speed_m_s: 0.3,
+                max_tangential_accel_m_s2: 0.5,
+                max_lateral_accel_m_s2: 0.5,
+                blend_deviation_m: 0.02,
+                pivot_threshold_rad: 0.5,
+                pivot_rate_rad_s: 1.0,
+                pivot_accel_rad_s2: 2.0,
+            },
+            options: RouteOptionsSpec::of(&RouteOptions::default()),
+            start: RouteStart::FromFirstFix,
+        };
+        let waypoints = [
+            Waypoint::stop(0.0, 0.0, 0.0),
+            Waypoint::pass(0.5, 0.1).with_speed_limit(0.2),
+            Waypoint::stop(1.0, 0.0, 0.5).facing(1.5),
+        ];
+        let grid = TagGridSpec {
+            origin_m: [-6.0, -6.5],
+            spacing_m: 0.1,
+            rows: 130,
+            columns: 120,
+        };
+        let mut buf = std::vec![0_u8; max_image_bytes(0)];
+        let n = encode(
+            &spec(),
+            10,
+            Some((&route, &waypoints)),
+            &ImageFloorSpec::Grid(grid),
+            &mut buf,
+        )
+        .unwrap();
+        let image = decode(&buf[..n]).unwrap();
+        assert_eq!(image.floor, ImageFloor::Grid(grid.build().unwrap()));
+        let read = image.route.unwrap();
+        assert_eq!(read.spec.waypoints, 3);
+        assert_eq!(read.spec.start, RouteStart::FromFirstFix);
+        assert!(read.waypoints().eq(waypoints.iter().copied()));
+        let mut store = std::boxed::Box::new(RouteStore::new());
+        read.load_into(&mut store, 0.01).unwrap();
+        assert_eq!(store.waypoints().as_slice(), &waypoints[..]);
+        assert!(store.follower().unwrap().status().pending);
+
+        // The core refuses a waypoint: the image decodes, the load names it.
+        let mut bad = waypoints;
+        bad[1] = Waypoint::pass(0.5, f32::NAN);
+        let n = encode(
+            &spec(),
+            10,
+            Some((&route, &bad)),
+            &ImageFloorSpec::Grid(grid),
+            &mut buf,
+        )
+        .unwrap();
+        let image = decode(&buf[..n]).unwrap();
+        assert_eq!(
+            image.route.unwrap().load_into(&mut store, 0.01),
+            Err(RouteRefusal::Route(RouteError::NotFinite {
+                index: 1,
+                key: WaypointKey::Position
+            }))
+        );
+        assert_eq!(
+            std::format!(
+                "{}",
+                RouteRefusal::Route(RouteError::NotFinite {
+                    index: 1,
+                    key: WaypointKey::Position
+                })
+            ),
+            "waypoint 1: position_m must be finite"
+        );
+        // Every truncation is refused, never a panic; a bad route kind too.
+        for len in 0..n {
+            assert!(decode(&buf[..len]).is_err());
+        }
+        let kind_at = MAGIC.len() + 2 + 2 + usize::from(u16::from_le_bytes([buf[10], buf[11]])) + 2;
+        assert_eq!(buf[kind_at], 1);
+        buf[kind_at] = 2;
+        assert_eq!(decode(&buf[..n]), Err(ImageError::Route));
     }
 }

@@ -16,6 +16,11 @@
 //!    │ ◄──── MapChunk{first, ≤ MAP_CHUNK_TAGS tags} │  ─┐ ids increasing,
 //!    │ ── MapLoaded{tags so far} | Refused(Map) ─► │   │ until n are
 //!    │      ... (the last chunk: Configured) ...   │  ─┘ loaded
+//!    │ ◄──── Route{n, limits, options, start} ───── │  optional: a route
+//!    │ ── RouteLoaded{0} | Refused(Route(..)) ───► │
+//!    │ ◄── RouteChunk{first, ≤ ROUTE_CHUNK_WAYPOINTS} ─┐ in route order,
+//!    │ ── RouteLoaded{so far} | Refused(Route) ──► │   │ until n are
+//!    │      ... (the last chunk: Configured) ...   │  ─┘ loaded
 //!    │ ◄───────── Tick{k, encoder counters, UART bytes}
 //!    │ ── Ticked{k, duties, directions, estimate, drive limits}
 //!    │                 ... once per control tick ...
@@ -43,6 +48,33 @@
 //! refused and changes nothing (a running robot runs on). A chunk sent again (its answer lost) is answered again,
 //! not loaded twice. The configuration goes over a clean link (the
 //! fault injector acts on the ticks only).
+//!
+//! # The route
+//! A run may follow a route (the core's `reference::route`, through
+//! `Pilot::step_route`) instead of the pilot's trajectory. Once the run
+//! is `Configured` (its map, if any, loaded) and before its first tick,
+//! [`HostMessage::Route`] announces it ([`RouteSpec`]: the waypoint count,
+//! the `RouteLimitsSpec`, the follower's options, the start); the
+//! firmware checks the count (2 to `ROUTE_CAPACITY`), the limits
+//! (`RouteLimits::new`) and the options (`RouteOptions::new`) and answers
+//! [`TargetMessage::RouteLoaded`] with 0 waypoints. The waypoints follow
+//! in [`RouteChunk`]s of at most [`ROUTE_CHUNK_WAYPOINTS`], in route
+//! order, loaded in place into the core's `Waypoints` and acknowledged
+//! with the count so far; after the last, the firmware plans the route
+//! with the core (`RoutePlan::replan`, into a scratch plan: a refusal
+//! names the waypoint and its key), hands it to its `RouteFollower` and
+//! answers `Configured`. A count, limit, option, chunk out of order, a
+//! waypoint past the count or a route the planner refuses is refused,
+//! naming which and why ([`RouteRefusal`]), and leaves the firmware
+//! unconfigured with its motors stopped. A route announced outside that
+//! window, or a chunk when none is loading, is refused and changes
+//! nothing. A chunk sent again (its answer lost) is answered again, not
+//! loaded twice. [`route_messages`] gives a host the messages to send.
+//! With `RouteStart::FromFirstFix` the first waypoint is replaced by the
+//! robot's position when the route starts, so the planner's verdict then
+//! may differ: the follower counts such a refusal
+//! (`RouteCounters::routes_refused`, in [`Finished`]) and holds the robot
+//! still.
 //!
 //! # Faults
 //! A frame that arrives corrupt is dropped and counted, and the firmware
@@ -84,6 +116,7 @@
 
 pub mod image;
 pub mod proxy;
+pub mod robot;
 pub mod session;
 pub mod telemetry;
 
@@ -93,6 +126,7 @@ mod diagnostics;
 mod floor;
 mod message;
 mod protocol;
+mod route;
 #[cfg(test)]
 mod tests;
 
@@ -105,5 +139,7 @@ pub use message::{
 };
 pub use protocol::{
     HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, LINK_TIMEOUT_MS, MAP_CAPACITY, MAP_CHUNK_TAGS,
-    MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, PROTOCOL_VERSION, STALE_WINDOW,
+    MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, PROTOCOL_VERSION, ROUTE_CHUNK_WAYPOINTS,
+    STALE_WINDOW,
 };
+pub use route::{RouteChunk, RouteOptionsSpec, RouteRefusal, RouteSpec, route_messages};

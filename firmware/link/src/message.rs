@@ -5,7 +5,10 @@ use serde::{Deserialize, Serialize};
 use wmr_core::pilot::spec::{PilotSpec, SpecError};
 use wmr_core::pilot::tracker::TrackerMode;
 
-use crate::{Diagnostics, FloorSpec, MAX_UART_BYTES_PER_TICK, MapChunk, MapRefusal};
+use crate::{
+    Diagnostics, FloorSpec, MAX_UART_BYTES_PER_TICK, MapChunk, MapRefusal, RouteChunk,
+    RouteRefusal, RouteSpec,
+};
 
 /// What the host sends.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -16,6 +19,11 @@ pub enum HostMessage {
     Configure(Configure),
     /// The next tags of the tag map `Configure` announced.
     MapChunk(MapChunk),
+    /// A route for the run just configured (before its first tick): the
+    /// run follows it instead of the pilot's trajectory.
+    Route(RouteSpec),
+    /// The next waypoints of the route `Route` announced.
+    RouteChunk(RouteChunk),
     /// One control tick's device readings.
     Tick(TickInput),
     /// End of run: report and stop.
@@ -79,6 +87,13 @@ pub enum TargetMessage {
         /// Tags loaded so far.
         tags: u16,
     },
+    /// The route `Route` announced is being loaded: send the waypoints
+    /// from this index on (0 after `Route`; the last chunk is answered
+    /// [`Self::Configured`] instead).
+    RouteLoaded {
+        /// Waypoints loaded so far.
+        waypoints: u8,
+    },
     /// One tick done.
     Ticked(TickOutput),
     /// Answer to [`HostMessage::Finish`].
@@ -108,6 +123,10 @@ pub enum Refusal {
     Spec(SpecError),
     /// The tag map was refused (the run is not configured).
     Map(MapRefusal),
+    /// The route was refused (the run is not configured, except for
+    /// [`RouteRefusal::NotExpected`] and [`RouteRefusal::NotLoading`],
+    /// which change nothing).
+    Route(RouteRefusal),
     /// A tick arrived before any configuration.
     NotConfigured,
     /// A tick older than the last one answered (never run late).
@@ -123,6 +142,7 @@ impl core::fmt::Display for Refusal {
             Self::Protocol(v) => write!(f, "the firmware speaks link protocol {v}"),
             Self::Spec(e) => write!(f, "the core refused the spec: {e}"),
             Self::Map(e) => write!(f, "the tag map was refused: {e}"),
+            Self::Route(e) => write!(f, "the route was refused: {e}"),
             Self::NotConfigured => f.write_str("a tick arrived before any configuration"),
             Self::StaleTick { last_answered } => {
                 write!(
@@ -139,6 +159,7 @@ impl core::error::Error for Refusal {
         match self {
             Self::Spec(e) => Some(e),
             Self::Map(e) => Some(e),
+            Self::Route(e) => Some(e),
             _ => None,
         }
     }
@@ -196,4 +217,7 @@ pub struct Finished {
     pub motors: [MotorOutput; 2],
     /// Final counters.
     pub counters: Diagnostics,
+    /// The run's route is done: at rest on its last waypoint, settled
+    /// (`RouteStatus::done`; false for a run without a route).
+    pub route_done: bool,
 }

@@ -1,10 +1,10 @@
 //! The numbers both sides of the link share: the protocol's version, its
 //! limits, its timeouts and the QEMU board's link files.
 
-/// The link's version: bump when a message changes shape; both sides
-/// refuse a mismatch. What each version changed: `CHANGELOG.md`, "HIL
-/// link protocol versions".
-pub const PROTOCOL_VERSION: u16 = 13;
+/// The link's version: the shape of every message, as this crate defines
+/// it (bumped when one changes); both sides refuse a mismatch. What each
+/// version changed: `CHANGELOG.md`, "HIL link protocol versions".
+pub const PROTOCOL_VERSION: u16 = 14;
 
 /// Most tags the firmware's tag map holds under HIL (the QEMU board's
 /// static table: 16 B a tag, 64 KiB of its 128 KiB of RAM): the robot
@@ -22,6 +22,18 @@ pub const MAP_CAPACITY: usize = 4096;
 /// [`MapChunk`]: crate::MapChunk
 /// [`HostMessage`]: crate::HostMessage
 pub const MAP_CHUNK_TAGS: usize = 14;
+
+/// Waypoints one [`RouteChunk`] carries at most: the most whose chunk is
+/// no larger in RAM than `Configure` (a waypoint is 32 B), so that
+/// [`HostMessage`] does not grow and the firmware's receive path needs no
+/// more stack; its largest frame (every waypoint a stop facing a heading,
+/// with a speed limit) is 175 of the [`MAX_FRAME_BYTES`]
+/// (`a_full_route_chunk_fits_a_frame`). A route of
+/// `ROUTE_CAPACITY` (64) waypoints crosses in 10 chunks.
+///
+/// [`RouteChunk`]: crate::RouteChunk
+/// [`HostMessage`]: crate::HostMessage
+pub const ROUTE_CHUNK_WAYPOINTS: usize = 7;
 
 /// Silence on the link, while configured, after which the firmware stops
 /// the motors, ms (five 10 ms control periods).

@@ -8,19 +8,29 @@
 //! between runs, the robot's [`SessionFloor`] looks ids up in it during
 //! one. Both take it with `try_borrow*`, never at once (a lookup holds it
 //! for the binary search only), so neither can fail or panic.
+//!
+//! A route (the crate docs, "The route") is loaded into a [`RouteStore`]
+//! the board lends the session, its alone (`&mut`): the waypoints are
+//! pushed in place into its `Waypoints`, planned once into its scratch
+//! `RoutePlan` to check them, and handed to its `RouteFollower`, which the
+//! robot's tick is lent ([`RouteRobot::tick`]).
 
 use core::cell::RefCell;
 
 use wmr_core::devices::{MotorDriver, MotorWiring, TagGrid, TagId, TagLocator, TagMap};
 use wmr_core::geometry::Vec2;
 use wmr_core::pilot::Pilot;
-use wmr_core::pilot::robot::Robot;
+use wmr_core::pilot::route::{RouteFollower, RouteOptions, RouteStart, RouteStatus};
 use wmr_core::pilot::spec::SpecError;
+use wmr_core::reference::route::{ROUTE_CAPACITY, RouteLimits, RoutePlan, Waypoint, Waypoints};
 
 use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
+use crate::robot::RouteRobot;
+use crate::route::CAPACITY_U8;
 use crate::{
     Configure, Diagnostics, Finished, FloorSpec, HostMessage, LinkCounters, MAP_CAPACITY, MapChunk,
-    MapRefusal, MotorOutput, PROTOCOL_VERSION, Refusal, TargetMessage, TickOutput, telemetry,
+    MapRefusal, MotorOutput, PROTOCOL_VERSION, Refusal, RouteChunk, RouteRefusal, RouteSpec,
+    TargetMessage, TickOutput, telemetry,
 };
 
 /// The tag map of a HIL session: the core's, [`MAP_CAPACITY`] tags.
@@ -71,8 +81,158 @@ impl MapLoad {
     }
 }
 
-/// The robot a HIL session runs: the core's [`Robot`] on proxy devices.
-pub type ProxyRobot<'a> = Robot<
+/// Where a session's route lives (24.3 KB: keep it in a `static`): the
+/// waypoints as they arrive, and one slot that holds either a scratch plan
+/// (while a route is checked) or the follower the robot follows it with.
+/// The check needs the plan only until the follower exists, so both share
+/// the slot: the store is a plan smaller than a plan and a follower side
+/// by side.
+#[derive(Debug, Clone)]
+pub struct RouteStore {
+    /// The route's waypoints, loaded in place chunk by chunk.
+    waypoints: Waypoints,
+    /// The options of the route being loaded (its follower's).
+    options: RouteOptions,
+    /// The scratch plan or the follower.
+    slot: Slot,
+}
+
+/// A [`RouteStore`]'s shared storage.
+#[derive(Debug, Clone)]
+// Both variants are about 20 KB, on purpose: one holds the other's place.
+#[allow(clippy::large_enum_variant)]
+enum Slot {
+    /// Where a loaded route is planned once, to check it whole before the
+    /// follower takes it (the follower plans it again, in its own plan,
+    /// when it starts).
+    Plan(RoutePlan),
+    /// The follower of the last route checked.
+    Follower(RouteFollower),
+}
+
+impl Default for RouteStore {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl RouteStore {
+    /// Empty: no waypoints, an empty plan, no follower.
+    #[must_use]
+    pub fn new() -> Self {
+        Self {
+            waypoints: Waypoints::new(),
+            options: RouteOptions::default(),
+            slot: Slot::Plan(RoutePlan::empty()),
+        }
+    }
+
+    /// The follower of the last route loaded (`None` before one, or while
+    /// one is checked).
+    #[must_use]
+    pub fn follower(&self) -> Option<&RouteFollower> {
+        match &self.slot {
+            Slot::Follower(f) => Some(f),
+            Slot::Plan(_) => None,
+        }
+    }
+
+    /// The follower, to lend the robot's tick ([`RouteRobot::tick`]).
+    pub fn follower_mut(&mut self) -> Option<&mut RouteFollower> {
+        match &mut self.slot {
+            Slot::Follower(f) => Some(f),
+            Slot::Plan(_) => None,
+        }
+    }
+
+    /// Starts loading the route `spec` announces: checks its count (2 to
+    /// [`ROUTE_CAPACITY`]), its limits (`RouteLimits::new`) and its
+    /// options (`RouteOptions::new`) and empties the waypoints. Returns
+    /// the validated limits, for [`Self::finish`].
+    ///
+    /// # Errors
+    /// [`RouteRefusal::Size`], [`RouteRefusal::Limits`],
+    /// [`RouteRefusal::Options`]; nothing is changed then.
+    pub fn begin(&mut self, spec: &RouteSpec) -> Result<RouteLimits, RouteRefusal> {
+        if spec.waypoints < 2 || usize::from(spec.waypoints) > ROUTE_CAPACITY {
+            return Err(RouteRefusal::Size {
+                waypoints: spec.waypoints,
+                capacity: CAPACITY_U8,
+            });
+        }
+        let limits = RouteLimits::new(&spec.limits).map_err(RouteRefusal::Limits)?;
+        self.options = spec.options.build().map_err(RouteRefusal::Options)?;
+        self.waypoints = Waypoints::new();
+        Ok(limits)
+    }
+
+    /// Appends a waypoint of the route being loaded, in place.
+    ///
+    /// # Errors
+    /// [`RouteRefusal::Route`] with `TooManyWaypoints` past
+    /// [`ROUTE_CAPACITY`].
+    pub fn push(&mut self, waypoint: Waypoint) -> Result<(), RouteRefusal> {
+        self.waypoints.push(waypoint).map_err(RouteRefusal::Route)
+    }
+
+    /// The waypoints loaded so far.
+    #[must_use]
+    pub fn waypoints(&self) -> &Waypoints {
+        &self.waypoints
+    }
+
+    /// Ends loading: plans the waypoints once under `limits` at the
+    /// control period `period_s` (`RoutePlan::replan`, in the slot) to
+    /// check them whole, then makes the slot a new follower (with the
+    /// options [`Self::begin`] checked) and loads them into it, to start
+    /// as `start` says.
+    ///
+    /// # Errors
+    /// [`RouteRefusal::Route`]: the planner's refusal, naming the waypoint
+    /// and its key; there is then no follower.
+    pub fn finish(
+        &mut self,
+        limits: &RouteLimits,
+        start: RouteStart,
+        period_s: f32,
+    ) -> Result<(), RouteRefusal> {
+        if let Slot::Follower(_) = self.slot {
+            self.slot = Slot::Plan(RoutePlan::empty());
+        }
+        if let Slot::Plan(plan) = &mut self.slot {
+            plan.replan(self.waypoints.as_slice(), limits, period_s)
+                .map_err(RouteRefusal::Route)?;
+        }
+        self.slot = Slot::Follower(RouteFollower::new(self.options));
+        if let Slot::Follower(follower) = &mut self.slot {
+            follower.load(&self.waypoints, limits, start);
+        }
+        Ok(())
+    }
+}
+
+/// A route being loaded, or loaded, for the run.
+#[derive(Debug, Clone, Copy)]
+struct RouteLoad {
+    /// Waypoints announced.
+    announced: u8,
+    /// Waypoints loaded so far.
+    loaded: u8,
+    /// The validated limits.
+    limits: RouteLimits,
+    /// Where it starts.
+    start: RouteStart,
+}
+
+impl RouteLoad {
+    fn complete(&self) -> bool {
+        self.loaded == self.announced
+    }
+}
+
+/// The robot a HIL session runs: the core's robot tick ([`RouteRobot`])
+/// on proxy devices.
+pub type ProxyRobot<'a> = RouteRobot<
     ProxyEncoder<'a>,
     ProxyEncoder<'a>,
     MotorDriver<ProxyPwm<'a>, ProxyPin<'a>>,
@@ -88,6 +248,10 @@ pub struct Session<'a> {
     map: &'a RefCell<LinkTagMap>,
     /// The tag map of the run (`None`: a grid, or no run).
     map_load: Option<MapLoad>,
+    /// The route's storage, lent by the board.
+    route: &'a mut RouteStore,
+    /// The route of the run (`None`: the pilot's trajectory, or no run).
+    route_load: Option<RouteLoad>,
     /// The robot, from `Configure` on (not run until its map is loaded).
     robot: Option<ProxyRobot<'a>>,
     ticks: u32,
@@ -103,13 +267,15 @@ pub struct Session<'a> {
 
 impl<'a> Session<'a> {
     /// A session over `bus`, not yet configured, loading a tag map (if a
-    /// run has one) into `map`.
+    /// run has one) into `map` and a route (if it has one) into `route`.
     #[must_use]
-    pub fn new(bus: &'a ProxyBus, map: &'a RefCell<LinkTagMap>) -> Self {
+    pub fn new(bus: &'a ProxyBus, map: &'a RefCell<LinkTagMap>, route: &'a mut RouteStore) -> Self {
         Self {
             bus,
             map,
             map_load: None,
+            route,
+            route_load: None,
             robot: None,
             ticks: 0,
             last_answer: None,
@@ -140,11 +306,21 @@ impl<'a> Session<'a> {
         self.telemetry.as_ref()
     }
 
-    /// Whether a configuration was accepted (its tag map, if it has one,
-    /// loaded whole).
+    /// Whether a configuration was accepted (its tag map and its route,
+    /// if it has them, loaded whole).
     #[must_use]
     pub fn is_configured(&self) -> bool {
-        self.robot.is_some() && self.map_load.is_none_or(|m| m.complete())
+        self.robot.is_some()
+            && self.map_load.is_none_or(|m| m.complete())
+            && self.route_load.is_none_or(|r| r.complete())
+    }
+
+    /// The route's status (`None`: the run has no route).
+    #[must_use]
+    pub fn route_status(&self) -> Option<RouteStatus> {
+        self.route_load
+            .and_then(|_| self.route.follower())
+            .map(RouteFollower::status)
     }
 
     /// Handles one message; `link` are the receiver's counters and
@@ -161,6 +337,8 @@ impl<'a> Session<'a> {
         match message {
             HostMessage::Configure(c) => (self.configure(c), false),
             HostMessage::MapChunk(chunk) => (self.load_map(chunk), false),
+            HostMessage::Route(spec) => (self.announce_route(spec, configured), false),
+            HostMessage::RouteChunk(chunk) => (self.load_route(chunk), false),
             HostMessage::Tick(input) => {
                 match (self.robot.as_mut().filter(|_| configured), self.last_answer) {
                     (None, _) => (TargetMessage::Refused(Refusal::NotConfigured), false),
@@ -182,7 +360,8 @@ impl<'a> Session<'a> {
                     }
                     (Some(robot), _) => {
                         self.bus.load(input);
-                        let out = robot.tick();
+                        let route = self.route_load.and_then(|_| self.route.follower_mut());
+                        let out = robot.tick(route);
                         // A few scalars, not `&out`: taking the tick's address
                         // kept all of it in this (inlined, deepest) frame.
                         let extra = telemetry::Extra::of(&out);
@@ -219,6 +398,7 @@ impl<'a> Session<'a> {
                     peak_stack_bytes: peak_stack_bytes(),
                     motors: self.motors(),
                     counters: self.diagnostics(link),
+                    route_done: self.route_status().is_some_and(|s| s.done),
                 }),
                 true,
             ),
@@ -257,6 +437,9 @@ impl<'a> Session<'a> {
             d.tracker = robot.pilot().tracker().counters();
             d.observer_rejected_updates = robot.pilot().tracker().observer_rejected_updates();
         }
+        if let Some(follower) = self.route_load.and_then(|_| self.route.follower()) {
+            d.route = follower.counters();
+        }
         d
     }
 
@@ -286,6 +469,7 @@ impl<'a> Session<'a> {
             Ok((pilot, floor)) => {
                 // The last run's robot goes before its map is emptied.
                 self.robot = None;
+                self.route_load = None;
                 self.map_load = match c.floor {
                     FloorSpec::Grid(_) => None,
                     FloorSpec::Map { tags } => {
@@ -307,7 +491,7 @@ impl<'a> Session<'a> {
                         MotorWiring::default(),
                     )
                 };
-                self.robot = Some(Robot::new(
+                self.robot = Some(RouteRobot::new(
                     pilot,
                     (bus.encoder(Side::Left), bus.encoder(Side::Right)),
                     (motor(Side::Left), motor(Side::Right)),
@@ -388,6 +572,115 @@ impl<'a> Session<'a> {
         }
         Ok(load.answer())
     }
+
+    /// Unconfigures the session and stops its motors (a refused route).
+    fn refuse_route(&mut self, why: RouteRefusal) -> TargetMessage {
+        self.robot = None;
+        self.map_load = None;
+        self.route_load = None;
+        self.bus.stop_motors();
+        TargetMessage::Refused(Refusal::Route(why))
+    }
+
+    /// Takes a route's announcement: accepted only while the run is
+    /// configured, before its first tick, with no route loading
+    /// (`configured`: as [`Self::is_configured`] was on arrival); else
+    /// refused, changing nothing.
+    fn announce_route(&mut self, spec: &RouteSpec, configured: bool) -> TargetMessage {
+        if !configured || self.last_answer.is_some() || self.route_load.is_some() {
+            return TargetMessage::Refused(Refusal::Route(RouteRefusal::NotExpected));
+        }
+        let limits = match self.route.begin(spec) {
+            Ok(limits) => limits,
+            Err(e) => return self.refuse_route(e),
+        };
+        self.route_load = Some(RouteLoad {
+            announced: spec.waypoints,
+            loaded: 0,
+            limits,
+            start: spec.start,
+        });
+        TargetMessage::RouteLoaded { waypoints: 0 }
+    }
+
+    /// Loads a chunk of the announced route; the last one is planned to
+    /// check it and handed to the follower. A refusal while a route loads
+    /// unconfigures the session; a chunk when none is loading
+    /// (`NotLoading`) is refused and changes nothing.
+    fn load_route(&mut self, chunk: &RouteChunk) -> TargetMessage {
+        match self.load_route_chunk(chunk) {
+            Ok(answer) => answer,
+            Err(RouteRefusal::NotLoading) => {
+                TargetMessage::Refused(Refusal::Route(RouteRefusal::NotLoading))
+            }
+            Err(why) => self.refuse_route(why),
+        }
+    }
+
+    fn load_route_chunk(&mut self, chunk: &RouteChunk) -> Result<TargetMessage, RouteRefusal> {
+        let Some(load) = self
+            .route_load
+            .as_mut()
+            .filter(|l| !l.complete())
+            .filter(|_| self.robot.is_some())
+        else {
+            // A chunk resent after the last one: answered again.
+            return match self.route_load {
+                Some(load) if self.last_answer.is_none() && is_resent(chunk, load.loaded) => {
+                    Ok(TargetMessage::Configured)
+                }
+                _ => Err(RouteRefusal::NotLoading),
+            };
+        };
+        // At most `ROUTE_CHUNK_WAYPOINTS`.
+        let n = u8::try_from(chunk.waypoints.len()).unwrap_or(u8::MAX);
+        // The chunk just loaded, sent again (its answer was lost): the
+        // same answer, nothing loaded twice.
+        if is_resent(chunk, load.loaded) {
+            return Ok(TargetMessage::RouteLoaded {
+                waypoints: load.loaded,
+            });
+        }
+        if chunk.first != load.loaded {
+            return Err(RouteRefusal::OutOfOrder {
+                expected: load.loaded,
+                first: chunk.first,
+            });
+        }
+        if load
+            .loaded
+            .checked_add(n)
+            .is_none_or(|end| end > load.announced)
+        {
+            return Err(RouteRefusal::TooMany {
+                announced: load.announced,
+            });
+        }
+        for w in &chunk.waypoints {
+            // At most `announced` ≤ `ROUTE_CAPACITY` (checked above and
+            // at the announcement): the push cannot fail.
+            self.route.push(*w)?;
+            load.loaded += 1;
+        }
+        if !load.complete() {
+            return Ok(TargetMessage::RouteLoaded {
+                waypoints: load.loaded,
+            });
+        }
+        let period_s = self
+            .robot
+            .as_ref()
+            .map_or(0.0, |r| r.pilot().tracker().config().clock().period_s());
+        self.route.finish(&load.limits, load.start, period_s)?;
+        Ok(TargetMessage::Configured)
+    }
+}
+
+/// Whether `chunk` is the last one loaded, sent again: it ends where the
+/// loading stands and is not empty.
+fn is_resent(chunk: &RouteChunk, loaded: u8) -> bool {
+    let n = u8::try_from(chunk.waypoints.len()).unwrap_or(u8::MAX);
+    n > 0 && chunk.first.checked_add(n) == Some(loaded)
 }
 
 /// Puts the record of the tick just answered in `slot` if the decimation
@@ -418,12 +711,18 @@ mod tests {
     use super::*;
     use crate::TickInput;
     use crate::{MAP_CHUNK_TAGS, MapTag};
+    use crate::{ROUTE_CHUNK_WAYPOINTS, RouteOptionsSpec};
     use wmr_core::devices::TagMapError;
     use wmr_core::devices::encode_frame;
     use wmr_core::devices::tag_grid::TagGridSpec;
+    use wmr_core::pilot::robot::Robot;
+    use wmr_core::pilot::route::{RouteCounters, RouteOptionsError};
     use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
     use wmr_core::pilot::tracker::TrackerMode;
     use wmr_core::reference::TrajectorySpec;
+    use wmr_core::reference::route::{
+        LimitKey, RouteError, RouteLimitsError, RouteLimitsSpec, Waypoint, WaypointKey,
+    };
 
     /// The grid of [`configure`]: 21 × 21 tags 0.1 m apart around the
     /// origin.
@@ -491,7 +790,8 @@ mod tests {
     fn configure_then_tick_drives_the_proxies() {
         let bus = ProxyBus::new();
         let map = RefCell::new(LinkTagMap::new());
-        let mut s = Session::new(&bus, &map);
+        let mut route = RouteStore::new();
+        let mut s = Session::new(&bus, &map, &mut route);
         let link = LinkCounters::default();
         let tick = |k, uart: &[u8]| {
             HostMessage::Tick(TickInput {
@@ -545,7 +845,8 @@ mod tests {
     fn telemetry_is_the_robots_tick_every_nth_tick() {
         let bus = ProxyBus::new();
         let map = RefCell::new(LinkTagMap::new());
-        let mut s = Session::new(&bus, &map);
+        let mut route = RouteStore::new();
+        let mut s = Session::new(&bus, &map, &mut route);
         let link = LinkCounters::default();
         let c = Configure {
             telemetry_every_ticks: 3,
@@ -614,7 +915,8 @@ mod tests {
     fn a_tag_map_is_loaded_in_chunks_and_the_robot_looks_ids_up_in_it() {
         let bus = ProxyBus::new();
         let map = RefCell::new(LinkTagMap::new());
-        let mut s = Session::new(&bus, &map);
+        let mut route = RouteStore::new();
+        let mut s = Session::new(&bus, &map, &mut route);
         let link = LinkCounters::default();
         let tick = |k, id: u64| {
             HostMessage::Tick(TickInput {
@@ -680,7 +982,8 @@ mod tests {
     fn a_bad_map_is_refused_naming_the_tag_and_why() {
         let bus = ProxyBus::new();
         let map = RefCell::new(LinkTagMap::new());
-        let mut s = Session::new(&bus, &map);
+        let mut route = RouteStore::new();
+        let mut s = Session::new(&bus, &map, &mut route);
         let link = LinkCounters::default();
         let mut answer = |m: &HostMessage| s.handle(m, link, || 0).0;
         let refused = |why| TargetMessage::Refused(Refusal::Map(why));
@@ -766,7 +1069,8 @@ mod tests {
     fn a_silent_link_stops_the_motors() {
         let bus = ProxyBus::new();
         let map = RefCell::new(LinkTagMap::new());
-        let mut s = Session::new(&bus, &map);
+        let mut route = RouteStore::new();
+        let mut s = Session::new(&bus, &map, &mut route);
         let link = LinkCounters::default();
         s.handle(&HostMessage::Configure(configure()), link, || 0);
         // Behind the reference with a fix every tick: the robot drives.
@@ -803,7 +1107,8 @@ mod tests {
     fn a_stray_map_chunk_leaves_a_running_robot_alone() {
         let bus = ProxyBus::new();
         let map = RefCell::new(LinkTagMap::new());
-        let mut s = Session::new(&bus, &map);
+        let mut route = RouteStore::new();
+        let mut s = Session::new(&bus, &map, &mut route);
         let link = LinkCounters::default();
         s.handle(&HostMessage::Configure(configure()), link, || 0);
         let tick = |k| {
@@ -838,7 +1143,8 @@ mod tests {
     fn a_resent_tick_is_answered_again_and_an_older_one_refused() {
         let bus = ProxyBus::new();
         let map = RefCell::new(LinkTagMap::new());
-        let mut s = Session::new(&bus, &map);
+        let mut route = RouteStore::new();
+        let mut s = Session::new(&bus, &map, &mut route);
         let link = LinkCounters::default();
         s.handle(&HostMessage::Configure(configure()), link, || 0);
         let tick = |k: u32, counts: u32| {
@@ -867,5 +1173,352 @@ mod tests {
         };
         assert_eq!(f.ticks, 6, "the robot ran each tick once");
         assert_eq!((f.counters.repeated_ticks, f.counters.stale_ticks), (1, 1));
+    }
+
+    /// Route limits the test routes fit: 0.3 m/s, 0.5 m/s² along and
+    /// across, blends 5 mm from their corners, pivots above 0.5 rad.
+    const LIMITS: RouteLimitsSpec = RouteLimitsSpec {
+        max_speed_m_s: 0.3,
+        max_tangential_accel_m_s2: 0.5,
+        max_lateral_accel_m_s2: 0.5,
+        blend_deviation_m: 0.005,
+        pivot_threshold_rad: 0.5,
+        pivot_rate_rad_s: 1.0,
+        pivot_accel_rad_s2: 2.0,
+    };
+
+    /// `n` waypoints (n ≥ 2) on a zig-zag inside the grid of
+    /// [`configure`], from the origin along +x, a stop at each end.
+    fn zigzag(n: usize) -> std::vec::Vec<Waypoint> {
+        (0..n)
+            .map(|i| {
+                let x = 0.1 * i as f32;
+                let y = if i % 2 == 0 { 0.0 } else { 0.05 };
+                if i == 0 || i + 1 == n {
+                    Waypoint::stop(x, y, 0.0)
+                } else {
+                    Waypoint::pass(x, y)
+                }
+            })
+            .collect()
+    }
+
+    fn announce(waypoints: u8) -> HostMessage {
+        HostMessage::Route(RouteSpec {
+            waypoints,
+            limits: LIMITS,
+            options: RouteOptionsSpec::of(&RouteOptions::default()),
+            start: RouteStart::AsGiven,
+        })
+    }
+
+    fn route_chunk(first: u8, waypoints: &[Waypoint]) -> HostMessage {
+        HostMessage::RouteChunk(RouteChunk {
+            first,
+            waypoints: heapless::Vec::from_slice(waypoints).unwrap(),
+        })
+    }
+
+    fn still_tick(k: u32, fix: bool) -> HostMessage {
+        let uart = if fix {
+            heapless::Vec::from_slice(&encode_frame(TagGrid::id(10, 10))).unwrap()
+        } else {
+            heapless::Vec::new()
+        };
+        HostMessage::Tick(TickInput {
+            tick: k,
+            left_count: Some(0),
+            right_count: Some(0),
+            uart,
+        })
+    }
+
+    /// A route announced after `Configured` is loaded chunk by chunk into
+    /// the core's `Waypoints` (a chunk sent again is answered again, not
+    /// loaded twice), the run starts only when the last waypoint is in,
+    /// and the robot then follows the route, not the pilot's trajectory:
+    /// the reference starts at the first waypoint and moves along the
+    /// first leg; `Finished` carries the follower's counters.
+    #[test]
+    fn a_route_is_loaded_in_chunks_and_the_robot_follows_it() {
+        let bus = ProxyBus::new();
+        let map = RefCell::new(LinkTagMap::new());
+        let mut route = RouteStore::new();
+        let mut s = Session::new(&bus, &map, &mut route);
+        let link = LinkCounters::default();
+        let answer = |s: &mut Session<'_>, m: &HostMessage| s.handle(m, link, || 0).0;
+        let ws = zigzag(9);
+        assert_eq!(
+            answer(&mut s, &HostMessage::Configure(configure())),
+            TargetMessage::Configured
+        );
+        assert_eq!(
+            answer(&mut s, &announce(9)),
+            TargetMessage::RouteLoaded { waypoints: 0 }
+        );
+        assert!(!s.is_configured());
+        assert_eq!(
+            answer(&mut s, &still_tick(0, true)),
+            TargetMessage::Refused(Refusal::NotConfigured),
+            "no tick before the whole route"
+        );
+        let first = route_chunk(0, &ws[..ROUTE_CHUNK_WAYPOINTS]);
+        let k = u8::try_from(ROUTE_CHUNK_WAYPOINTS).unwrap();
+        assert_eq!(
+            answer(&mut s, &first),
+            TargetMessage::RouteLoaded { waypoints: k }
+        );
+        // Its answer lost, sent again: the same answer, loaded once.
+        assert_eq!(
+            answer(&mut s, &first),
+            TargetMessage::RouteLoaded { waypoints: k }
+        );
+        assert_eq!(s.route.waypoints.len(), ROUTE_CHUNK_WAYPOINTS);
+        let last = route_chunk(k, &ws[ROUTE_CHUNK_WAYPOINTS..]);
+        assert_eq!(answer(&mut s, &last), TargetMessage::Configured);
+        assert_eq!(answer(&mut s, &last), TargetMessage::Configured);
+        assert!(s.is_configured());
+        assert_eq!(s.route.waypoints.as_slice(), &ws[..]);
+        assert_eq!(s.route_status().map(|r| r.pending), Some(true));
+
+        // The fix at (0, 0), the first waypoint, every tick.
+        let mut references = std::vec::Vec::new();
+        for k in 0..100 {
+            let TargetMessage::Ticked(out) = answer(&mut s, &still_tick(k, true)) else {
+                panic!("not ticked")
+            };
+            references.push(out.reference_m);
+        }
+        assert_eq!(references[0], [0.0, 0.0], "starts at the first waypoint");
+        // 0.2 s in, at 0.5 m/s²: 1 cm along the first leg, toward (0.1, 0.05).
+        let [x, y] = references[20];
+        assert!(x > 0.005 && x < 0.1, "{x}");
+        assert!((y - 0.5 * x).abs() < 1e-6, "on the first leg: {x}, {y}");
+        assert!(references.windows(2).all(|w| w[1][0] >= w[0][0]));
+        assert!(references[99][0] > 0.1, "past the first waypoint");
+        let status = s.route_status().unwrap();
+        assert!(status.running && !status.done && !status.pending);
+        let (TargetMessage::Finished(f), true) = s.handle(&HostMessage::Finish, link, || 0) else {
+            panic!("no report")
+        };
+        assert_eq!(f.counters.route.routes_started, 1);
+        assert_eq!(f.counters.route.routes_refused, 0);
+        assert!(!f.route_done);
+    }
+
+    /// Without a route the session's robot is the core's `Robot`, bit for
+    /// bit (the telemetry test ticks both side by side); a grid run's
+    /// `Finished` has zero route counters and no route done.
+    #[test]
+    fn a_run_without_a_route_reports_no_route() {
+        let bus = ProxyBus::new();
+        let map = RefCell::new(LinkTagMap::new());
+        let mut route = RouteStore::new();
+        let mut s = Session::new(&bus, &map, &mut route);
+        let link = LinkCounters::default();
+        s.handle(&HostMessage::Configure(configure()), link, || 0);
+        for k in 0..10 {
+            s.handle(&still_tick(k, true), link, || 0);
+        }
+        assert_eq!(s.route_status(), None);
+        let (TargetMessage::Finished(f), true) = s.handle(&HostMessage::Finish, link, || 0) else {
+            panic!("no report")
+        };
+        assert_eq!(f.counters.route, RouteCounters::default());
+        assert!(!f.route_done);
+    }
+
+    /// What the core refuses (a count, a limit, an option, a waypoint: by
+    /// its index and key) and a route out of order or too long is refused
+    /// naming which and why; the session is then not configured, its
+    /// motors stopped, and takes no chunk. A route outside its window (no
+    /// configuration, or a run that ticked) and a stray chunk are refused
+    /// and change nothing.
+    #[test]
+    fn a_bad_route_is_refused_naming_the_waypoint_and_key() {
+        let bus = ProxyBus::new();
+        let map = RefCell::new(LinkTagMap::new());
+        let mut route = RouteStore::new();
+        let mut s = Session::new(&bus, &map, &mut route);
+        let link = LinkCounters::default();
+        let answer = |s: &mut Session<'_>, m: &HostMessage| s.handle(m, link, || 0).0;
+        let refused = |why| TargetMessage::Refused(Refusal::Route(why));
+        let ws = zigzag(4);
+        assert_eq!(
+            answer(&mut s, &announce(4)),
+            refused(RouteRefusal::NotExpected),
+            "before any configuration"
+        );
+        let configured = |s: &mut Session<'_>| {
+            let c = HostMessage::Configure(configure());
+            assert_eq!(s.handle(&c, link, || 0).0, TargetMessage::Configured);
+        };
+        configured(&mut s);
+        assert_eq!(
+            answer(&mut s, &route_chunk(0, &ws)),
+            refused(RouteRefusal::NotLoading)
+        );
+        assert!(s.is_configured(), "a stray chunk changes nothing");
+
+        let with = |f: &dyn Fn(&mut RouteSpec)| {
+            let HostMessage::Route(mut spec) = announce(4) else {
+                unreachable!()
+            };
+            f(&mut spec);
+            HostMessage::Route(spec)
+        };
+        let at_announce: [(HostMessage, RouteRefusal); 5] = [
+            (
+                announce(1),
+                RouteRefusal::Size {
+                    waypoints: 1,
+                    capacity: 64,
+                },
+            ),
+            (
+                announce(65),
+                RouteRefusal::Size {
+                    waypoints: 65,
+                    capacity: 64,
+                },
+            ),
+            (
+                with(&|r| r.limits.max_speed_m_s = f32::NAN),
+                RouteRefusal::Limits(RouteLimitsError(LimitKey::MaxSpeed)),
+            ),
+            (
+                with(&|r| r.limits.pivot_threshold_rad = 4.0),
+                RouteRefusal::Limits(RouteLimitsError(LimitKey::PivotThreshold)),
+            ),
+            (
+                with(&|r| r.options.pivot_gain_per_s = 0.0),
+                RouteRefusal::Options(RouteOptionsError::PivotGain),
+            ),
+        ];
+        let unconfigured = |s: &mut Session<'_>| {
+            assert!(!s.is_configured());
+            assert_eq!(bus.motor(Side::Left).duty, 0);
+            assert_eq!(bus.motor(Side::Right).duty, 0);
+            assert_eq!(
+                s.handle(&still_tick(0, true), link, || 0).0,
+                TargetMessage::Refused(Refusal::NotConfigured)
+            );
+            assert_eq!(
+                s.handle(&route_chunk(0, &zigzag(2)), link, || 0).0,
+                TargetMessage::Refused(Refusal::Route(RouteRefusal::NotLoading))
+            );
+        };
+        for (sent, why) in at_announce {
+            configured(&mut s);
+            assert_eq!(answer(&mut s, &sent), refused(why));
+            unconfigured(&mut s);
+        }
+
+        let mut nan_dwell = ws.clone();
+        nan_dwell[3] = Waypoint::stop(0.3, 0.05, f32::NAN);
+        let mut repeated = ws.clone();
+        repeated[2] = repeated[1];
+        let mut too_far = ws.clone();
+        too_far[1] = Waypoint::pass(1.0e6, 0.0);
+        let mut bad_face = ws.clone();
+        bad_face[0] = bad_face[0].facing(f32::INFINITY);
+        let in_chunks: [(&[Waypoint], RouteRefusal); 6] = [
+            (
+                &nan_dwell,
+                RouteRefusal::Route(RouteError::NotFinite {
+                    index: 3,
+                    key: WaypointKey::Dwell,
+                }),
+            ),
+            (
+                &repeated,
+                RouteRefusal::Route(RouteError::SameAsPrevious { index: 2 }),
+            ),
+            (
+                &too_far,
+                RouteRefusal::Route(RouteError::OutOfRange {
+                    index: 1,
+                    key: WaypointKey::Position,
+                }),
+            ),
+            (
+                &bad_face,
+                RouteRefusal::Route(RouteError::NotFinite {
+                    index: 0,
+                    key: WaypointKey::FaceHeading,
+                }),
+            ),
+            (&zigzag(5), RouteRefusal::TooMany { announced: 4 }),
+            (
+                &ws[1..],
+                RouteRefusal::OutOfOrder {
+                    expected: 0,
+                    first: 1,
+                },
+            ),
+        ];
+        for (i, (sent, why)) in in_chunks.into_iter().enumerate() {
+            configured(&mut s);
+            assert_eq!(
+                answer(&mut s, &announce(4)),
+                TargetMessage::RouteLoaded { waypoints: 0 }
+            );
+            let first = if i == 5 { 1 } else { 0 };
+            assert_eq!(answer(&mut s, &route_chunk(first, sent)), refused(why));
+            unconfigured(&mut s);
+        }
+
+        // A run that ticked takes no route, and runs on.
+        configured(&mut s);
+        assert!(matches!(
+            answer(&mut s, &still_tick(0, true)),
+            TargetMessage::Ticked(_)
+        ));
+        assert_eq!(
+            answer(&mut s, &announce(4)),
+            refused(RouteRefusal::NotExpected)
+        );
+        assert!(s.is_configured());
+        assert!(matches!(
+            answer(&mut s, &still_tick(1, true)),
+            TargetMessage::Ticked(_)
+        ));
+    }
+
+    /// [`route_messages`] gives the announcement and then full chunks in
+    /// order: a session loads a route of `ROUTE_CAPACITY` waypoints from
+    /// them, acknowledged with the count so far, the last `Configured`.
+    ///
+    /// [`route_messages`]: crate::route_messages
+    #[test]
+    fn route_messages_load_a_full_route() {
+        let bus = ProxyBus::new();
+        let map = RefCell::new(LinkTagMap::new());
+        let mut route = RouteStore::new();
+        let mut s = Session::new(&bus, &map, &mut route);
+        let link = LinkCounters::default();
+        s.handle(&HostMessage::Configure(configure()), link, || 0);
+        let ws = Waypoints::from_slice(&zigzag(ROUTE_CAPACITY)).unwrap();
+        let messages: std::vec::Vec<_> = crate::route_messages(
+            &ws,
+            LIMITS,
+            &RouteOptions::default(),
+            RouteStart::FromFirstFix,
+        )
+        .collect();
+        assert_eq!(
+            messages.len(),
+            1 + ROUTE_CAPACITY.div_ceil(ROUTE_CHUNK_WAYPOINTS)
+        );
+        let answers: std::vec::Vec<_> =
+            messages.iter().map(|m| s.handle(m, link, || 0).0).collect();
+        let (last, loaded) = answers.split_last().unwrap();
+        assert_eq!(*last, TargetMessage::Configured);
+        for (i, a) in loaded.iter().enumerate() {
+            let n = u8::try_from(i * ROUTE_CHUNK_WAYPOINTS).unwrap();
+            assert_eq!(*a, TargetMessage::RouteLoaded { waypoints: n });
+        }
+        assert_eq!(s.route.waypoints, ws);
+        assert!(s.is_configured());
     }
 }

@@ -107,6 +107,98 @@ fn a_full_map_chunk_fits_a_frame() {
     assert!(u16::try_from(MAP_CAPACITY).is_ok());
 }
 
+/// A route chunk of [`ROUTE_CHUNK_WAYPOINTS`] waypoints at their longest
+/// (each a stop facing a heading, with a speed limit) fits a frame; in
+/// RAM it is no larger than `Configure`, so the firmware's receive path
+/// needs no more stack; a route's capacity and every index fit the
+/// messages' `u8`.
+#[test]
+fn a_full_route_chunk_fits_a_frame() {
+    use wmr_core::reference::route::{ROUTE_CAPACITY, Waypoint};
+    let waypoint = Waypoint::stop(-f32::MAX, f32::MIN_POSITIVE, f32::MAX)
+        .facing(-f32::MAX)
+        .with_speed_limit(f32::MAX);
+    let chunk = HostMessage::RouteChunk(RouteChunk {
+        first: u8::MAX,
+        waypoints: heapless::Vec::from_slice(&[waypoint; ROUTE_CHUNK_WAYPOINTS]).unwrap(),
+    });
+    let mut out = [0; MAX_FRAME_BYTES];
+    let mut tx = Sender { seq: u32::MAX };
+    let bytes = tx.frame(chunk.clone(), &mut out).unwrap().to_vec();
+    println!(
+        "largest route chunk: {} B of {MAX_FRAME_BYTES}",
+        bytes.len()
+    );
+    let mut rx = Receiver::new();
+    assert_eq!(feed::<HostMessage>(&mut rx, &bytes), vec![Ok(chunk)]);
+    assert!(core::mem::size_of::<RouteChunk>() <= core::mem::size_of::<Configure>());
+    assert!(u8::try_from(ROUTE_CAPACITY).is_ok());
+    // The announcement too.
+    let announce = HostMessage::Route(RouteSpec {
+        waypoints: u8::MAX,
+        limits: wmr_core::reference::route::RouteLimitsSpec {
+            max_speed_m_s: f32::MAX,
+            max_tangential_accel_m_s2: f32::MAX,
+            max_lateral_accel_m_s2: f32::MAX,
+            blend_deviation_m: f32::MAX,
+            pivot_threshold_rad: f32::MAX,
+            pivot_rate_rad_s: f32::MAX,
+            pivot_accel_rad_s2: f32::MAX,
+        },
+        options: RouteOptionsSpec {
+            pivot_gain_per_s: f32::MAX,
+            position_tolerance_m: f32::MAX,
+            heading_tolerance_rad: f32::MAX,
+        },
+        start: wmr_core::pilot::route::RouteStart::FromFirstFix,
+    });
+    let bytes = tx.frame(announce.clone(), &mut out).unwrap().to_vec();
+    assert_eq!(feed::<HostMessage>(&mut rx, &bytes), vec![Ok(announce)]);
+}
+
+/// Every refusal of a route says which and why, in words; the planner's
+/// names the waypoint and its key.
+#[test]
+fn route_refusals_name_the_waypoint_and_why() {
+    use wmr_core::reference::route::{LimitKey, RouteError, RouteLimitsError, WaypointKey};
+    let said = |r: RouteRefusal| Refusal::Route(r).to_string();
+    assert_eq!(
+        said(RouteRefusal::Route(RouteError::NotFinite {
+            index: 3,
+            key: WaypointKey::Dwell
+        })),
+        "the route was refused: waypoint 3: stop.dwell_s must be finite"
+    );
+    assert_eq!(
+        said(RouteRefusal::Limits(RouteLimitsError(LimitKey::MaxSpeed))),
+        "the route was refused: limits: max_speed_m_s must be finite and > 0"
+    );
+    assert_eq!(
+        said(RouteRefusal::Size {
+            waypoints: 65,
+            capacity: 64
+        }),
+        "the route was refused: the route announced 65 waypoints; the firmware holds 2 to 64"
+    );
+    assert_eq!(
+        said(RouteRefusal::OutOfOrder {
+            expected: 7,
+            first: 14
+        }),
+        "the route was refused: a route chunk starting at waypoint 14 arrived; waypoint 7 was next"
+    );
+    assert_eq!(
+        said(RouteRefusal::TooMany { announced: 4 }),
+        "the route was refused: route chunks went past the 4 waypoints announced"
+    );
+    assert!(
+        said(RouteRefusal::Options(
+            wmr_core::pilot::route::RouteOptionsError::PivotGain
+        ))
+        .contains("pivot_gain_per_s")
+    );
+}
+
 /// Every refusal of a map says which tag and why, in words.
 #[test]
 fn map_refusals_name_the_tag_and_why() {

@@ -134,11 +134,12 @@ use stm32f4xx_hal::watchdog::IndependentWatchdog;
 use wmr_core::devices::{MotorDriver, MotorWiring, RfidReader};
 use wmr_core::drive::spec::DriveSpec;
 use wmr_core::estimation::heading_observer::HeadingObserverConfig;
-use wmr_core::pilot::robot::{Robot, RobotTick};
+use wmr_core::pilot::robot::RobotTick;
 use wmr_core::pilot::spec::{PilotSpec, SpecError, TrackerSpec};
 use wmr_core::pilot::tracker::{TrackerConfig, TrackerMode};
 use wmr_core::pilot::{Pilot, PilotConfig};
 use wmr_core::reference::TrajectorySpec;
+use wmr_link::robot::RouteRobot;
 use wmr_link::telemetry::{self, Start};
 
 use devices::{Encoder, LineErrors, RfidPump, RfidUart};
@@ -166,7 +167,17 @@ static ROBOT_IMAGE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/robot.bin"
 /// (the robot file's `telemetry.every_ticks`, in place of
 /// [`TELEMETRY_EVERY_TICKS`]).
 #[cfg(wmr_robot_image)]
-fn image_config() -> Result<(PilotSpec, BoardTags, u32, u16), wmr_link::image::ImageError> {
+#[allow(clippy::type_complexity)]
+fn image_config() -> Result<
+    (
+        PilotSpec,
+        BoardTags,
+        u32,
+        u16,
+        Option<wmr_link::image::ImageRoute<'static>>,
+    ),
+    wmr_link::image::ImageError,
+> {
     let image = wmr_link::image::decode(ROBOT_IMAGE)?;
     // Saturating: a negative or huge period becomes 0 or u32::MAX, refused.
     let tick_us = (image.pilot.tracker.period_s * 1.0e6 + 0.5) as u32;
@@ -180,6 +191,7 @@ fn image_config() -> Result<(PilotSpec, BoardTags, u32, u16), wmr_link::image::I
         image.floor,
         tick_us,
         image.telemetry_every_ticks,
+        image.route,
     ))
 }
 
@@ -334,7 +346,7 @@ type RightMotor<'a> = MotorDriver<PwmChannel<'a, 2>, PB13<Output<PushPull>>>;
 /// The on-board LED (active low).
 type Led = PC13<Output<PushPull>>;
 /// The robot on this board's devices.
-type BoardRobot<'a> = Robot<
+type BoardRobot<'a> = RouteRobot<
     Encoder<pac::TIM3>,
     Encoder<pac::TIM4>,
     LeftMotor<'a>,
@@ -351,6 +363,10 @@ enum Fault {
     /// The robot image is malformed or does not suit the board.
     #[cfg(wmr_robot_image)]
     Image(wmr_link::image::ImageError),
+    /// The core refused the robot image's route (its count, a limit, an
+    /// option, or a waypoint: by its index and key).
+    #[cfg(wmr_robot_image)]
+    Route(wmr_link::RouteRefusal),
     /// TIM1 (motor PWM), USART2 (RFID) or TIM5 (tick) refused its
     /// configuration.
     Peripheral(SetupError),
@@ -463,7 +479,7 @@ pub fn run() -> ! {
     #[cfg(not(wmr_robot_image))]
     let (spec, tags, tick_us, telemetry_every) = (PILOT, SITE_TAGS, TICK_US, TELEMETRY_EVERY_TICKS);
     #[cfg(wmr_robot_image)]
-    let (spec, tags, tick_us, telemetry_every) = match image_config() {
+    let (spec, tags, tick_us, telemetry_every, image_route) = match image_config() {
         Ok(config) => config,
         Err(e) => halt(
             Fault::Image(e),
@@ -500,7 +516,34 @@ pub fn run() -> ! {
             sysclk_hz,
         ),
     };
-    let mut robot: BoardRobot<'_> = Robot::new(
+    // The image's route, loaded through the core's checks into a static
+    // (`RouteStore`: 24 KB, in `.bss`, never on the stack).
+    #[cfg(wmr_robot_image)]
+    let mut route = match image_route {
+        None => None,
+        Some(image_route) => {
+            let Some(store) = cortex_m::singleton!(
+                : wmr_link::session::RouteStore = wmr_link::session::RouteStore::new()
+            ) else {
+                defmt::error!("route storage already taken");
+                loop {
+                    cortex_m::asm::wfi();
+                }
+            };
+            let period_s = pilot.tracker().config().clock().period_s();
+            match image_route.load_into(store, period_s) {
+                Ok(()) => store.follower_mut(),
+                Err(e) => halt(
+                    Fault::Route(e),
+                    watchdog,
+                    Some((left_motor, right_motor)),
+                    led,
+                    sysclk_hz,
+                ),
+            }
+        }
+    };
+    let mut robot: BoardRobot<'_> = RouteRobot::new(
         pilot,
         (left_encoder, right_encoder),
         (left_motor, right_motor),
@@ -527,7 +570,10 @@ pub fn run() -> ! {
     loop {
         let overrun = wait_for_tick(&mut tick_timer, &mut pump);
         let started = DWT::cycle_count();
-        let step = robot.tick();
+        #[cfg(wmr_robot_image)]
+        let step = robot.tick(route.as_deref_mut());
+        #[cfg(not(wmr_robot_image))]
+        let step = robot.tick(None);
         watchdog.feed();
         if telemetry::is_emitted(step.pilot.tracker.tick, telemetry_every) {
             crate::telemetry::record(&telemetry::Record::of(

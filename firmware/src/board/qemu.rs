@@ -46,7 +46,7 @@ use host_file::HostFile;
 // this board uses no peripheral of it.
 use stm32f4xx_hal as _;
 use wmr_link::proxy::ProxyBus;
-use wmr_link::session::{LinkTagMap, Session};
+use wmr_link::session::{LinkTagMap, RouteStore, Session};
 use wmr_link::{
     HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, HostMessage, LINK_TIMEOUT_MS, LinkError, MAX_FRAME_BYTES,
     PROTOCOL_VERSION, Receiver, Sender, TargetMessage,
@@ -173,7 +173,9 @@ impl SilenceTimer {
 
 /// Encodes and sends one message (a frame that does not fit is a bug in
 /// the message sizes, caught by the link's tests; it is logged and dropped).
-fn send(link: &mut HostLink, tx: &mut Sender, message: TargetMessage) {
+/// By reference: a `TargetMessage` (184 B, its `Finished` the largest) is
+/// not copied into each frame on the way out.
+fn send(link: &mut HostLink, tx: &mut Sender, message: &TargetMessage) {
     let mut out = [0_u8; MAX_FRAME_BYTES];
     match tx.frame(message, &mut out) {
         Ok(bytes) => link.write(bytes),
@@ -196,7 +198,8 @@ fn fail() -> ! {
 ///
 /// The long-lived state (the proxy bus, the session with its robot, the
 /// link receiver: about 1.9 KB; the tag map a run may load,
-/// `wmr_link::MAP_CAPACITY` tags, 64 KiB) lives in statics
+/// `wmr_link::MAP_CAPACITY` tags, 64 KiB; the route a run may follow,
+/// its `RouteStore`) lives in statics
 /// (`cortex_m::singleton!`, in `.bss`), not in this function's frame, so
 /// the stack holds only what a message's handling needs (docs/budgets.md,
 /// "Stack").
@@ -224,7 +227,13 @@ pub fn run() -> ! {
         fail()
     };
     let map: &'static RefCell<LinkTagMap> = map;
-    let Some(session) = cortex_m::singleton!(: Session<'static> = Session::new(bus, map)) else {
+    // The route's waypoints and its scratch plan or follower (24 KB), in
+    // place for the same reason.
+    let Some(route) = cortex_m::singleton!(: RouteStore = RouteStore::new()) else {
+        fail()
+    };
+    let Some(session) = cortex_m::singleton!(: Session<'static> = Session::new(bus, map, route))
+    else {
         fail()
     };
     let Some(rx) = cortex_m::singleton!(: Receiver = Receiver::new()) else {
@@ -238,7 +247,7 @@ pub fn run() -> ! {
     send(
         &mut link,
         &mut tx,
-        TargetMessage::Hello {
+        &TargetMessage::Hello {
             protocol: PROTOCOL_VERSION,
         },
     );
@@ -255,7 +264,7 @@ pub fn run() -> ! {
                     if worth_logging(n) {
                         defmt::warn!("corrupt frame dropped ({} so far): {}", n, e);
                     }
-                    send(&mut link, &mut tx, TargetMessage::Nack);
+                    send(&mut link, &mut tx, &TargetMessage::Nack);
                 }
                 Some(Ok(message)) => {
                     silence.restart();
@@ -281,7 +290,7 @@ pub fn run() -> ! {
                         _ => {}
                     }
                     let configured = matches!(answer, TargetMessage::Configured);
-                    send(&mut link, &mut tx, answer);
+                    send(&mut link, &mut tx, &answer);
                     // Telemetry after the answer: the host is not kept
                     // waiting for the log.
                     if let Some(record) = session.telemetry() {
@@ -304,7 +313,7 @@ pub fn run() -> ! {
                 if worth_logging(rx.counters().timeouts) {
                     defmt::warn!("link silent for {} ms: motors stopped", silent_ms);
                 }
-                send(&mut link, &mut tx, report);
+                send(&mut link, &mut tx, &report);
             }
         }
     }

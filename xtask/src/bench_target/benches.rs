@@ -11,7 +11,7 @@ pub const BACKENDS: [(&str, &[&str]); 3] = [
 ];
 
 /// Stages of the main table: the bench's name and the row label.
-pub(super) const STAGES: [(&str, &str); 12] = [
+pub(super) const STAGES: [(&str, &str); 13] = [
     (
         "odometry",
         "odometry (2 counter deltas + `OdometryStep::from_counts`)",
@@ -56,6 +56,10 @@ pub(super) const STAGES: [(&str, &str); 12] = [
     (
         "route_sample",
         "sampling that route at a tick (`RoutePlan::sample`)",
+    ),
+    (
+        "robot_tick_route",
+        "whole tick on a route (the whole tick above, through `Pilot::step_route` on a 64-waypoint route through the figure-eight)",
     ),
 ];
 

@@ -10,6 +10,7 @@ use crate::plausible::{ANGLE_RAD, COORDINATE_M};
 /// A stop at a waypoint: the reference comes to rest there.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Stop {
     /// Time at rest (after any pivot to the heading to face), s, `≥ 0`.
     pub dwell_s: f32,
@@ -22,6 +23,7 @@ pub struct Stop {
 /// One waypoint of a route.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Waypoint {
     /// Position in the floor frame `(x, y)`, m.
     pub position_m: Vec2,

@@ -49,7 +49,9 @@
 //!    about 1 s). Each filter must skip no step and track the robot (RMS
 //!    position error below the measurements');
 //! 5. plans a route of 64 waypoints in place (`route_plan`) and samples it
-//!    at 200 ticks spread over its duration (`route_sample`);
+//!    at 200 ticks spread over its duration (`route_sample`), then runs
+//!    the whole tick of item 3 on a route through the figure-eight
+//!    (`Pilot::step_route`: `robot_tick_route`);
 //! 6. paints a window below the stack pointer, runs one call (a tick, a
 //!    filter step) and reports the bytes it used below its caller's stack
 //!    pointer.
@@ -113,7 +115,7 @@ mod on_target {
     use fusion_tick::{FUSION_EKF_TICK, bench_fusion_tick};
     use math_backend::bench_math;
     use paper_004::bench_paper_004;
-    use route::bench_route;
+    use route::{bench_route, bench_route_tick};
     use tick::bench_tick;
     use timing::SAMPLES;
     use timing::{MACHINE, SYSTICK_MASK, calibrate};
@@ -165,6 +167,7 @@ mod on_target {
         #[cfg(target_abi = "eabihf")]
         {
             bench_route(cal);
+            bench_route_tick(cal);
             bench_paper_004(cal);
             bench_fusion(cal);
         }
