@@ -26,8 +26,22 @@
 //!    position the law uses (for the observers, the fix or, without one,
 //!    the last position dead-reckoned along the odometry arc:
 //!    [`crate::estimation::dead_reckoning`]) and the heading estimate.
-//! 3. Law at `t_k = k·h` from the reference, that position and heading, or
-//!    the failsafe below.
+//! 3. Law at the reference's time of tick `k` (below, "Reference time")
+//!    from the reference, that position and heading, or the failsafe
+//!    below.
+//!
+//! # Reference time
+//! The trajectory is sampled at the time of the ticks since the tracker
+//! started, reduced modulo whole periods of a periodic reference in
+//! integer arithmetic ([`ReferenceClock`]: module
+//! [`crate::reference`], "Time on long runs"), advanced by one tick each
+//! step ([`OutputFeedbackTracker::step`] and
+//! [`OutputFeedbackTracker::step_route`] alike). It is `t_k = k·h` for
+//! the first [`crate::reference::EPOCH_TURNS`] turns of a figure-eight or
+//! circle, and for a line; day 30 samples as day 1, and the reference
+//! goes on past the `u32` tick count ([`TrackerOutput::tick`] saturates
+//! at `u32::MAX`, after 497 days at 100 Hz; the reference's time does
+//! not depend on it).
 //!
 //! # Modes and failsafe
 //! * [`TrackerMode::AwaitingFix`]: no fix since start: command zero (the
@@ -78,7 +92,9 @@ use crate::geometry::{BodyVelocity, Vec2};
 use crate::odometry::OdometryStep;
 use crate::pilot::route::{RouteFollower, Steer};
 use crate::plausible::{DECEL_M_S2, PERIOD_S};
-use crate::reference::{ReferenceError, ReferenceSample, TickClock, Trajectory};
+use crate::reference::{
+    ReferenceClock, ReferenceError, ReferenceSample, ReferenceTime, TickClock, Trajectory,
+};
 
 /// Why a [`TrackerConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -144,6 +160,7 @@ impl From<ReferenceError> for TrackerConfigError {
 pub struct TrackerConfig {
     clock: TickClock,
     trajectory: Trajectory,
+    reference_clock: ReferenceClock,
     fix_timeout_ticks: u32,
     max_fix_age_ticks: u32,
     failsafe_decel_m_s2: f32,
@@ -202,6 +219,7 @@ impl TrackerConfig {
         Ok(Self {
             clock,
             trajectory,
+            reference_clock: ReferenceClock::new(&clock, &trajectory),
             fix_timeout_ticks,
             max_fix_age_ticks: Self::DEFAULT_MAX_FIX_AGE_TICKS,
             failsafe_decel_m_s2: Self::DEFAULT_FAILSAFE_DECEL_M_S2,
@@ -284,6 +302,13 @@ impl TrackerConfig {
         &self.trajectory
     }
 
+    /// The clock the reference is sampled by (module documentation,
+    /// "Reference time").
+    #[must_use]
+    pub fn reference_clock(&self) -> &ReferenceClock {
+        &self.reference_clock
+    }
+
     /// Ticks without a valid fix before the failsafe engages.
     #[must_use]
     pub fn fix_timeout_ticks(&self) -> u32 {
@@ -351,7 +376,9 @@ pub struct TrackerOutput {
     pub command: BodyVelocity,
     /// Mode after this step.
     pub mode: TrackerMode,
-    /// Tick index of this step (`t = k·h`).
+    /// Tick index of this step since the tracker started (saturates at
+    /// `u32::MAX`; the reference's time does not depend on it: module
+    /// documentation, "Reference time").
     pub tick: u32,
     /// Reference at this tick.
     pub reference: ReferenceSample,
@@ -381,6 +408,7 @@ pub struct OutputFeedbackTracker {
     estimator: Estimator,
     law: Law,
     tick: u32,
+    reference_time: ReferenceTime,
     position: Option<Vec2>,
     ticks_since_fix: u32,
     last_command: BodyVelocity,
@@ -419,6 +447,7 @@ impl OutputFeedbackTracker {
             estimator,
             law,
             tick: 0,
+            reference_time: ReferenceTime::default(),
             position: None,
             ticks_since_fix: 0,
             last_command: BodyVelocity::ZERO,
@@ -456,11 +485,12 @@ impl OutputFeedbackTracker {
 
     /// One control step; `odometry` covers the last period, `fix` is this tick's.
     pub fn step(&mut self, odometry: &OdometryStep, fix: Option<TagFix>) -> TrackerOutput {
+        let time = self.reference_time;
         let (tick, fix_used) = self.estimate(odometry, fix);
         let reference = self
             .config
             .trajectory
-            .sample(self.config.clock.time_s(tick));
+            .sample_at(&self.config.reference_clock, time);
         let mut out = self.drive(tick, odometry, reference, Steer::Law { restart: false });
         out.fix_used = fix_used;
         out
@@ -493,6 +523,7 @@ impl OutputFeedbackTracker {
     fn estimate(&mut self, odometry: &OdometryStep, fix: Option<TagFix>) -> (u32, bool) {
         let tick = self.tick;
         self.tick = self.tick.saturating_add(1);
+        self.reference_time = self.config.reference_clock.next(self.reference_time);
 
         let fix = fix.and_then(|f| self.accept(f));
         let previous = self.position;
@@ -768,6 +799,44 @@ mod tests {
         out = t.step(&moving(0.0), fix(0.4, 0.0));
         assert_eq!(out.mode, TrackerMode::Tracking);
         assert!(out.command.v_m_s > 0.0);
+    }
+
+    /// On day 30 and across its `u32` tick count's end (497 days at
+    /// 100 Hz) the tracker's figure-eight is within 1 mm of the `f64`
+    /// curve and moves on (the output's tick saturates, the reference's
+    /// time does not depend on it).
+    #[test]
+    fn the_reference_lasts_past_day_30_and_the_u32_tick() {
+        let eight = FigureEight::paper_001();
+        let cfg = TrackerConfig::new(
+            EstimatorChoice::HeadingObserver(HeadingObserverConfig::new(1.0, 0.01).unwrap()),
+            LawChoice::Saturated(TrackingGains::new(0.05, 0.05, 1.0).unwrap()),
+            eight.into(),
+            10,
+        )
+        .unwrap();
+        let exact = |k: u64| {
+            let s = f64::from(0.02_f32) * (k as f64 * f64::from(0.01_f32))
+                + f64::from(-core::f32::consts::FRAC_PI_2);
+            (5.0 * (2.0 * s).sin(), 5.0 * s.sin())
+        };
+        let clock = *cfg.reference_clock();
+        for first in [30 * 86_400 * 100_u64, u64::from(u32::MAX) - 3] {
+            let mut t = OutputFeedbackTracker::new(cfg);
+            t.tick = u32::try_from(first).unwrap();
+            t.reference_time = clock.at_tick(first);
+            let mut previous = None;
+            for k in first..first + 8 {
+                let out = t.step(&moving(0.2), fix(0.0, -5.0));
+                assert_eq!(u64::from(out.tick), k.min(u64::from(u32::MAX)));
+                let p = out.reference.position;
+                let (x, y) = exact(k);
+                let error = (f64::from(p.x) - x).hypot(f64::from(p.y) - y);
+                assert!(error < 1e-3, "tick {k}: {error} m");
+                assert_ne!(Some(p), previous, "tick {k}");
+                previous = Some(p);
+            }
+        }
     }
 
     #[test]
