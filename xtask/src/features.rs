@@ -78,7 +78,9 @@ pub const FIRMWARE: [&[&str]; 4] = [
     // The shipped configuration: the f32 backend, paper 001 and 002 and the
     // fusion EKF (every board turns `fusion-ekf` on).
     &[],
-    &["micromath"],
+    // `bench-route-tick` is the on-target bench's route-tick build (`cargo
+    // xtask bench-target`), linted here so that its `cfg` is.
+    &["micromath", "bench-route-tick"],
     &["libm", "fusion-ukf", "wheel-speed-observer"],
     &["micromath", "fusion-particle-filter"],
 ];

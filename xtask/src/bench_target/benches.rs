@@ -58,8 +58,8 @@ pub(super) const STAGES: [(&str, &str); 13] = [
         "sampling that route at a tick (`RoutePlan::sample`)",
     ),
     (
-        "robot_tick_route",
-        "whole tick on a route (the whole tick above, through `Pilot::step_route` on a 64-waypoint route through the figure-eight)",
+        ROUTE_TICK,
+        "whole tick on a route (the whole tick above, through `Pilot::step_route` on a 64-waypoint route through the figure-eight; a build with `bench-route-tick` of its own)",
     ),
 ];
 
@@ -84,6 +84,16 @@ pub(super) const PF_TICK: [&str; 3] = [
 
 /// Features of the particle filter's own build (added to the backend's).
 pub(super) const PF_FEATURES: [&str; 1] = [wmr_core::builds::FUSION_PARTICLE_FILTER.feature];
+
+/// The whole tick on a route, measured by a build of its own (each
+/// backend's, with [`ROUTE_FEATURES`]) and reported in that backend's
+/// column: linked beside the analytic tick, `Pilot::step_route` moves the
+/// analytic rows (the whole tick 2,852 → 2,966 instructions, its stack
+/// 756 → 980 B), which are what a firmware without routes runs.
+pub(super) const ROUTE_TICK: &str = "robot_tick_route";
+
+/// Features of the route tick's own build (added to the backend's).
+pub(super) const ROUTE_FEATURES: [&str; 1] = ["bench-route-tick"];
 
 /// Math backend calls, per call.
 pub(super) const MATH: [(&str, &str); 7] = [

@@ -34,7 +34,7 @@ mod run;
 mod tests;
 
 pub use benches::BACKENDS;
-use benches::PF_FEATURES;
+use benches::{PF_FEATURES, ROUTE_FEATURES};
 use check::check_budgets;
 pub use markdown::{m0_markdown, markdown};
 pub use report::Report;
@@ -62,6 +62,10 @@ pub fn bench_target(write_docs: bool) -> crate::Result {
         let with_pf: Vec<&str> = features.iter().chain(&PF_FEATURES).copied().collect();
         let pf = run_backend(backend, &with_pf, &[], &format!("bench-{backend}-pf"))?;
         report.take_pf_tick(&pf)?;
+        eprintln!("\n==> wmr-bench, {backend}, route tick");
+        let with_route: Vec<&str> = features.iter().chain(&ROUTE_FEATURES).copied().collect();
+        let route = run_backend(backend, &with_route, &[], &format!("bench-{backend}-route"))?;
+        report.take_route_tick(&route)?;
         reports.push(report);
     }
     eprintln!("\n==> wmr-bench-m0, f32 (Cortex-M0)");

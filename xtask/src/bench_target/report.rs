@@ -1,7 +1,7 @@
 //! What one run of `wmr-bench` reported, parsed from its semihosting
 //! output.
 
-use super::benches::PF_TICK;
+use super::benches::{PF_TICK, ROUTE_TICK};
 
 /// One stage's instruction counts.
 #[derive(Debug, Clone, PartialEq)]
@@ -81,18 +81,7 @@ impl Report {
     /// `pf` lacks one of them, or this run already has one.
     pub fn take_pf_tick(&mut self, pf: &Report) -> Result<(), String> {
         let [fix, dead_reckoned, stack] = PF_TICK;
-        for name in [fix, dead_reckoned] {
-            if self.stat(name).is_some() {
-                return Err(format!("the {} build measured {name}", self.backend));
-            }
-            let stat = pf.stat(name).ok_or_else(|| {
-                format!(
-                    "the {} particle-filter build measured no {name}",
-                    pf.backend
-                )
-            })?;
-            self.stats.push(stat.clone());
-        }
+        self.take_stats(pf, &[fix, dead_reckoned], "particle-filter")?;
         let bytes = pf.stack(stack).ok_or_else(|| {
             format!(
                 "the {} particle-filter build reported no stack {stack}",
@@ -100,6 +89,31 @@ impl Report {
             )
         })?;
         self.stacks.push((stack.to_owned(), bytes));
+        Ok(())
+    }
+
+    /// Takes the whole tick on a route ([`ROUTE_TICK`]) from `route`, the
+    /// same backend's run built with
+    /// [`ROUTE_FEATURES`](super::benches::ROUTE_FEATURES) (whose other
+    /// figures are not this build's).
+    ///
+    /// # Errors
+    /// `route` lacks it, or this run already has it.
+    pub fn take_route_tick(&mut self, route: &Report) -> Result<(), String> {
+        self.take_stats(route, &[ROUTE_TICK], "route-tick")
+    }
+
+    /// Copies the stages `names` from `other`, a build of its own (`what`).
+    fn take_stats(&mut self, other: &Report, names: &[&str], what: &str) -> Result<(), String> {
+        for &name in names {
+            if self.stat(name).is_some() {
+                return Err(format!("the {} build measured {name}", self.backend));
+            }
+            let stat = other
+                .stat(name)
+                .ok_or_else(|| format!("the {} {what} build measured no {name}", other.backend))?;
+            self.stats.push(stat.clone());
+        }
         Ok(())
     }
 

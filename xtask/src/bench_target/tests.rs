@@ -90,6 +90,30 @@ fn the_particle_filter_build_gives_its_tick_rows() {
     );
 }
 
+/// The route tick's own build gives its row to its backend's column,
+/// nothing else (not its own, larger, analytic tick); a build lacking it,
+/// or a main build that measured it itself, is an error.
+#[test]
+fn the_route_tick_build_gives_its_row() {
+    let route_output = OUTPUT.replace(
+        "stack robot_tick bytes=776\n",
+        "stack robot_tick bytes=9999\n\
+         bench robot_tick_route mean=3246.0 median=3240 min=3100 max=3500 n=100\n",
+    );
+    let route = parse(&route_output).unwrap();
+    let mut r = parse(OUTPUT).unwrap();
+    r.take_route_tick(&route).unwrap();
+    assert_eq!(r.stat("robot_tick_route").map(|s| s.max), Some(3_500));
+    assert_eq!(r.tick_stack_bytes, 776, "the main build's own tick");
+    assert!(r.take_route_tick(&route).is_err(), "measured twice");
+    assert!(
+        parse(OUTPUT)
+            .unwrap()
+            .take_route_tick(&parse(OUTPUT).unwrap())
+            .is_err()
+    );
+}
+
 #[test]
 fn the_docs_page_has_the_markers() {
     // `--write` fails without them; find out here, not after a bench run.

@@ -51,7 +51,8 @@
 //! 5. plans a route of 64 waypoints in place (`route_plan`) and samples it
 //!    at 200 ticks spread over its duration (`route_sample`), then runs
 //!    the whole tick of item 3 on a route through the figure-eight
-//!    (`Pilot::step_route`: `robot_tick_route`);
+//!    (`Pilot::step_route`: `robot_tick_route`, in a build with the
+//!    feature `bench-route-tick` of its own);
 //! 6. paints a window below the stack pointer, runs one call (a tick, a
 //!    filter step) and reports the bytes it used below its caller's stack
 //!    pointer.
@@ -94,6 +95,8 @@ mod on_target {
     mod math_backend;
     mod paper_004;
     mod route;
+    #[cfg(feature = "bench-route-tick")]
+    mod route_tick;
     mod stack;
     mod stage;
     mod tick;
@@ -115,7 +118,9 @@ mod on_target {
     use fusion_tick::{FUSION_EKF_TICK, bench_fusion_tick};
     use math_backend::bench_math;
     use paper_004::bench_paper_004;
-    use route::{bench_route, bench_route_tick};
+    use route::bench_route;
+    #[cfg(feature = "bench-route-tick")]
+    use route_tick::bench_route_tick;
     use tick::bench_tick;
     use timing::SAMPLES;
     use timing::{MACHINE, SYSTICK_MASK, calibrate};
@@ -167,6 +172,9 @@ mod on_target {
         #[cfg(target_abi = "eabihf")]
         {
             bench_route(cal);
+            // A build of its own (feature `bench-route-tick`), so that
+            // the other rows measure a firmware without routes.
+            #[cfg(feature = "bench-route-tick")]
             bench_route_tick(cal);
             bench_paper_004(cal);
             bench_fusion(cal);
