@@ -27,7 +27,7 @@ use crate::tags::Floor;
 
 use super::hardware::{Devices, Hardware, SimRobot, VirtualMotor};
 use super::sources::FixSource;
-use super::target::{TargetLink, hil_configuration};
+use super::target::{RouteShadow, TargetLink, hil_configuration};
 
 /// What the controller side produced at one tick.
 struct Outcome {
@@ -111,11 +111,18 @@ pub(super) enum Rig<'t> {
         target: &'t mut dyn TargetLink,
         last: Diagnostics,
         pwm_refusals: u32,
+        /// On a route: the firmware's session on the host, for the
+        /// route's status (`Ticked` does not carry it).
+        shadow: Option<RouteShadow<'t>>,
     },
 }
 
 impl<'t> Rig<'t> {
-    pub(super) fn remote(setup: &Setup, target: &'t mut dyn TargetLink) -> anyhow::Result<Self> {
+    pub(super) fn remote(
+        setup: &Setup,
+        target: &'t mut dyn TargetLink,
+        shadow: Option<RouteShadow<'t>>,
+    ) -> anyhow::Result<Self> {
         hil_configuration(setup)?;
         let (
             PlantSetup::DiffDrive {
@@ -157,6 +164,7 @@ impl<'t> Rig<'t> {
             target,
             last: Diagnostics::default(),
             pwm_refusals: 0,
+            shadow,
         })
     }
 
@@ -389,6 +397,7 @@ impl<'t> Rig<'t> {
                 uart,
                 target,
                 pwm_refusals,
+                shadow,
                 ..
             } => {
                 reader.update(t_s, &pose);
@@ -399,6 +408,9 @@ impl<'t> Rig<'t> {
                     uart: drain_uart(uart),
                 };
                 let out = target.tick(&input)?;
+                if let Some(shadow) = shadow {
+                    shadow.tick(&input);
+                }
                 anyhow::ensure!(
                     out.tick == k,
                     "the firmware answered tick {} to tick {k}",
@@ -452,7 +464,8 @@ impl<'t> Rig<'t> {
         match self {
             Self::Tracker { route, .. } | Self::Pilot { route, .. } => route.as_deref(),
             Self::RouteRobot { robot, .. } => Some(&robot.route),
-            _ => None,
+            Self::Remote { shadow, .. } => shadow.as_ref().and_then(RouteShadow::follower),
+            Self::Controller { .. } | Self::Robot { .. } => None,
         }
     }
 

@@ -165,13 +165,15 @@ pub(super) fn summarize(
         wall_time_s: wall_s,
         hil: None,
         route: match (&setup.route, rig.route()) {
-            (Some(route), Some(follower)) => Some(route_report(
-                route,
-                follower,
-                records,
-                route_ticks,
-                setup.period_s,
-            )),
+            (Some(route), Some(follower)) => {
+                let mut report =
+                    route_report(route, follower, records, route_ticks, setup.period_s);
+                // A HIL run reports the firmware's own counters.
+                if let Rig::Remote { last, .. } = rig {
+                    report.counters = last.route;
+                }
+                Some(report)
+            }
             _ => None,
         },
     }
