@@ -117,6 +117,7 @@ pub fn run_hil(
         uart_overruns: finished.counters.uart_overruns,
         repeated_ticks: finished.counters.repeated_ticks,
         stale_ticks: finished.counters.stale_ticks,
+        route_done: finished.route_done,
         link_faults: target.fault_report(),
     };
     result.summary.hil = Some(report);

@@ -100,15 +100,21 @@ pub(super) fn summarize(
             Some(hw.report(last.pilot, last.robot.motor_faults + *pwm_refusals)),
             Some(floor.len()),
         ),
-        Rig::RouteRobot { hw, robot, reader } => (
-            Some(TrackerReport::of(robot.pilot.tracker())),
+        Rig::RouteRobot {
+            hw,
+            robot,
+            reader,
+            floor,
+            ..
+        } => (
+            Some(TrackerReport::of(robot.pilot().tracker())),
             Some(rfid_report(
-                robot.rfid.counters(),
-                robot.counters.unknown_tags,
+                robot.rfid_counters(),
+                robot.counters().unknown_tags,
                 reader.counters(),
             )),
-            Some(hw.report(robot.pilot.counters(), robot.counters.motor_faults)),
-            Some(robot.floor.len()),
+            Some(hw.report(robot.pilot().counters(), robot.counters().motor_faults)),
+            Some(floor.len()),
         ),
         Rig::Pilot {
             hw,

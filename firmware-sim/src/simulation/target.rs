@@ -1,8 +1,8 @@
 //! The control tick run elsewhere: the [`TargetLink`] a remote robot (the
 //! firmware under QEMU) answers on, and the configuration it needs.
 
-use wmr_core::devices::tag_grid::TagGridSpec;
 use std::cell::RefCell;
+use wmr_core::devices::tag_grid::TagGridSpec;
 
 use wmr_core::pilot::route::RouteFollower;
 use wmr_link::proxy::ProxyBus;
@@ -171,13 +171,20 @@ impl<'s> RouteShadow<'s> {
     /// # Errors
     /// The session refusing the configuration, its map or its route (the
     /// firmware refuses the same).
-    pub(super) fn new(setup: &Setup, storage: &'s mut ShadowStorage) -> anyhow::Result<Option<Self>> {
+    pub(super) fn new(
+        setup: &Setup,
+        storage: &'s mut ShadowStorage,
+    ) -> anyhow::Result<Option<Self>> {
         if setup.route.is_none() {
             return Ok(None);
         }
         let mut session = Session::new(&storage.bus, &storage.map, &mut storage.route);
         let messages = core::iter::once(HostMessage::Configure(hil_configuration(setup)?))
-            .chain(hil_map_chunks(setup)?.into_iter().map(HostMessage::MapChunk))
+            .chain(
+                hil_map_chunks(setup)?
+                    .into_iter()
+                    .map(HostMessage::MapChunk),
+            )
             .chain(hil_route_messages(setup));
         let mut last = None;
         for message in messages {
