@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use firmware_sim::scenario::robot::Robot;
 use firmware_sim::scenario::{ReferenceSpec, keys};
-use firmware_sim::simulation::hil_configuration;
+use firmware_sim::simulation::{hil_configuration, hil_route_messages};
 use firmware_sim::{Scenario, ScenarioError, run};
 
 /// A scenario on the unicycle with exact positions, tracking `route` (the
@@ -233,17 +233,71 @@ fn fewer_than_two_waypoints_are_refused() {
 }
 
 #[test]
-fn state_feedback_and_the_hil_link_refuse_a_route() {
+fn state_feedback_refuses_a_route() {
     let text = scenario(INLINE).replace("k1 = 2.0", "kind = \"state_feedback\"\nk1 = 2.0");
     let e = Scenario::from_toml_str(&text).unwrap_err();
     assert_eq!(field(&e), "controller.kind");
-    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
-    let e = hil_configuration(&setup).unwrap_err().to_string();
-    assert!(e.contains("routes do not cross the HIL link yet"), "{e}");
 }
 
+/// The HIL link's messages for a route: the announcement (the route's
+/// spec), then every waypoint in order in chunks of
+/// `ROUTE_CHUNK_WAYPOINTS`; the firmware's session (its code, on the
+/// host) loads them after the configuration, answering `RouteLoaded` with
+/// the count so far and `Configured` for the last.
 #[test]
-fn a_robot_file_reads_its_route_and_refuses_to_flash_it() {
+fn the_hil_link_carries_a_route() {
+    use std::cell::RefCell;
+    use wmr_link::proxy::ProxyBus;
+    use wmr_link::session::{LinkTagMap, RouteStore, Session};
+    use wmr_link::{HostMessage, LinkCounters, ROUTE_CHUNK_WAYPOINTS, TargetMessage};
+
+    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let route = setup.route.as_ref().unwrap();
+    let n = route.waypoints.as_slice().len();
+    let messages = hil_route_messages(&setup);
+    assert_eq!(messages.len(), 1 + n.div_ceil(ROUTE_CHUNK_WAYPOINTS));
+    let Some(HostMessage::Route(spec)) = messages.first() else {
+        panic!("the announcement first: {messages:?}")
+    };
+    assert_eq!(*spec, route.spec());
+    assert_eq!(usize::from(spec.waypoints), n);
+    let sent: Vec<_> = messages[1..]
+        .iter()
+        .flat_map(|m| match m {
+            HostMessage::RouteChunk(c) => c.waypoints.to_vec(),
+            other => panic!("a chunk: {other:?}"),
+        })
+        .collect();
+    assert_eq!(sent.as_slice(), route.waypoints.as_slice());
+
+    let bus = ProxyBus::new();
+    let map = RefCell::new(LinkTagMap::new());
+    let mut store = Box::new(RouteStore::new());
+    let mut session = Session::new(&bus, &map, &mut store);
+    let configure = HostMessage::Configure(hil_configuration(&setup).unwrap());
+    let answers: Vec<TargetMessage> = std::iter::once(configure)
+        .chain(messages)
+        .map(|m| session.handle(&m, LinkCounters::default(), || 0).0)
+        .collect();
+    let mut expected = vec![TargetMessage::Configured];
+    expected.extend(
+        (0..n)
+            .step_by(ROUTE_CHUNK_WAYPOINTS)
+            .map(|w| TargetMessage::RouteLoaded {
+                waypoints: u8::try_from(w).unwrap(),
+            }),
+    );
+    expected.push(TargetMessage::Configured);
+    assert_eq!(answers, expected);
+    assert!(session.is_configured());
+    assert!(session.route_status().is_some_and(|s| !s.done));
+}
+
+/// A robot file's route rides in its flash image: decoded as the board
+/// decodes it, the image announces the route's spec and holds its
+/// waypoints, in order, beside the pilot.
+#[test]
+fn a_robot_file_reads_its_route_and_flashes_it() {
     let d = dir("robot");
     let example = std::fs::read_to_string(
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/example.toml"),
@@ -262,11 +316,22 @@ fn a_robot_file_reads_its_route_and_refuses_to_flash_it() {
     );
     std::fs::write(d.join("robot.toml"), &robot_text).unwrap();
     let robot = Robot::from_file(&d.join("robot.toml")).unwrap();
-    let e = robot.flash_image().unwrap_err().to_string();
-    assert!(
-        e.contains("reference.kind") && e.contains("routes do not reach the firmware"),
-        "{e}"
-    );
+    let flash = robot.flash_image().unwrap();
+    let (spec, waypoints) = flash.route.clone().expect("the image's route");
+    assert_eq!(usize::from(spec.waypoints), 4);
+    assert_eq!(waypoints.len(), 4);
+    // The route as every simulation of the robot validates it.
+    let ReferenceSpec::Route(file_route) = robot.file.reference.clone().unwrap() else {
+        panic!("a route")
+    };
+    let setup = file_route.validate(robot.file.period_s).unwrap();
+    assert_eq!(spec, setup.spec());
+    assert_eq!(waypoints.as_slice(), setup.waypoints.as_slice());
+    let image = wmr_link::image::decode(&flash.bytes).unwrap();
+    assert_eq!(image.pilot, flash.pilot);
+    let route = image.route.expect("a route in the decoded image");
+    assert_eq!(route.spec, spec);
+    assert_eq!(route.waypoints().collect::<Vec<_>>(), waypoints);
     // A bad waypoint is named in the robot file.
     std::fs::write(d.join("w.csv"), CSV.replace("0.5,180.0", "-0.5,180.0")).unwrap();
     let e = Robot::from_file(&d.join("robot.toml")).unwrap_err();

@@ -208,6 +208,44 @@ fn a_tag_map_robot_runs_exactly_as_on_the_host() {
     assert!(tracker.fixes_used > 0, "no fix used: {tracker:?}");
 }
 
+/// A route (the `route` template: three stops, one of them facing a
+/// heading, a pivot; 3,329 ticks on a 10 cm tag grid) sent over the link
+/// after `Configure` (`Route`, then `RouteChunk`s): the firmware follows
+/// it with `Pilot::step_route` and gives the host run's records, bit for
+/// bit, up to the same last tick (`settle_s` after the route is done);
+/// its route counters (`Finished`) are the host's, and it reports the
+/// route done.
+#[test]
+fn a_route_crosses_the_link_and_runs_exactly_as_on_the_host() {
+    let scenario = Scenario::embedded("route").unwrap();
+    let host = run(&scenario, |_, _| {}).unwrap();
+    let hil = run_hil(&scenario, &options(), |_, _| {}).unwrap();
+    let (h, f) = (&host.records, &hil.result.records);
+    assert_eq!(first_difference(h, f), None, "records differ");
+    // The run ended on the route, not at the scenario's duration.
+    assert!(h.len() < scenario_ticks(&scenario) as usize, "{}", h.len());
+    assert_eq!(hil.report.firmware_ticks as usize, f.len());
+    assert_eq!(hil.report.firmware_link.corrupt_frames, 0);
+    let host_route = host.summary.route.expect("the host's route report");
+    let hil_route = hil
+        .result
+        .summary
+        .route
+        .expect("the HIL run's route report");
+    println!(
+        "route under HIL: {} ticks; firmware's counters {:?}; peak stack {} B",
+        f.len(),
+        hil_route.counters,
+        hil.report.peak_stack_bytes
+    );
+    // The HIL report's counters are the firmware's (`Finished`).
+    assert_eq!(hil_route.counters, host_route.counters);
+    assert_eq!(host_route.counters.stops_reached, 3);
+    assert_eq!(host_route.counters.routes_done, 1);
+    assert!(host_route.done && hil_route.done && hil.report.route_done);
+    assert_eq!(hil_route.done_at_s, host_route.done_at_s);
+}
+
 /// The fusion EKF on the same tag-map robot (range reader, 1 m blind
 /// distance: the core's `FusionSettings::on_tag_map`), as the firmware
 /// runs it: 10 s of the circle give the host run's records, bit for bit.

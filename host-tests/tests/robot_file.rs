@@ -108,7 +108,12 @@ fn a_robot_key_that_does_not_apply_is_a_warning_in_the_robot_files_names() {
         "{w:?}"
     );
     // The shipped robots give no such key.
-    for name in ["example.toml", "blackpill.toml", "surveyed.toml"] {
+    for name in [
+        "example.toml",
+        "blackpill.toml",
+        "surveyed.toml",
+        "route_loop.toml",
+    ] {
         let w = Robot::from_file(&robots().join(name)).unwrap().warnings();
         assert_eq!(w, Vec::<String>::new(), "{name}");
     }

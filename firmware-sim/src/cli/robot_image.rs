@@ -31,8 +31,11 @@ impl RobotImageArgs {
             ),
             FlashFloor::Map(tags) => format!("tag map of {} tags", tags.len()),
         };
+        let route = image.route.as_ref().map_or_else(String::new, |(_, w)| {
+            format!(", a route of {} waypoints", w.len())
+        });
         outln!(
-            "{}: {} B image ({floor}, telemetry every {} ticks) -> {}",
+            "{}: {} B image ({floor}{route}, telemetry every {} ticks) -> {}",
             robot.display(),
             image.bytes.len(),
             image.telemetry_every_ticks,

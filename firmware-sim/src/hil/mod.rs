@@ -29,7 +29,7 @@ use wmr_core::pilot::spec::PilotSpec;
 
 use crate::report::{HilReport, RunResult};
 use crate::scenario::Scenario;
-use crate::simulation::{hil_configuration, hil_map_chunks, run_with_target};
+use crate::simulation::{hil_configuration, hil_map_chunks, hil_route_messages, run_with_target};
 
 mod faults;
 mod firmware;
@@ -80,7 +80,7 @@ pub fn default_telemetry_every_ticks(scenario: &Scenario) -> anyhow::Result<u16>
 ///
 /// # Errors
 /// QEMU missing or failing, the firmware refusing the configuration (or
-/// its tag map), not
+/// its tag map, or its route), not
 /// answering in time, or answering with corrupt or unexpected frames.
 pub fn run_hil(
     scenario: &Scenario,
@@ -102,8 +102,9 @@ pub fn run_hil(
         firmware.display()
     );
     let map = hil_map_chunks(&setup)?;
+    let route = hil_route_messages(&setup);
     let mut target = QemuTarget::start(&firmware, options)?;
-    target.configure(configure, &map)?;
+    target.configure(configure, &map, &route)?;
     let mut result = run_with_target(scenario, &mut target, progress)?;
     let finished = target
         .finished
@@ -116,6 +117,7 @@ pub fn run_hil(
         uart_overruns: finished.counters.uart_overruns,
         repeated_ticks: finished.counters.repeated_ticks,
         stale_ticks: finished.counters.stale_ticks,
+        route_done: finished.route_done,
         link_faults: target.fault_report(),
     };
     result.summary.hil = Some(report);

@@ -524,13 +524,21 @@ impl QemuTarget {
 
     /// Configures the run: `configure`, then, if it announces a tag map,
     /// `map`'s chunks ([`crate::simulation::hil_map_chunks`]), each sent
-    /// once the firmware has acknowledged the tags before it; the last is
+    /// once the firmware has acknowledged the tags before it, then, for a
+    /// route, `route`'s messages
+    /// ([`crate::simulation::hil_route_messages`]), each sent once the
+    /// firmware has acknowledged the waypoints before it; the last is
     /// answered `Configured`.
     ///
     /// # Errors
-    /// The firmware refusing the configuration or its map (saying why), or
-    /// answering anything else.
-    pub fn configure(&mut self, configure: Configure, map: &[MapChunk]) -> anyhow::Result<()> {
+    /// The firmware refusing the configuration, its map or its route
+    /// (saying why), or answering anything else.
+    pub fn configure(
+        &mut self,
+        configure: Configure,
+        map: &[MapChunk],
+        route: &[HostMessage],
+    ) -> anyhow::Result<()> {
         let mut answer = self.exchange(&HostMessage::Configure(configure))?;
         let mut asked = "Configure".to_owned();
         for chunk in map {
@@ -540,6 +548,21 @@ impl QemuTarget {
             }
             answer = self.exchange(&HostMessage::MapChunk(chunk.clone()))?;
             asked = format!("the map chunk from tag {}", chunk.first);
+        }
+        for message in route {
+            match (message, answer) {
+                (HostMessage::Route(_), TargetMessage::Configured) => {}
+                (HostMessage::RouteChunk(chunk), TargetMessage::RouteLoaded { waypoints })
+                    if waypoints == chunk.first => {}
+                (_, other) => return not_configured(&asked, other, map),
+            }
+            answer = self.exchange(message)?;
+            asked = match message {
+                HostMessage::RouteChunk(chunk) => {
+                    format!("the route chunk from waypoint {}", chunk.first)
+                }
+                _ => "the route's announcement".to_owned(),
+            };
         }
         match answer {
             TargetMessage::Configured => Ok(()),

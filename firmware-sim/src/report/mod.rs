@@ -433,6 +433,9 @@ pub struct HilReport {
     pub repeated_ticks: u32,
     /// Ticks the firmware refused as older than its last answer.
     pub stale_ticks: u32,
+    /// The firmware's route was done at the end of the run
+    /// (`Finished::route_done`; false without a route).
+    pub route_done: bool,
     /// The faults injected on the link (`--link-faults`), and what each
     /// side must have counted.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -53,6 +53,7 @@ use wmr_core::devices::tag_grid::TagGridSpec;
 use wmr_core::estimation::spec::EstimatorSpec;
 use wmr_core::pilot::spec::PilotSpec;
 use wmr_core::reference::TrajectorySpec;
+use wmr_core::reference::route::Waypoint;
 
 use super::route::ReferenceSpec;
 use wmr_link::image;
@@ -181,16 +182,6 @@ fn robot_error(path: &str, field: &str, reason: impl Into<String>) -> ScenarioEr
         field: field.to_owned(),
         reason: reason.into(),
     }
-}
-
-/// Why a robot file whose reference is a route has no flash image yet.
-fn route_not_flashed(path: &str) -> ScenarioError {
-    robot_error(
-        path,
-        "reference.kind",
-        "routes do not reach the firmware yet (neither its flash image nor the HIL link \
-         carries one): flash an analytic reference, or simulate the route with `firmware-sim run`",
-    )
 }
 
 /// Parses a tag map CSV (`id,x_m,y_m`; `#` comments, blank lines and one
@@ -571,6 +562,11 @@ pub struct FlashImage {
     pub floor: FlashFloor,
     /// A telemetry record every this many ticks (`telemetry.every_ticks`).
     pub telemetry_every_ticks: u16,
+    /// The route the robot follows instead of its pilot's trajectory
+    /// (`reference.kind = "route"`): as the image announces it, and its
+    /// waypoints. The core checked it as the board will
+    /// (`RoutePlan::new`).
+    pub route: Option<(wmr_link::RouteSpec, Vec<Waypoint>)>,
     /// The encoded image ([`wmr_link::image`]).
     pub bytes: Vec<u8>,
 }
@@ -578,9 +574,10 @@ pub struct FlashImage {
 impl Robot {
     /// The robot's flash image: its pilot exactly as every simulation of
     /// it builds it (the same validation, down to the core's
-    /// constructors), tracking its `[reference]`, and its floor: the tag
-    /// map, or the grid covering [`FLASH_GRID_REFERENCE_S`] of the
-    /// reference (or `floor.extent_m`).
+    /// constructors), tracking its `[reference]` (a route rides in the
+    /// image, checked by the core's planner as the board checks it), and
+    /// its floor: the tag map, or the grid covering
+    /// [`FLASH_GRID_REFERENCE_S`] of the reference (or `floor.extent_m`).
     ///
     /// # Errors
     /// [`ScenarioError::Robot`] naming the robot file's key: no
@@ -597,8 +594,7 @@ impl Robot {
                     "the firmware needs the trajectory it tracks: add a [reference] table",
                 ));
             }
-            Some(ReferenceSpec::Route(_)) => return Err(route_not_flashed(&self.path)),
-            Some(reference @ ReferenceSpec::Trajectory(_)) => reference.clone(),
+            Some(reference) => reference.clone(),
         };
         // A tag map is validated on a stand-in grid, then the estimators
         // are told there is none (tag spacing 0).
@@ -614,6 +610,10 @@ impl Robot {
         }
         let scenario = stand_in.scenario(reference, FLASH_GRID_REFERENCE_S);
         let setup = scenario.validate().map_err(|e| self.name_in(e))?;
+        let route = setup
+            .route
+            .as_ref()
+            .map(|r| (r.spec(), r.waypoints.as_slice().to_vec()));
         let (
             super::PlantSetup::DiffDrive { pilot_spec, .. },
             super::PositionSetup::Reader(floor, _),
@@ -668,13 +668,20 @@ impl Robot {
             .telemetry
             .every_ticks()
             .map_err(|e| self.name_in(e))?;
-        let len = image::encode(&pilot, telemetry_every_ticks, None, &encoded, &mut bytes)
-            .map_err(|e| robot_error(&self.path, "floor", e.to_string()))?;
+        let len = image::encode(
+            &pilot,
+            telemetry_every_ticks,
+            route.as_ref().map(|(spec, w)| (spec, w.as_slice())),
+            &encoded,
+            &mut bytes,
+        )
+        .map_err(|e| robot_error(&self.path, "floor", e.to_string()))?;
         bytes.truncate(len);
         Ok(FlashImage {
             pilot,
             floor,
             telemetry_every_ticks,
+            route,
             bytes,
         })
     }

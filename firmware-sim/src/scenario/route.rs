@@ -281,6 +281,8 @@ pub struct RouteSetup {
     pub waypoints: Waypoints,
     /// The plan's limits.
     pub limits: RouteLimits,
+    /// The limits as numbers (what the HIL link and the flash image carry).
+    pub limits_spec: RouteLimitsSpec,
     /// How it is followed (pivot gain, stop tolerances).
     pub options: RouteOptions,
     /// Where the first leg starts.
@@ -293,6 +295,19 @@ pub struct RouteSetup {
 }
 
 impl RouteSetup {
+    /// The route as the link announces it and the flash image holds it
+    /// (its waypoints go separately).
+    #[must_use]
+    pub fn spec(&self) -> wmr_link::RouteSpec {
+        wmr_link::RouteSpec {
+            // At most `ROUTE_CAPACITY` waypoints: fits (the link's tests).
+            waypoints: u8::try_from(self.waypoints.as_slice().len()).unwrap_or(u8::MAX),
+            limits: self.limits_spec,
+            options: wmr_link::RouteOptionsSpec::of(&self.options),
+            start: self.start,
+        }
+    }
+
     /// The analytic stand-in the tracker's configuration holds (a
     /// [`TrajectorySpec`] is part of it): a line from the first waypoint
     /// along the first leg at `max_speed_m_s`. A route run never samples
@@ -566,6 +581,7 @@ impl RouteSpec {
         Ok(RouteSetup {
             waypoints,
             limits,
+            limits_spec: self.limits_spec(),
             options,
             start: self.start.into(),
             settle_s,

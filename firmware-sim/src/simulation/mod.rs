@@ -41,7 +41,7 @@ mod summary;
 mod target;
 
 pub use summary::error_stats;
-pub use target::{TargetLink, hil_configuration, hil_map_chunks};
+pub use target::{TargetLink, hil_configuration, hil_map_chunks, hil_route_messages};
 
 use rig::Rig;
 use summary::summarize;
@@ -78,7 +78,9 @@ pub fn run_with_target(
     progress: impl FnMut(u64, u64),
 ) -> anyhow::Result<RunResult> {
     let setup = scenario.validate()?;
-    let rig = Rig::remote(&setup, target)?;
+    let mut storage = target::ShadowStorage::new();
+    let shadow = target::RouteShadow::new(&setup, &mut storage)?;
+    let rig = Rig::remote(&setup, target, shadow)?;
     simulate(scenario, setup, rig, progress)
 }
 

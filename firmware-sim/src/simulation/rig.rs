@@ -3,14 +3,12 @@
 //! tick over a [`super::TargetLink`], and the record of a tick.
 
 use wmr_core::control::saturated::TrackingController;
-use wmr_core::devices::TagLocator as _;
 use wmr_core::devices::{QuadratureCounter, RfidReader};
 use wmr_core::geometry::HeadingEstimate;
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
 use wmr_core::odometry::OdometryStep;
-use wmr_core::pilot::robot::{Motor, Robot, RobotCounters};
+use wmr_core::pilot::robot::{Motor, Robot};
 use wmr_core::pilot::route::RouteFollower;
-use wmr_core::pilot::tracker::TagFix;
 use wmr_core::pilot::tracker::{OutputFeedbackTracker, TrackerMode};
 use wmr_core::pilot::{Measurement, Pilot, PilotConfig};
 use wmr_core::reference::{TickClock, Trajectory};
@@ -27,7 +25,7 @@ use crate::tags::Floor;
 
 use super::hardware::{Devices, Hardware, SimRobot, VirtualMotor};
 use super::sources::FixSource;
-use super::target::{TargetLink, hil_configuration};
+use super::target::{RouteShadow, TargetLink, hil_configuration};
 
 /// What the controller side produced at one tick.
 struct Outcome {
@@ -93,12 +91,15 @@ pub(super) enum Rig<'t> {
         route: Option<Box<RouteFollower>>,
     },
     /// Diff drive + the core's Pilot on a route, with the reader: the
-    /// core's `Robot::tick` (which steps the pilot on its configured
-    /// trajectory) with `Pilot::step_route` in its place.
+    /// firmware's robot (`wmr_link::robot::RouteRobot`, the core's
+    /// `Robot::tick` with `Pilot::step_route` in its place), the same
+    /// code the firmware ticks a route with.
     RouteRobot {
         hw: Hardware,
-        robot: Box<RouteRobot>,
+        robot: Box<SimRouteRobot>,
+        route: Box<RouteFollower>,
         reader: VirtualRfidReader,
+        floor: Floor,
     },
     /// Diff drive + reader, with the robot's tick on a [`TargetLink`].
     Remote {
@@ -111,11 +112,18 @@ pub(super) enum Rig<'t> {
         target: &'t mut dyn TargetLink,
         last: Diagnostics,
         pwm_refusals: u32,
+        /// On a route: the firmware's session on the host, for the
+        /// route's status (`Ticked` does not carry it).
+        shadow: Option<RouteShadow<'t>>,
     },
 }
 
 impl<'t> Rig<'t> {
-    pub(super) fn remote(setup: &Setup, target: &'t mut dyn TargetLink) -> anyhow::Result<Self> {
+    pub(super) fn remote(
+        setup: &Setup,
+        target: &'t mut dyn TargetLink,
+        shadow: Option<RouteShadow<'t>>,
+    ) -> anyhow::Result<Self> {
         hil_configuration(setup)?;
         let (
             PlantSetup::DiffDrive {
@@ -157,6 +165,7 @@ impl<'t> Rig<'t> {
             target,
             last: Diagnostics::default(),
             pwm_refusals: 0,
+            shadow,
         })
     }
 
@@ -209,16 +218,16 @@ impl<'t> Rig<'t> {
                         let (reader, uart) = VirtualRfidReader::new(*config, floor.clone());
                         Self::RouteRobot {
                             hw,
-                            robot: Box::new(RouteRobot {
+                            robot: Box::new(SimRouteRobot::new(
                                 pilot,
-                                encoders: devices.encoders,
-                                motors: devices.motors,
-                                rfid: RfidReader::new(uart),
-                                floor: floor.clone(),
-                                route,
-                                counters: RobotCounters::default(),
-                            }),
+                                devices.encoders,
+                                devices.motors,
+                                RfidReader::new(uart),
+                                floor.clone(),
+                            )),
+                            route,
                             reader,
+                            floor: floor.clone(),
                         }
                     }
                     (PositionSetup::Reader(floor, config), None) => {
@@ -372,13 +381,19 @@ impl<'t> Rig<'t> {
                     ..Outcome::of_tracker(&out.tracker)
                 }
             }
-            Self::RouteRobot { hw, robot, reader } => {
+            Self::RouteRobot {
+                hw,
+                robot,
+                route,
+                reader,
+                ..
+            } => {
                 reader.update(t_s, &pose);
-                let out = robot.tick();
-                hw.note(out.drive.speed_limited, out.drive.accel_limited);
+                let out = robot.tick(Some(route));
+                hw.note(out.pilot.drive.speed_limited, out.pilot.drive.accel_limited);
                 Outcome {
                     duties: Some(hw.duties()),
-                    ..Outcome::of_tracker(&out.tracker)
+                    ..Outcome::of_tracker(&out.pilot.tracker)
                 }
             }
             Self::Remote {
@@ -389,6 +404,7 @@ impl<'t> Rig<'t> {
                 uart,
                 target,
                 pwm_refusals,
+                shadow,
                 ..
             } => {
                 reader.update(t_s, &pose);
@@ -399,6 +415,9 @@ impl<'t> Rig<'t> {
                     uart: drain_uart(uart),
                 };
                 let out = target.tick(&input)?;
+                if let Some(shadow) = shadow {
+                    shadow.tick(&input);
+                }
                 anyhow::ensure!(
                     out.tick == k,
                     "the firmware answered tick {} to tick {k}",
@@ -451,8 +470,9 @@ impl<'t> Rig<'t> {
     pub(super) fn route(&self) -> Option<&RouteFollower> {
         match self {
             Self::Tracker { route, .. } | Self::Pilot { route, .. } => route.as_deref(),
-            Self::RouteRobot { robot, .. } => Some(&robot.route),
-            _ => None,
+            Self::RouteRobot { route, .. } => Some(route),
+            Self::Remote { shadow, .. } => shadow.as_ref().and_then(RouteShadow::follower),
+            Self::Controller { .. } | Self::Robot { .. } => None,
         }
     }
 
@@ -476,63 +496,15 @@ fn follower(setup: &Setup) -> Option<Box<RouteFollower>> {
     Some(follower)
 }
 
-/// The core's `Robot::tick` on a route: the same devices and counters, the
-/// pilot stepped with `Pilot::step_route` (the core's `Robot` steps its
-/// configured trajectory).
-pub(super) struct RouteRobot {
-    pub(super) pilot: Pilot,
-    encoders: (VirtualEncoder, VirtualEncoder),
-    motors: (VirtualMotor, VirtualMotor),
-    pub(super) rfid: RfidReader<VirtualUart>,
-    pub(super) floor: Floor,
-    pub(super) route: Box<RouteFollower>,
-    pub(super) counters: RobotCounters,
-}
-
-impl RouteRobot {
-    /// `Robot::tick`, line for line, with `step_route`.
-    fn tick(&mut self) -> wmr_core::pilot::PilotOutput {
-        let c = &mut self.counters;
-        let left_count = self.encoders.0.raw_count().ok();
-        if left_count.is_none() {
-            c.left_encoder_errors = c.left_encoder_errors.saturating_add(1);
-        }
-        let right_count = self.encoders.1.raw_count().ok();
-        if right_count.is_none() {
-            c.right_encoder_errors = c.right_encoder_errors.saturating_add(1);
-        }
-        let fix = self
-            .rfid
-            .poll_read()
-            .and_then(|read| match self.floor.locate(read.id) {
-                Some(position) => Some(TagFix {
-                    position,
-                    age_ticks: read.age_ticks,
-                }),
-                None => {
-                    c.unknown_tags = c.unknown_tags.saturating_add(1);
-                    None
-                }
-            });
-        let out = self.pilot.step_route(
-            &Measurement {
-                left_count,
-                right_count,
-                fix,
-            },
-            &mut self.route,
-        );
-        for result in [
-            drive(&mut self.motors.0, out.left),
-            drive(&mut self.motors.1, out.right),
-        ] {
-            if !result {
-                c.motor_faults = c.motor_faults.saturating_add(1);
-            }
-        }
-        out
-    }
-}
+/// The firmware's route robot on the simulator's devices.
+pub(super) type SimRouteRobot = wmr_link::robot::RouteRobot<
+    VirtualEncoder,
+    VirtualEncoder,
+    VirtualMotor,
+    VirtualMotor,
+    VirtualUart,
+    Floor,
+>;
 
 /// Every byte the UART has ready now, up to what one link frame carries
 /// (the rest stays on the line for the next tick, as in a local run).

@@ -100,15 +100,21 @@ pub(super) fn summarize(
             Some(hw.report(last.pilot, last.robot.motor_faults + *pwm_refusals)),
             Some(floor.len()),
         ),
-        Rig::RouteRobot { hw, robot, reader } => (
-            Some(TrackerReport::of(robot.pilot.tracker())),
+        Rig::RouteRobot {
+            hw,
+            robot,
+            reader,
+            floor,
+            ..
+        } => (
+            Some(TrackerReport::of(robot.pilot().tracker())),
             Some(rfid_report(
-                robot.rfid.counters(),
-                robot.counters.unknown_tags,
+                robot.rfid_counters(),
+                robot.counters().unknown_tags,
                 reader.counters(),
             )),
-            Some(hw.report(robot.pilot.counters(), robot.counters.motor_faults)),
-            Some(robot.floor.len()),
+            Some(hw.report(robot.pilot().counters(), robot.counters().motor_faults)),
+            Some(floor.len()),
         ),
         Rig::Pilot {
             hw,
@@ -165,13 +171,15 @@ pub(super) fn summarize(
         wall_time_s: wall_s,
         hil: None,
         route: match (&setup.route, rig.route()) {
-            (Some(route), Some(follower)) => Some(route_report(
-                route,
-                follower,
-                records,
-                route_ticks,
-                setup.period_s,
-            )),
+            (Some(route), Some(follower)) => {
+                let mut report =
+                    route_report(route, follower, records, route_ticks, setup.period_s);
+                // A HIL run reports the firmware's own counters.
+                if let Rig::Remote { last, .. } = rig {
+                    report.counters = last.route;
+                }
+                Some(report)
+            }
             _ => None,
         },
     }

@@ -1,10 +1,15 @@
 //! The control tick run elsewhere: the [`TargetLink`] a remote robot (the
 //! firmware under QEMU) answers on, and the configuration it needs.
 
+use std::cell::RefCell;
 use wmr_core::devices::tag_grid::TagGridSpec;
+
+use wmr_core::pilot::route::RouteFollower;
+use wmr_link::proxy::ProxyBus;
+use wmr_link::session::{LinkTagMap, RouteStore, Session};
 use wmr_link::{
-    Configure, Diagnostics, FloorSpec, MAP_CAPACITY, MAP_CHUNK_TAGS, MapChunk, MapTag, TickInput,
-    TickOutput,
+    Configure, Diagnostics, FloorSpec, HostMessage, LinkCounters, MAP_CAPACITY, MAP_CHUNK_TAGS,
+    MapChunk, MapTag, TargetMessage, TickInput, TickOutput,
 };
 
 use crate::scenario::{PlantSetup, PositionSetup, Setup};
@@ -34,20 +39,13 @@ pub trait TargetLink {
 /// What the firmware must be configured with to run `setup` (diff-drive
 /// plant with a reader only: the firmware's devices are encoders, motors
 /// and the reader's UART). A tag-map floor is announced
-/// ([`FloorSpec::Map`]); its tags follow in [`hil_map_chunks`].
+/// ([`FloorSpec::Map`]); its tags follow in [`hil_map_chunks`], and a
+/// route's messages in [`hil_route_messages`].
 ///
 /// # Errors
-/// A route (which the link does not carry yet), a scenario whose position
-/// source or plant no device delivers, or a tag map larger than the
-/// firmware holds ([`MAP_CAPACITY`]).
+/// A scenario whose position source or plant no device delivers, or a
+/// tag map larger than the firmware holds ([`MAP_CAPACITY`]).
 pub fn hil_configuration(setup: &Setup) -> anyhow::Result<Configure> {
-    // The link's `Configure` carries an analytic reference only.
-    if setup.route.is_some() {
-        anyhow::bail!(
-            "routes do not cross the HIL link yet (reference.kind = \"route\"): the firmware \
-             is configured with an analytic reference only; run the route with `firmware-sim run`"
-        );
-    }
     let (
         PlantSetup::DiffDrive {
             pwm_max_duty,
@@ -121,6 +119,98 @@ pub fn hil_map_chunks(setup: &Setup) -> anyhow::Result<Vec<MapChunk>> {
             })
         })
         .collect()
+}
+
+/// The messages that load `setup`'s route once the firmware is
+/// configured (none for an analytic reference): the announcement and the
+/// waypoints in chunks ([`wmr_link::route_messages`]), each sent after the
+/// answer to the one before.
+#[must_use]
+pub fn hil_route_messages(setup: &Setup) -> Vec<HostMessage> {
+    setup.route.as_ref().map_or_else(Vec::new, |route| {
+        let spec = route.spec();
+        wmr_link::route_messages(&route.waypoints, spec.limits, &route.options, spec.start)
+            .collect()
+    })
+}
+
+/// Storage a [`RouteShadow`] lends its session: the link's proxies, tag
+/// map and route store, as the QEMU board holds them (the route store is
+/// about 24 KB: on the heap).
+pub(super) struct ShadowStorage {
+    bus: ProxyBus,
+    map: RefCell<LinkTagMap>,
+    route: Box<RouteStore>,
+}
+
+impl ShadowStorage {
+    pub(super) fn new() -> Self {
+        Self {
+            bus: ProxyBus::new(),
+            map: RefCell::new(LinkTagMap::new()),
+            route: Box::new(RouteStore::new()),
+        }
+    }
+}
+
+/// The firmware's session (`wmr_link::session`, the code the QEMU board
+/// runs) on the host, beside a HIL run of a route, fed the same messages.
+/// The link's `Ticked` carries no route status; the run takes it from
+/// here: where the route starts (the record's reference before it),
+/// when it is done (the run ends `settle_s` later) and the follower the
+/// route's report is made from. The records themselves are the
+/// firmware's answers.
+pub(super) struct RouteShadow<'s> {
+    session: Session<'s>,
+}
+
+impl<'s> RouteShadow<'s> {
+    /// A session configured as the firmware is for `setup` (none without a
+    /// route).
+    ///
+    /// # Errors
+    /// The session refusing the configuration, its map or its route (the
+    /// firmware refuses the same).
+    pub(super) fn new(
+        setup: &Setup,
+        storage: &'s mut ShadowStorage,
+    ) -> anyhow::Result<Option<Self>> {
+        if setup.route.is_none() {
+            return Ok(None);
+        }
+        let mut session = Session::new(&storage.bus, &storage.map, &mut storage.route);
+        let messages = core::iter::once(HostMessage::Configure(hil_configuration(setup)?))
+            .chain(
+                hil_map_chunks(setup)?
+                    .into_iter()
+                    .map(HostMessage::MapChunk),
+            )
+            .chain(hil_route_messages(setup));
+        let mut last = None;
+        for message in messages {
+            let (answer, _) = session.handle(&message, LinkCounters::default(), || 0);
+            if let TargetMessage::Refused(why) = answer {
+                anyhow::bail!("the host's copy of the firmware's session refused the run: {why}");
+            }
+            last = Some(answer);
+        }
+        anyhow::ensure!(
+            last == Some(TargetMessage::Configured) && session.is_configured(),
+            "the host's copy of the firmware's session was not configured: {last:?}"
+        );
+        Ok(Some(Self { session }))
+    }
+
+    /// Runs the tick the firmware was sent.
+    pub(super) fn tick(&mut self, input: &TickInput) {
+        let message = HostMessage::Tick(input.clone());
+        let _ = self.session.handle(&message, LinkCounters::default(), || 0);
+    }
+
+    /// The route's follower.
+    pub(super) fn follower(&self) -> Option<&RouteFollower> {
+        self.session.route_follower()
+    }
 }
 
 #[cfg(test)]

@@ -318,9 +318,15 @@ impl<'a> Session<'a> {
     /// The route's status (`None`: the run has no route).
     #[must_use]
     pub fn route_status(&self) -> Option<RouteStatus> {
-        self.route_load
-            .and_then(|_| self.route.follower())
-            .map(RouteFollower::status)
+        self.route_follower().map(RouteFollower::status)
+    }
+
+    /// The route's follower (`None`: the run has no route): its plan,
+    /// status and counters, for a host that runs a session beside the
+    /// firmware's.
+    #[must_use]
+    pub fn route_follower(&self) -> Option<&RouteFollower> {
+        self.route_load.and_then(|_| self.route.follower())
     }
 
     /// Handles one message; `link` are the receiver's counters and
