@@ -3,7 +3,9 @@
 //! [`Robot::tick`] is the whole control tick of the firmware and of the
 //! simulator's full-stack runs: read both encoder counters, drain the RFID
 //! reader's UART (non-blocking, bounded work), look the tag up in the
-//! [`TagLocator`] (a tag table or a computed grid), run the [`Pilot`], write both motors. Device errors never
+//! [`TagLocator`] (a tag table or a computed grid), run the [`Pilot`] (on
+//! its trajectory, or on a route the caller lends: [`Robot::tick_on`]),
+//! write both motors. Device errors never
 //! stop the tick: each one is counted in [`RobotCounters`] and becomes a
 //! documented input to the pilot (a failed encoder read is a missing
 //! count; an unknown tag is no fix; a motor write error is retried next
@@ -16,6 +18,7 @@ use embedded_io::{Read, ReadReady};
 use crate::devices::{
     MotorCommand, MotorDriver, MotorFault, QuadratureCounter, RfidCounters, RfidReader, TagLocator,
 };
+use crate::pilot::route::RouteFollower;
 use crate::pilot::tracker::TagFix;
 use crate::pilot::{Measurement, Pilot, PilotOutput};
 
@@ -134,6 +137,13 @@ where
 
     /// One control tick: sense, decide, act.
     pub fn tick(&mut self) -> RobotTick {
+        self.tick_on(None)
+    }
+
+    /// One control tick on `route` if given ([`Pilot::step_route`], the
+    /// follower the caller's, lent each tick), else on the pilot's
+    /// trajectory ([`Pilot::step`], as [`Self::tick`]): sense, decide, act.
+    pub fn tick_on(&mut self, route: Option<&mut RouteFollower>) -> RobotTick {
         let left_count = self.left_encoder.raw_count().ok();
         if left_count.is_none() {
             self.counters.left_encoder_errors = self.counters.left_encoder_errors.saturating_add(1);
@@ -158,11 +168,15 @@ where
                     None
                 }
             });
-        let pilot = self.pilot.step(&Measurement {
+        let measurement = Measurement {
             left_count,
             right_count,
             fix,
-        });
+        };
+        let pilot = match route {
+            None => self.pilot.step(&measurement),
+            Some(route) => self.pilot.step_route(&measurement, route),
+        };
         let mut motor_fault = None;
         for result in [
             drive_or_stop(&mut self.left_motor, pilot.left),

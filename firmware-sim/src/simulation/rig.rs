@@ -23,7 +23,7 @@ use crate::report::{Mode, Record};
 use crate::scenario::{ControllerKind, PlantSetup, PositionSetup, Setup};
 use crate::tags::Floor;
 
-use super::hardware::{Devices, Hardware, SimRobot, VirtualMotor};
+use super::hardware::{Devices, Hardware, SimRobot};
 use super::sources::FixSource;
 use super::target::{RouteShadow, TargetLink, hil_configuration};
 
@@ -74,12 +74,14 @@ pub(super) enum Rig<'t> {
         source: FixSource,
         last: BodyVelocity,
     },
-    /// Diff drive + the core's Robot (reader source).
+    /// Diff drive + the core's Robot (reader source), on its trajectory
+    /// or on a route: the same robot tick the firmware runs.
     Robot {
         hw: Hardware,
         robot: SimRobot,
         reader: VirtualRfidReader,
         floor: Floor,
+        route: Option<Box<RouteFollower>>,
     },
     /// Diff drive + the core's Pilot (exact / nearest-tag source).
     Pilot {
@@ -89,17 +91,6 @@ pub(super) enum Rig<'t> {
         source: FixSource,
         motor_faults: u32,
         route: Option<Box<RouteFollower>>,
-    },
-    /// Diff drive + the core's Pilot on a route, with the reader: the
-    /// firmware's robot (`wmr_link::robot::RouteRobot`, the core's
-    /// `Robot::tick` with `Pilot::step_route` in its place), the same
-    /// code the firmware ticks a route with.
-    RouteRobot {
-        hw: Hardware,
-        robot: Box<SimRouteRobot>,
-        route: Box<RouteFollower>,
-        reader: VirtualRfidReader,
-        floor: Floor,
     },
     /// Diff drive + reader, with the robot's tick on a [`TargetLink`].
     Remote {
@@ -214,24 +205,8 @@ impl<'t> Rig<'t> {
                 );
                 let pilot = new_pilot(pilot);
                 match (&setup.position, follower(setup)) {
-                    (PositionSetup::Reader(floor, config), Some(route)) => {
-                        let (reader, uart) = VirtualRfidReader::new(*config, floor.clone());
-                        Self::RouteRobot {
-                            hw,
-                            robot: Box::new(SimRouteRobot::new(
-                                pilot,
-                                devices.encoders,
-                                devices.motors,
-                                RfidReader::new(uart),
-                                floor.clone(),
-                            )),
-                            route,
-                            reader,
-                            floor: floor.clone(),
-                        }
-                    }
-                    (PositionSetup::Reader(floor, config), None) => {
-                        Self::robot(hw, devices, pilot, floor.clone(), *config)
+                    (PositionSetup::Reader(floor, config), route) => {
+                        Self::robot(hw, devices, pilot, floor.clone(), *config, route)
                     }
                     (_, route) => Self::Pilot {
                         hw,
@@ -252,6 +227,7 @@ impl<'t> Rig<'t> {
         pilot: Pilot,
         floor: Floor,
         config: ReaderConfig,
+        route: Option<Box<RouteFollower>>,
     ) -> Self {
         let (reader, uart) = VirtualRfidReader::new(config, floor.clone());
         let robot = Robot::new(
@@ -266,16 +242,16 @@ impl<'t> Rig<'t> {
             robot,
             reader,
             floor,
+            route,
         }
     }
 
     fn pose(&self) -> PlantPose {
         match self {
             Self::Tracker { plant, .. } | Self::Controller { plant, .. } => plant.pose(),
-            Self::Robot { hw, .. }
-            | Self::Pilot { hw, .. }
-            | Self::RouteRobot { hw, .. }
-            | Self::Remote { hw, .. } => hw.plant.pose(),
+            Self::Robot { hw, .. } | Self::Pilot { hw, .. } | Self::Remote { hw, .. } => {
+                hw.plant.pose()
+            }
         }
     }
 
@@ -341,10 +317,14 @@ impl<'t> Rig<'t> {
                 }
             }
             Self::Robot {
-                hw, robot, reader, ..
+                hw,
+                robot,
+                reader,
+                route,
+                ..
             } => {
                 reader.update(t_s, &pose);
-                let out = robot.tick();
+                let out = robot.tick_on(route.as_deref_mut());
                 hw.note(out.pilot.drive.speed_limited, out.pilot.drive.accel_limited);
                 Outcome {
                     duties: Some(hw.duties()),
@@ -379,21 +359,6 @@ impl<'t> Rig<'t> {
                 Outcome {
                     duties: Some(hw.duties()),
                     ..Outcome::of_tracker(&out.tracker)
-                }
-            }
-            Self::RouteRobot {
-                hw,
-                robot,
-                route,
-                reader,
-                ..
-            } => {
-                reader.update(t_s, &pose);
-                let out = robot.tick(Some(route));
-                hw.note(out.pilot.drive.speed_limited, out.pilot.drive.accel_limited);
-                Outcome {
-                    duties: Some(hw.duties()),
-                    ..Outcome::of_tracker(&out.pilot.tracker)
                 }
             }
             Self::Remote {
@@ -457,10 +422,7 @@ impl<'t> Rig<'t> {
             Self::Tracker { plant, last, .. } | Self::Controller { plant, last, .. } => {
                 plant.step(f64::from(last.v_m_s), f64::from(last.omega_rad_s), dt_s);
             }
-            Self::Robot { hw, .. }
-            | Self::Pilot { hw, .. }
-            | Self::RouteRobot { hw, .. }
-            | Self::Remote { hw, .. } => {
+            Self::Robot { hw, .. } | Self::Pilot { hw, .. } | Self::Remote { hw, .. } => {
                 hw.advance(dt_s);
             }
         }
@@ -469,10 +431,11 @@ impl<'t> Rig<'t> {
     /// The route's follower, on a route run.
     pub(super) fn route(&self) -> Option<&RouteFollower> {
         match self {
-            Self::Tracker { route, .. } | Self::Pilot { route, .. } => route.as_deref(),
-            Self::RouteRobot { route, .. } => Some(route),
+            Self::Tracker { route, .. } | Self::Pilot { route, .. } | Self::Robot { route, .. } => {
+                route.as_deref()
+            }
             Self::Remote { shadow, .. } => shadow.as_ref().and_then(RouteShadow::follower),
-            Self::Controller { .. } | Self::Robot { .. } => None,
+            Self::Controller { .. } => None,
         }
     }
 
@@ -480,7 +443,7 @@ impl<'t> Rig<'t> {
         match self {
             Self::Tracker { .. } => "tracker",
             Self::Controller { .. } => "controller",
-            Self::Robot { .. } | Self::RouteRobot { .. } => "robot",
+            Self::Robot { .. } => "robot",
             Self::Pilot { .. } => "pilot",
             Self::Remote { .. } => "firmware",
         }
@@ -495,16 +458,6 @@ fn follower(setup: &Setup) -> Option<Box<RouteFollower>> {
     follower.load(&route.waypoints, &route.limits, route.start);
     Some(follower)
 }
-
-/// The firmware's route robot on the simulator's devices.
-pub(super) type SimRouteRobot = wmr_link::robot::RouteRobot<
-    VirtualEncoder,
-    VirtualEncoder,
-    VirtualMotor,
-    VirtualMotor,
-    VirtualUart,
-    Floor,
->;
 
 /// Every byte the UART has ready now, up to what one link frame carries
 /// (the rest stays on the line for the next tick, as in a local run).

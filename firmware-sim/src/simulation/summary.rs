@@ -70,6 +70,7 @@ pub(super) fn summarize(
             robot,
             reader,
             floor,
+            ..
         } => (
             Some(TrackerReport::of(robot.pilot().tracker())),
             Some(rfid_report(
@@ -98,22 +99,6 @@ pub(super) fn summarize(
                 reader.counters(),
             )),
             Some(hw.report(last.pilot, last.robot.motor_faults + *pwm_refusals)),
-            Some(floor.len()),
-        ),
-        Rig::RouteRobot {
-            hw,
-            robot,
-            reader,
-            floor,
-            ..
-        } => (
-            Some(TrackerReport::of(robot.pilot().tracker())),
-            Some(rfid_report(
-                robot.rfid_counters(),
-                robot.counters().unknown_tags,
-                reader.counters(),
-            )),
-            Some(hw.report(robot.pilot().counters(), robot.counters().motor_faults)),
             Some(floor.len()),
         ),
         Rig::Pilot {
@@ -166,7 +151,7 @@ pub(super) fn summarize(
             Rig::Tracker { source, .. }
             | Rig::Controller { source, .. }
             | Rig::Pilot { source, .. } => source.measurement_report(),
-            Rig::Robot { .. } | Rig::RouteRobot { .. } | Rig::Remote { .. } => None,
+            Rig::Robot { .. } | Rig::Remote { .. } => None,
         },
         wall_time_s: wall_s,
         hil: None,

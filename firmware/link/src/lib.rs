@@ -116,7 +116,6 @@
 
 pub mod image;
 pub mod proxy;
-pub mod robot;
 pub mod session;
 pub mod telemetry;
 

@@ -13,19 +13,19 @@
 //! the board lends the session, its alone (`&mut`): the waypoints are
 //! pushed in place into its `Waypoints`, planned once into its scratch
 //! `RoutePlan` to check them, and handed to its `RouteFollower`, which the
-//! robot's tick is lent ([`RouteRobot::tick`]).
+//! robot's tick is lent ([`Robot::tick_on`]).
 
 use core::cell::RefCell;
 
 use wmr_core::devices::{MotorDriver, MotorWiring, TagGrid, TagId, TagLocator, TagMap};
 use wmr_core::geometry::Vec2;
 use wmr_core::pilot::Pilot;
+use wmr_core::pilot::robot::Robot;
 use wmr_core::pilot::route::{RouteFollower, RouteOptions, RouteStart, RouteStatus};
 use wmr_core::pilot::spec::SpecError;
 use wmr_core::reference::route::{ROUTE_CAPACITY, RouteLimits, RoutePlan, Waypoint, Waypoints};
 
 use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
-use crate::robot::RouteRobot;
 use crate::route::CAPACITY_U8;
 use crate::{
     Configure, Diagnostics, Finished, FloorSpec, HostMessage, LinkCounters, MAP_CAPACITY, MapChunk,
@@ -137,7 +137,7 @@ impl RouteStore {
         }
     }
 
-    /// The follower, to lend the robot's tick ([`RouteRobot::tick`]).
+    /// The follower, to lend the robot's tick ([`Robot::tick_on`]).
     pub fn follower_mut(&mut self) -> Option<&mut RouteFollower> {
         match &mut self.slot {
             Slot::Follower(f) => Some(f),
@@ -230,9 +230,8 @@ impl RouteLoad {
     }
 }
 
-/// The robot a HIL session runs: the core's robot tick ([`RouteRobot`])
-/// on proxy devices.
-pub type ProxyRobot<'a> = RouteRobot<
+/// The robot a HIL session runs: the core's [`Robot`] on proxy devices.
+pub type ProxyRobot<'a> = Robot<
     ProxyEncoder<'a>,
     ProxyEncoder<'a>,
     MotorDriver<ProxyPwm<'a>, ProxyPin<'a>>,
@@ -367,7 +366,7 @@ impl<'a> Session<'a> {
                     (Some(robot), _) => {
                         self.bus.load(input);
                         let route = self.route_load.and_then(|_| self.route.follower_mut());
-                        let out = robot.tick(route);
+                        let out = robot.tick_on(route);
                         // A few scalars, not `&out`: taking the tick's address
                         // kept all of it in this (inlined, deepest) frame.
                         let extra = telemetry::Extra::of(&out);
@@ -497,7 +496,7 @@ impl<'a> Session<'a> {
                         MotorWiring::default(),
                     )
                 };
-                self.robot = Some(RouteRobot::new(
+                self.robot = Some(Robot::new(
                     pilot,
                     (bus.encoder(Side::Left), bus.encoder(Side::Right)),
                     (motor(Side::Left), motor(Side::Right)),
@@ -721,7 +720,6 @@ mod tests {
     use wmr_core::devices::TagMapError;
     use wmr_core::devices::encode_frame;
     use wmr_core::devices::tag_grid::TagGridSpec;
-    use wmr_core::pilot::robot::Robot;
     use wmr_core::pilot::route::{RouteCounters, RouteOptionsError};
     use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
     use wmr_core::pilot::tracker::TrackerMode;

@@ -134,12 +134,12 @@ use stm32f4xx_hal::watchdog::IndependentWatchdog;
 use wmr_core::devices::{MotorDriver, MotorWiring, RfidReader};
 use wmr_core::drive::spec::DriveSpec;
 use wmr_core::estimation::heading_observer::HeadingObserverConfig;
+use wmr_core::pilot::robot::Robot;
 use wmr_core::pilot::robot::RobotTick;
 use wmr_core::pilot::spec::{PilotSpec, SpecError, TrackerSpec};
 use wmr_core::pilot::tracker::{TrackerConfig, TrackerMode};
 use wmr_core::pilot::{Pilot, PilotConfig};
 use wmr_core::reference::TrajectorySpec;
-use wmr_link::robot::RouteRobot;
 use wmr_link::telemetry::{self, Start};
 
 use devices::{Encoder, LineErrors, RfidPump, RfidUart};
@@ -346,7 +346,7 @@ type RightMotor<'a> = MotorDriver<PwmChannel<'a, 2>, PB13<Output<PushPull>>>;
 /// The on-board LED (active low).
 type Led = PC13<Output<PushPull>>;
 /// The robot on this board's devices.
-type BoardRobot<'a> = RouteRobot<
+type BoardRobot<'a> = Robot<
     Encoder<pac::TIM3>,
     Encoder<pac::TIM4>,
     LeftMotor<'a>,
@@ -543,7 +543,7 @@ pub fn run() -> ! {
             }
         }
     };
-    let mut robot: BoardRobot<'_> = RouteRobot::new(
+    let mut robot: BoardRobot<'_> = Robot::new(
         pilot,
         (left_encoder, right_encoder),
         (left_motor, right_motor),
@@ -571,9 +571,9 @@ pub fn run() -> ! {
         let overrun = wait_for_tick(&mut tick_timer, &mut pump);
         let started = DWT::cycle_count();
         #[cfg(wmr_robot_image)]
-        let step = robot.tick(route.as_deref_mut());
+        let step = robot.tick_on(route.as_deref_mut());
         #[cfg(not(wmr_robot_image))]
-        let step = robot.tick(None);
+        let step = robot.tick();
         watchdog.feed();
         if telemetry::is_emitted(step.pilot.tracker.tick, telemetry_every) {
             crate::telemetry::record(&telemetry::Record::of(

@@ -46,7 +46,7 @@ const TICK_LIMITS: RouteLimitsSpec = RouteLimitsSpec {
 
 #[inline(never)]
 fn robot_route_tick(robot: &mut ProxyRobot<'_>, follower: &mut RouteFollower) -> RobotTick {
-    robot.tick(Some(follower))
+    robot.tick_on(Some(follower))
 }
 
 /// The whole tick of `tick.rs` (`robot_tick`: the firmware's robot on the

@@ -12,13 +12,13 @@ use wmr_core::estimation::heading_observer::HeadingObserver;
 use wmr_core::geometry::HeadingEstimate;
 use wmr_core::geometry::{BodyVelocity, DiffDriveGeometry, Vec2};
 use wmr_core::odometry::{OdometryStep, WrappingCounter};
+use wmr_core::pilot::robot::Robot;
 use wmr_core::pilot::robot::RobotTick;
 use wmr_core::pilot::tracker::TagFix;
 use wmr_core::pilot::{Measurement, Pilot, PilotOutput};
 use wmr_core::reference::ReferenceSample;
 use wmr_link::TickInput;
 use wmr_link::proxy::{ProxyBus, Side};
-use wmr_link::robot::RouteRobot;
 use wmr_link::session::{ProxyRobot, SessionFloor};
 
 use super::fail;
@@ -78,7 +78,7 @@ fn pilot_step(pilot: &mut Pilot, measurement: &Measurement) -> PilotOutput {
 
 #[inline(never)]
 pub(super) fn robot_tick(robot: &mut ProxyRobot<'_>) -> RobotTick {
-    robot.tick(None)
+    robot.tick()
 }
 
 /// The firmware's robot on the HIL link's proxies of `bus` (reset to
@@ -92,7 +92,7 @@ pub(super) fn proxy_robot(bus: &ProxyBus, pilot: Pilot, grid: TagGrid) -> ProxyR
             MotorWiring::default(),
         )
     };
-    RouteRobot::new(
+    Robot::new(
         pilot,
         (bus.encoder(Side::Left), bus.encoder(Side::Right)),
         (motor(Side::Left), motor(Side::Right)),
