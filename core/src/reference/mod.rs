@@ -31,7 +31,7 @@
 //!   `(w + δ)·h`, `w` the whole ticks since the epoch's first tick:
 //!   `k·h` exactly, bit for bit as [`TickClock::time_s`], through the
 //!   first five turns (the 480 s paper figure-eight is 1.5 turns, every
-//!   scenario of the simulator is within 3.2: they sample as before).
+//!   scenario of the simulator is within 3.2: each samples at `k·h`).
 //!   The phase does not depend on the caller's `u32` tick count, so it
 //!   goes on past its wrap (497 days at 100 Hz);
 //!   [`ReferenceClock::at_tick`] gives any tick's time directly (the
