@@ -36,6 +36,12 @@ impl Vec2 {
         math::hypot(self.x, self.y)
     }
 
+    /// The dot product `self·other`.
+    #[must_use]
+    pub fn dot(self, other: Self) -> f32 {
+        self.x * other.x + self.y * other.y
+    }
+
     /// Both components finite.
     #[must_use]
     pub fn is_finite(self) -> bool {

@@ -118,6 +118,11 @@ fn format_route(o: &mut String, r: &crate::report::RouteReport) {
         c.routes_refused,
         c.routes_done
     );
+    let _ = writeln!(
+        o,
+        "route clock   waited {} ticks for a lagging robot  approach {} ticks  approach timeouts {}",
+        c.clock_wait_ticks, c.approach_ticks, c.approach_timeouts
+    );
 }
 
 /// The summary as text for a terminal.

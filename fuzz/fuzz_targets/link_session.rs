@@ -316,11 +316,14 @@ impl Harness<'_> {
                 pivot_gain_per_s: f(u, 5.0)?,
                 position_tolerance_m: f(u, 0.01)?,
                 heading_tolerance_rad: f(u, 0.02)?,
+                max_lag_m: f(u, 0.05)?,
+                approach_speed_m_s: f(u, 0.05)?,
+                approach_timeout_s: f(u, 5.0)?,
             },
-            start: if u.arbitrary()? {
-                RouteStart::AsGiven
-            } else {
-                RouteStart::FromFirstFix
+            start: match u.int_in_range(0..=2u8)? {
+                0 => RouteStart::AsGiven,
+                1 => RouteStart::FromFirstFix,
+                _ => RouteStart::AsGivenHeadingKnown,
             },
         }))
     }

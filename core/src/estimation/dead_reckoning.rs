@@ -32,6 +32,9 @@ pub trait PositionObserver {
 
     /// Updates skipped for non-finite input.
     fn rejected_updates(&self) -> u32;
+
+    /// The heading estimate set to `(cos θ, sin θ)` of a known heading.
+    fn assume_heading(&mut self, heading_rad: f32);
 }
 
 impl PositionObserver for HeadingObserver {
@@ -48,6 +51,10 @@ impl PositionObserver for HeadingObserver {
 
     fn rejected_updates(&self) -> u32 {
         HeadingObserver::rejected_updates(self)
+    }
+
+    fn assume_heading(&mut self, heading_rad: f32) {
+        HeadingObserver::assume_heading(self, heading_rad);
     }
 }
 
@@ -69,6 +76,18 @@ impl PositionObserver for PoseObserver {
 
     fn rejected_updates(&self) -> u32 {
         PoseObserver::rejected_updates(self)
+    }
+
+    fn assume_heading(&mut self, heading_rad: f32) {
+        if heading_rad.is_finite() {
+            let (sin_theta, cos_theta) = crate::math::sincos(heading_rad);
+            let e = self.estimate();
+            self.reset(PoseEstimate {
+                cos_theta,
+                sin_theta,
+                ..e
+            });
+        }
     }
 }
 
@@ -129,6 +148,10 @@ impl<O: PositionObserver> PoseEstimator for DeadReckoning<O> {
 
     fn blind_distance_lost(&self) -> Option<bool> {
         None
+    }
+
+    fn assume_heading(&mut self, heading_rad: f32) {
+        self.observer.assume_heading(heading_rad);
     }
 }
 

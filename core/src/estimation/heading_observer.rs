@@ -190,6 +190,18 @@ impl HeadingObserver {
         self.estimate
     }
 
+    /// Sets `ẑ = (cos θ, sin θ)` for a heading `θ` known from outside
+    /// (rad, counter-clockwise from +x); a non-finite one is ignored.
+    pub fn assume_heading(&mut self, heading_rad: f32) {
+        if heading_rad.is_finite() {
+            let (sin_theta, cos_theta) = crate::math::sincos(heading_rad);
+            self.estimate = HeadingEstimate {
+                cos_theta,
+                sin_theta,
+            };
+        }
+    }
+
     /// Updates skipped because an input was not finite.
     #[must_use]
     pub fn rejected_updates(&self) -> u32 {

@@ -47,4 +47,10 @@ pub trait PoseEstimator {
     /// Whether the estimator's own failsafe takes the fix as lost (`None`:
     /// it has none, and the tracker's fix timeout decides).
     fn blind_distance_lost(&self) -> Option<bool>;
+
+    /// Takes `heading_rad` (counter-clockwise from +x) as the robot's
+    /// heading now, known from outside (a robot parked facing a known
+    /// way: [`crate::pilot::route::RouteStart::AsGivenHeadingKnown`]). A
+    /// non-finite heading is ignored.
+    fn assume_heading(&mut self, heading_rad: f32);
 }

@@ -228,4 +228,8 @@ impl PoseEstimator for Estimator {
     fn blind_distance_lost(&self) -> Option<bool> {
         dispatch!(self, blind_distance_lost())
     }
+
+    fn assume_heading(&mut self, heading_rad: f32) {
+        dispatch!(self, assume_heading(heading_rad));
+    }
 }

@@ -117,7 +117,8 @@ use crate::geometry::{BodyVelocity, HeadingEstimate, Vec2};
 use crate::math;
 use crate::reference::ReferenceSample;
 use crate::reference::route::{
-    RouteCursor, RouteError, RouteLimits, RouteMode, RoutePlan, RouteSample, Stop, Waypoints,
+    RouteCursor, RouteError, RouteLimits, RouteMode, RoutePlan, RouteSample, Stop, Waypoint,
+    Waypoints,
 };
 
 /// The shortest heading estimate `|(ĉ, ŝ)|` a pivot steers by: below it
@@ -135,6 +136,22 @@ pub const MIN_HEADING_NORM: f32 = 0.5;
 /// reference covers 0.4 mm and 40 ms below this speed.
 pub const SLOW_SPEED_M_S: f32 = 0.02;
 
+/// The arrival approach's gain on the along-heading distance to the rest
+/// point, 1/s: 1 cm short commands 2 cm/s (under the approach's speed cap).
+pub const APPROACH_GAIN_PER_S: f32 = 2.0;
+
+/// Within this fraction of the position tolerance of the rest point, the
+/// arrival approach only creeps along the robot's heading (turning toward
+/// a point this close would turn the robot after the estimate's noise).
+pub const NEAR_OF_TOLERANCE: f32 = 0.5;
+
+/// The arrival approach ends, in its near radius, once the distance to
+/// the rest point along the robot's heading is within this fraction of the
+/// position tolerance: the estimated stop error is then at most
+/// `√(0.5² + 0.25²)` = 0.56 of the tolerance, leaving the rest to the
+/// estimate's own error.
+pub const ARRIVAL_BAND_OF_TOLERANCE: f32 = 0.25;
+
 /// Where a loaded route's first leg starts, when no route has run before
 /// it (a replacement always starts where the running route rests).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -142,25 +159,56 @@ pub const SLOW_SPEED_M_S: f32 = 0.02;
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[non_exhaustive]
 pub enum RouteStart {
-    /// At the first waypoint, as loaded.
+    /// At the first waypoint, as loaded; the robot is assumed to face the
+    /// first leg (or the first waypoint's heading to face), and the
+    /// estimator is not told so.
     #[default]
     AsGiven,
     /// At the estimated position when the route starts (the robot's first
     /// accepted fix, or its estimate if it has one already): the first
     /// waypoint's position is replaced by it.
     FromFirstFix,
+    /// As [`RouteStart::AsGiven`], and the heading the robot faces there
+    /// is known (a robot parked at its station): when the route starts,
+    /// the estimator takes it as its heading
+    /// ([`crate::estimation::PoseEstimator::assume_heading`]).
+    AsGivenHeadingKnown,
 }
 
-/// Why [`RouteOptions`] were refused.
+/// Why [`RouteOptions`] were refused: the field (its name in
+/// [`RouteOptionsSpec`]) and its range.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[non_exhaustive]
 pub enum RouteOptionsError {
-    /// Pivot gain not finite or outside `(0, 1000]` 1/s.
+    /// `pivot_gain_per_s` not finite or outside `(0, 1000]` 1/s.
     PivotGain,
-    /// A tolerance not finite or not positive.
+    /// `position_tolerance_m` or `heading_tolerance_rad` not finite or
+    /// not positive.
     Tolerance,
+    /// `max_lag_m` not finite or not positive.
+    MaxLag,
+    /// `approach_speed_m_s` not finite or outside `(0, 1]` m/s.
+    ApproachSpeed,
+    /// `approach_timeout_s` not finite or negative.
+    ApproachTimeout,
+}
+
+impl RouteOptionsError {
+    /// The field of [`RouteOptionsSpec`] refused (for
+    /// [`RouteOptionsError::Tolerance`], the position's: the heading's
+    /// shares the variant).
+    #[must_use]
+    pub fn field(&self) -> &'static str {
+        match self {
+            Self::PivotGain => "pivot_gain_per_s",
+            Self::Tolerance => "position_tolerance_m",
+            Self::MaxLag => "max_lag_m",
+            Self::ApproachSpeed => "approach_speed_m_s",
+            Self::ApproachTimeout => "approach_timeout_s",
+        }
+    }
 }
 
 impl core::fmt::Display for RouteOptionsError {
@@ -168,28 +216,72 @@ impl core::fmt::Display for RouteOptionsError {
         f.write_str(match self {
             Self::PivotGain => "pivot_gain_per_s must be in (0, 1000] 1/s",
             Self::Tolerance => "the stop tolerances must be finite and positive",
+            Self::MaxLag => "max_lag_m must be finite and positive",
+            Self::ApproachSpeed => "approach_speed_m_s must be in (0, 1] m/s",
+            Self::ApproachTimeout => "approach_timeout_s must be finite and ≥ 0 s",
         })
     }
 }
 
 impl core::error::Error for RouteOptionsError {}
 
-/// How a route is followed at rest: the pivot gain and the stop
-/// tolerances, each checked once.
+/// [`RouteOptions`] as plain numbers, as a robot file or a link message
+/// gives them; [`RouteOptionsSpec::build`] checks them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct RouteOptionsSpec {
+    /// The pivot's heading gain `k_θ`, 1/s, in `(0, 1000]`.
+    pub pivot_gain_per_s: f32,
+    /// A stop's position tolerance, m, finite and `> 0`.
+    pub position_tolerance_m: f32,
+    /// A stop's heading tolerance, rad, finite and `> 0`.
+    pub heading_tolerance_rad: f32,
+    /// How far the robot may lag the moving reference along the path
+    /// before the route's clock waits for it, m, finite and `> 0`.
+    pub max_lag_m: f32,
+    /// The arrival approach's largest speed, m/s, in `(0, 1]`.
+    pub approach_speed_m_s: f32,
+    /// The longest arrival approach, s, finite and `≥ 0` (0: none).
+    pub approach_timeout_s: f32,
+}
+
+impl Default for RouteOptionsSpec {
+    fn default() -> Self {
+        RouteOptions::default().spec()
+    }
+}
+
+impl RouteOptionsSpec {
+    /// The validated options.
+    ///
+    /// # Errors
+    /// The first field out of its range ([`RouteOptionsError::field`]).
+    pub fn build(&self) -> Result<RouteOptions, RouteOptionsError> {
+        RouteOptions::new(self)
+    }
+}
+
+/// How a route is followed: the pivot gain, the stop tolerances, how far
+/// the clock lets the robot lag, and the arrival approach; each checked
+/// once (module documentation, "The route's clock" and "At rest").
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RouteOptions {
-    pivot_gain_per_s: f32,
-    position_tolerance_m: f32,
-    heading_tolerance_rad: f32,
+    spec: RouteOptionsSpec,
 }
 
 impl Default for RouteOptions {
     fn default() -> Self {
         Self {
-            pivot_gain_per_s: Self::DEFAULT_PIVOT_GAIN_PER_S,
-            position_tolerance_m: Self::DEFAULT_POSITION_TOLERANCE_M,
-            heading_tolerance_rad: Self::DEFAULT_HEADING_TOLERANCE_RAD,
+            spec: RouteOptionsSpec {
+                pivot_gain_per_s: Self::DEFAULT_PIVOT_GAIN_PER_S,
+                position_tolerance_m: Self::DEFAULT_POSITION_TOLERANCE_M,
+                heading_tolerance_rad: Self::DEFAULT_HEADING_TOLERANCE_RAD,
+                max_lag_m: Self::DEFAULT_MAX_LAG_M,
+                approach_speed_m_s: Self::DEFAULT_APPROACH_SPEED_M_S,
+                approach_timeout_s: Self::DEFAULT_APPROACH_TIMEOUT_S,
+            },
         }
     }
 }
@@ -204,49 +296,81 @@ impl RouteOptions {
     pub const DEFAULT_POSITION_TOLERANCE_M: f32 = 0.01;
     /// Default stop heading tolerance, rad (the product goal, 1°).
     pub const DEFAULT_HEADING_TOLERANCE_RAD: f32 = core::f32::consts::PI / 180.0;
+    /// Default largest lag behind the moving reference, m: a robot further
+    /// behind is waited for.
+    pub const DEFAULT_MAX_LAG_M: f32 = 0.05;
+    /// Default arrival approach speed cap, m/s.
+    pub const DEFAULT_APPROACH_SPEED_M_S: f32 = 0.05;
+    /// Default longest arrival approach, s.
+    pub const DEFAULT_APPROACH_TIMEOUT_S: f32 = 5.0;
 
-    /// Options with the pivot gain `k_θ` (1/s) and the stop tolerances
-    /// (m, rad).
+    /// Options from `spec`.
     ///
     /// # Errors
-    /// [`RouteOptionsError::PivotGain`] outside `(0, 1000]`,
-    /// [`RouteOptionsError::Tolerance`] for a tolerance not finite and
-    /// positive.
-    pub fn new(
-        pivot_gain_per_s: f32,
-        position_tolerance_m: f32,
-        heading_tolerance_rad: f32,
-    ) -> Result<Self, RouteOptionsError> {
-        if !(pivot_gain_per_s > 0.0 && pivot_gain_per_s <= 1000.0) {
+    /// The first field out of its range, in the order of
+    /// [`RouteOptionsSpec`]'s fields.
+    pub fn new(spec: &RouteOptionsSpec) -> Result<Self, RouteOptionsError> {
+        let gain = spec.pivot_gain_per_s;
+        if !(gain > 0.0 && gain <= 1000.0) {
             return Err(RouteOptionsError::PivotGain);
         }
         let positive = |x: f32| x.is_finite() && x > 0.0;
-        if !(positive(position_tolerance_m) && positive(heading_tolerance_rad)) {
+        if !(positive(spec.position_tolerance_m) && positive(spec.heading_tolerance_rad)) {
             return Err(RouteOptionsError::Tolerance);
         }
-        Ok(Self {
-            pivot_gain_per_s,
-            position_tolerance_m,
-            heading_tolerance_rad,
-        })
+        if !positive(spec.max_lag_m) {
+            return Err(RouteOptionsError::MaxLag);
+        }
+        if !(spec.approach_speed_m_s > 0.0 && spec.approach_speed_m_s <= 1.0) {
+            return Err(RouteOptionsError::ApproachSpeed);
+        }
+        if !(spec.approach_timeout_s.is_finite() && spec.approach_timeout_s >= 0.0) {
+            return Err(RouteOptionsError::ApproachTimeout);
+        }
+        Ok(Self { spec: *spec })
+    }
+
+    /// The numbers, as [`RouteOptionsSpec`].
+    #[must_use]
+    pub fn spec(&self) -> RouteOptionsSpec {
+        self.spec
     }
 
     /// The pivot's heading gain `k_θ`, 1/s.
     #[must_use]
     pub fn pivot_gain_per_s(&self) -> f32 {
-        self.pivot_gain_per_s
+        self.spec.pivot_gain_per_s
     }
 
     /// The stop position tolerance, m.
     #[must_use]
     pub fn position_tolerance_m(&self) -> f32 {
-        self.position_tolerance_m
+        self.spec.position_tolerance_m
     }
 
     /// The stop heading tolerance, rad.
     #[must_use]
     pub fn heading_tolerance_rad(&self) -> f32 {
-        self.heading_tolerance_rad
+        self.spec.heading_tolerance_rad
+    }
+
+    /// The largest lag behind the moving reference before the clock
+    /// waits, m.
+    #[must_use]
+    pub fn max_lag_m(&self) -> f32 {
+        self.spec.max_lag_m
+    }
+
+    /// The arrival approach's speed cap, m/s.
+    #[must_use]
+    pub fn approach_speed_m_s(&self) -> f32 {
+        self.spec.approach_speed_m_s
+    }
+
+    /// The longest arrival approach, s.
+    #[must_use]
+    pub fn approach_timeout_s(&self) -> f32 {
+        self.spec.approach_timeout_s
     }
 }
 
@@ -269,6 +393,15 @@ pub struct RouteCounters {
     pub routes_refused: u32,
     /// Routes finished: at rest on their last waypoint, settled.
     pub routes_done: u32,
+    /// Ticks the route's clock waited for a robot lagging the moving
+    /// reference by more than [`RouteOptions::max_lag_m`].
+    pub clock_wait_ticks: u32,
+    /// Ticks of arrival approach (the robot driven onto a stop it reached
+    /// short or long), the route's clock standing.
+    pub approach_ticks: u32,
+    /// Arrival approaches ended by [`RouteOptions::approach_timeout_s`]
+    /// rather than by arriving.
+    pub approach_timeouts: u32,
 }
 
 /// A stop's error at a settle, as the estimator knows it.
@@ -316,8 +449,9 @@ pub(crate) enum Steer {
     Law { restart: bool },
     /// Ramp the command to zero, then hold it at exactly zero.
     Hold,
-    /// Turn in place: this body command.
-    Pivot(BodyVelocity),
+    /// This body command: a pivot in place, the tangent hold below
+    /// [`SLOW_SPEED_M_S`], or an arrival approach.
+    Body(BodyVelocity),
 }
 
 /// A route waiting for its tick.
@@ -359,6 +493,12 @@ pub struct RouteFollower {
     holding: bool,
     /// The last tick was slow (below [`SLOW_SPEED_M_S`]): the law restarts.
     was_slow: bool,
+    /// The reference has moved since the last rest: the next rest is an
+    /// arrival, approached before the clock goes on.
+    arriving: bool,
+    /// Ticks of the current arrival approach.
+    approach_ticks: u32,
+
     refused: Option<RouteError>,
     last_stop: Option<StopError>,
     counters: RouteCounters,
@@ -383,6 +523,8 @@ impl RouteFollower {
             done: false,
             holding: false,
             was_slow: false,
+            arriving: false,
+            approach_ticks: 0,
             refused: None,
             last_stop: None,
             counters: RouteCounters {
@@ -393,6 +535,9 @@ impl RouteFollower {
                 routes_started: 0,
                 routes_refused: 0,
                 routes_done: 0,
+                clock_wait_ticks: 0,
+                approach_ticks: 0,
+                approach_timeouts: 0,
             },
         }
     }
@@ -442,9 +587,32 @@ impl RouteFollower {
         }
     }
 
+    /// Starts a loaded route if it may start this tick (module
+    /// documentation, "Loading and replacing a route"). `tracking`: the
+    /// tracker drives this tick. Returns the heading the estimator is to
+    /// take as known, rad, where the route starts with
+    /// [`RouteStart::AsGivenHeadingKnown`].
+    pub(crate) fn start(
+        &mut self,
+        tracking: bool,
+        position: Option<Vec2>,
+        heading: HeadingEstimate,
+        period_s: f32,
+    ) -> Option<f32> {
+        if tracking {
+            self.start_pending(position, heading, period_s)
+        } else {
+            None
+        }
+    }
+
     /// The tick's reference and what to do with it. `tracking`: the
     /// tracker drives this tick (it has a position and the fix is not
-    /// lost); the route's clock advances only then.
+    /// lost); the route's clock advances only then, and only when the
+    /// robot does not lag the moving reference by more than
+    /// [`RouteOptions::max_lag_m`] and is not being driven onto a stop it
+    /// has reached short or long (module documentation, "The route's
+    /// clock").
     pub(crate) fn begin(
         &mut self,
         tracking: bool,
@@ -452,9 +620,6 @@ impl RouteFollower {
         heading: HeadingEstimate,
         period_s: f32,
     ) -> (ReferenceSample, Steer) {
-        if tracking {
-            self.start_pending(position, heading, period_s);
-        }
         if !self.running {
             let at = self.hold_at.or(position).unwrap_or(Vec2::ZERO);
             if tracking {
@@ -463,31 +628,65 @@ impl RouteFollower {
             return (at_rest(at), Steer::Hold);
         }
         let sample = self.plan.sample(&mut self.cursor, self.elapsed_ticks);
-        if tracking {
-            self.elapsed_ticks = self.elapsed_ticks.saturating_add(1);
-        }
         self.sample = Some(sample);
+        let mut advance = tracking;
+        // An arrival (a rest after moving, or the route's start) is
+        // approached first, the clock standing.
+        let moving = matches!(sample.mode, RouteMode::Moving { .. });
+        if self.arriving && (!moving || self.elapsed_ticks == 0) {
+            let target = sample.reference.position;
+            match self.approach(target, position, heading, period_s, tracking) {
+                Some(command) => return (sample.reference, Steer::Body(command)),
+                None => {
+                    self.arriving = false;
+                    self.approach_ticks = 0;
+                }
+            }
+        }
         let steer = match sample.mode {
             RouteMode::Moving { .. } => {
                 self.rest_point = None;
+                self.arriving = true;
                 let left_rest = self.rest.take().is_some();
                 match self.slow(&sample.reference, heading, period_s) {
                     Some(command) => {
                         self.was_slow = true;
-                        Steer::Pivot(command)
+                        Steer::Body(command)
                     }
                     None => {
                         let restart = left_rest || self.was_slow;
                         self.was_slow = false;
+                        // Only where the law steers onto the reference:
+                        // the tangent hold (leaving a rest) has no
+                        // position feedback to catch up with.
+                        if tracking && self.lags(&sample.reference, position) {
+                            advance = false;
+                            self.counters.clock_wait_ticks =
+                                self.counters.clock_wait_ticks.saturating_add(1);
+                        }
                         Steer::Law { restart }
                     }
                 }
             }
-            RouteMode::Stopped { hold_heading_rad } => {
-                self.rest_point = Some((sample.reference.position, hold_heading_rad));
-                self.rest.get_or_insert_with(Rest::default);
-                Steer::Hold
+            RouteMode::Stopped { .. } | RouteMode::Pivoting { .. } => {
+                self.at_rest(sample, heading, period_s, tracking)
             }
+        };
+        if advance {
+            self.elapsed_ticks = self.elapsed_ticks.saturating_add(1);
+        }
+        (sample.reference, steer)
+    }
+
+    /// What to do on a rest segment once arrived: hold, or pivot.
+    fn at_rest(
+        &mut self,
+        sample: RouteSample,
+        heading: HeadingEstimate,
+        period_s: f32,
+        tracking: bool,
+    ) -> Steer {
+        match sample.mode {
             RouteMode::Pivoting {
                 heading_rad,
                 rate_rad_s,
@@ -501,10 +700,97 @@ impl RouteFollower {
                     rest.pivot_segment = Some(segment);
                     self.counters.pivots = self.counters.pivots.saturating_add(1);
                 }
-                Steer::Pivot(self.pivot(heading_rad, rate_rad_s, heading, period_s, tracking))
+                Steer::Body(self.pivot(heading_rad, rate_rad_s, heading, period_s, tracking))
             }
+            RouteMode::Stopped { hold_heading_rad } => {
+                self.rest_point = Some((sample.reference.position, hold_heading_rad));
+                self.rest.get_or_insert_with(Rest::default);
+                Steer::Hold
+            }
+            RouteMode::Moving { .. } => Steer::Hold,
+        }
+    }
+
+    /// Whether the robot at `position` lags the moving reference by more
+    /// than [`RouteOptions::max_lag_m`] along the reference's velocity (a
+    /// robot beside or ahead of it is not waited for: waiting would not
+    /// bring it closer).
+    fn lags(&self, reference: &ReferenceSample, position: Option<Vec2>) -> bool {
+        let Some(position) = position else {
+            return false;
         };
-        (sample.reference, steer)
+        let velocity = reference.velocity;
+        let speed = velocity.norm();
+        if !(speed > 0.0) {
+            return false;
+        }
+        let behind = (reference.position - position).dot(velocity) / speed;
+        behind > self.options.max_lag_m()
+    }
+
+    /// The arrival approach onto the rest point `target` (module
+    /// documentation, "At rest"): `None` once arrived (or with no heading
+    /// or position to approach with, or timed out: counted), else the
+    /// command. With `d` the distance to the point and `e_∥` its component
+    /// along the robot's heading: within the near radius
+    /// ([`NEAR_OF_TOLERANCE`] of the position tolerance) the robot creeps
+    /// along its heading, `v = sat(k_a·e_∥)`, `ω = 0`, and has arrived once
+    /// `|e_∥|` is within [`ARRIVAL_BAND_OF_TOLERANCE`] of the tolerance;
+    /// beyond it, it turns toward the point (or away from it, backing
+    /// up, whichever is the smaller turn), `ω = k_θ·e_β`, and drives as far
+    /// as it faces it, `v = ±sat(k_a·d·cos e_β)`. Both under
+    /// [`RouteOptions::approach_speed_m_s`].
+    fn approach(
+        &mut self,
+        target: Vec2,
+        position: Option<Vec2>,
+        heading: HeadingEstimate,
+        period_s: f32,
+        tracking: bool,
+    ) -> Option<BodyVelocity> {
+        let position = position?;
+        let estimate = heading_rad(heading)?;
+        let tolerance = self.options.position_tolerance_m();
+        let (sin_theta, cos_theta) = math::sincos(estimate);
+        let to_target = target - position;
+        let distance = to_target.norm();
+        let along = to_target.dot(Vec2::new(cos_theta, sin_theta));
+        let near = distance <= NEAR_OF_TOLERANCE * tolerance;
+        // Not beyond the band (a NaN too): arrived.
+        if near && !(along.abs() > ARRIVAL_BAND_OF_TOLERANCE * tolerance) {
+            return None;
+        }
+        if !distance.is_finite() {
+            return None;
+        }
+        if self.approach_ticks as f32 * period_s >= self.options.approach_timeout_s() {
+            self.counters.approach_timeouts = self.counters.approach_timeouts.saturating_add(1);
+            return None;
+        }
+        if tracking {
+            self.approach_ticks = self.approach_ticks.saturating_add(1);
+            self.counters.approach_ticks = self.counters.approach_ticks.saturating_add(1);
+        }
+        let cap = self.options.approach_speed_m_s();
+        if near {
+            return Some(BodyVelocity {
+                v_m_s: (APPROACH_GAIN_PER_S * along).clamp(-cap, cap),
+                omega_rad_s: 0.0,
+            });
+        }
+        let bearing = math::wrap_angle(math::atan2(to_target.y, to_target.x) - estimate);
+        // Facing away from it: back up to it instead.
+        let (turn, direction) = if bearing.abs() > core::f32::consts::FRAC_PI_2 {
+            (math::wrap_angle(bearing + core::f32::consts::PI), -1.0)
+        } else {
+            (bearing, 1.0)
+        };
+        let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
+        let speed = (APPROACH_GAIN_PER_S * distance * math::cos(turn)).clamp(0.0, cap);
+        Some(BodyVelocity {
+            v_m_s: direction * speed,
+            omega_rad_s: gain * turn,
+        })
     }
 
     /// After the tracker's command: a hold that reached exactly zero has
@@ -554,10 +840,10 @@ impl RouteFollower {
         }
         // Not within: a NaN error counts too.
         let within = |e: f32, tolerance: f32| e <= tolerance;
-        let beyond = !within(error.position_m, self.options.position_tolerance_m)
+        let beyond = !within(error.position_m, self.options.position_tolerance_m())
             || error
                 .heading_rad
-                .is_some_and(|e| !within(e, self.options.heading_tolerance_rad));
+                .is_some_and(|e| !within(e, self.options.heading_tolerance_rad()));
         if beyond && !rest.error_counted {
             rest.error_counted = true;
             self.counters.stop_errors = self.counters.stop_errors.saturating_add(1);
@@ -589,7 +875,7 @@ impl RouteFollower {
             return None;
         }
         let error = math::wrap_angle(math::atan2(tangent.y, tangent.x) - estimate);
-        let gain = self.options.pivot_gain_per_s.min(1.0 / period_s);
+        let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
         Some(BodyVelocity {
             v_m_s: speed * math::cos(error),
             omega_rad_s: gain * error,
@@ -607,7 +893,7 @@ impl RouteFollower {
     ) -> BodyVelocity {
         let omega = match heading_rad(heading) {
             Some(estimate) => {
-                let gain = self.options.pivot_gain_per_s.min(1.0 / period_s);
+                let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
                 rate_rad_s + gain * math::wrap_angle(heading_rad_r - estimate)
             }
             None => {
@@ -625,26 +911,31 @@ impl RouteFollower {
     }
 
     /// Plans the pending route if it may start now.
-    fn start_pending(&mut self, position: Option<Vec2>, heading: HeadingEstimate, period_s: f32) {
-        let Some(start) = self.pending.as_ref().map(|p| p.start) else {
-            return;
-        };
+    /// The heading the estimator is to take as known, where the route
+    /// starts with [`RouteStart::AsGivenHeadingKnown`].
+    fn start_pending(
+        &mut self,
+        position: Option<Vec2>,
+        heading: HeadingEstimate,
+        period_s: f32,
+    ) -> Option<f32> {
+        let start = self.pending.as_ref().map(|p| p.start)?;
         // A replacement starts where the running reference rests; the
         // first route where it is loaded or where the robot is.
         let estimated = heading_rad(heading);
         let from = if self.running {
             match self.rest_point {
                 Some((at, held)) => Some((at, held.or(estimated))),
-                None => return,
+                None => return None,
             }
         } else if let Some(at) = self.hold_at.filter(|_| self.counters.routes_started > 0) {
             Some((at, estimated))
         } else {
             match start {
-                RouteStart::AsGiven => None,
+                RouteStart::AsGiven | RouteStart::AsGivenHeadingKnown => None,
                 RouteStart::FromFirstFix => match position {
                     Some(at) => Some((at, estimated)),
-                    None => return,
+                    None => return None,
                 },
             }
         };
@@ -655,11 +946,15 @@ impl RouteFollower {
         self.rest_point = None;
         self.sample = None;
         self.done = false;
+        // A first route as given starts with an approach to its first
+        // waypoint; a route from the first fix, or replacing one, starts
+        // where the robot is.
+        self.arriving = from.is_none();
+        self.approach_ticks = 0;
+        let known_start = from.is_none() && start == RouteStart::AsGivenHeadingKnown;
         // Changed and planned where it is (1.8 KB of waypoints, 20 KB of
         // plan): no copy on the stack.
-        let Some(pending) = self.pending.as_mut() else {
-            return;
-        };
+        let pending = self.pending.as_mut()?;
         if let (Some(first), Some((at, facing))) =
             (pending.waypoints.as_mut_slice().first_mut(), from)
         {
@@ -675,6 +970,9 @@ impl RouteFollower {
         let planned = self
             .plan
             .replan(pending.waypoints.as_slice(), &pending.limits, period_s);
+        let facing = known_start
+            .then(|| start_heading(pending.waypoints.as_slice()))
+            .flatten();
         self.pending = None;
         match planned {
             Ok(()) => {
@@ -682,12 +980,14 @@ impl RouteFollower {
                 self.refused = None;
                 self.hold_at = None;
                 self.counters.routes_started = self.counters.routes_started.saturating_add(1);
+                facing
             }
             Err(e) => {
                 self.running = false;
                 self.refused = Some(e);
                 self.hold_at = hold;
                 self.counters.routes_refused = self.counters.routes_refused.saturating_add(1);
+                None
             }
         }
     }
@@ -698,6 +998,17 @@ fn heading_rad(heading: HeadingEstimate) -> Option<f32> {
     let (c, s) = (heading.cos_theta, heading.sin_theta);
     let norm = math::hypot(c, s);
     (norm.is_finite() && norm >= MIN_HEADING_NORM).then(|| math::atan2(s, c))
+}
+
+/// The heading the planner takes the robot to face at the first waypoint:
+/// its heading to face, else the first leg's direction, rad.
+fn start_heading(waypoints: &[Waypoint]) -> Option<f32> {
+    let first = waypoints.first()?;
+    if let Some(facing) = first.stop.and_then(|stop| stop.face_heading_rad) {
+        return Some(facing);
+    }
+    let leg = waypoints.get(1)?.position_m - first.position_m;
+    (leg != Vec2::ZERO && leg.is_finite()).then(|| math::atan2(leg.y, leg.x))
 }
 
 /// A reference at rest at `at`.

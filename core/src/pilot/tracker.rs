@@ -509,8 +509,12 @@ impl OutputFeedbackTracker {
     ) -> TrackerOutput {
         let (tick, fix_used) = self.estimate(odometry, fix);
         let tracking = self.position.is_some() && !self.fix_lost();
-        let heading = self.estimator.heading();
         let period_s = self.config.clock.period_s();
+        let known = route.start(tracking, self.position, self.estimator.heading(), period_s);
+        if let Some(heading_rad) = known {
+            self.estimator.assume_heading(heading_rad);
+        }
+        let heading = self.estimator.heading();
         let (reference, steer) = route.begin(tracking, self.position, heading, period_s);
         let mut out = self.drive(tick, odometry, reference, steer);
         out.fix_used = fix_used;
@@ -592,7 +596,7 @@ impl OutputFeedbackTracker {
                     out.law.body
                 }
                 Steer::Hold => self.ramp_down(self.last_command),
-                Steer::Pivot(command) => command,
+                Steer::Body(command) => command,
             };
             self.last_command = if body.is_finite() {
                 body

@@ -47,7 +47,7 @@
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
-use wmr_core::pilot::route::{RouteOptions, RouteStart};
+use wmr_core::pilot::route::{RouteOptions, RouteOptionsSpec, RouteStart};
 use wmr_core::reference::TrajectorySpec;
 use wmr_core::reference::route::{
     LimitKey, RouteError, RouteLimits, RouteLimitsSpec, RoutePlan, Waypoint, WaypointKey, Waypoints,
@@ -161,6 +161,10 @@ pub enum RouteStartSpec {
     /// At the robot's first fix: the first waypoint's position (and its
     /// heading to face) is replaced by the estimate when the route starts.
     FromFirstFix,
+    /// As `as_given`, and the robot is known to face the first leg (or
+    /// the first waypoint's `heading_deg`) there: the estimator takes that
+    /// heading when the route starts (a robot parked at its station).
+    AsGivenHeadingKnown,
 }
 
 impl From<RouteStartSpec> for RouteStart {
@@ -168,6 +172,7 @@ impl From<RouteStartSpec> for RouteStart {
         match s {
             RouteStartSpec::AsGiven => Self::AsGiven,
             RouteStartSpec::FromFirstFix => Self::FromFirstFix,
+            RouteStartSpec::AsGivenHeadingKnown => Self::AsGivenHeadingKnown,
         }
     }
 }
@@ -251,6 +256,20 @@ pub struct RouteSpec {
     /// counted, degrees.
     #[serde(default = "RouteSpec::default_heading_tolerance_deg")]
     pub heading_tolerance_deg: f64,
+    /// The route's clock waits while the robot lags the moving reference
+    /// by more than this along the path, m (> 0).
+    #[serde(default = "RouteSpec::default_max_lag_m")]
+    pub max_lag_m: f64,
+    /// Largest speed of the approach onto a stop reached short or long,
+    /// m/s, in (0, 1].
+    #[serde(default = "RouteSpec::default_approach_speed_m_s")]
+    #[schemars(range(min = 1e-6, max = 1.0))]
+    pub approach_speed_m_s: f64,
+    /// Longest approach onto a stop before it is taken as reached where
+    /// the robot is (counted), s (≥ 0; 0: no approach).
+    #[serde(default = "RouteSpec::default_approach_timeout_s")]
+    #[schemars(range(min = 0.0))]
+    pub approach_timeout_s: f64,
     /// Where the first leg starts.
     #[serde(default)]
     pub start: RouteStartSpec,
@@ -303,7 +322,7 @@ impl RouteSetup {
             // At most `ROUTE_CAPACITY` waypoints: fits (the link's tests).
             waypoints: u8::try_from(self.waypoints.as_slice().len()).unwrap_or(u8::MAX),
             limits: self.limits_spec,
-            options: wmr_link::RouteOptionsSpec::of(&self.options),
+            options: self.options.spec(),
             start: self.start,
         }
     }
@@ -372,6 +391,18 @@ impl RouteSpec {
     }
     fn default_heading_tolerance_deg() -> f64 {
         1.0
+    }
+    /// The core's defaults (`RouteOptions::DEFAULT_MAX_LAG_M`,
+    /// `DEFAULT_APPROACH_SPEED_M_S`, `DEFAULT_APPROACH_TIMEOUT_S`), as a
+    /// file writes them (a test holds them equal).
+    fn default_max_lag_m() -> f64 {
+        0.05
+    }
+    fn default_approach_speed_m_s() -> f64 {
+        0.05
+    }
+    fn default_approach_timeout_s() -> f64 {
+        5.0
     }
     fn default_settle_s() -> f64 {
         2.0
@@ -545,12 +576,29 @@ impl RouteSpec {
         }
         let position_tolerance = positive("position_tolerance_m", self.position_tolerance_m)?;
         let heading_tolerance = positive("heading_tolerance_deg", self.heading_tolerance_deg)?;
-        let options = RouteOptions::new(
-            gain as f32,
-            position_tolerance as f32,
-            heading_tolerance.to_radians() as f32,
-        )
-        .map_err(|e| ScenarioError::invalid("reference", format!("refused by the core: {e}")))?;
+        let max_lag = positive("max_lag_m", self.max_lag_m)?;
+        let approach_speed = self.approach_speed_m_s;
+        if !(approach_speed > 0.0 && approach_speed <= 1.0) {
+            return Err(ScenarioError::invalid(
+                "reference.approach_speed_m_s",
+                format!("must be in (0, 1] m/s (got {})", shown(approach_speed)),
+            ));
+        }
+        let approach_timeout = non_negative("reference.approach_timeout_s", self.approach_timeout_s)?;
+        let options = RouteOptions::new(&RouteOptionsSpec {
+            pivot_gain_per_s: gain as f32,
+            position_tolerance_m: position_tolerance as f32,
+            heading_tolerance_rad: heading_tolerance.to_radians() as f32,
+            max_lag_m: max_lag as f32,
+            approach_speed_m_s: approach_speed as f32,
+            approach_timeout_s: approach_timeout as f32,
+        })
+        .map_err(|e| {
+            ScenarioError::invalid(
+                &format!("reference.{}", e.field()),
+                format!("refused by the core: {e}"),
+            )
+        })?;
         let settle_s = non_negative("reference.settle_s", self.settle_s)?;
 
         let n = self.waypoints.len();

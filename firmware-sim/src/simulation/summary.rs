@@ -269,6 +269,7 @@ fn route_report(
         done: done.is_some(),
         start: match route.start {
             RouteStart::FromFirstFix => "from_first_fix",
+            RouteStart::AsGivenHeadingKnown => "as_given_heading_known",
             _ => "as_given",
         },
         planned_duration_s,

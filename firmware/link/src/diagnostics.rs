@@ -42,7 +42,7 @@ pub struct Diagnostics {
 }
 
 /// Counters in [`Diagnostics`], all `u32`.
-pub const DIAGNOSTIC_COUNTERS: usize = 41;
+pub const DIAGNOSTIC_COUNTERS: usize = 44;
 
 impl Diagnostics {
     /// Every counter, in the order of the fields (nested structs' fields
@@ -110,6 +110,9 @@ impl Diagnostics {
                     routes_started,
                     routes_refused,
                     routes_done,
+                    clock_wait_ticks,
+                    approach_ticks,
+                    approach_timeouts,
                 },
         } = *self;
         [
@@ -154,6 +157,9 @@ impl Diagnostics {
             routes_started,
             routes_refused,
             routes_done,
+            clock_wait_ticks,
+            approach_ticks,
+            approach_timeouts,
         ]
     }
 }

@@ -519,7 +519,7 @@ mod tests {
                 pivot_rate_rad_s: 1.0,
                 pivot_accel_rad_s2: 2.0,
             },
-            options: RouteOptionsSpec::of(&RouteOptions::default()),
+            options: RouteOptions::default().spec(),
             start: RouteStart::FromFirstFix,
         };
         let waypoints = [

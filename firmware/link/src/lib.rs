@@ -141,4 +141,5 @@ pub use protocol::{
     MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, PROTOCOL_VERSION, ROUTE_CHUNK_WAYPOINTS,
     STALE_WINDOW,
 };
-pub use route::{RouteChunk, RouteOptionsSpec, RouteRefusal, RouteSpec, route_messages};
+pub use route::{RouteChunk, RouteRefusal, RouteSpec, route_messages};
+pub use wmr_core::pilot::route::RouteOptionsSpec;

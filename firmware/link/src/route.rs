@@ -3,49 +3,12 @@
 //! a host sends for a route ([`route_messages`]).
 
 use serde::{Deserialize, Serialize};
-use wmr_core::pilot::route::{RouteOptions, RouteOptionsError, RouteStart};
+use wmr_core::pilot::route::{RouteOptions, RouteOptionsError, RouteOptionsSpec, RouteStart};
 use wmr_core::reference::route::{
     ROUTE_CAPACITY, RouteError, RouteLimitsError, RouteLimitsSpec, Waypoint, Waypoints,
 };
 
 use crate::{HostMessage, ROUTE_CHUNK_WAYPOINTS};
-
-/// [`RouteOptions`] as plain numbers (validated by [`RouteOptions::new`]
-/// on the firmware).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct RouteOptionsSpec {
-    /// The pivot's heading gain `k_θ`, 1/s, in `(0, 1000]`.
-    pub pivot_gain_per_s: f32,
-    /// A stop's position tolerance, m, finite and `> 0`.
-    pub position_tolerance_m: f32,
-    /// A stop's heading tolerance, rad, finite and `> 0`.
-    pub heading_tolerance_rad: f32,
-}
-
-impl RouteOptionsSpec {
-    /// The numbers of `options`.
-    #[must_use]
-    pub fn of(options: &RouteOptions) -> Self {
-        Self {
-            pivot_gain_per_s: options.pivot_gain_per_s(),
-            position_tolerance_m: options.position_tolerance_m(),
-            heading_tolerance_rad: options.heading_tolerance_rad(),
-        }
-    }
-
-    /// The validated options.
-    ///
-    /// # Errors
-    /// As [`RouteOptions::new`].
-    pub fn build(&self) -> Result<RouteOptions, RouteOptionsError> {
-        RouteOptions::new(
-            self.pivot_gain_per_s,
-            self.position_tolerance_m,
-            self.heading_tolerance_rad,
-        )
-    }
-}
 
 /// A route announced after the configuration ([`HostMessage::Route`]): its
 /// size, limits, how it is followed and where it starts; its waypoints
@@ -170,7 +133,7 @@ pub fn route_messages<'w>(
     let announce = HostMessage::Route(RouteSpec {
         waypoints: u8::try_from(all.len()).unwrap_or(u8::MAX),
         limits,
-        options: RouteOptionsSpec::of(options),
+        options: options.spec(),
         start,
     });
     let chunks = all

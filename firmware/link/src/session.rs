@@ -1211,7 +1211,7 @@ mod tests {
         HostMessage::Route(RouteSpec {
             waypoints,
             limits: LIMITS,
-            options: RouteOptionsSpec::of(&RouteOptions::default()),
+            options: RouteOptions::default().spec(),
             start: RouteStart::AsGiven,
         })
     }
@@ -1299,7 +1299,11 @@ mod tests {
         assert!(x > 0.005 && x < 0.1, "{x}");
         assert!((y - 0.5 * x).abs() < 1e-6, "on the first leg: {x}, {y}");
         assert!(references.windows(2).all(|w| w[1][0] >= w[0][0]));
-        assert!(references[99][0] > 0.1, "past the first waypoint");
+        // The robot stands still at the first waypoint: the route's clock
+        // waits for it once the reference is `max_lag_m` (5 cm) ahead.
+        let [x, y] = references[99];
+        let ahead = x.hypot(y);
+        assert!(ahead > 0.05 && ahead < 0.051, "{ahead}");
         let status = s.route_status().unwrap();
         assert!(status.running && !status.done && !status.pending);
         let (TargetMessage::Finished(f), true) = s.handle(&HostMessage::Finish, link, || 0) else {
@@ -1308,6 +1312,7 @@ mod tests {
         assert_eq!(f.counters.route.routes_started, 1);
         assert_eq!(f.counters.route.routes_refused, 0);
         assert!(!f.route_done);
+        assert!(f.counters.route.clock_wait_ticks > 0);
     }
 
     /// Without a route the session's robot is the core's `Robot`, bit for

@@ -149,6 +149,9 @@ fn a_full_route_chunk_fits_a_frame() {
             pivot_gain_per_s: f32::MAX,
             position_tolerance_m: f32::MAX,
             heading_tolerance_rad: f32::MAX,
+            max_lag_m: f32::MAX,
+            approach_speed_m_s: f32::MAX,
+            approach_timeout_s: f32::MAX,
         },
         start: wmr_core::pilot::route::RouteStart::FromFirstFix,
     });

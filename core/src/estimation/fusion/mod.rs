@@ -323,6 +323,9 @@ pub struct FusionEstimator {
     distance_since_fix_m: f32,
     disagreeing_ticks: u32,
     heading_resets: u32,
+    /// A heading known from outside before the first fix
+    /// ([`PoseEstimator::assume_heading`]): the filter starts with it.
+    start_heading_rad: Option<f32>,
 }
 
 impl FusionEstimator {
@@ -339,6 +342,7 @@ impl FusionEstimator {
             distance_since_fix_m: 0.0,
             disagreeing_ticks: 0,
             heading_resets: 0,
+            start_heading_rad: None,
             // The spacing is validated by `FusionSettings::new`.
             cells: TagCellTracker::with_validated_spacing(
                 settings.tag_spacing_m,
@@ -389,13 +393,16 @@ impl FusionEstimator {
                 None => {
                     // Start at the first tag, heading unknown; the first
                     // measurement (the uniform cell) sets the position.
+                    let (heading_rad, heading_variance) = self
+                        .start_heading_rad
+                        .map_or((0.0, PI_SQUARED), |h| (h, ASSUMED_HEADING_VARIANCE_RAD2));
                     let variances = [
                         self.settings.start_position_variance(),
                         self.settings.start_position_variance(),
-                        PI_SQUARED,
+                        heading_variance,
                         self.settings.scale_prior,
                     ];
-                    let start = Pose::new(tag.x, tag.y, 0.0);
+                    let start = Pose::new(tag.x, tag.y, heading_rad);
                     let filter = RunningFilter::new(&self.settings, start, variances)?;
                     self.filter.insert(filter)
                 }
@@ -574,6 +581,23 @@ impl PoseEstimator for FusionEstimator {
     fn blind_distance_lost(&self) -> Option<bool> {
         FusionEstimator::blind_distance_lost(self)
     }
+
+    /// The filter's heading set to `heading_rad` with the variance
+    /// [`ASSUMED_HEADING_VARIANCE_RAD2`] (its position kept); before the
+    /// first fix, the filter starts with it. The guide observer is not
+    /// told: it keeps its own convergence bound, and still corrects a
+    /// filter told a wrong heading (the type's docs).
+    fn assume_heading(&mut self, heading_rad: f32) {
+        if !heading_rad.is_finite() {
+            return;
+        }
+        match self.filter.as_mut() {
+            Some(filter) => {
+                filter.reset_heading(heading_rad, ASSUMED_HEADING_VARIANCE_RAD2);
+            }
+            None => self.start_heading_rad = Some(heading_rad),
+        }
+    }
 }
 
 /// The filter a [`FusionEstimator`] runs ([`FusionFilter`]).
@@ -682,6 +706,11 @@ impl RunningFilter {
         with_filter!(self, f => f.reset_heading(heading_rad, variance_rad2))
     }
 }
+
+/// The variance of a heading known from outside
+/// ([`PoseEstimator::assume_heading`]), rad²: a standard deviation of
+/// 0.05 rad (2.9°), a robot parked at a station by hand or by a dock.
+pub const ASSUMED_HEADING_VARIANCE_RAD2: f32 = 0.05 * 0.05;
 
 /// Ticks of disagreement with a trusted guide before the heading is reset
 /// (a second at 100 Hz).

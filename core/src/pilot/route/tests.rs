@@ -530,19 +530,46 @@ fn the_route_waits_while_the_fix_is_lost() {
 /// Options outside their ranges are refused by name.
 #[test]
 fn options_are_validated() {
-    assert!(RouteOptions::new(5.0, 0.01, 0.01).is_ok());
+    let good = RouteOptions::default().spec();
+    assert!(good.build().is_ok());
+    let with = |f: &dyn Fn(&mut RouteOptionsSpec)| {
+        let mut spec = good;
+        f(&mut spec);
+        RouteOptions::new(&spec)
+    };
     for k in [0.0, -1.0, f32::NAN, 1e4] {
         assert_eq!(
-            RouteOptions::new(k, 0.01, 0.01),
+            with(&|s| s.pivot_gain_per_s = k),
             Err(RouteOptionsError::PivotGain)
         );
     }
     for (p, h) in [(0.0, 0.01), (0.01, f32::INFINITY), (f32::NAN, 0.01)] {
         assert_eq!(
-            RouteOptions::new(5.0, p, h),
+            with(&|s| {
+                s.position_tolerance_m = p;
+                s.heading_tolerance_rad = h;
+            }),
             Err(RouteOptionsError::Tolerance)
         );
     }
+    for lag in [0.0, -0.1, f32::NAN, f32::INFINITY] {
+        let e = with(&|s| s.max_lag_m = lag);
+        assert_eq!(e, Err(RouteOptionsError::MaxLag));
+        assert_eq!(e.unwrap_err().field(), "max_lag_m");
+    }
+    for v in [0.0, -0.1, 1.5, f32::NAN] {
+        assert_eq!(
+            with(&|s| s.approach_speed_m_s = v),
+            Err(RouteOptionsError::ApproachSpeed)
+        );
+    }
+    for t in [-1.0, f32::NAN, f32::INFINITY] {
+        assert_eq!(
+            with(&|s| s.approach_timeout_s = t),
+            Err(RouteOptionsError::ApproachTimeout)
+        );
+    }
+    assert!(with(&|s| s.approach_timeout_s = 0.0).is_ok());
 }
 
 /// The fusion EKF (its heading turned by the odometry at the stops, its
