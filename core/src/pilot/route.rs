@@ -721,7 +721,7 @@ impl RouteFollower {
         };
         let velocity = reference.velocity;
         let speed = velocity.norm();
-        if !(speed > 0.0) {
+        if speed.is_nan() || speed <= 0.0 {
             return false;
         }
         let behind = (reference.position - position).dot(velocity) / speed;
@@ -755,12 +755,13 @@ impl RouteFollower {
         let to_target = target - position;
         let distance = to_target.norm();
         let along = to_target.dot(Vec2::new(cos_theta, sin_theta));
-        let near = distance <= NEAR_OF_TOLERANCE * tolerance;
-        // Not beyond the band (a NaN too): arrived.
-        if near && !(along.abs() > ARRIVAL_BAND_OF_TOLERANCE * tolerance) {
+        // A non-finite distance or along-heading error: nothing to steer
+        // by, taken as arrived.
+        if !(distance.is_finite() && along.is_finite()) {
             return None;
         }
-        if !distance.is_finite() {
+        let near = distance <= NEAR_OF_TOLERANCE * tolerance;
+        if near && along.abs() <= ARRIVAL_BAND_OF_TOLERANCE * tolerance {
             return None;
         }
         if self.approach_ticks as f32 * period_s >= self.options.approach_timeout_s() {
@@ -774,7 +775,7 @@ impl RouteFollower {
         let cap = self.options.approach_speed_m_s();
         if near {
             return Some(BodyVelocity {
-                v_m_s: (APPROACH_GAIN_PER_S * along).clamp(-cap, cap),
+                v_m_s: (APPROACH_GAIN_PER_S * along).max(-cap).min(cap),
                 omega_rad_s: 0.0,
             });
         }
@@ -786,7 +787,9 @@ impl RouteFollower {
             (bearing, 1.0)
         };
         let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
-        let speed = (APPROACH_GAIN_PER_S * distance * math::cos(turn)).clamp(0.0, cap);
+        let speed = (APPROACH_GAIN_PER_S * distance * math::cos(turn))
+            .max(0.0)
+            .min(cap);
         Some(BodyVelocity {
             v_m_s: direction * speed,
             omega_rad_s: gain * turn,
@@ -1020,5 +1023,7 @@ fn at_rest(at: Vec2) -> ReferenceSample {
     }
 }
 
+#[cfg(test)]
+mod arrival_tests;
 #[cfg(test)]
 mod tests;

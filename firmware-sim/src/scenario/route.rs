@@ -584,7 +584,8 @@ impl RouteSpec {
                 format!("must be in (0, 1] m/s (got {})", shown(approach_speed)),
             ));
         }
-        let approach_timeout = non_negative("reference.approach_timeout_s", self.approach_timeout_s)?;
+        let approach_timeout =
+            non_negative("reference.approach_timeout_s", self.approach_timeout_s)?;
         let options = RouteOptions::new(&RouteOptionsSpec {
             pivot_gain_per_s: gain as f32,
             position_tolerance_m: position_tolerance as f32,

@@ -505,7 +505,6 @@ mod tests {
     /// other than 0 or 1, is an image error.
     #[test]
     fn an_image_carries_a_route_loaded_through_the_cores_checks() {
-        use crate::RouteOptionsSpec;
         use wmr_core::pilot::route::{RouteOptions, RouteStart};
         use wmr_core::reference::route::{RouteError, RouteLimitsSpec, WaypointKey};
         let route = RouteSpec {

@@ -714,9 +714,9 @@ fn note_telemetry(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ROUTE_CHUNK_WAYPOINTS;
     use crate::TickInput;
     use crate::{MAP_CHUNK_TAGS, MapTag};
-    use crate::{ROUTE_CHUNK_WAYPOINTS, RouteOptionsSpec};
     use wmr_core::devices::TagMapError;
     use wmr_core::devices::encode_frame;
     use wmr_core::devices::tag_grid::TagGridSpec;

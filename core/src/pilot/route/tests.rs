@@ -18,9 +18,9 @@ use crate::reference::route::{RouteLimitsSpec, Waypoint};
 use core::f32::consts::FRAC_PI_2;
 use std::vec::Vec;
 
-const H: f32 = 0.01;
+pub(super) const H: f32 = 0.01;
 
-fn limits() -> RouteLimits {
+pub(super) fn limits() -> RouteLimits {
     RouteLimits::new(&RouteLimitsSpec {
         max_speed_m_s: 0.3,
         max_tangential_accel_m_s2: 0.5,
@@ -33,7 +33,10 @@ fn limits() -> RouteLimits {
     .unwrap()
 }
 
-fn tracker(estimator: EstimatorChoice, initial: HeadingEstimate) -> OutputFeedbackTracker {
+pub(super) fn tracker(
+    estimator: EstimatorChoice,
+    initial: HeadingEstimate,
+) -> OutputFeedbackTracker {
     // The trajectory is not used on a route: any valid one.
     let line = StraightLine::new(Vec2::ZERO, 0.0, 0.2).unwrap();
     let config = TrackerConfig::new(
@@ -46,15 +49,15 @@ fn tracker(estimator: EstimatorChoice, initial: HeadingEstimate) -> OutputFeedba
     OutputFeedbackTracker::with_initial_heading(config, initial).unwrap()
 }
 
-fn pose_observer() -> EstimatorChoice {
+pub(super) fn pose_observer() -> EstimatorChoice {
     EstimatorChoice::PoseObserver(PoseObserverConfig::new(5.0, 5.0, 20.0, 20.0, H).unwrap())
 }
 
-fn observer_001() -> EstimatorChoice {
+pub(super) fn observer_001() -> EstimatorChoice {
     EstimatorChoice::HeadingObserver(HeadingObserverConfig::new(5.0, H).unwrap())
 }
 
-const EAST: HeadingEstimate = HeadingEstimate {
+pub(super) const EAST: HeadingEstimate = HeadingEstimate {
     cos_theta: 1.0,
     sin_theta: 0.0,
 };
@@ -75,34 +78,38 @@ fn square() -> Waypoints {
 
 /// One tick's record.
 #[derive(Clone, Copy)]
-struct Tick {
-    out: TrackerOutput,
+pub(super) struct Tick {
+    pub(super) out: TrackerOutput,
     /// The robot after driving this tick's command.
-    robot: Pose,
-    status: RouteStatus,
+    pub(super) robot: Pose,
+    pub(super) status: RouteStatus,
 }
 
 /// A closed loop: the tracker on `route`, a fix each tick (`fix_of` the
 /// true position; `None`: no fix), the unicycle driving the command
 /// exactly. `each` may load a route before a tick.
-struct Run {
-    tracker: OutputFeedbackTracker,
-    route: RouteFollower,
-    robot: Pose,
+/// The robot drives `drive_scale` times the commanded speed (1: exactly;
+/// the odometry measures what it drove).
+pub(super) struct Run {
+    pub(super) tracker: OutputFeedbackTracker,
+    pub(super) route: RouteFollower,
+    pub(super) robot: Pose,
     odometry: OdometryStep,
+    pub(super) drive_scale: f32,
 }
 
 impl Run {
-    fn new(tracker: OutputFeedbackTracker, robot: Pose) -> Self {
+    pub(super) fn new(tracker: OutputFeedbackTracker, robot: Pose) -> Self {
         Self {
             tracker,
             route: RouteFollower::new(RouteOptions::default()),
             robot,
             odometry: OdometryStep::default(),
+            drive_scale: 1.0,
         }
     }
 
-    fn tick(&mut self, fix: Option<Vec2>) -> Tick {
+    pub(super) fn tick(&mut self, fix: Option<Vec2>) -> Tick {
         let fix = fix.map(|position| TagFix {
             position,
             age_ticks: 0,
@@ -110,7 +117,10 @@ impl Run {
         let out = self
             .tracker
             .step_route(&self.odometry, fix, &mut self.route);
-        let c = out.command;
+        let c = BodyVelocity {
+            v_m_s: out.command.v_m_s * self.drive_scale,
+            omega_rad_s: out.command.omega_rad_s,
+        };
         self.odometry = OdometryStep {
             ds_m: c.v_m_s * H,
             dtheta_rad: c.omega_rad_s * H,
@@ -126,7 +136,7 @@ impl Run {
     }
 
     /// Ticks until the route is done (and `extra` more), at most `max`.
-    fn until_done(&mut self, quantum_m: f32, max: usize, extra: usize) -> Vec<Tick> {
+    pub(super) fn until_done(&mut self, quantum_m: f32, max: usize, extra: usize) -> Vec<Tick> {
         let mut ticks = Vec::new();
         let mut after = 0;
         for _ in 0..max {
@@ -144,7 +154,7 @@ impl Run {
     }
 }
 
-fn quantized(p: Vec2, quantum_m: f32) -> Vec2 {
+pub(super) fn quantized(p: Vec2, quantum_m: f32) -> Vec2 {
     if quantum_m == 0.0 {
         return p;
     }
