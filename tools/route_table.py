@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """The warehouse-loop table of docs/routes.md: 100-run sweeps of
 firmware-sim/scenarios/warehouse_loop.toml for each estimator, the start
-heading swept (the scenario's [sweep]: any) and known (initial.heading_rad).
+heading swept (the scenario's [sweep]: any, start = "as_given": the
+estimator is not told) and known (initial.heading_rad, along the first
+leg, start = "as_given_heading_known": the estimator is told).
 
     python3 tools/route_table.py [RUNS]   # from the repository root; default 100
 
@@ -26,17 +28,22 @@ ESTIMATORS = [
     ("fusion UKF", '[estimator.fusion]\nfilter = "ukf"\n'),
     ("fusion particle filter (100)", '[estimator.fusion]\nfilter = "particle_filter"\n'),
 ]
-HEADINGS = [("any", 'initial_heading = "any"'), ("known", 'initial_heading = "scenario"')]
+HEADINGS = [
+    ("any", 'initial_heading = "any"', 'start = "as_given"'),
+    ("known", 'initial_heading = "scenario"', 'start = "as_given_heading_known"'),
+]
 
 assert EKF in SCENARIO, "warehouse_loop.toml no longer has its EKF table"
+assert 'start = "as_given"' in SCENARIO, "warehouse_loop.toml no longer starts as given"
 OUT.mkdir(parents=True, exist_ok=True)
 print("| estimator | start heading | done | stop position p50 / p90 / worst (m) "
       "| worst stop heading (°) | cross-track p50 / worst (m) | worst time ratio |")
 print("| --- | --- | ---: | --- | ---: | --- | ---: |")
 for e, (label, table) in enumerate(ESTIMATORS):
-    for heading, line in HEADINGS:
+    for heading, line, start in HEADINGS:
         name = f"{e}-{heading}"
-        text = SCENARIO.replace(EKF, table).replace('initial_heading = "any"', line)
+        text = (SCENARIO.replace(EKF, table).replace('initial_heading = "any"', line)
+                .replace('start = "as_given"', start))
         path = OUT / f"{name}.toml"
         path.write_text(text)
         subprocess.run(

@@ -21,8 +21,13 @@
 //!
 //! * **No route has run yet.** [`RouteStart::AsGiven`]: the route is
 //!   planned as loaded, at the next step where the tracker knows the
-//!   robot's position (the law joins it from wherever the robot is, as on
-//!   an analytic reference). [`RouteStart::FromFirstFix`]: the first
+//!   robot's position, and the robot is first driven onto its first
+//!   waypoint ("Arrivals"). [`RouteStart::AsGivenHeadingKnown`]: the same,
+//!   and the heading the planner assumes there (the first waypoint's
+//!   heading to face, else the first leg's direction) is given to the
+//!   estimator as known ([`crate::estimation::PoseEstimator::assume_heading`]):
+//!   a robot parked at its station knows which way it faces, and no
+//!   estimator observes the heading at rest. [`RouteStart::FromFirstFix`]: the first
 //!   waypoint's position is replaced by the estimated position at that
 //!   step (the first accepted fix, moved to the axle midpoint, or the
 //!   estimate the tracker already has), so the first leg starts where
@@ -34,7 +39,10 @@
 //!   assumes the robot faces the first leg (or the first stop's heading
 //!   to face): a heading that differs is absorbed while leaving (below
 //!   [`SLOW_SPEED_M_S`], the tangent hold, for a few ticks) and then by
-//!   the law, which may well turn on the spot to do it.
+//!   the law, which may well turn on the spot to do it. Told a wrong
+//!   heading, the fusion estimator is corrected by its guide observer
+//!   once that has converged (metres of driving), the observers by
+//!   driving as from any start.
 //! * **A route is running or has run.** The robot stops first: the
 //!   running route goes on until its reference is at rest on a waypoint
 //!   (`Stopped`, after any pivot, or its end; every route ends in a stop,
@@ -54,14 +62,60 @@
 //! # The route's clock
 //! Time is the integer count of ticks the route has been followed,
 //! sampled with [`RoutePlan::sample`]: 0 at the tick it is planned, one
-//! more after each step in which the tracker drove it (`Tracking`). While
-//! the tracker awaits a fix or is in its failsafe (`FixLost`, ramping
-//! down) the route's clock stands, so the reference waits for the robot
-//! rather than running away from it; the law rejoins it when fixes return.
+//! more after each step in which the tracker drove it (`Tracking`) and
+//! the robot kept up. The clock stands (the reference waits for the robot
+//! rather than running away from it):
+//!
+//! * while the tracker awaits a fix or is in its failsafe (`FixLost`,
+//!   ramping down); the law rejoins the reference when fixes return;
+//! * while the law steers and the robot lags the moving reference by more
+//!   than [`RouteOptions::max_lag_m`] along the reference's velocity
+//!   (`(p_r − p̂)·v_r/|v_r|`), counted in
+//!   [`RouteCounters::clock_wait_ticks`]. This is the virtual-vehicle
+//!   idea of Egerstedt, Hu & Stotsky, "Control of mobile platforms using a
+//!   virtual vehicle approach", IEEE Trans. Automatic Control 46(11),
+//!   1777–1782, 2001 (the reference's progress depends on the tracking
+//!   error), with a rate of 1 or 0 per tick so that the clock stays an
+//!   integer. The sample taken while waiting keeps its velocity, so the
+//!   law's feed-forward still drives the robot on; only a robot *behind*
+//!   is waited for (one beside or ahead of the reference would not come
+//!   closer by it, and one ahead would wait forever);
+//! * during an arrival approach (below).
+//!
+//! A robot that lags is therefore not left behind: the route takes longer
+//! than planned (the simulator's `time_ratio`) instead.
 //! The count starts from zero with each route, so the tracker's own tick
 //! counter and its wrap do not concern it, and a plan is shorter than
 //! [`crate::reference::route::MAX_ROUTE_TICKS`] (2³¹): it saturates long
 //! after the route is done.
+//!
+//! # Arrivals
+//! Where the reference comes to rest on a waypoint (and at the start of
+//! a first route loaded [`RouteStart::AsGiven`] or
+//! [`RouteStart::AsGivenHeadingKnown`], whose first waypoint the robot may
+//! not be on), the robot is driven onto the rest point before the clock
+//! goes on: the stop's dwell, its pivot and the next leg wait for it. With
+//! `d` the estimated distance to the point and `e_∥` its component along
+//! the estimated heading:
+//!
+//! * beyond [`NEAR_OF_TOLERANCE`] of [`RouteOptions::position_tolerance_m`],
+//!   the robot turns toward the point (or away from it and backs up, the
+//!   smaller turn), `ω = k_θ·e_β`, and drives as far as it faces it,
+//!   `v = ±min(k_a·d·cos e_β, v_a)` ([`APPROACH_GAIN_PER_S`],
+//!   [`RouteOptions::approach_speed_m_s`]): a go-to-point law;
+//! * within it, the robot only creeps along its heading, `v = sat(k_a·e_∥)`,
+//!   `ω = 0` (turning toward a point this close would turn the robot after
+//!   the estimate's noise), and has arrived once `|e_∥|` is within
+//!   [`ARRIVAL_BAND_OF_TOLERANCE`] of the tolerance. Its estimated stop
+//!   error is then at most 0.56 of the tolerance, the rest of the
+//!   tolerance is left to the estimate's own error.
+//!
+//! An approach is counted tick by tick ([`RouteCounters::approach_ticks`]);
+//! one longer than [`RouteOptions::approach_timeout_s`] ends where the
+//! robot is, counted in [`RouteCounters::approach_timeouts`] (the stop's
+//! error then shows in [`RouteCounters::stop_errors`]). Without a heading
+//! estimate (paper 001's observer before it has driven) there is no
+//! approach: the robot settles where it is.
 //!
 //! # At rest: stops, pivots, the end
 //! While the reference moves the law drives, except below
@@ -587,6 +641,11 @@ impl RouteFollower {
         }
     }
 
+    /// A loaded route waits to start.
+    pub(crate) fn is_pending(&self) -> bool {
+        self.pending.is_some()
+    }
+
     /// Starts a loaded route if it may start this tick (module
     /// documentation, "Loading and replacing a route"). `tracking`: the
     /// tracker drives this tick. Returns the heading the estimator is to
@@ -719,13 +778,12 @@ impl RouteFollower {
         let Some(position) = position else {
             return false;
         };
-        let velocity = reference.velocity;
-        let speed = velocity.norm();
-        if speed.is_nan() || speed <= 0.0 {
-            return false;
-        }
-        let behind = (reference.position - position).dot(velocity) / speed;
-        behind > self.options.max_lag_m()
+        // `(p_r − p̂)·v > L·|v|`, squared (no root, no division per tick):
+        // both sides positive, so it holds exactly where the unsquared
+        // form does; a NaN makes it false.
+        let ahead = (reference.position - position).dot(reference.velocity);
+        let limit = self.options.max_lag_m();
+        ahead > 0.0 && ahead * ahead > limit * limit * reference.velocity.dot(reference.velocity)
     }
 
     /// The arrival approach onto the rest point `target` (module

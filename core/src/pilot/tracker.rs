@@ -510,9 +510,11 @@ impl OutputFeedbackTracker {
         let (tick, fix_used) = self.estimate(odometry, fix);
         let tracking = self.position.is_some() && !self.fix_lost();
         let period_s = self.config.clock.period_s();
-        let known = route.start(tracking, self.position, self.estimator.heading(), period_s);
-        if let Some(heading_rad) = known {
-            self.estimator.assume_heading(heading_rad);
+        if route.is_pending() {
+            let heading = self.estimator.heading();
+            if let Some(known) = route.start(tracking, self.position, heading, period_s) {
+                self.estimator.assume_heading(known);
+            }
         }
         let heading = self.estimator.heading();
         let (reference, steer) = route.begin(tracking, self.position, heading, period_s);

@@ -50,7 +50,9 @@ fn the_clock_waits_only_for_a_robot_that_lags() {
     let mut t = tracker(pose_observer(), EAST);
     // Started on the first waypoint (no approach), then kept beside.
     follower.load(&leg(), &limits(), RouteStart::FromFirstFix);
-    let mut reference = t.step_route(&still, fix(Vec2::ZERO), &mut follower).reference;
+    let mut reference = t
+        .step_route(&still, fix(Vec2::ZERO), &mut follower)
+        .reference;
     for _ in 0..300 {
         let beside = reference.position + Vec2::new(0.0, 0.1);
         reference = t.step_route(&still, fix(beside), &mut follower).reference;
