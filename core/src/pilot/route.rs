@@ -98,17 +98,18 @@
 //! `d` the estimated distance to the point and `e_∥` its component along
 //! the estimated heading:
 //!
-//! * beyond [`NEAR_OF_TOLERANCE`] of [`RouteOptions::position_tolerance_m`],
-//!   the robot turns toward the point (or away from it and backs up, the
-//!   smaller turn), `ω = k_θ·e_β`, and drives as far as it faces it,
+//! * beyond [`NEAR_OF_TOLERANCE`] times [`RouteOptions::position_tolerance_m`]
+//!   (5 cm by default), the robot turns toward the point (or away from it
+//!   and backs up, the smaller turn), `ω = k_θ·e_β` within the route's
+//!   pivot rate, and drives as far as it faces it,
 //!   `v = ±min(k_a·d·cos e_β, v_a)` ([`APPROACH_GAIN_PER_S`],
 //!   [`RouteOptions::approach_speed_m_s`]): a go-to-point law;
 //! * within it, the robot only creeps along its heading, `v = sat(k_a·e_∥)`,
-//!   `ω = 0` (turning toward a point this close would turn the robot after
-//!   the estimate's noise), and has arrived once `|e_∥|` is within
+//!   `ω = 0`, and has arrived once `|e_∥|` is within
 //!   [`ARRIVAL_BAND_OF_TOLERANCE`] of the tolerance. Its estimated stop
-//!   error is then at most 0.56 of the tolerance, the rest of the
-//!   tolerance is left to the estimate's own error.
+//!   error across its heading is the path's cross-track error at
+//!   arrival (turning toward a point this close would turn the robot
+//!   by tens of degrees, and back on leaving).
 //!
 //! An approach is counted tick by tick ([`RouteCounters::approach_ticks`]);
 //! one longer than [`RouteOptions::approach_timeout_s`] ends where the
@@ -194,16 +195,24 @@ pub const SLOW_SPEED_M_S: f32 = 0.02;
 /// point, 1/s: 1 cm short commands 2 cm/s (under the approach's speed cap).
 pub const APPROACH_GAIN_PER_S: f32 = 2.0;
 
-/// Within this fraction of the position tolerance of the rest point, the
-/// arrival approach only creeps along the robot's heading (turning toward
-/// a point this close would turn the robot after the estimate's noise).
-pub const NEAR_OF_TOLERANCE: f32 = 0.5;
+/// Leaving a rest, the robot is turned in place onto the leg's direction
+/// while its heading estimate is further off than this, rad (about 11°);
+/// the law is not given a robot facing away from the path (measured: 140°
+/// off, paper 001's law spun it at 18 rad/s and it left the path by 37 cm).
+pub const DEPARTURE_ALIGN_RAD: f32 = 0.2;
+
+/// Within this many position tolerances of the rest point, the arrival
+/// approach only creeps along the robot's heading: the distance across it
+/// is the path's cross-track error at arrival, and turning toward a point
+/// a few centimetres to the side turns the robot by tens of degrees (and
+/// back again on leaving), which costs more than it gains (measured: a
+/// 1 cm offset turned the robot by 145° and it left the stop 31 cm wide).
+pub const NEAR_OF_TOLERANCE: f32 = 5.0;
 
 /// The arrival approach ends, in its near radius, once the distance to
 /// the rest point along the robot's heading is within this fraction of the
-/// position tolerance: the estimated stop error is then at most
-/// `√(0.5² + 0.25²)` = 0.56 of the tolerance, leaving the rest to the
-/// estimate's own error.
+/// position tolerance; what is left across the heading is the path's
+/// cross-track error at arrival.
 pub const ARRIVAL_BAND_OF_TOLERANCE: f32 = 0.25;
 
 /// Where a loaded route's first leg starts, when no route has run before
@@ -451,7 +460,8 @@ pub struct RouteCounters {
     /// reference by more than [`RouteOptions::max_lag_m`].
     pub clock_wait_ticks: u32,
     /// Ticks of arrival approach (the robot driven onto a stop it reached
-    /// short or long), the route's clock standing.
+    /// short or long) and of departure alignment (turned onto the next
+    /// leg before leaving), the route's clock standing.
     pub approach_ticks: u32,
     /// Arrival approaches ended by [`RouteOptions::approach_timeout_s`]
     /// rather than by arriving.
@@ -552,6 +562,12 @@ pub struct RouteFollower {
     arriving: bool,
     /// Ticks of the current arrival approach.
     approach_ticks: u32,
+    /// The reference has just left a rest (or the route started): the
+    /// robot is turned onto the leg's direction first.
+    departing: bool,
+    /// The running route's pivot rate, rad/s: the largest turn rate of the
+    /// tangent hold and the arrival approach too.
+    turn_rate_rad_s: f32,
 
     refused: Option<RouteError>,
     last_stop: Option<StopError>,
@@ -579,6 +595,8 @@ impl RouteFollower {
             was_slow: false,
             arriving: false,
             approach_ticks: 0,
+            departing: false,
+            turn_rate_rad_s: 0.0,
             refused: None,
             last_stop: None,
             counters: RouteCounters {
@@ -707,6 +725,15 @@ impl RouteFollower {
                 self.rest_point = None;
                 self.arriving = true;
                 let left_rest = self.rest.take().is_some();
+                if left_rest || self.elapsed_ticks == 0 {
+                    self.departing = true;
+                }
+                if self.departing {
+                    match self.align(&sample.reference, heading, period_s, tracking) {
+                        Some(command) => return (sample.reference, Steer::Body(command)),
+                        None => self.departing = false,
+                    }
+                }
                 match self.slow(&sample.reference, heading, period_s) {
                     Some(command) => {
                         self.was_slow = true;
@@ -845,13 +872,69 @@ impl RouteFollower {
             (bearing, 1.0)
         };
         let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
-        let speed = (APPROACH_GAIN_PER_S * distance * math::cos(turn))
-            .max(0.0)
-            .min(cap);
+        // Turn first: drive only once facing the point within
+        // `DEPARTURE_ALIGN_RAD` (the same alignment as leaving a rest).
+        let speed = if turn.abs() <= DEPARTURE_ALIGN_RAD {
+            (APPROACH_GAIN_PER_S * distance * math::cos(turn))
+                .max(0.0)
+                .min(cap)
+        } else {
+            0.0
+        };
         Some(BodyVelocity {
             v_m_s: direction * speed,
-            omega_rad_s: gain * turn,
+            omega_rad_s: self.turn_rate(gain * turn),
         })
+    }
+
+    /// The departure alignment: where the reference leaves a rest and the
+    /// estimated heading is more than [`DEPARTURE_ALIGN_RAD`] off the
+    /// leg's direction `θ_t` (the reference velocity's, or its
+    /// acceleration's at rest), the robot turns in place, `v = 0`, `ω =
+    /// k_θ·wrap(θ_t − θ̂)` within the route's pivot rate, the clock
+    /// standing (counted in [`RouteCounters::approach_ticks`]); `None` once
+    /// aligned, or with no heading or direction to align with.
+    fn align(
+        &mut self,
+        reference: &ReferenceSample,
+        heading: HeadingEstimate,
+        period_s: f32,
+        tracking: bool,
+    ) -> Option<BodyVelocity> {
+        let estimate = heading_rad(heading)?;
+        let tangent = if reference.velocity == Vec2::ZERO {
+            reference.acceleration
+        } else {
+            reference.velocity
+        };
+        if tangent == Vec2::ZERO || !tangent.is_finite() {
+            return None;
+        }
+        let error = math::wrap_angle(math::atan2(tangent.y, tangent.x) - estimate);
+        if error.abs() <= DEPARTURE_ALIGN_RAD || error.is_nan() {
+            return None;
+        }
+        if tracking {
+            self.counters.approach_ticks = self.counters.approach_ticks.saturating_add(1);
+        }
+        let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
+        Some(BodyVelocity {
+            v_m_s: 0.0,
+            omega_rad_s: self.turn_rate(gain * error),
+        })
+    }
+
+    /// `omega` within the route's pivot rate (a NaN stays NaN: the
+    /// tracker zeroes a non-finite command).
+    fn turn_rate(&self, omega: f32) -> f32 {
+        let cap = self.turn_rate_rad_s;
+        if omega > cap {
+            cap
+        } else if omega < -cap {
+            -cap
+        } else {
+            omega
+        }
     }
 
     /// After the tracker's command: a hold that reached exactly zero has
@@ -912,7 +995,8 @@ impl RouteFollower {
     }
 
     /// Below [`SLOW_SPEED_M_S`] (leaving or reaching a rest), where the
-    /// estimator has a heading: `v = v_r·cos e`, `ω = k_θ·e` with `e =
+    /// estimator has a heading: `v = v_r·cos e`, `ω = k_θ·e` (within the
+    /// route's pivot rate) with `e =
     /// wrap(θ_t − θ̂)` toward the path's tangent `θ_t` (the reference
     /// velocity's direction, or its acceleration's at rest); `None` to
     /// leave it to the law.
@@ -939,7 +1023,7 @@ impl RouteFollower {
         let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
         Some(BodyVelocity {
             v_m_s: speed * math::cos(error),
-            omega_rad_s: gain * error,
+            omega_rad_s: self.turn_rate(gain * error),
         })
     }
 
@@ -1012,10 +1096,12 @@ impl RouteFollower {
         // where the robot is.
         self.arriving = from.is_none();
         self.approach_ticks = 0;
+        self.departing = false;
         let known_start = from.is_none() && start == RouteStart::AsGivenHeadingKnown;
         // Changed and planned where it is (1.8 KB of waypoints, 20 KB of
         // plan): no copy on the stack.
         let pending = self.pending.as_mut()?;
+        self.turn_rate_rad_s = pending.limits.pivot_rate_rad_s();
         if let (Some(first), Some((at, facing))) =
             (pending.waypoints.as_mut_slice().first_mut(), from)
         {

@@ -63,8 +63,9 @@ fn the_clock_waits_only_for_a_robot_that_lags() {
 
 /// A robot that drives 10 % slower than commanded (and knows it only from
 /// the fixes) reaches each stop of a leg short and is driven onto it: the
-/// clock stands during the approach, and the robot settles within 0.56 of
-/// the 1 cm tolerance of the truth (exact fixes).
+/// clock stands during the approach, and the robot settles within a
+/// quarter of the 1 cm tolerance of the truth (exact fixes, no cross-track
+/// error on a straight leg).
 #[test]
 fn a_stop_reached_short_is_approached() {
     let mut run = Run::new(tracker(pose_observer(), EAST), Pose::new(0.0, 0.0, 0.0));
@@ -76,8 +77,8 @@ fn a_stop_reached_short_is_approached() {
     let c = run.route.counters();
     assert!(c.approach_ticks > 0 && c.approach_timeouts == 0, "{c:?}");
     let error = (last.robot.position - Vec2::new(1.0, 0.0)).norm();
-    let bound = (0.25_f32.hypot(0.5)) * RouteOptions::DEFAULT_POSITION_TOLERANCE_M;
-    assert!(error <= bound, "{error}");
+    let bound = 0.25 * RouteOptions::DEFAULT_POSITION_TOLERANCE_M;
+    assert!(error <= bound * 1.01, "{error}");
     assert_eq!(c.stop_errors, 0);
     // The clock stood while approaching: the route took longer than its plan.
     let planned = run.route.plan().duration_ticks() as usize;
