@@ -318,7 +318,13 @@ impl MavlinkEndpoint {
         }
     }
 
-    fn periodic(&mut self, now_ms: u32, view: &RobotView, tx: &mut TxBuffer<'_>, events: &mut Events) {
+    fn periodic(
+        &mut self,
+        now_ms: u32,
+        view: &RobotView,
+        tx: &mut TxBuffer<'_>,
+        events: &mut Events,
+    ) {
         if let Some(t) = self.gcs_heartbeat_ms
             && !self.link_lost
             && now_ms.wrapping_sub(t) >= self.config.link_timeout_ms
@@ -355,14 +361,7 @@ impl MavlinkEndpoint {
         let count = self.mission().len();
         if count > 0 && (heartbeat_due || self.last_current != Some(view.current)) {
             self.last_current = Some(view.current);
-            self.send(
-                tx,
-                &c::MISSION_CURRENT_DATA {
-                    seq: view.current,
-                    total: count,
-                    ..Default::default()
-                },
-            );
+            self.mission_current(tx, view.current);
         }
         self.reached(view, tx);
         self.telemetry(now_ms, view, tx);
@@ -427,7 +426,10 @@ impl MavlinkEndpoint {
         }
         self.last_telemetry_ms = Some(now_ms);
         let (north, east) = geo::floor_to_ned(e.x_m, e.y_m);
-        let (cos, sin) = (wmr_core::math::cos(e.heading_rad), wmr_core::math::sin(e.heading_rad));
+        let (cos, sin) = (
+            wmr_core::math::cos(e.heading_rad),
+            wmr_core::math::sin(e.heading_rad),
+        );
         let (vn, ve) = geo::floor_to_ned(e.speed_m_s * cos, e.speed_m_s * sin);
         self.send(
             tx,
@@ -458,7 +460,13 @@ impl MavlinkEndpoint {
         if let Some(origin) = self.config.origin {
             let (lat, lon) = origin.to_global(e.x_m, e.y_m);
             let yaw_deg = yaw * (180.0 / wmr_core::math::PI);
-            let hdg = libm::roundf(if yaw_deg < 0.0 { yaw_deg + 360.0 } else { yaw_deg } * 100.0);
+            let hdg = libm::roundf(
+                if yaw_deg < 0.0 {
+                    yaw_deg + 360.0
+                } else {
+                    yaw_deg
+                } * 100.0,
+            );
             self.send(
                 tx,
                 &c::GLOBAL_POSITION_INT_DATA {
@@ -477,7 +485,12 @@ impl MavlinkEndpoint {
     }
 
     /// Sends a `STATUSTEXT` (cut to its 50 characters).
-    pub(crate) fn status_text(&mut self, tx: &mut TxBuffer<'_>, severity: c::MavSeverity, text: &[u8]) {
+    pub(crate) fn status_text(
+        &mut self,
+        tx: &mut TxBuffer<'_>,
+        severity: c::MavSeverity,
+        text: &[u8],
+    ) {
         let mut chars = [0u8; 50];
         let n = text.len().min(chars.len());
         if let (Some(d), Some(s)) = (chars.get_mut(..n), text.get(..n)) {
@@ -488,7 +501,6 @@ impl MavlinkEndpoint {
             &c::STATUSTEXT_DATA {
                 severity,
                 text: chars.into(),
-                ..Default::default()
             },
         );
     }

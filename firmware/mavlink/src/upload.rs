@@ -35,15 +35,6 @@ fn i32_at(frame: &RxFrame, offset: usize) -> i32 {
     f32_at(frame, offset).to_bits() as i32
 }
 
-fn mission_type(value: u8) -> c::MavMissionType {
-    match value {
-        1 => c::MavMissionType::MAV_MISSION_TYPE_FENCE,
-        2 => c::MavMissionType::MAV_MISSION_TYPE_RALLY,
-        255 => c::MavMissionType::MAV_MISSION_TYPE_ALL,
-        _ => c::MavMissionType::MAV_MISSION_TYPE_MISSION,
-    }
-}
-
 #[allow(deprecated)]
 fn frame_enum(value: u8) -> c::MavFrame {
     match value {
@@ -70,100 +61,110 @@ impl MavlinkEndpoint {
         F: FnMut(&Waypoints) -> Result<(), RouteError>,
     {
         let from = (frame.sys_id, frame.comp_id);
+        // Where each message carries its target system and component.
+        let target = match frame.msg_id {
+            c::MISSION_ITEM_INT_DATA::ID | c::MISSION_ITEM_DATA::ID => 32,
+            c::MISSION_COUNT_DATA::ID
+            | c::MISSION_REQUEST_INT_DATA::ID
+            | c::MISSION_REQUEST_DATA::ID
+            | c::MISSION_SET_CURRENT_DATA::ID => 2,
+            c::MISSION_REQUEST_LIST_DATA::ID | c::MISSION_CLEAR_ALL_DATA::ID => 0,
+            // MISSION_ACK from the ground station ends a download: nothing
+            // is held for it.
+            _ => return,
+        };
+        if !self.for_us(frame.byte(target), frame.byte(target + 1)) {
+            return;
+        }
         match frame.msg_id {
             c::MISSION_COUNT_DATA::ID => {
-                if self.for_us(frame.byte(2), frame.byte(3)) {
-                    self.on_count(now_ms, frame.u16_at(0), frame.byte(4), from, tx, events);
-                }
+                self.on_count(now_ms, frame.u16_at(0), frame.byte(4), from, tx, events);
             }
             c::MISSION_ITEM_INT_DATA::ID | c::MISSION_ITEM_DATA::ID => {
-                if self.for_us(frame.byte(32), frame.byte(33)) {
-                    self.on_item(now_ms, frame, from, check_route, tx, events);
-                }
+                self.on_item(now_ms, frame, from, check_route, tx, events);
             }
             c::MISSION_REQUEST_LIST_DATA::ID => {
-                if self.for_us(frame.byte(0), frame.byte(1)) {
-                    let kind = frame.byte(2);
-                    let count = if kind == MISSION { self.mission().len() } else { 0 };
-                    self.send(
+                let kind = frame.byte(2);
+                let count = if kind == MISSION {
+                    self.mission().len()
+                } else {
+                    0
+                };
+                // MISSION_COUNT: count u16, target system, component,
+                // mission_type (an extension).
+                let n = count.to_le_bytes();
+                self.send_raw(
+                    tx,
+                    c::MISSION_COUNT_DATA::ID,
+                    c::MISSION_COUNT_DATA::EXTRA_CRC,
+                    &[n[0], n[1], from.0, from.1, kind],
+                );
+            }
+            c::MISSION_REQUEST_INT_DATA::ID | c::MISSION_REQUEST_DATA::ID => {
+                let int = frame.msg_id == c::MISSION_REQUEST_INT_DATA::ID;
+                self.on_request(frame.u16_at(0), frame.byte(4), int, from, view, tx);
+            }
+            c::MISSION_CLEAR_ALL_DATA::ID => {
+                let kind = frame.byte(2);
+                let mut result = R::MAV_MISSION_ACCEPTED;
+                if kind == MISSION || kind == 255 {
+                    if events.push(Event::ClearRoute) {
+                        self.upload = None;
+                        self.clear_active();
+                    } else {
+                        result = R::MAV_MISSION_ERROR;
+                    }
+                }
+                self.mission_ack(tx, from, result, kind);
+            }
+            _ => {
+                // MISSION_SET_CURRENT.
+                let seq = frame.u16_at(0);
+                if seq < self.mission().len() && events.push(Event::SetCurrent(seq)) {
+                    self.mission_current(tx, seq);
+                } else {
+                    self.refused();
+                    self.status_text(
                         tx,
-                        &c::MISSION_COUNT_DATA {
-                            count,
-                            target_system: from.0,
-                            target_component: from.1,
-                            mission_type: mission_type(kind),
-                            ..Default::default()
-                        },
+                        c::MavSeverity::MAV_SEVERITY_WARNING,
+                        b"set current refused: no such item",
                     );
                 }
             }
-            c::MISSION_REQUEST_INT_DATA::ID | c::MISSION_REQUEST_DATA::ID => {
-                if self.for_us(frame.byte(2), frame.byte(3)) {
-                    let int = frame.msg_id == c::MISSION_REQUEST_INT_DATA::ID;
-                    self.on_request(frame.u16_at(0), frame.byte(4), int, from, view, tx);
-                }
-            }
-            c::MISSION_CLEAR_ALL_DATA::ID => {
-                if self.for_us(frame.byte(0), frame.byte(1)) {
-                    let kind = frame.byte(2);
-                    let mut result = R::MAV_MISSION_ACCEPTED;
-                    if kind == MISSION || kind == 255 {
-                        if events.push(Event::ClearRoute) {
-                            self.upload = None;
-                            if let Some(m) = self.missions.get_mut(self.active) {
-                                m.clear();
-                            }
-                            self.last_reached = None;
-                            self.last_current = None;
-                        } else {
-                            result = R::MAV_MISSION_ERROR;
-                        }
-                    }
-                    self.mission_ack(tx, from, result, kind);
-                }
-            }
-            c::MISSION_SET_CURRENT_DATA::ID => {
-                if self.for_us(frame.byte(2), frame.byte(3)) {
-                    let seq = frame.u16_at(0);
-                    if seq < self.mission().len() && events.push(Event::SetCurrent(seq)) {
-                        self.send(
-                            tx,
-                            &c::MISSION_CURRENT_DATA {
-                                seq,
-                                total: self.mission().len(),
-                                ..Default::default()
-                            },
-                        );
-                    } else {
-                        self.refused();
-                        self.status_text(
-                            tx,
-                            c::MavSeverity::MAV_SEVERITY_WARNING,
-                            b"set current refused: no such item",
-                        );
-                    }
-                }
-            }
-            // MISSION_ACK from the ground station ends a download: nothing
-            // is held for it.
-            _ => {}
         }
+    }
+
+    fn clear_active(&mut self) {
+        if let Some(m) = self.missions.get_mut(self.active) {
+            m.clear();
+        }
+        self.last_reached = None;
+        self.last_current = None;
     }
 
     fn refused(&mut self) {
         self.counters.mission_refusals = self.counters.mission_refusals.wrapping_add(1);
     }
 
+    /// MISSION_ACK: target system, component, result, mission_type (an
+    /// extension).
     fn mission_ack(&mut self, tx: &mut TxBuffer<'_>, to: (u8, u8), result: R, kind: u8) {
-        self.send(
+        self.send_raw(
             tx,
-            &c::MISSION_ACK_DATA {
-                target_system: to.0,
-                target_component: to.1,
-                mavtype: result,
-                mission_type: mission_type(kind),
-                ..Default::default()
-            },
+            c::MISSION_ACK_DATA::ID,
+            c::MISSION_ACK_DATA::EXTRA_CRC,
+            &[to.0, to.1, result as u8, kind],
+        );
+    }
+
+    /// MISSION_CURRENT: seq u16, total u16 (an extension: the item count).
+    pub(crate) fn mission_current(&mut self, tx: &mut TxBuffer<'_>, seq: u16) {
+        let (s, n) = (seq.to_le_bytes(), self.mission().len().to_le_bytes());
+        self.send_raw(
+            tx,
+            c::MISSION_CURRENT_DATA::ID,
+            c::MISSION_CURRENT_DATA::EXTRA_CRC,
+            &[s[0], s[1], n[0], n[1]],
         );
     }
 
@@ -174,7 +175,6 @@ impl MavlinkEndpoint {
                 seq: up.next,
                 target_system: up.partner.0,
                 target_component: up.partner.1,
-                mission_type: c::MavMissionType::MAV_MISSION_TYPE_MISSION,
             },
         );
     }
@@ -202,9 +202,7 @@ impl MavlinkEndpoint {
         if count == 0 {
             // An empty upload clears the mission.
             if events.push(Event::ClearRoute) {
-                if let Some(m) = self.missions.get_mut(self.active) {
-                    m.clear();
-                }
+                self.clear_active();
                 self.mission_ack(tx, from, R::MAV_MISSION_ACCEPTED, kind);
             } else {
                 self.mission_ack(tx, from, R::MAV_MISSION_ERROR, kind);
@@ -254,7 +252,12 @@ impl MavlinkEndpoint {
         let raw = RawItem {
             command: frame.u16_at(30),
             frame: frame.byte(34),
-            params: [f32_at(frame, 0), f32_at(frame, 4), f32_at(frame, 8), f32_at(frame, 12)],
+            params: [
+                f32_at(frame, 0),
+                f32_at(frame, 4),
+                f32_at(frame, 8),
+                f32_at(frame, 12),
+            ],
             x: coord(16),
             y: coord(20),
             z: f32_at(frame, 24),

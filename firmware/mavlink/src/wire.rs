@@ -30,18 +30,42 @@ const MAX_FRAME: usize = V2_HEADER + MAX_PAYLOAD + 2 + SIGNATURE;
 const RECEIVED: [(u32, u8); 15] = [
     (c::HEARTBEAT_DATA::ID, c::HEARTBEAT_DATA::EXTRA_CRC),
     (c::MISSION_COUNT_DATA::ID, c::MISSION_COUNT_DATA::EXTRA_CRC),
-    (c::MISSION_ITEM_INT_DATA::ID, c::MISSION_ITEM_INT_DATA::EXTRA_CRC),
+    (
+        c::MISSION_ITEM_INT_DATA::ID,
+        c::MISSION_ITEM_INT_DATA::EXTRA_CRC,
+    ),
     (c::MISSION_ITEM_DATA::ID, c::MISSION_ITEM_DATA::EXTRA_CRC),
-    (c::MISSION_REQUEST_LIST_DATA::ID, c::MISSION_REQUEST_LIST_DATA::EXTRA_CRC),
-    (c::MISSION_REQUEST_INT_DATA::ID, c::MISSION_REQUEST_INT_DATA::EXTRA_CRC),
-    (c::MISSION_REQUEST_DATA::ID, c::MISSION_REQUEST_DATA::EXTRA_CRC),
+    (
+        c::MISSION_REQUEST_LIST_DATA::ID,
+        c::MISSION_REQUEST_LIST_DATA::EXTRA_CRC,
+    ),
+    (
+        c::MISSION_REQUEST_INT_DATA::ID,
+        c::MISSION_REQUEST_INT_DATA::EXTRA_CRC,
+    ),
+    (
+        c::MISSION_REQUEST_DATA::ID,
+        c::MISSION_REQUEST_DATA::EXTRA_CRC,
+    ),
     (c::MISSION_ACK_DATA::ID, c::MISSION_ACK_DATA::EXTRA_CRC),
-    (c::MISSION_CLEAR_ALL_DATA::ID, c::MISSION_CLEAR_ALL_DATA::EXTRA_CRC),
-    (c::MISSION_SET_CURRENT_DATA::ID, c::MISSION_SET_CURRENT_DATA::EXTRA_CRC),
+    (
+        c::MISSION_CLEAR_ALL_DATA::ID,
+        c::MISSION_CLEAR_ALL_DATA::EXTRA_CRC,
+    ),
+    (
+        c::MISSION_SET_CURRENT_DATA::ID,
+        c::MISSION_SET_CURRENT_DATA::EXTRA_CRC,
+    ),
     (c::COMMAND_LONG_DATA::ID, c::COMMAND_LONG_DATA::EXTRA_CRC),
     (c::COMMAND_INT_DATA::ID, c::COMMAND_INT_DATA::EXTRA_CRC),
-    (c::PARAM_REQUEST_LIST_DATA::ID, c::PARAM_REQUEST_LIST_DATA::EXTRA_CRC),
-    (c::PARAM_REQUEST_READ_DATA::ID, c::PARAM_REQUEST_READ_DATA::EXTRA_CRC),
+    (
+        c::PARAM_REQUEST_LIST_DATA::ID,
+        c::PARAM_REQUEST_LIST_DATA::EXTRA_CRC,
+    ),
+    (
+        c::PARAM_REQUEST_READ_DATA::ID,
+        c::PARAM_REQUEST_READ_DATA::EXTRA_CRC,
+    ),
     (c::PARAM_SET_DATA::ID, c::PARAM_SET_DATA::EXTRA_CRC),
 ];
 
@@ -275,7 +299,13 @@ impl<'a> TxBuffer<'a> {
 
     /// Appends one MAVLink 2 frame (`header`: sequence, system id,
     /// component id); `false` (and counted) if it does not fit.
-    pub(crate) fn frame(&mut self, header: [u8; 3], msg_id: u32, extra: u8, payload: &[u8]) -> bool {
+    pub(crate) fn frame(
+        &mut self,
+        header: [u8; 3],
+        msg_id: u32,
+        extra: u8,
+        payload: &[u8],
+    ) -> bool {
         // A MAVLink 2 payload keeps at least one byte after the trailing
         // zeros are cut.
         let n = payload.len().clamp(1, MAX_PAYLOAD);
@@ -293,7 +323,10 @@ impl<'a> TxBuffer<'a> {
             h.copy_from_slice(&head);
         }
         let copy = payload.len().min(n);
-        if let (Some(d), Some(s)) = (frame.get_mut(V2_HEADER..V2_HEADER + copy), payload.get(..copy)) {
+        if let (Some(d), Some(s)) = (
+            frame.get_mut(V2_HEADER..V2_HEADER + copy),
+            payload.get(..copy),
+        ) {
             d.copy_from_slice(s);
         }
         let crc = mavlink::calculate_crc(frame.get(1..V2_HEADER + n).unwrap_or(&[]), extra);

@@ -86,7 +86,9 @@ impl Rig {
     pub fn feed(&mut self, bytes: &[u8]) -> (Vec<Event>, Vec<MavMessage>) {
         let mut buf = vec![0u8; self.tx_capacity];
         let mut tx = TxBuffer::new(&mut buf);
-        let events = self.ep.handle(self.now_ms, bytes, &self.view, plan_check, &mut tx);
+        let events = self
+            .ep
+            .handle(self.now_ms, bytes, &self.view, plan_check, &mut tx);
         let out = decode_all(tx.as_slice());
         (events.as_slice().to_vec(), out)
     }
@@ -109,7 +111,6 @@ impl Rig {
             count: items.len() as u16,
             target_system: 1,
             target_component: 1,
-            ..Default::default()
         });
         let (mut events, mut out) = self.send(count);
         for _ in 0..1000 {
@@ -132,11 +133,12 @@ impl Rig {
     /// Downloads the mission with MISSION_REQUEST_INT (or the legacy
     /// MISSION_REQUEST): every item message received, in order.
     pub fn download(&mut self, int: bool) -> Vec<MavMessage> {
-        let (_, out) = self.send(MavMessage::MISSION_REQUEST_LIST(MISSION_REQUEST_LIST_DATA {
-            target_system: 1,
-            target_component: 1,
-            ..Default::default()
-        }));
+        let (_, out) = self.send(MavMessage::MISSION_REQUEST_LIST(
+            MISSION_REQUEST_LIST_DATA {
+                target_system: 1,
+                target_component: 1,
+            },
+        ));
         let count = out
             .iter()
             .find_map(|m| match m {
@@ -151,32 +153,37 @@ impl Rig {
                     seq,
                     target_system: 1,
                     target_component: 1,
-                    ..Default::default()
                 })
             } else {
                 MavMessage::MISSION_REQUEST(MISSION_REQUEST_DATA {
                     seq,
                     target_system: 1,
                     target_component: 1,
-                    ..Default::default()
                 })
             };
             let (_, out) = self.send(request);
             items.extend(out.into_iter().filter(|m| {
-                matches!(m, MavMessage::MISSION_ITEM_INT(_) | MavMessage::MISSION_ITEM(_))
+                matches!(
+                    m,
+                    MavMessage::MISSION_ITEM_INT(_) | MavMessage::MISSION_ITEM(_)
+                )
             }));
         }
         self.send(MavMessage::MISSION_ACK(MISSION_ACK_DATA {
             target_system: 1,
             target_component: 1,
             mavtype: MavMissionResult::MAV_MISSION_ACCEPTED,
-            ..Default::default()
         }));
         items
     }
 
     /// A COMMAND_LONG to this robot; its events and the ack's result.
-    pub fn command(&mut self, command: MavCmd, p1: f32, p2: f32) -> (Vec<Event>, Option<MavResult>) {
+    pub fn command(
+        &mut self,
+        command: MavCmd,
+        p1: f32,
+        p2: f32,
+    ) -> (Vec<Event>, Option<MavResult>) {
         let (events, out) = self.send(MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
             command,
             param1: p1,
