@@ -160,6 +160,9 @@ impl MavlinkEndpoint {
     /// `COMMAND_ACK` written from its wire layout (command u16, result u8,
     /// progress u8, result_param2 i32, target system, target component),
     /// so that an unknown command number is echoed as received.
+    // Out of line: called from many places; inlined at each (opt-level 3,
+    // fat LTO) it cost flash (docs/mavlink.md, Cost).
+    #[inline(never)]
     fn command_ack(&mut self, tx: &mut TxBuffer<'_>, command: u16, result: u8, sys: u8, comp: u8) {
         let cmd = command.to_le_bytes();
         let payload = [cmd[0], cmd[1], result, 0, 0, 0, 0, 0, sys, comp];

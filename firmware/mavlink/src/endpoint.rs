@@ -484,28 +484,36 @@ impl MavlinkEndpoint {
         }
     }
 
-    /// Sends a `STATUSTEXT` (cut to its 50 characters).
+    /// Sends a `STATUSTEXT` (cut to its 50 characters), written by its
+    /// layout: severity, then the text (NUL-padded; the extension fields
+    /// `id`, `chunk_seq` left 0: one chunk).
+    // Out of line: called from many places; inlined at each (opt-level 3,
+    // fat LTO) it cost flash (docs/mavlink.md, Cost).
+    #[inline(never)]
     pub(crate) fn status_text(
         &mut self,
         tx: &mut TxBuffer<'_>,
         severity: c::MavSeverity,
         text: &[u8],
     ) {
-        let mut chars = [0u8; 50];
-        let n = text.len().min(chars.len());
-        if let (Some(d), Some(s)) = (chars.get_mut(..n), text.get(..n)) {
+        let mut payload = [0u8; 51];
+        payload[0] = severity as u8;
+        let n = text.len().min(50);
+        if let (Some(d), Some(s)) = (payload.get_mut(1..1 + n), text.get(..n)) {
             d.copy_from_slice(s);
         }
-        self.send(
+        self.send_raw(
             tx,
-            &c::STATUSTEXT_DATA {
-                severity,
-                text: chars.into(),
-            },
+            c::STATUSTEXT_DATA::ID,
+            c::STATUSTEXT_DATA::EXTRA_CRC,
+            &payload,
         );
     }
 
     /// Serialises one message into a MAVLink 2 frame in `tx`.
+    // Out of line: called from many places; inlined at each (opt-level 3,
+    // fat LTO) it cost flash (docs/mavlink.md, Cost).
+    #[inline(never)]
     pub(crate) fn send<D: MessageData>(&mut self, tx: &mut TxBuffer<'_>, msg: &D) {
         let mut payload = [0u8; MAX_PAYLOAD];
         let n = msg.ser(mavlink::MavlinkVersion::V2, &mut payload);
@@ -514,6 +522,9 @@ impl MavlinkEndpoint {
 
     /// Sends a payload already serialised (its trailing zeros cut, as
     /// MAVLink 2 sends them).
+    // Out of line: called from many places; inlined at each (opt-level 3,
+    // fat LTO) it cost flash (docs/mavlink.md, Cost).
+    #[inline(never)]
     pub(crate) fn send_raw(&mut self, tx: &mut TxBuffer<'_>, id: u32, extra: u8, payload: &[u8]) {
         let n = payload.iter().rposition(|&b| b != 0).map_or(1, |i| i + 1);
         let payload = payload.get(..n).unwrap_or(payload);

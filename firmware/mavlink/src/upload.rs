@@ -148,6 +148,9 @@ impl MavlinkEndpoint {
 
     /// MISSION_ACK: target system, component, result, mission_type (an
     /// extension).
+    // Out of line: called from many places; inlined at each (opt-level 3,
+    // fat LTO) it cost flash (docs/mavlink.md, Cost).
+    #[inline(never)]
     fn mission_ack(&mut self, tx: &mut TxBuffer<'_>, to: (u8, u8), result: R, kind: u8) {
         self.send_raw(
             tx,
@@ -158,6 +161,9 @@ impl MavlinkEndpoint {
     }
 
     /// MISSION_CURRENT: seq u16, total u16 (an extension: the item count).
+    // Out of line: called from many places; inlined at each (opt-level 3,
+    // fat LTO) it cost flash (docs/mavlink.md, Cost).
+    #[inline(never)]
     pub(crate) fn mission_current(&mut self, tx: &mut TxBuffer<'_>, seq: u16) {
         let (s, n) = (seq.to_le_bytes(), self.mission().len().to_le_bytes());
         self.send_raw(
@@ -168,6 +174,11 @@ impl MavlinkEndpoint {
         );
     }
 
+    // Out of line: called from many places; inlined at each (opt-level 3,
+
+    // fat LTO) it cost flash (docs/mavlink.md, Cost).
+
+    #[inline(never)]
     fn request_item(&mut self, tx: &mut TxBuffer<'_>, up: &Upload) {
         self.send(
             tx,

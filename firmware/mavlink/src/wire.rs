@@ -299,6 +299,9 @@ impl<'a> TxBuffer<'a> {
 
     /// Appends one MAVLink 2 frame (`header`: sequence, system id,
     /// component id); `false` (and counted) if it does not fit.
+    // Out of line: called from many places; inlined at each (opt-level 3,
+    // fat LTO) it cost flash (docs/mavlink.md, Cost).
+    #[inline(never)]
     pub(crate) fn frame(
         &mut self,
         header: [u8; 3],

@@ -79,3 +79,12 @@ fn each_field_is_checked_by_name() {
         .is_ok()
     );
 }
+
+#[test]
+fn the_endpoint_fits_in_4_kib_of_ram() {
+    // Two missions of 64 items (the running one and the upload's), the
+    // parser's 280-byte frame buffer, the counters and timers.
+    let size = core::mem::size_of::<wmr_mavlink::MavlinkEndpoint>();
+    println!("MavlinkEndpoint: {size} bytes");
+    assert!(size <= 4096, "{size}");
+}
