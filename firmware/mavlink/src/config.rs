@@ -189,6 +189,21 @@ impl EndpointConfig {
         })
     }
 
+    /// The plain numbers of this configuration (to change one and check
+    /// the whole again).
+    #[must_use]
+    pub fn spec(&self) -> EndpointSpec {
+        EndpointSpec {
+            system_id: self.system_id,
+            component_id: self.component_id,
+            link_timeout_ms: self.link_timeout_ms,
+            item_timeout_ms: self.item_timeout_ms,
+            item_retries: self.item_retries,
+            telemetry_period_ms: self.telemetry_period_ms,
+            origin_e7: self.origin.map(|o| (o.lat_e7(), o.lon_e7())),
+        }
+    }
+
     /// The geodetic origin, if any.
     #[must_use]
     pub fn origin(&self) -> Option<&Origin> {

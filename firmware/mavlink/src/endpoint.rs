@@ -2,7 +2,7 @@
 
 use mavlink::MessageData;
 use mavlink::dialects::common as c;
-use wmr_core::reference::route::{RouteError, Waypoints};
+use wmr_core::reference::route::{RouteError, RouteLimits, Waypoints};
 
 use crate::config::EndpointConfig;
 use crate::geo;
@@ -86,6 +86,9 @@ pub enum Event {
     /// No ground-station heartbeat for the link timeout: stop, as the
     /// other failsafes do. Sent once per loss.
     LinkLost,
+    /// A route limit was set (`PARAM_SET`): plan the next route with
+    /// [`MavlinkEndpoint::route_limits`].
+    RouteLimits,
 }
 
 /// The events of one call, in the order their frames came.
@@ -142,6 +145,8 @@ pub struct Counters {
     pub upload_timeouts: u32,
     /// Commands answered other than `MAV_RESULT_ACCEPTED`.
     pub command_refusals: u32,
+    /// Parameter reads and sets refused (unknown name, value refused).
+    pub param_refusals: u32,
     /// Link losses.
     pub link_losses: u32,
     /// Outgoing frames dropped: no room in the caller's buffer.
@@ -163,6 +168,7 @@ pub(crate) struct Upload {
 #[derive(Debug, Clone)]
 pub struct MavlinkEndpoint {
     pub(crate) config: EndpointConfig,
+    pub(crate) limits: RouteLimits,
     pub(crate) parser: Parser,
     pub(crate) counters: Counters,
     pub(crate) seq: u8,
@@ -188,11 +194,16 @@ fn due(now_ms: u32, last: Option<u32>, period_ms: u32) -> bool {
 }
 
 impl MavlinkEndpoint {
-    /// An endpoint with no mission.
+    /// An endpoint with no mission; `limits` are the route limits the
+    /// parameters start from (the robot file's).
     #[must_use]
-    pub fn new(config: EndpointConfig) -> Self {
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
+    pub fn new(config: EndpointConfig, limits: RouteLimits) -> Self {
         Self {
             config,
+            limits,
             parser: Parser::new(),
             counters: Counters::default(),
             seq: 0,
@@ -245,6 +256,9 @@ impl MavlinkEndpoint {
     /// robot plans it with its limits and period: `RoutePlan::replan`):
     /// a refusal is answered with the closest `MAV_MISSION_RESULT` and the
     /// running mission is kept.
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
     pub fn handle<F>(
         &mut self,
         now_ms: u32,
@@ -280,6 +294,9 @@ impl MavlinkEndpoint {
         ok
     }
 
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
     fn dispatch<F>(
         &mut self,
         now_ms: u32,
@@ -298,10 +315,7 @@ impl MavlinkEndpoint {
             }
             c::PARAM_REQUEST_LIST_DATA::ID
             | c::PARAM_REQUEST_READ_DATA::ID
-            | c::PARAM_SET_DATA::ID => {
-                // No parameters yet: an empty table (PARAM_VALUE count 0
-                // would need an index); ground stations time out cleanly.
-            }
+            | c::PARAM_SET_DATA::ID => self.on_param(frame, tx, events),
             _ => self.on_mission(now_ms, frame, view, check_route, tx, events),
         }
     }
@@ -318,6 +332,9 @@ impl MavlinkEndpoint {
         }
     }
 
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
     fn periodic(
         &mut self,
         now_ms: u32,
@@ -367,6 +384,9 @@ impl MavlinkEndpoint {
         self.telemetry(now_ms, view, tx);
     }
 
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
     fn reached(&mut self, view: &RobotView, tx: &mut TxBuffer<'_>) {
         let count = self.mission().len();
         match view.reached {
@@ -388,6 +408,9 @@ impl MavlinkEndpoint {
         }
     }
 
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
     fn heartbeat(&mut self, view: &RobotView, tx: &mut TxBuffer<'_>) {
         let mut base_mode = c::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED;
         if view.armed {
@@ -418,6 +441,9 @@ impl MavlinkEndpoint {
         );
     }
 
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
     fn telemetry(&mut self, now_ms: u32, view: &RobotView, tx: &mut TxBuffer<'_>) {
         let period = self.config.telemetry_period_ms;
         let Some(e) = view.estimate else { return };

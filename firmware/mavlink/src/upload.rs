@@ -49,6 +49,9 @@ fn frame_enum(value: u8) -> c::MavFrame {
 const MISSION: u8 = 0;
 
 impl MavlinkEndpoint {
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
     pub(crate) fn on_mission<F>(
         &mut self,
         now_ms: u32,
@@ -178,6 +181,8 @@ impl MavlinkEndpoint {
 
     // fat LTO) it cost flash (docs/mavlink.md, Cost).
 
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     fn request_item(&mut self, tx: &mut TxBuffer<'_>, up: &Upload) {
         self.send(
@@ -190,6 +195,9 @@ impl MavlinkEndpoint {
         );
     }
 
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
     fn on_count(
         &mut self,
         now_ms: u32,
@@ -234,6 +242,9 @@ impl MavlinkEndpoint {
         self.request_item(tx, &up);
     }
 
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
     fn on_item<F>(
         &mut self,
         now_ms: u32,
@@ -323,6 +334,9 @@ impl MavlinkEndpoint {
 
     /// Re-requests the expected item after the item timeout; cancels the
     /// upload when the retries run out.
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
     pub(crate) fn upload_timeout(&mut self, now_ms: u32, tx: &mut TxBuffer<'_>) {
         let Some(mut up) = self.upload else { return };
         if now_ms.wrapping_sub(up.last_ms) < self.config.item_timeout_ms {
@@ -340,6 +354,9 @@ impl MavlinkEndpoint {
         }
     }
 
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
     fn on_request(
         &mut self,
         seq: u16,

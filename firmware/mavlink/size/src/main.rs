@@ -38,7 +38,8 @@ pub extern "C" fn _start() -> ! {
     let Ok(cfg) = EndpointConfig::new(&spec) else {
         loop {}
     };
-    let mut ep = MavlinkEndpoint::new(cfg);
+    let Some(limits) = limits() else { loop {} };
+    let mut ep = MavlinkEndpoint::new(cfg, limits);
     loop {
         let bytes = rx();
         let w = word(2);
@@ -89,8 +90,25 @@ pub extern "C" fn _start() -> ! {
     }
 }
 
+/// Route limits from volatile words (a firmware checks its robot file's).
+fn limits() -> Option<wmr_core::reference::route::RouteLimits> {
+    use wmr_core::reference::route::{RouteLimits, RouteLimitsSpec};
+    let f = |i| f32::from_bits(word(i));
+    RouteLimits::new(&RouteLimitsSpec {
+        max_speed_m_s: f(0),
+        max_tangential_accel_m_s2: f(1),
+        max_lateral_accel_m_s2: f(2),
+        blend_deviation_m: f(3),
+        pivot_threshold_rad: f(4),
+        pivot_rate_rad_s: f(5),
+        pivot_accel_rad_s2: f(6),
+    })
+    .ok()
+}
+
 /// What a firmware with the core links already: the core's sin, cos,
-/// sqrt, angle wrap, and memcpy / memmove / memset.
+/// sqrt, angle wrap, memcpy / memmove / memset (and, above, the route
+/// limits' check).
 fn shared() -> u32 {
     use wmr_core::math;
     let x = f32::from_bits(word(3));
@@ -113,6 +131,10 @@ pub extern "C" fn shared_entry() -> u32 {
 pub extern "C" fn _start() -> ! {
     loop {
         let bytes = rx();
-        emit(&bytes[..(word(2) as usize >> 24) % 64], word(6) ^ shared());
+        let speed = limits().map_or(0, |l| l.max_speed_m_s().to_bits());
+        emit(
+            &bytes[..(word(2) as usize >> 24) % 64],
+            word(6) ^ shared() ^ speed,
+        );
     }
 }

@@ -41,7 +41,7 @@ pub struct Rig {
 impl Rig {
     pub fn new(spec: EndpointSpec) -> Self {
         Self {
-            ep: MavlinkEndpoint::new(EndpointConfig::new(&spec).expect("config")),
+            ep: MavlinkEndpoint::new(EndpointConfig::new(&spec).expect("config"), limits()),
             view: RobotView::default(),
             now_ms: 0,
             seq: 0,
