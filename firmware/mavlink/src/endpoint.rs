@@ -375,6 +375,9 @@ impl MavlinkEndpoint {
             self.last_mode = Some(mode);
             self.heartbeat(view, tx);
         }
+        if heartbeat_due {
+            self.sys_status(tx);
+        }
         let count = self.mission().len();
         if count > 0 && (heartbeat_due || self.last_current != Some(view.current)) {
             self.last_current = Some(view.current);
@@ -391,6 +394,7 @@ impl MavlinkEndpoint {
         let count = self.mission().len();
         match view.reached {
             None => self.last_reached = None,
+            Some(r) if count == 0 => self.last_reached = Some(r),
             Some(r) => {
                 // Each index once, in order, even if several were passed
                 // between two calls; a lower index is a restart.
@@ -411,6 +415,33 @@ impl MavlinkEndpoint {
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
     // was unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
+    /// `SYS_STATUS` at 1 Hz: no sensors declared, battery unknown, and the
+    /// endpoint's counters (each saturated to `u16`): `errors_comm` = CRC
+    /// errors, `errors_count1..4` = mission, command and parameter
+    /// refusals and frames dropped for want of room.
+    fn sys_status(&mut self, tx: &mut TxBuffer<'_>) {
+        let sat = |v: u32| u16::try_from(v).unwrap_or(u16::MAX);
+        let n = self.counters;
+        self.send(
+            tx,
+            &c::SYS_STATUS_DATA {
+                onboard_control_sensors_present: c::MavSysStatusSensor::empty(),
+                onboard_control_sensors_enabled: c::MavSysStatusSensor::empty(),
+                onboard_control_sensors_health: c::MavSysStatusSensor::empty(),
+                load: 0,
+                voltage_battery: u16::MAX,
+                current_battery: -1,
+                drop_rate_comm: 0,
+                errors_comm: sat(n.rx.crc_errors),
+                errors_count1: sat(n.mission_refusals),
+                errors_count2: sat(n.command_refusals),
+                errors_count3: sat(n.param_refusals),
+                errors_count4: sat(n.tx_dropped),
+                battery_remaining: -1,
+            },
+        );
+    }
+
     fn heartbeat(&mut self, view: &RobotView, tx: &mut TxBuffer<'_>) {
         let mut base_mode = c::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED;
         if view.armed {

@@ -215,11 +215,18 @@ fn random_mutations_of_good_frames_never_panic() {
 #[test]
 fn a_full_output_buffer_drops_whole_frames_and_counts_them() {
     let mut rig = Rig::default_rig();
-    rig.tx_capacity = 20;
-    // The heartbeat (21 bytes) does not fit: dropped, counted.
+    // Room for the heartbeat (21 bytes) but not for the SYS_STATUS after
+    // it: one whole frame out, one dropped.
+    rig.tx_capacity = 25;
     let (_, out) = rig.tick(10);
-    assert!(out.is_empty());
+    assert_eq!(out.len(), 1);
+    assert!(matches!(out[0], MavMessage::HEARTBEAT(_)));
     assert_eq!(rig.ep.counters().tx_dropped, 1);
+    // No room at all: both dropped.
+    rig.tx_capacity = 0;
+    let (_, out) = rig.tick(1_000);
+    assert!(out.is_empty());
+    assert_eq!(rig.ep.counters().tx_dropped, 3);
 }
 
 #[test]
@@ -279,4 +286,30 @@ fn telemetry_at_its_period_in_ned_and_global() {
         g.lon - lon0
     );
     assert_eq!(g.hdg, 9_000);
+}
+
+#[test]
+fn sys_status_carries_the_counters_and_no_reached_without_a_mission() {
+    let mut rig = Rig::default_rig();
+    // Reached reported with no mission: nothing sent.
+    rig.view.reached = Some(0);
+    let (_, out) = rig.tick(10);
+    assert!(
+        !out.iter()
+            .any(|m| matches!(m, MavMessage::MISSION_ITEM_REACHED(_)))
+    );
+    let mut bad = arm_frame(&mut rig);
+    bad[12] ^= 1;
+    rig.feed(&bad);
+    rig.command(MavCmd::MAV_CMD_NAV_TAKEOFF, 0.0, 0.0);
+    let (_, out) = rig.tick(1_000);
+    let s = out
+        .iter()
+        .find_map(|m| match m {
+            MavMessage::SYS_STATUS(s) => Some(s.clone()),
+            _ => None,
+        })
+        .expect("SYS_STATUS at 1 Hz");
+    assert_eq!((s.errors_comm, s.errors_count2), (1, 1));
+    assert_eq!((s.voltage_battery, s.battery_remaining), (u16::MAX, -1));
 }
