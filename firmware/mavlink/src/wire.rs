@@ -162,9 +162,17 @@ impl Parser {
     }
 
     fn drop_front(&mut self, n: usize) {
-        let n = n.min(self.len);
-        self.buf.copy_within(n..self.len, 0);
-        self.len -= n;
+        let len = self.len.min(MAX_FRAME);
+        let n = n.min(len);
+        // A checked byte loop rather than `copy_within`, whose bounds
+        // check links a panic path at opt-level `s` (at most 280 bytes).
+        for i in n..len {
+            let byte = self.at(i);
+            if let Some(slot) = self.buf.get_mut(i - n) {
+                *slot = byte;
+            }
+        }
+        self.len = len - n;
     }
 
     fn at(&self, i: usize) -> u8 {
