@@ -26,7 +26,7 @@
 //! * Commands ([`command`] module), answered with `COMMAND_ACK`.
 //! * Parameters ([`params`] module): the route limits, the link timeout
 //!   and the telemetry period, each checked by its constructor.
-//! * Telemetry at the configured period: `LOCAL_POSITION_NED`,
+//! * Telemetry ([`telemetry`] module) at the configured period: `LOCAL_POSITION_NED`,
 //!   `ATTITUDE`, and `GLOBAL_POSITION_INT` with a geodetic origin;
 //!   `SYS_STATUS` with the endpoint's counters at 1 Hz.
 //!
@@ -71,6 +71,7 @@ pub mod endpoint;
 pub mod geo;
 pub mod mission;
 pub mod params;
+pub mod telemetry;
 pub mod upload;
 pub mod wire;
 
