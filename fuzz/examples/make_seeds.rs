@@ -1,5 +1,6 @@
 //! Writes the structured seeds of the committed corpus (`fuzz/corpus/`):
-//! valid RFID streams and link frames of both sides. Run from `fuzz/`:
+//! valid RFID streams, link frames of both sides and a ground station's
+//! MAVLink frames. Run from `fuzz/`:
 //! `cargo run --example make_seeds` (or `-- DIR` to write them under
 //! `DIR` instead: `cargo xtask fuzz` does, and checks that the committed
 //! seeds are the same, so that they follow the link protocol). The scenario seeds are the
@@ -194,4 +195,71 @@ fn main() {
         stream.extend_from_slice(bytes);
     }
     write("link_decode", "stream", &stream);
+    mavlink_seeds();
+}
+
+/// MAVLink: three control bytes (chunk sizes, robot state, clock), then a
+/// ground station's frames: a heartbeat, an arm command, a two-waypoint
+/// upload, a download request and a start.
+fn mavlink_seeds() {
+    use mavlink::dialects::common::*;
+    let mut seq = 0u8;
+    let mut frame = |msg: MavMessage| {
+        let mut buf = [0u8; 300];
+        let header = mavlink::MavHeader {
+            system_id: 255,
+            component_id: 190,
+            sequence: seq,
+        };
+        seq = seq.wrapping_add(1);
+        let n = mavlink::write_v2_msg(&mut &mut buf[..], header, &msg).expect("fits");
+        buf[..n].to_vec()
+    };
+    let item = |seq: u16, north_e4: i32| {
+        MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
+            param1: 1.0,
+            param4: f32::NAN,
+            x: north_e4,
+            y: 0,
+            seq,
+            command: MavCmd::MAV_CMD_NAV_WAYPOINT,
+            target_system: 1,
+            target_component: 1,
+            frame: MavFrame::MAV_FRAME_LOCAL_NED,
+            autocontinue: 1,
+            ..Default::default()
+        })
+    };
+    let command = |command: MavCmd, param1: f32| {
+        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            command,
+            param1,
+            target_system: 1,
+            target_component: 1,
+            ..Default::default()
+        })
+    };
+    let mut stream = vec![0x35, 0x04, 20];
+    for msg in [
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            mavtype: MavType::MAV_TYPE_GCS,
+            ..Default::default()
+        }),
+        command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, 1.0),
+        MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+            count: 2,
+            target_system: 1,
+            target_component: 1,
+        }),
+        item(0, 0),
+        item(1, 10_000),
+        MavMessage::MISSION_REQUEST_LIST(MISSION_REQUEST_LIST_DATA {
+            target_system: 1,
+            target_component: 1,
+        }),
+        command(MavCmd::MAV_CMD_MISSION_START, 0.0),
+    ] {
+        stream.extend(frame(msg));
+    }
+    write("mavlink_rx", "arm_upload_start", &stream);
 }

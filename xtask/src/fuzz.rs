@@ -27,12 +27,13 @@ use crate::target::workspace_root;
 use crate::{Result, output, run, step};
 
 /// The fuzz targets, in the order they run.
-pub const TARGETS: [&str; 5] = [
+pub const TARGETS: [&str; 6] = [
     "rfid_frames",
     "link_decode",
     "link_session",
     "pilot_step",
     "scenario_toml",
+    "mavlink_rx",
 ];
 
 /// Seconds each target runs in CI.

@@ -1,0 +1,277 @@
+//! The parameter protocol (<https://mavlink.io/en/services/parameter.html>):
+//! `PARAM_REQUEST_LIST`, `PARAM_REQUEST_READ` and `PARAM_SET`, answered
+//! with `PARAM_VALUE`, over the table [`PARAMS`].
+//!
+//! Every value is a `MAV_PARAM_TYPE_REAL32`. A set value is checked by the
+//! constructor that checks it in a robot file ([`RouteLimits::new`],
+//! [`EndpointConfig::new`]); a refusal is answered with the old value
+//! and a `STATUSTEXT` naming the parameter, and counted. A route limit
+//! accepted is [`Event::RouteLimits`]: the robot takes
+//! [`MavlinkEndpoint::route_limits`] for its next route.
+
+use mavlink::MessageData;
+use mavlink::dialects::common as c;
+use wmr_core::reference::route::{RouteLimits, RouteLimitsSpec};
+
+use crate::config::EndpointConfig;
+use crate::endpoint::{Event, Events, MavlinkEndpoint};
+use crate::wire::{RxFrame, TxBuffer};
+
+/// One parameter: its MAVLink name (≤ 16 characters) and what it sets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Param {
+    /// The name a ground station shows.
+    pub name: &'static str,
+    /// The field it sets, with its unit.
+    pub key: &'static str,
+}
+
+/// The parameters, in index order.
+pub const PARAMS: [Param; 9] = [
+    Param {
+        name: "RT_MAX_SPEED",
+        key: "route max_speed_m_s",
+    },
+    Param {
+        name: "RT_TAN_ACCEL",
+        key: "route max_tangential_accel_m_s2",
+    },
+    Param {
+        name: "RT_LAT_ACCEL",
+        key: "route max_lateral_accel_m_s2",
+    },
+    Param {
+        name: "RT_BLEND_DEV",
+        key: "route blend_deviation_m",
+    },
+    Param {
+        name: "RT_PIVOT_THR",
+        key: "route pivot_threshold_rad",
+    },
+    Param {
+        name: "RT_PIVOT_RATE",
+        key: "route pivot_rate_rad_s",
+    },
+    Param {
+        name: "RT_PIVOT_ACC",
+        key: "route pivot_accel_rad_s2",
+    },
+    Param {
+        name: "LINK_TIMEOUT_MS",
+        key: "link_timeout_ms",
+    },
+    Param {
+        name: "TELEM_PERIOD_MS",
+        key: "telemetry_period_ms",
+    },
+];
+
+const LINK_TIMEOUT: usize = 7;
+const TELEMETRY_PERIOD: usize = 8;
+
+/// The index of the parameter whose 16-byte, NUL-padded id is `id`.
+fn find(id: &[u8]) -> Option<usize> {
+    let len = id.iter().position(|&b| b == 0).unwrap_or(id.len());
+    let name = id.get(..len)?;
+    PARAMS.iter().position(|p| p.name.as_bytes() == name)
+}
+
+fn limit(spec: &RouteLimitsSpec, index: usize) -> f32 {
+    match index {
+        0 => spec.max_speed_m_s,
+        1 => spec.max_tangential_accel_m_s2,
+        2 => spec.max_lateral_accel_m_s2,
+        3 => spec.blend_deviation_m,
+        4 => spec.pivot_threshold_rad,
+        5 => spec.pivot_rate_rad_s,
+        _ => spec.pivot_accel_rad_s2,
+    }
+}
+
+fn limit_mut(spec: &mut RouteLimitsSpec, index: usize) -> &mut f32 {
+    match index {
+        0 => &mut spec.max_speed_m_s,
+        1 => &mut spec.max_tangential_accel_m_s2,
+        2 => &mut spec.max_lateral_accel_m_s2,
+        3 => &mut spec.blend_deviation_m,
+        4 => &mut spec.pivot_threshold_rad,
+        5 => &mut spec.pivot_rate_rad_s,
+        _ => &mut spec.pivot_accel_rad_s2,
+    }
+}
+
+/// The plain numbers of checked limits.
+pub(crate) fn spec_of(limits: &RouteLimits) -> RouteLimitsSpec {
+    RouteLimitsSpec {
+        max_speed_m_s: limits.max_speed_m_s(),
+        max_tangential_accel_m_s2: limits.max_tangential_accel_m_s2(),
+        max_lateral_accel_m_s2: limits.max_lateral_accel_m_s2(),
+        blend_deviation_m: limits.blend_deviation_m(),
+        pivot_threshold_rad: limits.pivot_threshold_rad(),
+        pivot_rate_rad_s: limits.pivot_rate_rad_s(),
+        pivot_accel_rad_s2: limits.pivot_accel_rad_s2(),
+    }
+}
+
+/// A whole number of milliseconds in `u32`, or `None`.
+fn millis(value: f32) -> Option<u32> {
+    if value.is_finite() && value >= 0.0 && value <= u32::MAX as f32 && libm::truncf(value) == value
+    {
+        Some(value as u32)
+    } else {
+        None
+    }
+}
+
+impl MavlinkEndpoint {
+    /// The route limits, as last set (at construction or by `PARAM_SET`).
+    #[must_use]
+    pub fn route_limits(&self) -> RouteLimits {
+        self.limits
+    }
+
+    fn param_value(&self, index: usize) -> f32 {
+        match index {
+            LINK_TIMEOUT => self.config.link_timeout_ms as f32,
+            TELEMETRY_PERIOD => self.config.telemetry_period_ms as f32,
+            i => limit(&spec_of(&self.limits), i),
+        }
+    }
+
+    // Out of line: called from many places; inlined at each (opt-level 3,
+    // fat LTO) it cost flash (docs/mavlink.md, Cost).
+    #[inline(never)]
+    fn send_param(&mut self, tx: &mut TxBuffer<'_>, index: usize) {
+        let Some(param) = PARAMS.get(index) else {
+            return;
+        };
+        let mut id = [0u8; 16];
+        let name = param.name.as_bytes();
+        if let (Some(d), Some(s)) = (id.get_mut(..name.len()), name.get(..16.min(name.len()))) {
+            d.copy_from_slice(s);
+        }
+        let value = self.param_value(index);
+        self.send(
+            tx,
+            &c::PARAM_VALUE_DATA {
+                param_value: value,
+                param_count: PARAMS.len() as u16,
+                param_index: index as u16,
+                param_id: id.into(),
+                param_type: c::MavParamType::MAV_PARAM_TYPE_REAL32,
+            },
+        );
+    }
+
+    fn param_refused(&mut self, tx: &mut TxBuffer<'_>, what: &[u8], id: &[u8]) {
+        self.counters.param_refusals = self.counters.param_refusals.wrapping_add(1);
+        let mut text = [0u8; 50];
+        let name_len = id.iter().position(|&b| b == 0).unwrap_or(id.len()).min(16);
+        let mut n = 0;
+        for &b in what.iter().chain(id.iter().take(name_len)) {
+            if let Some(slot) = text.get_mut(n) {
+                *slot = b;
+                n += 1;
+            }
+        }
+        self.status_text(
+            tx,
+            c::MavSeverity::MAV_SEVERITY_WARNING,
+            text.get(..n).unwrap_or(&[]),
+        );
+    }
+
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
+    pub(crate) fn on_param(&mut self, frame: &RxFrame, tx: &mut TxBuffer<'_>, events: &mut Events) {
+        match frame.msg_id {
+            c::PARAM_REQUEST_LIST_DATA::ID => {
+                if self.for_us(frame.byte(0), frame.byte(1)) {
+                    for index in 0..PARAMS.len() {
+                        self.send_param(tx, index);
+                    }
+                }
+            }
+            c::PARAM_REQUEST_READ_DATA::ID => {
+                // param_index i16 @0, target @2, @3, param_id @4..20.
+                if !self.for_us(frame.byte(2), frame.byte(3)) {
+                    return;
+                }
+                let id = frame.payload.get(4..20).unwrap_or(&[]);
+                let index = frame.u16_at(0) as i16;
+                let found = if index >= 0 {
+                    usize::try_from(index).ok().filter(|&i| i < PARAMS.len())
+                } else {
+                    find(id)
+                };
+                match found {
+                    Some(i) => self.send_param(tx, i),
+                    None => self.param_refused(tx, b"no such parameter: ", id),
+                }
+            }
+            _ => {
+                // PARAM_SET: param_value f32 @0, target @4, @5, param_id
+                // @6..22, param_type @22.
+                if !self.for_us(frame.byte(4), frame.byte(5)) {
+                    return;
+                }
+                let mut id = [0u8; 16];
+                if let Some(s) = frame.payload.get(6..22) {
+                    id.copy_from_slice(s);
+                }
+                let value = f32::from_le_bytes([
+                    frame.byte(0),
+                    frame.byte(1),
+                    frame.byte(2),
+                    frame.byte(3),
+                ]);
+                let Some(index) = find(&id) else {
+                    return self.param_refused(tx, b"no such parameter: ", &id);
+                };
+                if self.set_param(index, value, events) {
+                    self.send_param(tx, index);
+                } else {
+                    // The old value, so that the ground station shows what holds.
+                    self.send_param(tx, index);
+                    self.param_refused(tx, b"refused: ", &id);
+                }
+            }
+        }
+    }
+
+    /// Sets parameter `index` if its constructor accepts the value.
+    fn set_param(&mut self, index: usize, value: f32, events: &mut Events) -> bool {
+        match index {
+            LINK_TIMEOUT | TELEMETRY_PERIOD => {
+                let Some(ms) = millis(value) else {
+                    return false;
+                };
+                let mut spec = self.config.spec();
+                if index == LINK_TIMEOUT {
+                    spec.link_timeout_ms = ms;
+                } else {
+                    spec.telemetry_period_ms = ms;
+                }
+                match EndpointConfig::new(&spec) {
+                    Ok(config) => {
+                        self.config = config;
+                        true
+                    }
+                    Err(_) => false,
+                }
+            }
+            i => {
+                let mut spec = spec_of(&self.limits);
+                *limit_mut(&mut spec, i) = value;
+                match RouteLimits::new(&spec) {
+                    Ok(limits) if events.push(Event::RouteLimits) => {
+                        self.limits = limits;
+                        true
+                    }
+                    _ => false,
+                }
+            }
+        }
+    }
+}
