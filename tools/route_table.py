@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """The warehouse-loop table of docs/routes.md: 100-run sweeps of
 firmware-sim/scenarios/warehouse_loop.toml for each estimator, the start
-heading swept (the scenario's [sweep]: any, start = "as_given": the
-estimator is not told) and known (initial.heading_rad, along the first
-leg, start = "as_given_heading_known": the estimator is told).
+heading known (the scenario: along the first leg, start =
+"as_given_heading_known", the estimator is told) and swept (uniform, start
+= "as_given": the estimator is not told).
 
     python3 tools/route_table.py [RUNS]   # from the repository root; default 100
 
@@ -28,13 +28,16 @@ ESTIMATORS = [
     ("fusion UKF", '[estimator.fusion]\nfilter = "ukf"\n'),
     ("fusion particle filter (100)", '[estimator.fusion]\nfilter = "particle_filter"\n'),
 ]
+KNOWN_HEADING = 'initial_heading = "scenario"'
+KNOWN_START = 'start = "as_given_heading_known"'
 HEADINGS = [
+    ("known", KNOWN_HEADING, KNOWN_START),
     ("any", 'initial_heading = "any"', 'start = "as_given"'),
-    ("known", 'initial_heading = "scenario"', 'start = "as_given_heading_known"'),
 ]
 
 assert EKF in SCENARIO, "warehouse_loop.toml no longer has its EKF table"
-assert 'start = "as_given"' in SCENARIO, "warehouse_loop.toml no longer starts as given"
+assert KNOWN_HEADING in SCENARIO and KNOWN_START in SCENARIO, \
+    "warehouse_loop.toml no longer starts parked, its heading known"
 OUT.mkdir(parents=True, exist_ok=True)
 print("| estimator | start heading | done | stop position p50 / p90 / worst (m) "
       "| worst stop heading (°) | cross-track p50 / worst (m) | worst time ratio |")
@@ -42,8 +45,8 @@ print("| --- | --- | ---: | --- | ---: | --- | ---: |")
 for e, (label, table) in enumerate(ESTIMATORS):
     for heading, line, start in HEADINGS:
         name = f"{e}-{heading}"
-        text = (SCENARIO.replace(EKF, table).replace('initial_heading = "any"', line)
-                .replace('start = "as_given"', start))
+        text = (SCENARIO.replace(EKF, table).replace(KNOWN_HEADING, line)
+                .replace(KNOWN_START, start))
         path = OUT / f"{name}.toml"
         path.write_text(text)
         subprocess.run(
