@@ -3,10 +3,10 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::conditioning::{all_finite, is_noise_covariance, symmetrize};
+use super::conditioning::{all_finite, check_covariance, symmetrize};
 use super::factor::semidefinite_factor;
 use super::sigma_points::lower_factor;
-use super::{MerweScaledSigmaPoints, UkfCounters, UkfError, UkfForm, UkfModel};
+use super::{CovarianceDefect, MerweScaledSigmaPoints, UkfCounters, UkfError, UkfForm, UkfModel};
 
 /// The unscented Kalman filter of the module docs for a model with `N`
 /// states and `M` measurements; `S` must be `2N + 1` (checked by
@@ -56,8 +56,9 @@ where
     /// # Errors
     /// [`UkfError::InitialState`], [`UkfError::InitialCovariance`] (not
     /// finite, symmetric and positive definite), [`UkfError::ProcessNoise`]
-    /// or [`UkfError::MeasurementNoise`] (not finite, symmetric and
-    /// positive semi-definite).
+    /// (not finite, symmetric and positive semi-definite) or
+    /// [`UkfError::MeasurementNoise`] (not finite, symmetric and positive
+    /// definite), each with the [`CovarianceDefect`] found.
     pub fn new(
         model: Model,
         points: MerweScaledSigmaPoints<N, S>,
@@ -69,15 +70,9 @@ where
         if !all_finite(&x0) {
             return Err(UkfError::InitialState);
         }
-        if !(is_noise_covariance(&p0) && lower_factor(&p0).is_some()) {
-            return Err(UkfError::InitialCovariance);
-        }
-        if !is_noise_covariance(&q) {
-            return Err(UkfError::ProcessNoise);
-        }
-        if !is_noise_covariance(&r) {
-            return Err(UkfError::MeasurementNoise);
-        }
+        check_covariance(&p0, true).map_err(UkfError::InitialCovariance)?;
+        check_covariance(&q, false).map_err(UkfError::ProcessNoise)?;
+        check_covariance(&r, true).map_err(UkfError::MeasurementNoise)?;
         let p0 = symmetrize(&p0);
         Ok(Self {
             model,
@@ -116,7 +111,9 @@ where
                     return Err(UkfError::SquareRootBeta);
                 }
                 (
-                    lower_factor(&self.p).ok_or(UkfError::InitialCovariance)?,
+                    lower_factor(&self.p).ok_or(UkfError::InitialCovariance(
+                        CovarianceDefect::NotPositiveDefinite,
+                    ))?,
                     semidefinite_factor(&self.q),
                     semidefinite_factor(&self.r),
                 )
@@ -229,9 +226,7 @@ where
     /// [`UkfError::ProcessNoise`] (not finite, symmetric and positive
     /// semi-definite); `Q` is unchanged.
     pub fn set_process_noise(&mut self, q: SMatrix<f32, N, N>) -> Result<(), UkfError> {
-        if !is_noise_covariance(&q) {
-            return Err(UkfError::ProcessNoise);
-        }
+        check_covariance(&q, false).map_err(UkfError::ProcessNoise)?;
         self.q = symmetrize(&q);
         // The covariance form never reads √Q: a 5×5 factor per step would
         // be 15 % of the fusion UKF's predict.
@@ -245,11 +240,9 @@ where
     ///
     /// # Errors
     /// [`UkfError::MeasurementNoise`] (not finite, symmetric and positive
-    /// semi-definite); `R` is unchanged.
+    /// definite); `R` is unchanged.
     pub fn set_measurement_noise(&mut self, r: SMatrix<f32, M, M>) -> Result<(), UkfError> {
-        if !is_noise_covariance(&r) {
-            return Err(UkfError::MeasurementNoise);
-        }
+        check_covariance(&r, true).map_err(UkfError::MeasurementNoise)?;
         self.r = symmetrize(&r);
         if self.form == UkfForm::SquareRoot {
             self.r_factor = semidefinite_factor(&self.r);
@@ -268,9 +261,10 @@ where
             return Err(UkfError::InitialState);
         }
         let p = symmetrize(&p);
-        let Some(factor) = lower_factor(&p).filter(|_| is_noise_covariance(&p)) else {
-            return Err(UkfError::InitialCovariance);
-        };
+        check_covariance(&p, true).map_err(UkfError::InitialCovariance)?;
+        let factor = lower_factor(&p).ok_or(UkfError::InitialCovariance(
+            CovarianceDefect::NotPositiveDefinite,
+        ))?;
         self.x = x;
         self.p = p;
         if self.form == UkfForm::SquareRoot {
