@@ -30,6 +30,9 @@ where
     pub(super) sigmas_f_fresh: bool,
     /// Draw the update's points from `(x⁻, P⁻)` rather than reuse `σf`.
     pub(super) redraw_for_update: bool,
+    /// The predict's mean is the centre point's image `f(x)`, and `P⁻`
+    /// the points' spread about it ([`Self::with_centre_mean`]).
+    pub(super) centre_mean: bool,
     pub(super) innovation: SVector<f32, M>,
     pub(super) innovation_covariance: SMatrix<f32, M, M>,
     pub(super) gain: SMatrix<f32, N, M>,
@@ -85,6 +88,7 @@ where
             sigmas_f: SMatrix::zeros(),
             sigmas_f_fresh: false,
             redraw_for_update: false,
+            centre_mean: false,
             innovation: SVector::zeros(),
             innovation_covariance: SMatrix::zeros(),
             gain: SMatrix::zeros(),
@@ -141,6 +145,19 @@ where
     pub fn with_redrawn_update_points(self) -> Self {
         Self {
             redraw_for_update: true,
+            ..self
+        }
+    }
+
+    /// The predict takes the centre point's image `f(x, u)` as the prior
+    /// mean `x⁻` (the extended Kalman filter's mean) instead of the
+    /// weighted mean of the propagated points, and `P⁻` as the points'
+    /// spread about it, `Σᵢ Wᵢᶜ r(σfᵢ, x⁻) r(σfᵢ, x⁻)ᵀ + Q` (module docs,
+    /// "Centre mean"). For a linear model it is the same filter.
+    #[must_use]
+    pub fn with_centre_mean(self) -> Self {
+        Self {
+            centre_mean: true,
             ..self
         }
     }

@@ -86,6 +86,26 @@
 //!   form above, not the difference.
 //! * The failures below have defined reactions instead of exceptions.
 //!
+//! # Centre mean
+//! With [`UnscentedKalmanFilter::with_centre_mean`] the predict takes the
+//! centre point's image as the prior mean, `x⁻ = f(x, u)` (the extended
+//! Kalman filter's mean), and `P⁻ = Σᵢ Wᵢᶜ r(σfᵢ, x⁻) r(σfᵢ, x⁻)ᵀ + Q`, the
+//! points' spread about it (`Σ_{i≥1} Wᵢ dᵢ dᵢᵀ + Q` with `dᵢ = r(σfᵢ,
+//! σf₀)`): the unscented mean's shift `m`, its second-order term `½
+//! Σⱼₖ ∂²f/∂xⱼ∂xₖ Pⱼₖ` (Julier & Uhlmann 2004, "Unscented filtering and
+//! nonlinear estimation", Proc. IEEE 92(3), section IV), is left out of
+//! the mean, and `P⁻` is the unscented one less its centre term `(β − α²)
+//! m mᵀ` (the identity of "Square-root form"). It is for a model in which
+//! that term is a bias the system does not have: a robot moving `ds`
+//! along a heading `θ` of variance `σ²` moves `ds·cos θ` on the axis,
+//! whose expectation is `ds·cos θ̄·e^{−σ²/2}`, but it moves that far along
+//! its one true heading, and measurements of the position along its path
+//! (which are even in the heading error) then see the unscented mean lag
+//! (the fusion estimator's UKF, [`crate::estimation::fusion::ukf`]). For a
+//! linear model the two means agree; the update is unchanged. In the
+//! square-root form the centre term is then zero (the deviations are taken
+//! about the centre point itself).
+//!
 //! # Square-root form
 //! [`UkfForm::SquareRoot`] ([`UnscentedKalmanFilter::with_form`]) is Van
 //! der Merwe & Wan's square-root UKF (2001, "The square-root unscented

@@ -66,10 +66,13 @@ where
         for (sigma, mut propagated) in sigmas.column_iter().zip(sigmas_f.column_iter_mut()) {
             propagated.copy_from(&self.model.transition(&sigma.into_owned(), u, dt_s));
         }
-        let x = self
-            .model
-            .angles()
-            .state_mean(&sigmas_f, &self.points.mean_weights());
+        let x = match (self.centre_mean, sigmas_f.data.0.first()) {
+            (true, Some(centre)) => SVector::from(*centre),
+            _ => self
+                .model
+                .angles()
+                .state_mean(&sigmas_f, &self.points.mean_weights()),
+        };
         let (p, factor) = match self.form {
             UkfForm::Covariance => {
                 let mut p = self.q;

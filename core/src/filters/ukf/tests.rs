@@ -933,3 +933,68 @@ fn a_repair_is_rounding_sized() {
         assert_eq!(ukf.counters().covariance_repairs, 1);
     }
 }
+
+/// With the centre mean the prior mean is `f(x, u)` exactly and `P⁻` the
+/// points' spread about it plus `Q`, in both forms; on the unicycle with
+/// a wide heading the means differ by the unscented mean's shift `m`,
+/// and `P⁻` is the unscented one less its centre term `(β − α²) m mᵀ`
+/// (module docs, "Square-root form"); on a linear model the filter is the
+/// default one to rounding.
+#[test]
+fn the_centre_mean_is_the_centre_points_image() {
+    let u = [1.0_f32, 0.2];
+    for form in FORMS {
+        let mut ukf = unicycle_filter(1.0).with_form(form).unwrap();
+        ukf.reset(
+            V3::new(0.5, -0.3, 0.4),
+            M3::from_diagonal(&V3::new(0.01, 0.01, 0.5)),
+        )
+        .unwrap();
+        let mut centre = ukf.with_centre_mean();
+        let x0 = *ukf.state();
+        assert_eq!(ukf.predict(&u, 0.5), StepOutcome::Applied);
+        assert_eq!(centre.predict(&u, 0.5), StepOutcome::Applied);
+        assert_eq!(*centre.state(), Unicycle.transition(&x0, &u, 0.5));
+        let sigmas = centre.propagated_sigma_points().unwrap();
+        let mut spread = *centre.process_noise();
+        for (sigma, w) in sigmas
+            .column_iter()
+            .zip(centre.points.covariance_weights().iter())
+        {
+            let d = Unicycle
+                .angles()
+                .state_residual(&sigma.into_owned(), centre.state());
+            spread += d * d.transpose() * *w;
+        }
+        assert!((centre.covariance() - spread).amax() < 1e-5, "{form:?}");
+        let shift = centre.state() - ukf.state();
+        assert!(shift.norm() > 0.02, "{form:?}: {shift}");
+        let beta_less_alpha2 = 2.0 - 1.0;
+        let excess =
+            centre.covariance() - ukf.covariance() + shift * shift.transpose() * beta_less_alpha2;
+        assert!(excess.amax() < 1e-5, "{form:?}: {excess}");
+    }
+    let model = Linear {
+        a: SMatrix::<f32, 2, 2>::new(1.0, 0.1, 0.0, 0.95),
+        b: SVector::<f32, 2>::new(0.005, 0.1),
+        h: SMatrix::<f32, 1, 2>::new(1.0, 0.0),
+    };
+    let setup = (
+        SVector::<f32, 2>::new(0.5, -0.2),
+        SMatrix::<f32, 2, 2>::new(1.0, 0.3, 0.3, 0.5),
+        SMatrix::<f32, 2, 2>::new(1e-3, 2e-4, 2e-4, 2e-3),
+        SMatrix::<f32, 1, 1>::new(0.04),
+    );
+    for form in FORMS {
+        let mut a = linear_filter(model, 1.0, setup, form);
+        let mut b = a.with_centre_mean();
+        for k in 0..100_u8 {
+            let u = 0.3 * f32::from(k % 7) - 0.8;
+            let z = SVector::<f32, 1>::new(0.02 * f32::from(k) - 0.5 * f32::from(k % 3));
+            assert_eq!(a.predict(&u, 0.1), b.predict(&u, 0.1));
+            assert_eq!(a.update(&z), b.update(&z));
+            assert!((a.state() - b.state()).amax() < 1e-5, "{form:?}");
+            assert!((a.covariance() - b.covariance()).amax() < 1e-5, "{form:?}");
+        }
+    }
+}
