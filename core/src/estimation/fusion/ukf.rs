@@ -21,30 +21,6 @@
 //! `±√5 σ`. The odometry step carries the motion; the UKF's `dt` is not
 //! used (0).
 //!
-//! # The prior mean
-//! The prior mean is the mean's own arc, the EKF's, with `P⁻` the points'
-//! spread about it ([`UnscentedKalmanFilter::with_centre_mean`]), not the
-//! weighted mean of the points. The points' mean shortens each step by
-//! the heading's spread: the two heading points at `±√5 σθ` move `ds·cos
-//! (√5 σθ)` along the path, so the mean moves `ds·(1 − 0.2(1 − cos(√5
-//! σθ)))`, 11 % short at `σθ = 0.49` rad. Along a row of tags only the
-//! crossings of the cells along the path are seen, which do not observe
-//! the heading, so with the template's wheel noise (1e-3 m²/m, heading
-//! variance growing 0.05 rad²/m) `σθ` reaches 0.5 rad within 5 m; every
-//! crossing then found the estimate lagging (−1 mm per 10 cm cell at 0.45
-//! m driven, −11 mm at 4.85 m, where the EKF's lag is 0), and the
-//! crossings' updates fed that one-signed innovation into the heading
-//! through the points' position–heading covariance, which grows with the
-//! heading's own error: past `σθ² ≈ 0.2` rad² the heading oscillated and
-//! one crossing moved the cross-track position by 0.70 m (a straight
-//! line along −x at 2 mm a tick, x crossings only; the
-//! `the_prior_mean_does_not_lag_along_a_row_of_tags` test). On
-//! `figure_eight_rfid_fusion_ekf` with `filter = "ukf"`, max / mean error
-//! after 100 s: 0.1026 / 0.0121 m with the points' mean, 0.0057 / 0.0005
-//! m with the centre mean (the EKF: 0.0056 / 0.0005); on 20 and 30 cm
-//! tags 0.124 / 0.0197 → 0.0135 / 0.0012 and 0.199 / 0.0328 → 0.0132 /
-//! 0.0012 m (the EKF: 0.0172 / 0.0017, 0.0131 / 0.0012).
-//!
 //! # The heading's spread
 //! A heading sigma point more than half a turn from the mean wraps to the
 //! other side and the spread it stood for is lost, so the heading's
@@ -208,7 +184,7 @@ impl PoseFilterCore for UkfCore {
         )
         .ok()
         .map(|filter| Self {
-            filter: filter.with_redrawn_update_points().with_centre_mean(),
+            filter: filter.with_redrawn_update_points(),
         })
     }
 
@@ -334,68 +310,6 @@ mod tests {
         assert_eq!(ukf.covariance().m33, HEADING_VARIANCE_CAP);
         assert!((ukf.pose().heading_rad - 1.0).abs() < 1e-6);
         assert!(!ukf.reset_heading(f32::NAN, 0.1));
-    }
-
-    /// Along a row of tags (a straight line along −x at 2 mm a tick, the
-    /// template's wheel noise 1e-3 m²/m, only the crossings of x cells
-    /// seen, as nearest-tag reads give them), the heading is not observed
-    /// and its variance grows to 0.29 rad² over 6 m. The prior mean is the
-    /// arc of the mean (module docs, "The prior mean"): every crossing
-    /// finds the UKF where the EKF is (within 0.5 mm), and the cross-track
-    /// position and the heading stay put (with the points' mean the lag
-    /// reached 11 mm a cell and one crossing moved `y` by 0.70 m).
-    #[test]
-    fn the_prior_mean_does_not_lag_along_a_row_of_tags() {
-        let config = PoseFilterConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap();
-        let start = Pose::new(0.0, 0.0, core::f32::consts::PI);
-        let variances = [1e-6, 1e-6, 1e-4, 0.0];
-        let mut ekf = PoseEkf::new(config, start, variances).unwrap();
-        let mut ukf = PoseUkf::new(config, start, variances).unwrap();
-        let mut truth = start;
-        let step = OdometryStep {
-            ds_m: 0.002,
-            dtheta_rad: 0.0,
-            ..OdometryStep::default()
-        };
-        let mut boundary = -0.05_f32;
-        let mut worst = (0.0_f32, 0.0_f32, 0.0_f32);
-        for _ in 0..3000 {
-            truth = truth.advance_arc(step.ds_m, step.dtheta_rad);
-            ekf.predict(&step);
-            ukf.predict(&step);
-            if truth.position.x <= boundary {
-                let lag = (ukf.pose().position.x - ekf.pose().position.x).abs();
-                let fix = PositionMeasurement::X {
-                    value_m: boundary,
-                    variance_m2: step.ds_m * step.ds_m / 12.0,
-                };
-                assert_eq!(ekf.correct(&fix), FixOutcome::Used);
-                assert_eq!(ukf.correct(&fix), FixOutcome::Used);
-                let u = ukf.pose();
-                worst = (
-                    worst.0.max(lag),
-                    worst.1.max(u.position.y.abs()),
-                    worst
-                        .2
-                        .max(math::wrap_angle(u.heading_rad - truth.heading_rad).abs()),
-                );
-                boundary -= 0.1;
-            }
-        }
-        println!(
-            "worst lag behind the EKF {:.1e} m, |y| {:.1e} m, heading {:.1e} rad; Pθθ {:.3}",
-            worst.0,
-            worst.1,
-            worst.2,
-            ukf.covariance().m33
-        );
-        assert!(ukf.covariance().m33 > 0.25);
-        assert!(
-            worst.0 < 5e-4 && worst.1 < 1e-3 && worst.2 < 1e-3,
-            "{worst:?}"
-        );
-        assert_eq!(ukf.counters().fixes_gated, 0);
-        assert_eq!(ukf.counters().relocalisations, 0);
     }
 
     proptest! {

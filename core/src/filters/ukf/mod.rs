@@ -100,8 +100,11 @@
 //! along a heading `θ` of variance `σ²` moves `ds·cos θ` on the axis,
 //! whose expectation is `ds·cos θ̄·e^{−σ²/2}`, but it moves that far along
 //! its one true heading, and measurements of the position along its path
-//! (which are even in the heading error) then see the unscented mean lag
-//! (the fusion estimator's UKF, [`crate::estimation::fusion::ukf`]). For a
+//! (which are even in the heading error) then see the unscented mean lag:
+//! the fusion estimator's UKF ([`crate::estimation::fusion::ukf`]) at the
+//! template's wheel noise on a row of tags lags up to 11 mm a 10 cm cell,
+//! which this option removes (docs/fusion.md, "The UKF at the default
+//! wheel noise"). For a
 //! linear model the two means agree; the update is unchanged. In the
 //! square-root form the centre term is then zero (the deviations are taken
 //! about the centre point itself).
