@@ -103,13 +103,97 @@ impl Unicycle {
     /// Drives `v_m_s`, `omega_rad_s` (held constant) for `dt_s` seconds: an
     /// exact arc, `Δp = v·dt·sinc(ω·dt/2)·(cos(θ + ω·dt/2), sin(θ + ω·dt/2))`.
     pub fn step(&mut self, v_m_s: f64, omega_rad_s: f64, dt_s: f64) {
-        let ds = v_m_s * dt_s;
-        let dtheta = omega_rad_s * dt_s;
+        self.advance_arc(v_m_s * dt_s, omega_rad_s * dt_s);
+    }
+
+    /// Moves `ds` metres along an arc turning `dtheta` radians (the exact
+    /// arc of [`Self::step`]).
+    pub fn advance_arc(&mut self, ds: f64, dtheta: f64) {
         let chord = ds * sinc(0.5 * dtheta);
         let mid = self.pose.heading_rad + 0.5 * dtheta;
         self.pose.x_m += chord * mid.cos();
         self.pose.y_m += chord * mid.sin();
         self.pose.heading_rad += dtheta;
+    }
+}
+
+/// Wheels that do not roll as their rotation says: each wheel's travel on
+/// the ground is `(1 + e)·m + n`, for a travel `m` measured from its
+/// rotation (what the encoders and the odometry see), a systematic scale
+/// error `e` and a zero-mean Gaussian slip noise `n` of variance
+/// `q·|m|` (`q` per metre rolled, so that the noise of a distance `D` has
+/// variance `q·D` whatever the step): the odometry model of the fusion
+/// filters (docs/fusion.md; Thrun, Burgard & Fox, *Probabilistic
+/// Robotics*, 2005, section 5.4, with a per-wheel variance proportional to
+/// the distance), so that a filter's `wheel_variance_per_m` and scale
+/// prior can be matched to the plant or mis-tuned on purpose. The plant
+/// moves on the ground travels; the odometry keeps the measured ones.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct WheelErrors {
+    /// `q`, the slip noise's variance per metre a wheel rolls, m²/m (≥ 0).
+    pub travel_variance_m2_per_m: f64,
+    /// `[e_R, e_L]`, each wheel's scale error (right, left): its ground
+    /// travel is `1 + e` times its measured travel.
+    pub scale_error: [f64; 2],
+    /// The track width that maps wheel travels to the body's turn, m.
+    pub track_width_m: f64,
+    /// The seed of the noise (the run's `measurement.seed`, on its own
+    /// stream, [`RollingWheels::STREAM`]).
+    pub seed: u64,
+}
+
+/// [`WheelErrors`] with their noise generator: one per run.
+#[derive(Debug)]
+pub struct RollingWheels {
+    errors: WheelErrors,
+    rng: rand::rngs::ChaCha8Rng,
+}
+
+impl RollingWheels {
+    /// The ChaCha8 stream of the wheel noise: the fix noise of the same
+    /// seed uses stream 0, so switching the wheels on does not change the
+    /// fix noise a run draws.
+    pub const STREAM: u64 = 0x5748_4545_4c53; // "WHEELS"
+
+    /// The wheels of `errors`.
+    #[must_use]
+    pub fn new(errors: WheelErrors) -> Self {
+        use rand::SeedableRng as _;
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(errors.seed);
+        rng.set_stream(Self::STREAM);
+        Self { errors, rng }
+    }
+
+    /// The errors.
+    #[must_use]
+    pub fn errors(&self) -> &WheelErrors {
+        &self.errors
+    }
+
+    /// The ground travels `(right, left)` of wheels whose rotation
+    /// measured `right_m`, `left_m`. Draws two standard normals every call
+    /// (Box–Muller), whatever the travels, so that a run's draws do not
+    /// depend on its motion.
+    pub fn ground_travels(&mut self, right_m: f64, left_m: f64) -> (f64, f64) {
+        use rand::RngExt as _;
+        let radius = (-2.0 * (1.0 - self.rng.random::<f64>()).ln()).sqrt();
+        let angle = std::f64::consts::TAU * self.rng.random::<f64>();
+        let e = &self.errors;
+        let noise = |m: f64, normal: f64| (e.travel_variance_m2_per_m * m.abs()).sqrt() * normal;
+        (
+            (1.0 + e.scale_error[0]) * right_m + noise(right_m, radius * angle.cos()),
+            (1.0 + e.scale_error[1]) * left_m + noise(left_m, radius * angle.sin()),
+        )
+    }
+
+    /// The body motion `(ds, dθ)` on the ground of a body motion `ds`
+    /// metres, turning `dtheta` radians, measured by the wheels: the
+    /// wheel travels `ds ± (b/2)·dθ`, through [`Self::ground_travels`],
+    /// back to `((g_R + g_L)/2, (g_R − g_L)/b)`.
+    pub fn ground_motion(&mut self, ds: f64, dtheta: f64) -> (f64, f64) {
+        let b = self.errors.track_width_m;
+        let (right, left) = self.ground_travels(ds + 0.5 * b * dtheta, ds - 0.5 * b * dtheta);
+        (0.5 * (right + left), (right - left) / b)
     }
 }
 
@@ -385,6 +469,18 @@ impl DiffDrivePlant {
             0.5 * r * (wr + wl),
             r * (wr - wl) / self.params.track_width_m,
         )
+    }
+
+    /// Moves the body `ds` metres along an arc turning `dtheta` radians
+    /// from its pose, wheels and their speeds untouched: the ground's part
+    /// of the motion that the wheels' rotation does not show
+    /// ([`RollingWheels`]).
+    pub fn slide(&mut self, ds: f64, dtheta: f64) {
+        let chord = ds * sinc(0.5 * dtheta);
+        let mid = self.state.s[2] + 0.5 * dtheta;
+        self.state.s[0] += chord * mid.cos();
+        self.state.s[1] += chord * mid.sin();
+        self.state.s[2] += dtheta;
     }
 
     /// Advances `dt_s` seconds with the signed duties `left`, `right` held
@@ -829,5 +925,78 @@ mod tests {
         assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-12);
         assert!((wrap_angle(-PI) - PI).abs() < 1e-12);
         assert!((wrap_angle(-0.5) + 0.5).abs() < 1e-15);
+    }
+
+    fn wheels(q: f64, scale_error: [f64; 2], seed: u64) -> RollingWheels {
+        RollingWheels::new(WheelErrors {
+            travel_variance_m2_per_m: q,
+            scale_error,
+            track_width_m: 0.2,
+            seed,
+        })
+    }
+
+    /// Over 1 m rolled in steps of 1 mm (and of 1 cm), each wheel's ground
+    /// travel has mean `(1 + e)·1 m` and variance `q·1 m`, the two wheels
+    /// independent: over 4,000 metres, within 3 standard errors.
+    #[test]
+    fn wheel_travel_noise_grows_with_the_distance_rolled() {
+        let (q, e) = (1e-4, [0.01, -0.02]);
+        for step_m in [1e-3, 1e-2] {
+            let mut w = wheels(q, e, 3);
+            let steps = (1.0 / step_m) as usize;
+            let runs = 4000;
+            let (mut sum, mut sum2, mut cross) = ([0.0_f64; 2], [0.0_f64; 2], 0.0);
+            for _ in 0..runs {
+                let mut total = [0.0_f64; 2];
+                for _ in 0..steps {
+                    let (r, l) = w.ground_travels(step_m, step_m);
+                    total[0] += r;
+                    total[1] += l;
+                }
+                for i in 0..2 {
+                    sum[i] += total[i];
+                    sum2[i] += total[i] * total[i];
+                }
+                cross += (total[0] - 1.0 - e[0]) * (total[1] - 1.0 - e[1]);
+            }
+            let n = f64::from(runs);
+            for i in 0..2 {
+                let mean = sum[i] / n;
+                let variance = sum2[i] / n - mean * mean;
+                // Standard errors of the mean and of the variance.
+                assert!(
+                    (mean - (1.0 + e[i])).abs() < 3.0 * (q / n).sqrt(),
+                    "{step_m}: {mean}"
+                );
+                assert!(
+                    (variance - q).abs() < 3.0 * q * (2.0 / n).sqrt(),
+                    "{step_m}: {variance}"
+                );
+            }
+            assert!((cross / n).abs() < 3.0 * q / n.sqrt(), "{cross}");
+        }
+    }
+
+    /// No noise and no scale error: the ground travels are the measured
+    /// ones; the scale error alone scales them; the same seed draws the
+    /// same noise, another seed other noise; the body motion turns by the
+    /// difference of the wheels over the track.
+    #[test]
+    fn wheel_errors_are_exact_and_seeded() {
+        let mut ideal = wheels(0.0, [0.0, 0.0], 1);
+        assert_eq!(ideal.ground_travels(0.01, -0.02), (0.01, -0.02));
+        let mut scaled = wheels(0.0, [0.5, -0.5], 1);
+        assert_eq!(scaled.ground_travels(0.02, 0.02), (0.03, 0.01));
+        let (ds, dtheta) = wheels(0.0, [0.5, -0.5], 1).ground_motion(0.02, 0.0);
+        assert!((ds - 0.02).abs() < 1e-15 && (dtheta - 0.02 / 0.2).abs() < 1e-15);
+        let draws = |seed| {
+            let mut w = wheels(1e-4, [0.0, 0.0], seed);
+            (0..10)
+                .map(|_| w.ground_travels(0.01, 0.01))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(draws(5), draws(5));
+        assert_ne!(draws(5), draws(6));
     }
 }

@@ -67,7 +67,7 @@ pub use sweep_spec::{
 pub use tables::{
     ControllerKind, ControllerSpec, DriveSpec, DynamicsSpec, FailsafeSpec, FloorTagSpec,
     InitialSpec, MeasurementSpec, ObserverSpec, PlantSpec, PositionSpec, ReaderModeSpec,
-    SpeedObserverSpec,
+    SpeedObserverSpec, WheelErrorSpec,
 };
 pub use validate::{PlantSetup, PositionSetup, Setup, reference_bounds, route_bounds, route_path};
 pub use wmr_core::control::spec::LawSpec;

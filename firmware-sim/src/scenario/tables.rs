@@ -241,7 +241,7 @@ impl<'de> Deserialize<'de> for ObserverSpec {
 /// makes the derives inherent `PlantSpec::serialize`/`deserialize`): serde
 /// ignores keys beside a unit variant's tag, so a `[plant.dynamics]` table
 /// under `kind = "unicycle"` would otherwise vanish silently.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default, schemars::JsonSchema)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(
     remote = "Self",
     tag = "kind",
@@ -249,10 +249,15 @@ impl<'de> Deserialize<'de> for ObserverSpec {
     deny_unknown_fields
 )]
 pub enum PlantSpec {
-    /// Paper 001's kinematic unicycle (1): commands are velocities. The
-    /// core's tracker (or controller) is called directly.
-    #[default]
-    Unicycle,
+    /// Paper 001's kinematic unicycle (1): commands are velocities (what
+    /// its odometry reports). The core's tracker (or controller) is called
+    /// directly.
+    Unicycle {
+        /// Wheels that slip and are mis-scaled (`[plant.wheels]`); absent:
+        /// the body moves exactly as commanded.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        wheels: Option<WheelErrorSpec>,
+    },
     /// Two DC motors, PWM drivers, quadrature encoders: runs the core's
     /// `Robot` (or `Pilot`) against virtual devices.
     DiffDrive {
@@ -294,7 +299,39 @@ pub enum PlantSpec {
         /// clean encoder lines.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         encoder_glitches: Option<EncoderGlitchSpec>,
+        /// Wheels that slip and are mis-scaled (`[plant.wheels]`); absent:
+        /// the body moves as its wheels turn.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        wheels: Option<WheelErrorSpec>,
     },
+}
+
+impl Default for PlantSpec {
+    fn default() -> Self {
+        Self::Unicycle { wheels: None }
+    }
+}
+
+/// Realistic wheels, the `[plant.wheels]` table (either plant): each
+/// wheel's travel on the ground is `(1 + e)` times what its rotation
+/// measured (what the odometry sees), plus a zero-mean Gaussian slip noise
+/// whose variance grows with the distance rolled
+/// ([`WheelErrors`](crate::plant::WheelErrors)). The noise is drawn from
+/// the run's `measurement.seed` (on a stream of its own), so a sweep
+/// varies it with each run's seed.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WheelErrorSpec {
+    /// Each wheel's slip-noise variance per metre it rolls, m²/m (in
+    /// [0, 1]; 0: no noise). Compare the fusion filter's
+    /// `estimator.fusion.wheel_variance_per_m`.
+    #[serde(default)]
+    #[schemars(range(min = 0.0, max = 1.0))]
+    pub travel_variance_m2_per_m: f64,
+    /// `[right, left]`: each wheel's scale error `e` (ground travel = `1 +
+    /// e` times measured travel; each in [−0.5, 0.5]; 0: true scale).
+    #[serde(default)]
+    pub scale_error: [f64; 2],
 }
 
 /// Spurious edges on the encoder lines, the `[plant.encoder_glitches]`
@@ -339,29 +376,33 @@ impl<'de> Deserialize<'de> for PlantSpec {
                     .to_string()
             })
         };
+        // The unicycle takes `wheels` only; any other key is named.
+        let unicycle_keys = |table: &toml::Table| {
+            let keys = table
+                .keys()
+                .map(String::as_str)
+                .filter(|key| *key != "wheels");
+            only_kind_of(
+                table.get("kind").and_then(toml::Value::as_str),
+                keys,
+                "plant",
+                "unicycle",
+            )
+            .map(|m| m.replace("which takes no other key", "which takes only `wheels`"))
+        };
         checked_table(
             deserializer,
             "plant",
-            |table| unicycle_dynamics(table).or_else(|| only_kind(table, "plant", "unicycle")),
+            |table| unicycle_dynamics(table).or_else(|| unicycle_keys(table)),
             PlantSpec::deserialize,
         )
     }
 }
 
-/// A refusal of any key but `kind` in the table `section` when its kind is
-/// `kind`, a variant without keys: serde's tagged enums pass over a unit
-/// variant's other keys, which would otherwise be ignored in silence.
-fn only_kind(table: &toml::Table, section: &str, kind: &str) -> Option<String> {
-    let keys = table.keys().map(String::as_str);
-    only_kind_of(
-        table.get("kind").and_then(toml::Value::as_str),
-        keys,
-        section,
-        kind,
-    )
-}
-
-/// [`only_kind`] on a table's kind and keys.
+/// A refusal of any of `keys` but `kind` in the table `section` when its
+/// kind is `kind`, a variant without (other) keys: serde's tagged enums
+/// pass over a unit variant's other keys, which would otherwise be
+/// ignored in silence.
 pub(super) fn only_kind_of<'a>(
     table_kind: Option<&str>,
     mut keys: impl Iterator<Item = &'a str>,

@@ -450,7 +450,7 @@ fn plant_dynamics_table_is_refused_where_it_does_not_belong() {
     assert!(e.contains("stall_torque_nm"), "{e}");
     // The unicycle parses, with or without its table.
     let s = Scenario::from_toml_str(&format!("{MINIMAL}\n[plant]\nkind = \"unicycle\"\n")).unwrap();
-    assert_eq!(s.plant, PlantSpec::Unicycle);
+    assert_eq!(s.plant, PlantSpec::Unicycle { wheels: None });
 }
 
 #[test]
@@ -781,4 +781,81 @@ fn the_drive_tables_are_the_cores_specs_less_the_plants_facts() {
     let core_observer = keys(toml::Value::try_from(observer).unwrap());
     let file = keys(toml::Value::try_from(file_observer).unwrap());
     assert_eq!(core_observer, &file | &from_plant(&["no_load_speed_rad_s"]));
+}
+
+/// `[plant.wheels]` on either plant: absent, no wheel errors; given, its
+/// values with the run's `measurement.seed` (and the plant's track, the
+/// default robot's on the unicycle); each bad key refused by name with its
+/// value; an unknown key named.
+#[test]
+fn plant_wheels_table_is_validated() {
+    let wheels = "[plant.wheels]\ntravel_variance_m2_per_m = 1e-4\nscale_error = [0.01, -0.02]\n\
+                  [measurement]\nseed = 7\n";
+    let setup = |text: &str| {
+        Scenario::from_toml_str(text)
+            .and_then(|s| s.validate())
+            .unwrap_or_else(|e| panic!("{e}"))
+    };
+    assert_eq!(setup(MINIMAL).wheels, None);
+    let unicycle = setup(&format!(
+        "{MINIMAL}\n[plant]\nkind = \"unicycle\"\n{wheels}"
+    ));
+    assert_eq!(
+        unicycle.wheels,
+        Some(crate::plant::WheelErrors {
+            travel_variance_m2_per_m: 1e-4,
+            scale_error: [0.01, -0.02],
+            track_width_m: 0.2,
+            seed: 7,
+        })
+    );
+    let diff_drive = setup(&format!(
+        "{MINIMAL}\n[plant]\nkind = \"diff_drive\"\ntrack_width_m = 0.3\n{wheels}"
+    ));
+    assert_eq!(diff_drive.wheels.map(|w| w.track_width_m), Some(0.3));
+    // The resolved file reads back the same.
+    let s = Scenario::from_toml_str(&format!(
+        "{MINIMAL}\n[plant]\nkind = \"unicycle\"\n{wheels}"
+    ))
+    .unwrap();
+    assert_eq!(
+        Scenario::from_toml_str(&s.to_toml_string().unwrap()).unwrap(),
+        s
+    );
+    for (table, value) in [
+        ("travel_variance_m2_per_m = -1e-4", "-0.0001"),
+        ("travel_variance_m2_per_m = 2.0", "2"),
+        ("travel_variance_m2_per_m = nan", "NaN"),
+        ("scale_error = [0.0, 0.7]", "0.7"),
+        ("scale_error = [-0.6, 0.0]", "-0.6"),
+        ("scale_error = [inf, 0.0]", "inf"),
+    ] {
+        let key = format!(
+            "plant.wheels.{}",
+            table.split(' ').next().unwrap_or_default()
+        );
+        for kind in ["unicycle", "diff_drive"] {
+            let e = Scenario::from_toml_str(&format!(
+                "{MINIMAL}\n[plant]\nkind = \"{kind}\"\n[plant.wheels]\n{table}\n"
+            ))
+            .and_then(|s| s.validate())
+            .unwrap_err();
+            assert_eq!(e.field(), Some(key.as_str()), "{table}: {e}");
+            assert!(e.to_string().contains(value), "{table}: {e}");
+        }
+    }
+    let e = err_of(&format!(
+        "{MINIMAL}\n[plant]\nkind = \"unicycle\"\n[plant.wheels]\nslip_variance = 1.0\n"
+    ))
+    .to_string();
+    assert!(e.contains("slip_variance"), "{e}");
+    // The unicycle takes `wheels` and nothing else.
+    let e = err_of(&format!(
+        "{MINIMAL}\n[plant]\nkind = \"unicycle\"\nwheel_radius_m = 0.03\n"
+    ))
+    .to_string();
+    assert!(
+        e.contains("plant.wheel_radius_m") && e.contains("wheels"),
+        "{e}"
+    );
 }

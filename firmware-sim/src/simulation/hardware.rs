@@ -12,7 +12,7 @@ use crate::devices::{
     EncoderGlitches, MotorSignals, VirtualDirectionPin, VirtualEncoder, VirtualPwm, VirtualUart,
     WheelShaft,
 };
-use crate::plant::{DiffDriveParams, DiffDrivePlant, PlantPose};
+use crate::plant::{DiffDriveParams, DiffDrivePlant, PlantPose, RollingWheels};
 use crate::report::PilotReport;
 
 pub(super) type VirtualMotor = MotorDriver<VirtualPwm, VirtualDirectionPin>;
@@ -35,6 +35,8 @@ pub(super) struct Hardware {
     max_abs_duty: f64,
     /// Encoder glitch bursts injected, left and right.
     glitch_bursts: (Rc<Cell<u64>>, Rc<Cell<u64>>),
+    /// Wheels that slip and are mis-scaled (`[plant.wheels]`), if any.
+    wheels: Option<RollingWheels>,
 }
 
 /// The devices the core drives.
@@ -77,6 +79,7 @@ impl Hardware {
                 limits: (0, 0),
                 max_abs_duty: 0.0,
                 glitch_bursts: (left_bursts, right_bursts),
+                wheels: None,
             },
             devices,
         )
@@ -93,10 +96,33 @@ impl Hardware {
         self.max_abs_duty = self.max_abs_duty.max(l.abs()).max(r.abs());
     }
 
+    /// The body on `wheels` (none: it moves as its wheels turn).
+    pub(super) fn with_wheels(self, wheels: Option<RollingWheels>) -> Self {
+        Self { wheels, ..self }
+    }
+
+    /// One period with the duties held. With realistic wheels the body
+    /// then slides by the difference between the wheels' ground travels
+    /// and their rotation over the period (`r·Δφ`), as one arc from the
+    /// pose reached (first order in the slip: the slip of a period is
+    /// applied at its end, not spread over it); the encoders keep seeing
+    /// the rotation.
     pub(super) fn advance(&mut self, dt_s: f64) {
         let (l, r) = self.duties();
+        let before = self.plant.wheel_angles_rad();
         self.plant.step(l, r, dt_s);
         let (al, ar) = self.plant.wheel_angles_rad();
+        if let Some(wheels) = &mut self.wheels {
+            let radius = self.plant.params().wheel_radius_m;
+            let (right, left) = (radius * (ar - before.1), radius * (al - before.0));
+            let (ground_right, ground_left) = wheels.ground_travels(right, left);
+            let (extra_right, extra_left) = (ground_right - right, ground_left - left);
+            let b = wheels.errors().track_width_m;
+            self.plant.slide(
+                0.5 * (extra_right + extra_left),
+                (extra_right - extra_left) / b,
+            );
+        }
         self.shafts.0.set_angle_rad(al);
         self.shafts.1.set_angle_rad(ar);
     }

@@ -18,7 +18,7 @@ use crate::devices::{
     MotorSignals, ReaderConfig, VirtualDirectionPin, VirtualEncoder, VirtualPwm, VirtualRfidReader,
     VirtualUart,
 };
-use crate::plant::{PlantPose, Unicycle, wrap_angle};
+use crate::plant::{PlantPose, RollingWheels, Unicycle, wrap_angle};
 use crate::report::{Mode, Record};
 use crate::scenario::{ControllerKind, PlantSetup, PositionSetup, Setup};
 use crate::tags::Floor;
@@ -59,6 +59,7 @@ pub(super) enum Rig<'t> {
     /// Unicycle + the core's output-feedback tracker.
     Tracker {
         plant: Unicycle,
+        wheels: Option<RollingWheels>,
         tracker: OutputFeedbackTracker,
         source: FixSource,
         last: BodyVelocity,
@@ -68,6 +69,7 @@ pub(super) enum Rig<'t> {
     /// Unicycle + the core's state-feedback law.
     Controller {
         plant: Unicycle,
+        wheels: Option<RollingWheels>,
         controller: TrackingController,
         trajectory: Trajectory,
         clock: TickClock,
@@ -138,6 +140,7 @@ impl<'t> Rig<'t> {
             pwm_max_duty,
             encoder_glitches,
         );
+        let hw = hw.with_wheels(setup.wheels.map(RollingWheels::new));
         let driver = |s: &MotorSignals| {
             (
                 VirtualPwm::new(s.clone()),
@@ -165,6 +168,7 @@ impl<'t> Rig<'t> {
         match (setup.plant, setup.controller) {
             (PlantSetup::Unicycle, ControllerKind::OutputFeedback) => Self::Tracker {
                 plant: Unicycle::new(pose),
+                wheels: setup.wheels.map(RollingWheels::new),
                 tracker: OutputFeedbackTracker::with_initial_heading(
                     setup.tracker,
                     setup.initial_estimate,
@@ -177,6 +181,7 @@ impl<'t> Rig<'t> {
             },
             (PlantSetup::Unicycle, ControllerKind::StateFeedback) => Self::Controller {
                 plant: Unicycle::new(pose),
+                wheels: setup.wheels.map(RollingWheels::new),
                 controller: TrackingController::new(setup.gains),
                 trajectory: setup.trajectory,
                 clock: *setup.tracker.clock(),
@@ -203,6 +208,7 @@ impl<'t> Rig<'t> {
                     pwm_max_duty,
                     encoder_glitches,
                 );
+                let hw = hw.with_wheels(setup.wheels.map(RollingWheels::new));
                 let pilot = new_pilot(pilot);
                 match (&setup.position, follower(setup)) {
                     (PositionSetup::Reader(floor, config), route) => {
@@ -419,8 +425,28 @@ impl<'t> Rig<'t> {
 
     pub(super) fn advance(&mut self, dt_s: f64) {
         match self {
-            Self::Tracker { plant, last, .. } | Self::Controller { plant, last, .. } => {
-                plant.step(f64::from(last.v_m_s), f64::from(last.omega_rad_s), dt_s);
+            Self::Tracker {
+                plant,
+                wheels,
+                last,
+                ..
+            }
+            | Self::Controller {
+                plant,
+                wheels,
+                last,
+                ..
+            } => {
+                let (v, omega) = (f64::from(last.v_m_s), f64::from(last.omega_rad_s));
+                match wheels {
+                    // The odometry (the command) is what the wheels
+                    // measured; the body moves on their ground travels.
+                    Some(wheels) => {
+                        let (ds, dtheta) = wheels.ground_motion(v * dt_s, omega * dt_s);
+                        plant.advance_arc(ds, dtheta);
+                    }
+                    None => plant.step(v, omega, dt_s),
+                }
             }
             Self::Robot { hw, .. } | Self::Pilot { hw, .. } | Self::Remote { hw, .. } => {
                 hw.advance(dt_s);

@@ -82,9 +82,9 @@ fn ukf_field(e: UkfError) -> ScenarioError {
         UkfError::Beta => ("filter.ukf.beta", "must be finite"),
         UkfError::Kappa => ("filter.ukf.kappa", "must be finite with n + κ > 0"),
         UkfError::Spread => ("filter.ukf.alpha", "gives non-finite sigma-point weights"),
-        UkfError::InitialCovariance => ("filter.ukf.initial_variance", "refused"),
-        UkfError::ProcessNoise => ("filter.process_noise", "refused"),
-        UkfError::MeasurementNoise => ("measurement.variance", "refused"),
+        UkfError::InitialCovariance(why) => ("filter.ukf.initial_variance", why.reason()),
+        UkfError::ProcessNoise(why) => ("filter.process_noise", why.reason()),
+        UkfError::MeasurementNoise(why) => ("measurement.variance", why.reason()),
         UkfError::SquareRootBeta => (
             "filter.ukf.beta",
             "must be ≥ alpha² for form = \"square_root\"",

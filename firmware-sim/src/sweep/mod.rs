@@ -424,7 +424,7 @@ impl SweepRun {
             } => (Some(offset_m), None, Some(drop_frame_probability)),
         };
         let encoder = match scenario.plant {
-            PlantSpec::Unicycle => None,
+            PlantSpec::Unicycle { .. } => None,
             PlantSpec::DiffDrive {
                 encoder_counts_per_rev,
                 ..

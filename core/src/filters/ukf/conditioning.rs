@@ -4,6 +4,7 @@
 
 use nalgebra::SMatrix;
 
+use super::CovarianceDefect;
 use super::sigma_points::lower_factor;
 
 /// `K = Pxy S⁻¹` for a symmetric `S`: as `Kᵀ = S⁻¹ Pxyᵀ` by Cholesky when
@@ -32,14 +33,27 @@ pub(super) fn all_finite<const R: usize, const C: usize>(a: &SMatrix<f32, R, C>)
     a.iter().all(|v| v.is_finite())
 }
 
-/// Finite, symmetric to `f32` rounding and positive semi-definite (it
-/// factors once its diagonal is raised by 1e-6 of its largest entry).
-pub(super) fn is_noise_covariance<const K: usize>(a: &SMatrix<f32, K, K>) -> bool {
+/// `Ok` if `a` is finite, symmetric to `f32` rounding and positive
+/// semi-definite (it factors once its diagonal is raised by 1e-6 of its
+/// largest entry) or, with `definite`, positive definite (its Cholesky
+/// factor exists and is finite); else the first defect found.
+pub(super) fn check_covariance<const K: usize>(
+    a: &SMatrix<f32, K, K>,
+    definite: bool,
+) -> Result<(), CovarianceDefect> {
     let scale = a.amax();
-    all_finite(a)
-        && (a - a.transpose()).amax() <= 1e-6 * scale
-        && lower_factor(
-            &(a + SMatrix::<f32, K, K>::identity() * (1e-6 * scale).max(f32::MIN_POSITIVE)),
-        )
-        .is_some()
+    if !all_finite(a) {
+        return Err(CovarianceDefect::NotFinite);
+    }
+    if (a - a.transpose()).amax() > 1e-6 * scale {
+        return Err(CovarianceDefect::NotSymmetric);
+    }
+    if definite {
+        return lower_factor(a)
+            .map(|_| ())
+            .ok_or(CovarianceDefect::NotPositiveDefinite);
+    }
+    lower_factor(&(a + SMatrix::<f32, K, K>::identity() * (1e-6 * scale).max(f32::MIN_POSITIVE)))
+        .map(|_| ())
+        .ok_or(CovarianceDefect::NotPositiveSemiDefinite)
 }

@@ -3,10 +3,10 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::conditioning::{all_finite, is_noise_covariance, symmetrize};
+use super::conditioning::{all_finite, check_covariance, symmetrize};
 use super::factor::semidefinite_factor;
 use super::sigma_points::lower_factor;
-use super::{MerweScaledSigmaPoints, UkfCounters, UkfError, UkfForm, UkfModel};
+use super::{CovarianceDefect, MerweScaledSigmaPoints, UkfCounters, UkfError, UkfForm, UkfModel};
 
 /// The unscented Kalman filter of the module docs for a model with `N`
 /// states and `M` measurements; `S` must be `2N + 1` (checked by
@@ -30,6 +30,9 @@ where
     pub(super) sigmas_f_fresh: bool,
     /// Draw the update's points from `(x⁻, P⁻)` rather than reuse `σf`.
     pub(super) redraw_for_update: bool,
+    /// The predict's mean is the centre point's image `f(x)`, and `P⁻`
+    /// the points' spread about it ([`Self::with_centre_mean`]).
+    pub(super) centre_mean: bool,
     pub(super) innovation: SVector<f32, M>,
     pub(super) innovation_covariance: SMatrix<f32, M, M>,
     pub(super) gain: SMatrix<f32, N, M>,
@@ -56,8 +59,9 @@ where
     /// # Errors
     /// [`UkfError::InitialState`], [`UkfError::InitialCovariance`] (not
     /// finite, symmetric and positive definite), [`UkfError::ProcessNoise`]
-    /// or [`UkfError::MeasurementNoise`] (not finite, symmetric and
-    /// positive semi-definite).
+    /// (not finite, symmetric and positive semi-definite) or
+    /// [`UkfError::MeasurementNoise`] (not finite, symmetric and positive
+    /// definite), each with the [`CovarianceDefect`] found.
     pub fn new(
         model: Model,
         points: MerweScaledSigmaPoints<N, S>,
@@ -69,15 +73,9 @@ where
         if !all_finite(&x0) {
             return Err(UkfError::InitialState);
         }
-        if !(is_noise_covariance(&p0) && lower_factor(&p0).is_some()) {
-            return Err(UkfError::InitialCovariance);
-        }
-        if !is_noise_covariance(&q) {
-            return Err(UkfError::ProcessNoise);
-        }
-        if !is_noise_covariance(&r) {
-            return Err(UkfError::MeasurementNoise);
-        }
+        check_covariance(&p0, true).map_err(UkfError::InitialCovariance)?;
+        check_covariance(&q, false).map_err(UkfError::ProcessNoise)?;
+        check_covariance(&r, true).map_err(UkfError::MeasurementNoise)?;
         let p0 = symmetrize(&p0);
         Ok(Self {
             model,
@@ -90,6 +88,7 @@ where
             sigmas_f: SMatrix::zeros(),
             sigmas_f_fresh: false,
             redraw_for_update: false,
+            centre_mean: false,
             innovation: SVector::zeros(),
             innovation_covariance: SMatrix::zeros(),
             gain: SMatrix::zeros(),
@@ -116,7 +115,9 @@ where
                     return Err(UkfError::SquareRootBeta);
                 }
                 (
-                    lower_factor(&self.p).ok_or(UkfError::InitialCovariance)?,
+                    lower_factor(&self.p).ok_or(UkfError::InitialCovariance(
+                        CovarianceDefect::NotPositiveDefinite,
+                    ))?,
                     semidefinite_factor(&self.q),
                     semidefinite_factor(&self.r),
                 )
@@ -144,6 +145,19 @@ where
     pub fn with_redrawn_update_points(self) -> Self {
         Self {
             redraw_for_update: true,
+            ..self
+        }
+    }
+
+    /// The predict takes the centre point's image `f(x, u)` as the prior
+    /// mean `x⁻` (the extended Kalman filter's mean) instead of the
+    /// weighted mean of the propagated points, and `P⁻` as the points'
+    /// spread about it, `Σᵢ Wᵢᶜ r(σfᵢ, x⁻) r(σfᵢ, x⁻)ᵀ + Q` (module docs,
+    /// "Centre mean"). For a linear model it is the same filter.
+    #[must_use]
+    pub fn with_centre_mean(self) -> Self {
+        Self {
+            centre_mean: true,
             ..self
         }
     }
@@ -229,9 +243,7 @@ where
     /// [`UkfError::ProcessNoise`] (not finite, symmetric and positive
     /// semi-definite); `Q` is unchanged.
     pub fn set_process_noise(&mut self, q: SMatrix<f32, N, N>) -> Result<(), UkfError> {
-        if !is_noise_covariance(&q) {
-            return Err(UkfError::ProcessNoise);
-        }
+        check_covariance(&q, false).map_err(UkfError::ProcessNoise)?;
         self.q = symmetrize(&q);
         // The covariance form never reads √Q: a 5×5 factor per step would
         // be 15 % of the fusion UKF's predict.
@@ -245,11 +257,9 @@ where
     ///
     /// # Errors
     /// [`UkfError::MeasurementNoise`] (not finite, symmetric and positive
-    /// semi-definite); `R` is unchanged.
+    /// definite); `R` is unchanged.
     pub fn set_measurement_noise(&mut self, r: SMatrix<f32, M, M>) -> Result<(), UkfError> {
-        if !is_noise_covariance(&r) {
-            return Err(UkfError::MeasurementNoise);
-        }
+        check_covariance(&r, true).map_err(UkfError::MeasurementNoise)?;
         self.r = symmetrize(&r);
         if self.form == UkfForm::SquareRoot {
             self.r_factor = semidefinite_factor(&self.r);
@@ -268,9 +278,10 @@ where
             return Err(UkfError::InitialState);
         }
         let p = symmetrize(&p);
-        let Some(factor) = lower_factor(&p).filter(|_| is_noise_covariance(&p)) else {
-            return Err(UkfError::InitialCovariance);
-        };
+        check_covariance(&p, true).map_err(UkfError::InitialCovariance)?;
+        let factor = lower_factor(&p).ok_or(UkfError::InitialCovariance(
+            CovarianceDefect::NotPositiveDefinite,
+        ))?;
         self.x = x;
         self.p = p;
         if self.form == UkfForm::SquareRoot {

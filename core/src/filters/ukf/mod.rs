@@ -86,6 +86,29 @@
 //!   form above, not the difference.
 //! * The failures below have defined reactions instead of exceptions.
 //!
+//! # Centre mean
+//! With [`UnscentedKalmanFilter::with_centre_mean`] the predict takes the
+//! centre point's image as the prior mean, `x⁻ = f(x, u)` (the extended
+//! Kalman filter's mean), and `P⁻ = Σᵢ Wᵢᶜ r(σfᵢ, x⁻) r(σfᵢ, x⁻)ᵀ + Q`, the
+//! points' spread about it (`Σ_{i≥1} Wᵢ dᵢ dᵢᵀ + Q` with `dᵢ = r(σfᵢ,
+//! σf₀)`): the unscented mean's shift `m`, its second-order term `½
+//! Σⱼₖ ∂²f/∂xⱼ∂xₖ Pⱼₖ` (Julier & Uhlmann 2004, "Unscented filtering and
+//! nonlinear estimation", Proc. IEEE 92(3), section IV), is left out of
+//! the mean, and `P⁻` is the unscented one less its centre term `(β − α²)
+//! m mᵀ` (the identity of "Square-root form"). It is for a model in which
+//! that term is a bias the system does not have: a robot moving `ds`
+//! along a heading `θ` of variance `σ²` moves `ds·cos θ` on the axis,
+//! whose expectation is `ds·cos θ̄·e^{−σ²/2}`, but it moves that far along
+//! its one true heading, and measurements of the position along its path
+//! (which are even in the heading error) then see the unscented mean lag:
+//! the fusion estimator's UKF ([`crate::estimation::fusion::ukf`]) at the
+//! template's wheel noise on a row of tags lags up to 11 mm a 10 cm cell,
+//! which this option removes (docs/fusion.md, "The UKF at the default
+//! wheel noise"). For a
+//! linear model the two means agree; the update is unchanged. In the
+//! square-root form the centre term is then zero (the deviations are taken
+//! about the centre point itself).
+//!
 //! # Square-root form
 //! [`UkfForm::SquareRoot`] ([`UnscentedKalmanFilter::with_form`]) is Van
 //! der Merwe & Wan's square-root UKF (2001, "The square-root unscented
@@ -157,6 +180,33 @@
 //! fraction of its own σ); a larger `α` (0.1 … 1) is the cure when the
 //! numbers must reproduce.
 //!
+//! Without process noise the same rounding accumulates. Each predict's
+//! mean carries a rounding-sized shift `m = Σ_{i≥1} Wᵢ(σfᵢ − σf₀)` (a
+//! second difference of the points, zero for a linear `f` in exact
+//! arithmetic), and the centre term `(β − α²) m mᵀ` of `P⁻` (the
+//! covariance form's `W₀ᶜ` term, the square-root form's centre update)
+//! adds it as process noise the exact filter does not have; the mean
+//! itself takes a random walk of the same size. On a constant-velocity
+//! system with `Q = 0`, position measured with `R = 0.04`, 2,000 steps
+//! (the `q_zero_drift_is_f32_rounding_at_small_alpha` unit test, against
+//! an `f64` Kalman filter), the UKF's `P₁₁` ends at these multiples of the
+//! Kalman filter's (covariance form / square-root form), by `|x|`:
+//!
+//! | `α` | `|x|` ≈ 0 | `|x|` = 1 | `|x|` = 10 | `|x|` = 100 |
+//! | --- | --- | --- | --- | --- |
+//! | 1 | 1.00 / 1.00 | 1.00 / 1.00 | 1.00 / 1.00 | 0.99 / 0.99 |
+//! | 0.1 | 1.01 / 1.01 | 1.01 / 1.01 | 1.08 / 1.08 | 2.1 / 2.1 |
+//! | 0.01 | 2.8 / 2.9 | 3.7 / 3.7 | 12.4 / 11.2 | 74 / 97 |
+//!
+//! and at `α = 0.01` the two filters' position estimates part by 7e-3 to
+//! 2.4e-2, about the Kalman filter's own σ (8.9e-3). The same run with
+//! `β = α²`, which removes the centre term, ends at 1.1–1.3×: the excess
+//! enters through it. Neither form nor the order of the sums cures it (it
+//! is in the points, before any sum); `α ≥ 0.1`, or a model whose state
+//! is kept near zero (e.g. positions relative to a nearby origin), does.
+//! The filter accepts `α = 0.01` because paper 004 uses it, with process
+//! noise well above this floor.
+//!
 //! # Bad input and failures
 //! Each of these skips the step, leaves the estimate as it was (except the
 //! reset), is counted in [`UkfCounters`] and is reported by the returned
@@ -166,12 +216,22 @@
 //!   [`StepOutcome::RejectedInput`];
 //! * `(λ + n)P` does not factor (not positive definite, e.g. after
 //!   rounding; covariance form only): it is symmetrised, each diagonal
-//!   entry raised by [`COVARIANCE_JITTER`] times itself (not by the
-//!   largest one, which would swamp small variances), and factored
-//!   again; if that works the step goes on ([`StepOutcome::Repaired`],
-//!   counted as a repair). Otherwise `P` is reset to the initial covariance
-//!   given at construction, `x` is kept and the step is skipped
-//!   ([`StepOutcome::CovarianceReset`]);
+//!   entry `aᵢᵢ` raised by `c·ε·aᵢᵢ` (relative to itself, not to the
+//!   largest entry, which would swamp small variances; a floor of
+//!   `f32::MIN_POSITIVE` for a zero one) and factored again, for
+//!   `c = 1, 4, 16, …` up to `N·S` ([`repair_bound`], the size of the
+//!   rounding a sum of `S` weighted outer products leaves in `P`); the
+//!   first `c` that factors is kept and the step goes on
+//!   ([`StepOutcome::Repaired`], counted as a repair). A repair is thus
+//!   no larger than the rounding it repairs: on a prior of scale 8192 that
+//!   rounds to a singular matrix, it adds 1e-3 to the diagonal (a fixed
+//!   jitter of 1e-5 of each entry added 0.082, and a measured state's
+//!   partner then kept a variance of 0.164 where the exact one is 2.5e-6;
+//!   now 9.8e-4, one ulp of that prior). Otherwise `P` is
+//!   reset to the initial covariance given at construction, `x` is kept
+//!   and the step is skipped ([`StepOutcome::CovarianceReset`]). The
+//!   square-root form holds a triangular factor with a non-negative
+//!   diagonal, built by rotations only, so it never needs a repair;
 //! * `S` not invertible: [`StepOutcome::SingularInnovation`];
 //! * a non-finite result (`x`, `P`, `S` or `K`):
 //!   [`StepOutcome::NonFiniteResult`].
@@ -215,11 +275,19 @@ pub use sigma_points::{
     unscented_mean_with_angles,
 };
 
-/// The jitter added to each diagonal entry of `(λ + n)P` when it does not
-/// factor, relative to that entry: about 80 `f32` ulps, above the
-/// rounding that makes a positive definite `P` fail, below any variance
-/// that matters.
-pub const COVARIANCE_JITTER: f32 = 1e-5;
+/// The largest jitter a repair adds to each diagonal entry of `(λ + n)P`,
+/// relative to that entry: `N·S·ε` for `N` states and `S = 2N + 1` sigma
+/// points (module docs, "Bad input and failures"). `P` is a weighted sum
+/// of `S` outer products (and `Q`), so rounding puts at most about `S ε
+/// √(Pᵢᵢ Pⱼⱼ)` into each entry (to first order, for non-negative
+/// weights); scaled by its diagonal, that is a perturbation of norm at
+/// most `N·S·ε`, which this jitter covers. 1.3e-5 for the fusion UKF's
+/// five states, 1.2e-6 for two.
+#[must_use]
+pub const fn repair_bound<const N: usize, const S: usize>() -> f32 {
+    // N·S ≤ 2^24 for any filter that fits in memory: exact in f32.
+    (N * S) as f32 * f32::EPSILON
+}
 
 /// Why a sigma-point set or a filter was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -237,19 +305,58 @@ pub enum UkfError {
     Spread,
     /// The initial state is not finite.
     InitialState,
-    /// The initial covariance is not finite, symmetric and positive
-    /// definite.
-    InitialCovariance,
+    /// The initial covariance `P₀` (or a reset's) is not finite,
+    /// symmetric and positive definite: why.
+    InitialCovariance(CovarianceDefect),
     /// The process noise `Q` is not finite, symmetric and positive
-    /// semi-definite.
-    ProcessNoise,
+    /// semi-definite (`Q = 0` is allowed): why.
+    ProcessNoise(CovarianceDefect),
     /// The measurement noise `R` is not finite, symmetric and positive
-    /// semi-definite.
-    MeasurementNoise,
+    /// definite: why. (`R = 0`, or a singular `R`, is refused: an update
+    /// with it would pin a combination of states exactly, the innovation
+    /// covariance `S` could be singular, and the two forms would fail
+    /// differently, by repairs or by skipped updates.)
+    MeasurementNoise(CovarianceDefect),
     /// The square-root form ([`UkfForm::SquareRoot`]) needs `β ≥ α²`: its
     /// centre term enters the factor as a rank-one update of weight
     /// `√(β − α²)` (module docs, "Square-root form").
     SquareRootBeta,
+}
+
+/// Why a covariance matrix (`P₀`, `Q` or `R`) was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum CovarianceDefect {
+    /// An entry is NaN or infinite.
+    NotFinite,
+    /// `|A − Aᵀ|` exceeds 1e-6 of its largest entry.
+    NotSymmetric,
+    /// It must be positive definite (`P₀`, `R`) and its `f32` Cholesky
+    /// factorisation fails (a negative, zero or rounding-sized pivot).
+    NotPositiveDefinite,
+    /// It must be positive semi-definite (`Q`) and it does not factor even
+    /// with its diagonal raised by 1e-6 of its largest entry.
+    NotPositiveSemiDefinite,
+}
+
+impl CovarianceDefect {
+    /// Why, in words.
+    #[must_use]
+    pub fn reason(self) -> &'static str {
+        match self {
+            Self::NotFinite => "has a NaN or infinite entry",
+            Self::NotSymmetric => "is not symmetric",
+            Self::NotPositiveDefinite => "is not positive definite",
+            Self::NotPositiveSemiDefinite => "is not positive semi-definite",
+        }
+    }
+}
+
+impl core::fmt::Display for CovarianceDefect {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.reason())
+    }
 }
 
 impl core::fmt::Display for UkfError {
@@ -262,15 +369,11 @@ impl core::fmt::Display for UkfError {
                 "n + λ = α²(n + κ) under- or overflows f32 (the weights are not finite)"
             }
             Self::InitialState => "the initial state must be finite",
-            Self::InitialCovariance => {
-                "the initial covariance must be finite, symmetric and positive definite"
+            Self::InitialCovariance(why) => {
+                return write!(f, "the initial covariance P0 {why}");
             }
-            Self::ProcessNoise => {
-                "the process noise Q must be finite, symmetric and positive semi-definite"
-            }
-            Self::MeasurementNoise => {
-                "the measurement noise R must be finite, symmetric and positive semi-definite"
-            }
+            Self::ProcessNoise(why) => return write!(f, "the process noise Q {why}"),
+            Self::MeasurementNoise(why) => return write!(f, "the measurement noise R {why}"),
             Self::SquareRootBeta => "beta (β) must be ≥ alpha² (α²) for the square-root form",
         })
     }

@@ -10,7 +10,7 @@ use super::conditioning::{all_finite, symmetrize};
 use super::factor::outer;
 use super::filter::UnscentedKalmanFilter;
 use super::sigma_points::{lower_factor, points_from_factor};
-use super::{COVARIANCE_JITTER, StepOutcome, UkfForm, UkfModel, bump};
+use super::{StepOutcome, UkfForm, UkfModel, bump, repair_bound};
 
 impl<Model, const N: usize, const M: usize, const S: usize> UnscentedKalmanFilter<Model, N, M, S>
 where
@@ -29,14 +29,20 @@ where
         let scaled = symmetrize(&(self.p * self.points.spread));
         // Each diagonal entry raised by the jitter times itself (a floor
         // for a zero or negative one), so that a small variance is not
-        // swamped by the largest.
-        let mut jittered = scaled;
-        for v in jittered.iter_mut().step_by(N + 1).take(N) {
-            *v += (COVARIANCE_JITTER * v.abs()).max(f32::MIN_POSITIVE);
-        }
-        if let Some(l) = lower_factor(&jittered) {
-            bump(&mut self.counters.covariance_repairs);
-            return Ok((points_from_factor(&self.x, &l), true));
+        // swamped by the largest; the jitter grows from ε by factors of 4
+        // up to REPAIR_BOUND, and the first that factors is kept.
+        let mut jitter = f32::EPSILON;
+        let bound = repair_bound::<N, S>();
+        while jitter <= bound {
+            let mut jittered = scaled;
+            for v in jittered.iter_mut().step_by(N + 1).take(N) {
+                *v += (jitter * v.abs()).max(f32::MIN_POSITIVE);
+            }
+            if let Some(l) = lower_factor(&jittered) {
+                bump(&mut self.counters.covariance_repairs);
+                return Ok((points_from_factor(&self.x, &l), true));
+            }
+            jitter *= 4.0;
         }
         self.p = self.initial_covariance;
         self.sigmas_f_fresh = false;
@@ -60,10 +66,13 @@ where
         for (sigma, mut propagated) in sigmas.column_iter().zip(sigmas_f.column_iter_mut()) {
             propagated.copy_from(&self.model.transition(&sigma.into_owned(), u, dt_s));
         }
-        let x = self
-            .model
-            .angles()
-            .state_mean(&sigmas_f, &self.points.mean_weights());
+        let x = match (self.centre_mean, sigmas_f.data.0.first()) {
+            (true, Some(centre)) => SVector::from(*centre),
+            _ => self
+                .model
+                .angles()
+                .state_mean(&sigmas_f, &self.points.mean_weights()),
+        };
         let (p, factor) = match self.form {
             UkfForm::Covariance => {
                 let mut p = self.q;

@@ -102,21 +102,69 @@ fn parameters_are_validated() {
         new(V3::new(f32::NAN, 0.0, 0.0), i, i, i),
         Err(UkfError::InitialState)
     );
+    use CovarianceDefect::*;
     assert_eq!(
         new(V3::zeros(), bad_p0, i, i),
-        Err(UkfError::InitialCovariance)
+        Err(UkfError::InitialCovariance(NotPositiveDefinite))
     );
     assert_eq!(
         new(V3::zeros(), M3::zeros(), i, i),
-        Err(UkfError::InitialCovariance)
+        Err(UkfError::InitialCovariance(NotPositiveDefinite))
     );
-    assert_eq!(new(V3::zeros(), i, -i, i), Err(UkfError::ProcessNoise));
+    let mut nan = i;
+    nan[(1, 1)] = f32::NAN;
+    assert_eq!(
+        new(V3::zeros(), nan, i, i),
+        Err(UkfError::InitialCovariance(NotFinite))
+    );
+    assert_eq!(
+        new(V3::zeros(), i, -i, i),
+        Err(UkfError::ProcessNoise(NotPositiveSemiDefinite))
+    );
+    let mut skew = i;
+    skew[(0, 1)] = 0.5;
+    assert_eq!(
+        new(V3::zeros(), i, skew, i),
+        Err(UkfError::ProcessNoise(NotSymmetric))
+    );
     assert_eq!(
         new(V3::zeros(), i, i, bad_p0),
-        Err(UkfError::MeasurementNoise)
+        Err(UkfError::MeasurementNoise(NotPositiveDefinite))
     );
-    // Q = 0 and a singular R are allowed (semi-definite).
-    assert_eq!(new(V3::zeros(), i, M3::zeros(), M3::zeros()), Ok(()));
+    // Q = 0 is allowed (semi-definite); R must be positive definite: zero,
+    // singular or merely semi-definite, it is refused by name and why.
+    assert_eq!(new(V3::zeros(), i, M3::zeros(), i), Ok(()));
+    let singular = M3::from_diagonal(&V3::new(1.0, 0.0, 1.0));
+    for r in [M3::zeros(), singular] {
+        assert_eq!(
+            new(V3::zeros(), i, M3::zeros(), r),
+            Err(UkfError::MeasurementNoise(NotPositiveDefinite))
+        );
+    }
+    assert_eq!(
+        UkfError::MeasurementNoise(NotPositiveDefinite).to_string(),
+        "the measurement noise R is not positive definite"
+    );
+    let mut ukf = unicycle_filter(0.5);
+    assert_eq!(
+        ukf.set_measurement_noise(singular),
+        Err(UkfError::MeasurementNoise(NotPositiveDefinite))
+    );
+    assert_eq!(
+        ukf.measurement_noise(),
+        unicycle_filter(0.5).measurement_noise()
+    );
+    // Per call, a zero R skips the update and is counted.
+    assert_eq!(ukf.predict(&[1.0, 0.1], 0.1), StepOutcome::Applied);
+    assert_eq!(
+        ukf.update_with_noise(&V3::zeros(), &M3::zeros()),
+        StepOutcome::RejectedInput
+    );
+    assert_eq!(
+        ukf.update_component(0, 0.0, 0.0),
+        StepOutcome::RejectedInput
+    );
+    assert_eq!(ukf.counters().rejected_inputs, 2);
 }
 
 /// The mean weights sum to one; the values are FilterPy's.
@@ -378,7 +426,10 @@ fn bad_input_is_skipped_and_counted() {
     assert_eq!(ukf.update(&V3::new(0.0, 0.0, 0.5)), StepOutcome::Applied);
 }
 
-/// A measurement that carries no information and no noise: `S = 0`.
+/// A measurement that carries no information and no noise: `S = 0`. A
+/// zero `R` is refused at construction and per call, so it is set here
+/// behind the checks, to reach the defence that remains against an `S`
+/// that rounding leaves singular.
 #[test]
 fn singular_innovation_is_skipped() {
     let model = Linear {
@@ -393,9 +444,10 @@ fn singular_innovation_is_skipped() {
         SVector::zeros(),
         SMatrix::identity(),
         SMatrix::zeros(),
-        SMatrix::zeros(),
+        SMatrix::identity(),
     )
     .unwrap();
+    ukf.r = SMatrix::zeros();
     assert_eq!(ukf.predict(&0.0, 0.1), StepOutcome::Applied);
     let x = *ukf.state();
     assert_eq!(
@@ -712,5 +764,237 @@ fn the_forms_agree_on_a_nonlinear_model() {
         );
         assert!(worst.0 < 1e-4 && worst.1 < 1e-4, "{worst:?}");
         assert_eq!(b.counters(), UkfCounters::default());
+    }
+}
+
+/// The ratio of the UKF's `P₁₁` to the exact (`f64`) Kalman filter's
+/// after 2,000 steps of a constant-velocity system with `Q = 0` (`x⁺ =
+/// [[1, 0.1], [0, 1]] x`, position measured with `R = 0.04`, the truth
+/// moving at 0.01 per step from `offset`), and the RMS distance of the two
+/// position estimates over the last 200 steps, for weights `(α, β)`.
+fn q_zero_drift(alpha: f32, beta: f32, offset: f64, form: UkfForm) -> (f64, f64) {
+    let model = Linear {
+        a: SMatrix::<f32, 2, 2>::new(1.0, 0.1, 0.0, 1.0),
+        b: SVector::<f32, 2>::zeros(),
+        h: SMatrix::<f32, 1, 2>::new(1.0, 0.0),
+    };
+    let r = 0.04_f64;
+    let x0 = SVector::<f32, 2>::new(offset as f32, 0.0);
+    let points = MerweScaledSigmaPoints::<2, 5>::new(alpha, beta, 0.0).unwrap();
+    let mut ukf = UnscentedKalmanFilter::new(
+        model,
+        points,
+        x0,
+        SMatrix::identity(),
+        SMatrix::zeros(),
+        SMatrix::<f32, 1, 1>::new(r as f32),
+    )
+    .unwrap()
+    .with_form(form)
+    .unwrap();
+    let a = model.a.map(f64::from);
+    let (mut x, mut p) = (x0.map(f64::from), nalgebra::Matrix2::<f64>::identity());
+    let mut truth = SVector::<f64, 2>::new(offset + 0.3, 0.01);
+    // A uniform noise of variance R from a fixed linear congruential
+    // sequence (Knuth's MMIX constants).
+    let mut seed = 12345_u64;
+    let mut noise = || {
+        seed = seed
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        ((seed >> 11) as f64 / (1_u64 << 53) as f64 - 0.5) * (12.0 * r).sqrt()
+    };
+    let (steps, tail) = (2000_u32, 200_u32);
+    let mut distance2 = 0.0_f64;
+    for k in 0..steps {
+        truth = a * truth;
+        let z = truth[0] + noise();
+        assert_eq!(ukf.predict(&0.0, 0.1), StepOutcome::Applied);
+        x = a * x;
+        p = a * p * a.transpose();
+        assert_eq!(
+            ukf.update(&SVector::<f32, 1>::new(z as f32)),
+            StepOutcome::Applied
+        );
+        let s = p[(0, 0)] + r;
+        let gain = p.column(0) / s;
+        x += gain * (z - x[0]);
+        p -= gain * gain.transpose() * s;
+        if k >= steps - tail {
+            distance2 += (f64::from(ukf.state()[0]) - x[0]).powi(2);
+        }
+    }
+    assert_eq!(ukf.counters(), UkfCounters::default());
+    (
+        f64::from(ukf.covariance()[(0, 0)]) / p[(0, 0)],
+        (distance2 / f64::from(tail)).sqrt(),
+    )
+}
+
+/// With `Q = 0` and the paper's `α = 0.01` the covariance drifts above
+/// the Kalman filter's, in both forms, by a factor that grows with `|x|`:
+/// `f32` rounding of the sigma points (module docs, "`f32` and small
+/// `α`"). The figures of the module docs, pinned: after 2,000 steps `P₁₁`
+/// is within 3 % of the Kalman filter's at `α = 1` (|x| ≤ 100) and within
+/// 10 % at `α = 0.1` (|x| ≤ 10); at `α = 0.01` it is 2.8–3.7× at |x| ≤ 1
+/// and 11–12× at |x| = 10, and the estimates part by about the Kalman
+/// filter's own σ (8.9e-3). With `β` at `α²` (which zeroes the centre
+/// term) the same run at |x| ≤ 1 ends within 1.35×: the excess enters
+/// `P` through the centre term `(β − α²) m mᵀ`, with `m` the predict's
+/// rounding-sized mean shift.
+#[test]
+fn q_zero_drift_is_f32_rounding_at_small_alpha() {
+    for form in FORMS {
+        for offset in [0.0, 1.0, 10.0, 100.0] {
+            let (ratio, distance) = q_zero_drift(1.0, 2.0, offset, form);
+            println!("{form:?} |x| {offset}, α 1: P ratio {ratio:.2}, distance {distance:.1e}");
+            assert!((0.97..1.03).contains(&ratio), "{form:?} {offset}: {ratio}");
+            assert!(distance < 1e-4, "{form:?} {offset}: {distance}");
+        }
+        for offset in [0.0, 1.0, 10.0] {
+            let (ratio, distance) = q_zero_drift(0.1, 2.0, offset, form);
+            println!("{form:?} |x| {offset}, α 0.1: P ratio {ratio:.2}, distance {distance:.1e}");
+            assert!((0.97..1.1).contains(&ratio), "{form:?} {offset}: {ratio}");
+            assert!(distance < 1e-3, "{form:?} {offset}: {distance}");
+        }
+        let mut ratios = [0.0; 3];
+        for (offset, ratio) in [0.0, 1.0, 10.0].into_iter().zip(ratios.iter_mut()) {
+            let distance;
+            (*ratio, distance) = q_zero_drift(0.01, 2.0, offset, form);
+            println!("{form:?} |x| {offset}, α 0.01: P ratio {ratio:.2}, distance {distance:.1e}");
+        }
+        assert!(
+            ratios[..2].iter().all(|r| (2.5..4.0).contains(r)),
+            "{form:?}: {ratios:?}"
+        );
+        assert!((10.0..13.0).contains(&ratios[2]), "{form:?}: {ratios:?}");
+        for offset in [0.0, 1.0] {
+            let (ratio, _) = q_zero_drift(0.01, 1e-4, offset, form);
+            println!("{form:?} |x| {offset}, α 0.01, β = α²: P ratio {ratio:.2}");
+            assert!((0.8..1.35).contains(&ratio), "{form:?} {offset}: {ratio}");
+        }
+    }
+}
+
+/// A prior that is positive definite in exact arithmetic but rounds to a
+/// singular `f32` matrix: `P = 2¹³ [[1, 1], [1, 1]] + diag(0, 2.5e-6)`
+/// (two states that differ by a tiny independent offset; `8192 + 2.5e-6`
+/// is `8192` in `f32`; `α` such that `(n + λ)P` is exact, so that its
+/// Cholesky pivot is exactly 0). The predict repairs it, raising each
+/// diagonal entry by at most `N·S·ε` of itself (module docs, "Bad input
+/// and failures"), the size of the rounding it repairs. After the first
+/// state is measured (`R` = 1e-8), the second state's variance (exact:
+/// 2.5e-6 + 1e-8, from an `f64` Kalman filter) is off by what the jitter
+/// added, within a few ulps of a matrix of scale 8192 (ulp 9.8e-4): the
+/// `f32` resolution of that prior.
+#[test]
+fn a_repair_is_rounding_sized() {
+    let model = Linear {
+        a: SMatrix::<f32, 2, 2>::identity(),
+        b: SVector::<f32, 2>::zeros(),
+        h: SMatrix::<f32, 1, 2>::new(1.0, 0.0),
+    };
+    let r = 1e-8_f64;
+    let scale = 8192.0_f64;
+    let exact_p = nalgebra::Matrix2::<f64>::new(scale, scale, scale, scale + 2.5e-6);
+    let rounded = exact_p.map(|v| v as f32);
+    let s = exact_p[(0, 0)] + r;
+    let exact_p22 = exact_p[(1, 1)] - exact_p[(1, 0)] * exact_p[(0, 1)] / s;
+    let eps = f64::from(f32::EPSILON);
+    for alpha in [0.0078125_f32, 0.5, 1.0] {
+        let setup = (
+            SVector::<f32, 2>::new(0.0, 0.0),
+            SMatrix::<f32, 2, 2>::identity(),
+            SMatrix::<f32, 2, 2>::zeros(),
+            SMatrix::<f32, 1, 1>::new(r as f32),
+        );
+        let mut ukf = linear_filter(model, alpha, setup, UkfForm::Covariance);
+        assert!(lower_factor(&(rounded * ukf.points.spread)).is_none());
+        ukf.p = rounded;
+        assert_eq!(ukf.predict(&0.0, 0.1), StepOutcome::Repaired);
+        let added = (ukf.covariance() - rounded)
+            .map(f64::from)
+            .diagonal()
+            .amax();
+        assert_eq!(
+            ukf.update(&SVector::<f32, 1>::new(1.0)),
+            StepOutcome::Applied
+        );
+        let p22 = f64::from(ukf.covariance()[(1, 1)]);
+        println!(
+            "α {alpha}: the repair added {added:.2e} to the diagonal; \
+             P₂₂ after the update {p22:.2e}, exact {exact_p22:.2e}"
+        );
+        assert!(added <= (2 * 5) as f64 * eps * scale, "{added:e}");
+        assert!(
+            (p22 - exact_p22).abs() <= 4.0 * (2 * 5) as f64 * eps * scale,
+            "{p22:e}"
+        );
+        assert_eq!(ukf.counters().covariance_repairs, 1);
+    }
+}
+
+/// With the centre mean the prior mean is `f(x, u)` exactly and `P⁻` the
+/// points' spread about it plus `Q`, in both forms; on the unicycle with
+/// a wide heading the means differ by the unscented mean's shift `m`,
+/// and `P⁻` is the unscented one less its centre term `(β − α²) m mᵀ`
+/// (module docs, "Square-root form"); on a linear model the filter is the
+/// default one to rounding.
+#[test]
+fn the_centre_mean_is_the_centre_points_image() {
+    let u = [1.0_f32, 0.2];
+    for form in FORMS {
+        let mut ukf = unicycle_filter(1.0).with_form(form).unwrap();
+        ukf.reset(
+            V3::new(0.5, -0.3, 0.4),
+            M3::from_diagonal(&V3::new(0.01, 0.01, 0.5)),
+        )
+        .unwrap();
+        let mut centre = ukf.with_centre_mean();
+        let x0 = *ukf.state();
+        assert_eq!(ukf.predict(&u, 0.5), StepOutcome::Applied);
+        assert_eq!(centre.predict(&u, 0.5), StepOutcome::Applied);
+        assert_eq!(*centre.state(), Unicycle.transition(&x0, &u, 0.5));
+        let sigmas = centre.propagated_sigma_points().unwrap();
+        let mut spread = *centre.process_noise();
+        for (sigma, w) in sigmas
+            .column_iter()
+            .zip(centre.points.covariance_weights().iter())
+        {
+            let d = Unicycle
+                .angles()
+                .state_residual(&sigma.into_owned(), centre.state());
+            spread += d * d.transpose() * *w;
+        }
+        assert!((centre.covariance() - spread).amax() < 1e-5, "{form:?}");
+        let shift = centre.state() - ukf.state();
+        assert!(shift.norm() > 0.02, "{form:?}: {shift}");
+        let beta_less_alpha2 = 2.0 - 1.0;
+        let excess =
+            centre.covariance() - ukf.covariance() + shift * shift.transpose() * beta_less_alpha2;
+        assert!(excess.amax() < 1e-5, "{form:?}: {excess}");
+    }
+    let model = Linear {
+        a: SMatrix::<f32, 2, 2>::new(1.0, 0.1, 0.0, 0.95),
+        b: SVector::<f32, 2>::new(0.005, 0.1),
+        h: SMatrix::<f32, 1, 2>::new(1.0, 0.0),
+    };
+    let setup = (
+        SVector::<f32, 2>::new(0.5, -0.2),
+        SMatrix::<f32, 2, 2>::new(1.0, 0.3, 0.3, 0.5),
+        SMatrix::<f32, 2, 2>::new(1e-3, 2e-4, 2e-4, 2e-3),
+        SMatrix::<f32, 1, 1>::new(0.04),
+    );
+    for form in FORMS {
+        let mut a = linear_filter(model, 1.0, setup, form);
+        let mut b = a.with_centre_mean();
+        for k in 0..100_u8 {
+            let u = 0.3 * f32::from(k % 7) - 0.8;
+            let z = SVector::<f32, 1>::new(0.02 * f32::from(k) - 0.5 * f32::from(k % 3));
+            assert_eq!(a.predict(&u, 0.1), b.predict(&u, 0.1));
+            assert_eq!(a.update(&z), b.update(&z));
+            assert!((a.state() - b.state()).amax() < 1e-5, "{form:?}");
+            assert!((a.covariance() - b.covariance()).amax() < 1e-5, "{form:?}");
+        }
     }
 }

@@ -5,7 +5,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::conditioning::{all_finite, is_noise_covariance, kalman_gain, symmetrize};
+use super::conditioning::{all_finite, check_covariance, kalman_gain, symmetrize};
 use super::factor::semidefinite_factor;
 use super::filter::UnscentedKalmanFilter;
 use super::{StepOutcome, UkfForm, UkfModel, bump};
@@ -40,13 +40,15 @@ where
 
     /// The measurement update with `z` and, for this call only, the
     /// measurement noise `r` (FilterPy's `update(z, R)`; an `r` that is not
-    /// finite, symmetric and positive semi-definite rejects the update).
+    /// finite, symmetric and positive definite rejects the update, as
+    /// [`UkfError::MeasurementNoise`](super::UkfError::MeasurementNoise)
+    /// refuses it at construction).
     pub fn update_with_noise(
         &mut self,
         z: &SVector<f32, M>,
         r: &SMatrix<f32, M, M>,
     ) -> StepOutcome {
-        if !is_noise_covariance(r) {
+        if check_covariance(r, true).is_err() {
             bump(&mut self.counters.rejected_inputs);
             return StepOutcome::RejectedInput;
         }
@@ -67,9 +69,9 @@ where
     /// [`Self::gain`] hold it in full-measurement shape, zero outside
     /// component `index` (as a full update with infinite variance on the
     /// other components would leave them). An `index ≥ M`, or an `r` that
-    /// is not finite and ≥ 0, rejects the update.
+    /// is not finite and > 0, rejects the update.
     pub fn update_component(&mut self, index: usize, z: f32, r: f32) -> StepOutcome {
-        if !(index < M && z.is_finite() && r.is_finite() && r >= 0.0) {
+        if !(index < M && z.is_finite() && r.is_finite() && r > 0.0) {
             bump(&mut self.counters.rejected_inputs);
             return StepOutcome::RejectedInput;
         }

@@ -94,7 +94,7 @@ impl Scenario {
             }
             // The unicycle's odometry is exact: only the noise model's
             // geometry matters, taken as the default robot's.
-            PlantSpec::Unicycle => (defaults::track_width_m(), 1e-9),
+            PlantSpec::Unicycle { .. } => (defaults::track_width_m(), 1e-9),
         };
         SensorSpec {
             track_width_m: f(track_width_m),

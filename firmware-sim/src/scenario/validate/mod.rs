@@ -15,7 +15,7 @@ use wmr_core::pilot::tracker::TrackerConfig;
 use wmr_core::reference::Trajectory;
 
 use crate::devices::{EncoderGlitches, ReaderConfig};
-use crate::plant::{DiffDriveParams, PlantPose};
+use crate::plant::{DiffDriveParams, PlantPose, WheelErrors};
 
 use crate::tags::{Floor, FloorTags};
 
@@ -104,6 +104,8 @@ pub struct Setup {
     pub position: PositionSetup,
     /// Noise and misses on the fix (validated; clean for the reader).
     pub measurement: MeasurementSpec,
+    /// The plant's realistic wheels (`[plant.wheels]`), if any.
+    pub wheels: Option<WheelErrors>,
     /// The validated `[sweep]` section, if the scenario has one.
     pub sweep: Option<SweepPlan>,
 }
@@ -280,6 +282,7 @@ impl Scenario {
         };
 
         let plant = self.plant_setup(tracker_spec)?;
+        let wheels = self.wheels_setup()?;
         let position = self.position_setup(&trajectory, route.as_ref(), duration_s, period_s)?;
 
         if matches!(plant, PlantSetup::DiffDrive { .. })
@@ -328,6 +331,7 @@ impl Scenario {
             plant,
             position,
             measurement,
+            wheels,
             sweep: None,
         };
         if let Some(spec) = &self.sweep {

@@ -6,11 +6,13 @@ use wmr_core::pilot::PilotConfig;
 use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
 
 use crate::devices::EncoderGlitches;
-use crate::plant::{DiffDriveParams, LoadTorque, WheelDynamics};
+use crate::plant::{DiffDriveParams, LoadTorque, WheelDynamics, WheelErrors};
 
+use crate::scenario::defaults;
+use crate::scenario::error::shown;
 use crate::scenario::error::{ScenarioError, in_range, non_negative, positive, probability};
 use crate::scenario::schema::Scenario;
-use crate::scenario::tables::{DynamicsSpec, PlantSpec, SpeedObserverSpec};
+use crate::scenario::tables::{DynamicsSpec, PlantSpec, SpeedObserverSpec, WheelErrorSpec};
 use wmr_core::plausible::{
     GAIN, MASS_KG, SPEED_LOOP_GAIN, TORQUE_NM, TRACK_WIDTH_M, WHEEL_ACCEL_RAD_S2,
     WHEEL_INERTIA_KG_M2, WHEEL_RADIUS_M, WHEEL_SPEED_RAD_S, YAW_INERTIA_KG_M2,
@@ -67,10 +69,73 @@ pub(super) fn speed_observer_spec(
     })
 }
 
+/// The largest slip-noise variance the simulator takes, m²/m: a metre
+/// rolled with a standard deviation of a metre.
+const MAX_TRAVEL_VARIANCE_M2_PER_M: f64 = 1.0;
+/// The largest wheel scale error the simulator takes (either sign).
+const MAX_SCALE_ERROR: f64 = 0.5;
+
+/// The plant's realistic wheels from `[plant.wheels]`, each key checked
+/// and refused by name with its value; `None` when the table is absent.
+pub(super) fn wheel_errors(
+    spec: Option<&WheelErrorSpec>,
+    track_width_m: f64,
+    seed: u64,
+) -> Result<Option<WheelErrors>, ScenarioError> {
+    let Some(w) = spec else {
+        return Ok(None);
+    };
+    let q = w.travel_variance_m2_per_m;
+    if !(q.is_finite() && (0.0..=MAX_TRAVEL_VARIANCE_M2_PER_M).contains(&q)) {
+        return Err(ScenarioError::invalid(
+            "plant.wheels.travel_variance_m2_per_m",
+            format!(
+                "must be in [0, {MAX_TRAVEL_VARIANCE_M2_PER_M}] m²/m (got {})",
+                shown(q)
+            ),
+        ));
+    }
+    for (e, wheel) in w.scale_error.iter().zip(["right", "left"]) {
+        if !(e.is_finite() && e.abs() <= MAX_SCALE_ERROR) {
+            return Err(ScenarioError::invalid(
+                "plant.wheels.scale_error",
+                format!(
+                    "the {wheel} wheel's must be in [−{MAX_SCALE_ERROR}, {MAX_SCALE_ERROR}] \
+                     (got {}; [right, left])",
+                    shown(*e)
+                ),
+            ));
+        }
+    }
+    Ok(Some(WheelErrors {
+        travel_variance_m2_per_m: q,
+        scale_error: w.scale_error,
+        track_width_m,
+        seed,
+    }))
+}
+
 impl Scenario {
+    /// The plant's realistic wheels (`[plant.wheels]`, [`wheel_errors`]):
+    /// on the unicycle, with the default robot's track width (the fusion
+    /// filter's geometry for it); seeded from `measurement.seed`.
+    pub(super) fn wheels_setup(&self) -> Result<Option<WheelErrors>, ScenarioError> {
+        let seed = self.measurement.seed;
+        match &self.plant {
+            PlantSpec::Unicycle { wheels } => {
+                wheel_errors(wheels.as_ref(), defaults::track_width_m(), seed)
+            }
+            PlantSpec::DiffDrive {
+                wheels,
+                track_width_m,
+                ..
+            } => wheel_errors(wheels.as_ref(), *track_width_m, seed),
+        }
+    }
+
     pub(super) fn plant_setup(&self, tracker: TrackerSpec) -> Result<PlantSetup, ScenarioError> {
         match self.plant {
-            PlantSpec::Unicycle => {
+            PlantSpec::Unicycle { .. } => {
                 if self.drive.is_some() {
                     return Err(ScenarioError::invalid(
                         "drive",
@@ -90,6 +155,7 @@ impl Scenario {
                 substeps,
                 dynamics,
                 encoder_glitches,
+                ..
             } => {
                 let encoder_glitches = match encoder_glitches {
                     None => EncoderGlitches::default(),
