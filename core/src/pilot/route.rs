@@ -565,6 +565,9 @@ pub struct RouteFollower {
     /// The reference has just left a rest (or the route started): the
     /// robot is turned onto the leg's direction first.
     departing: bool,
+    /// A first route as given: the robot is driven onto its first waypoint
+    /// before the clock starts.
+    starting: bool,
     /// The running route's pivot rate, rad/s: the largest turn rate of the
     /// tangent hold and the arrival approach too.
     turn_rate_rad_s: f32,
@@ -596,6 +599,7 @@ impl RouteFollower {
             arriving: false,
             approach_ticks: 0,
             departing: false,
+            starting: false,
             turn_rate_rad_s: 0.0,
             refused: None,
             last_stop: None,
@@ -710,11 +714,12 @@ impl RouteFollower {
         // An arrival (a rest after moving, or the route's start) is
         // approached first, the clock standing.
         let moving = matches!(sample.mode, RouteMode::Moving { .. });
-        if self.arriving && (!moving || self.elapsed_ticks == 0) {
+        if self.starting || (self.arriving && !moving) {
             let target = sample.reference.position;
             match self.approach(target, position, heading, period_s, tracking) {
                 Some(command) => return (sample.reference, Steer::Body(command)),
                 None => {
+                    self.starting = false;
                     self.arriving = false;
                     self.approach_ticks = 0;
                 }
@@ -725,13 +730,17 @@ impl RouteFollower {
                 self.rest_point = None;
                 self.arriving = true;
                 let left_rest = self.rest.take().is_some();
-                if left_rest || self.elapsed_ticks == 0 {
+                if left_rest {
                     self.departing = true;
+                    self.approach_ticks = 0;
                 }
                 if self.departing {
                     match self.align(&sample.reference, heading, period_s, tracking) {
                         Some(command) => return (sample.reference, Steer::Body(command)),
-                        None => self.departing = false,
+                        None => {
+                            self.departing = false;
+                            self.approach_ticks = 0;
+                        }
                     }
                 }
                 match self.slow(&sample.reference, heading, period_s) {
@@ -893,7 +902,8 @@ impl RouteFollower {
     /// acceleration's at rest), the robot turns in place, `v = 0`, `ω =
     /// k_θ·wrap(θ_t − θ̂)` within the route's pivot rate, the clock
     /// standing (counted in [`RouteCounters::approach_ticks`]); `None` once
-    /// aligned, or with no heading or direction to align with.
+    /// aligned, with no heading or direction to align with, or after
+    /// [`RouteOptions::approach_timeout_s`] (counted).
     fn align(
         &mut self,
         reference: &ReferenceSample,
@@ -914,7 +924,12 @@ impl RouteFollower {
         if error.abs() <= DEPARTURE_ALIGN_RAD || error.is_nan() {
             return None;
         }
+        if self.approach_ticks as f32 * period_s >= self.options.approach_timeout_s() {
+            self.counters.approach_timeouts = self.counters.approach_timeouts.saturating_add(1);
+            return None;
+        }
         if tracking {
+            self.approach_ticks = self.approach_ticks.saturating_add(1);
             self.counters.approach_ticks = self.counters.approach_ticks.saturating_add(1);
         }
         let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
@@ -1094,9 +1109,10 @@ impl RouteFollower {
         // A first route as given starts with an approach to its first
         // waypoint; a route from the first fix, or replacing one, starts
         // where the robot is.
-        self.arriving = from.is_none();
+        self.starting = from.is_none();
+        self.arriving = false;
         self.approach_ticks = 0;
-        self.departing = false;
+        self.departing = true;
         let known_start = from.is_none() && start == RouteStart::AsGivenHeadingKnown;
         // Changed and planned where it is (1.8 KB of waypoints, 20 KB of
         // plan): no copy on the stack.
