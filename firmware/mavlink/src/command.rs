@@ -64,7 +64,7 @@ fn f32_at(frame: &RxFrame, offset: usize) -> f32 {
 
 impl MavlinkEndpoint {
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     pub(crate) fn on_command(
         &mut self,
@@ -101,7 +101,7 @@ impl MavlinkEndpoint {
     }
 
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     fn decide(&self, command: u16, p1: f32, p2: f32, view: &RobotView) -> Verdict {
         let count = self.mission().len();

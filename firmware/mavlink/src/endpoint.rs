@@ -197,7 +197,7 @@ impl MavlinkEndpoint {
     /// parameters start from (the robot file's).
     #[must_use]
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     pub fn new(config: EndpointConfig, limits: RouteLimits) -> Self {
         Self {
@@ -256,7 +256,7 @@ impl MavlinkEndpoint {
     /// a refusal is answered with the closest `MAV_MISSION_RESULT` and the
     /// running mission is kept.
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     pub fn handle<F>(
         &mut self,
@@ -294,7 +294,7 @@ impl MavlinkEndpoint {
     }
 
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     fn dispatch<F>(
         &mut self,
@@ -332,7 +332,7 @@ impl MavlinkEndpoint {
     }
 
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     fn periodic(
         &mut self,
@@ -387,7 +387,7 @@ impl MavlinkEndpoint {
     }
 
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     fn reached(&mut self, view: &RobotView, tx: &mut TxBuffer<'_>) {
         let count = self.mission().len();

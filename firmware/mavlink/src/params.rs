@@ -182,7 +182,7 @@ impl MavlinkEndpoint {
     }
 
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     pub(crate) fn on_param(&mut self, frame: &RxFrame, tx: &mut TxBuffer<'_>, events: &mut Events) {
         match frame.msg_id {

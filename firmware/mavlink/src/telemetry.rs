@@ -9,7 +9,7 @@ use crate::wire::TxBuffer;
 
 impl MavlinkEndpoint {
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     /// `SYS_STATUS` at 1 Hz: no sensors declared, battery unknown, and the
     /// endpoint's counters (each saturated to `u16`): `errors_comm` = CRC
@@ -69,7 +69,7 @@ impl MavlinkEndpoint {
     }
 
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     pub(crate) fn telemetry(&mut self, now_ms: u32, view: &RobotView, tx: &mut TxBuffer<'_>) {
         let period = self.config.telemetry_period_ms;

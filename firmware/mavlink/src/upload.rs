@@ -50,7 +50,7 @@ const MISSION: u8 = 0;
 
 impl MavlinkEndpoint {
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     pub(crate) fn on_mission<F>(
         &mut self,
@@ -182,7 +182,7 @@ impl MavlinkEndpoint {
     // fat LTO) it cost flash (docs/mavlink.md, Cost).
 
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     fn request_item(&mut self, tx: &mut TxBuffer<'_>, up: &Upload) {
         self.send(
@@ -196,7 +196,7 @@ impl MavlinkEndpoint {
     }
 
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     fn on_count(
         &mut self,
@@ -243,7 +243,7 @@ impl MavlinkEndpoint {
     }
 
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     fn on_item<F>(
         &mut self,
@@ -335,7 +335,7 @@ impl MavlinkEndpoint {
     /// Re-requests the expected item after the item timeout; cancels the
     /// upload when the retries run out.
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     pub(crate) fn upload_timeout(&mut self, now_ms: u32, tx: &mut TxBuffer<'_>) {
         let Some(mut up) = self.upload else { return };
@@ -355,7 +355,7 @@ impl MavlinkEndpoint {
     }
 
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     fn on_request(
         &mut self,

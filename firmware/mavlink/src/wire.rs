@@ -181,7 +181,7 @@ impl Parser {
 
     /// The next whole frame with a good CRC in the buffer, if any.
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
-    // was unrolled and duplicated (docs/mavlink.md, Cost).
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     pub fn next_frame(&mut self, counters: &mut RxCounters) -> Option<RxFrame> {
         loop {
