@@ -858,13 +858,8 @@ impl RouteFollower {
         if near && along.abs() <= ARRIVAL_BAND_OF_TOLERANCE * tolerance {
             return None;
         }
-        if self.approach_ticks as f32 * period_s >= self.options.approach_timeout_s() {
-            self.counters.approach_timeouts = self.counters.approach_timeouts.saturating_add(1);
+        if !self.approach_tick(period_s, tracking) {
             return None;
-        }
-        if tracking {
-            self.approach_ticks = self.approach_ticks.saturating_add(1);
-            self.counters.approach_ticks = self.counters.approach_ticks.saturating_add(1);
         }
         let cap = self.options.approach_speed_m_s();
         if near {
@@ -880,7 +875,7 @@ impl RouteFollower {
         } else {
             (bearing, 1.0)
         };
-        let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
+        let gain = self.heading_gain(period_s);
         // Turn first: drive only once facing the point within
         // `DEPARTURE_ALIGN_RAD` (the same alignment as leaving a rest).
         let speed = if turn.abs() <= DEPARTURE_ALIGN_RAD {
@@ -912,31 +907,39 @@ impl RouteFollower {
         tracking: bool,
     ) -> Option<BodyVelocity> {
         let estimate = heading_rad(heading)?;
-        let tangent = if reference.velocity == Vec2::ZERO {
-            reference.acceleration
-        } else {
-            reference.velocity
-        };
-        if tangent == Vec2::ZERO || !tangent.is_finite() {
-            return None;
-        }
-        let error = math::wrap_angle(math::atan2(tangent.y, tangent.x) - estimate);
+        let error = math::wrap_angle(leg_direction(reference)? - estimate);
         if error.abs() <= DEPARTURE_ALIGN_RAD || error.is_nan() {
             return None;
         }
+        if !self.approach_tick(period_s, tracking) {
+            return None;
+        }
+        let gain = self.heading_gain(period_s);
+        Some(BodyVelocity {
+            v_m_s: 0.0,
+            omega_rad_s: self.turn_rate(gain * error),
+        })
+    }
+
+    /// One more tick of the current approach or alignment (counted while
+    /// `tracking`); `false` once it has lasted
+    /// [`RouteOptions::approach_timeout_s`] (the timeout counted).
+    fn approach_tick(&mut self, period_s: f32, tracking: bool) -> bool {
         if self.approach_ticks as f32 * period_s >= self.options.approach_timeout_s() {
             self.counters.approach_timeouts = self.counters.approach_timeouts.saturating_add(1);
-            return None;
+            return false;
         }
         if tracking {
             self.approach_ticks = self.approach_ticks.saturating_add(1);
             self.counters.approach_ticks = self.counters.approach_ticks.saturating_add(1);
         }
-        let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
-        Some(BodyVelocity {
-            v_m_s: 0.0,
-            omega_rad_s: self.turn_rate(gain * error),
-        })
+        true
+    }
+
+    /// The heading gain `k_θ`, capped at `1/h` so that one tick never turns
+    /// past the reference (`e⁺ = (1 − k_θ h)·e`).
+    fn heading_gain(&self, period_s: f32) -> f32 {
+        self.options.pivot_gain_per_s().min(1.0 / period_s)
     }
 
     /// `omega` within the route's pivot rate (a NaN stays NaN: the
@@ -1026,16 +1029,8 @@ impl RouteFollower {
             return None;
         }
         let estimate = heading_rad(heading)?;
-        let tangent = if speed > 0.0 {
-            reference.velocity
-        } else {
-            reference.acceleration
-        };
-        if tangent == Vec2::ZERO || !tangent.is_finite() {
-            return None;
-        }
-        let error = math::wrap_angle(math::atan2(tangent.y, tangent.x) - estimate);
-        let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
+        let error = math::wrap_angle(leg_direction(reference)? - estimate);
+        let gain = self.heading_gain(period_s);
         Some(BodyVelocity {
             v_m_s: speed * math::cos(error),
             omega_rad_s: self.turn_rate(gain * error),
@@ -1053,7 +1048,7 @@ impl RouteFollower {
     ) -> BodyVelocity {
         let omega = match heading_rad(heading) {
             Some(estimate) => {
-                let gain = self.options.pivot_gain_per_s().min(1.0 / period_s);
+                let gain = self.heading_gain(period_s);
                 rate_rad_s + gain * math::wrap_angle(heading_rad_r - estimate)
             }
             None => {
@@ -1172,6 +1167,17 @@ fn start_heading(waypoints: &[Waypoint]) -> Option<f32> {
     }
     let leg = waypoints.get(1)?.position_m - first.position_m;
     (leg != Vec2::ZERO && leg.is_finite()).then(|| math::atan2(leg.y, leg.x))
+}
+
+/// The path's direction at `reference`, rad: its velocity's, or at rest
+/// its acceleration's (the way it leaves); `None` where neither gives one.
+fn leg_direction(reference: &ReferenceSample) -> Option<f32> {
+    let tangent = if reference.velocity == Vec2::ZERO {
+        reference.acceleration
+    } else {
+        reference.velocity
+    };
+    (tangent != Vec2::ZERO && tangent.is_finite()).then(|| math::atan2(tangent.y, tangent.x))
 }
 
 /// A reference at rest at `at`.
