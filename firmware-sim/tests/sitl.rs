@@ -266,7 +266,10 @@ fn a_lost_link_stops_the_robot_mid_leg() {
         matches!(m, MavMessage::HEARTBEAT(_))
     });
     gcs.heartbeats = true;
-    assert_eq!(gcs.upload(&LONG_MISSION), MavMissionResult::MAV_MISSION_ACCEPTED);
+    assert_eq!(
+        gcs.upload(&LONG_MISSION),
+        MavMissionResult::MAV_MISSION_ACCEPTED
+    );
     assert_eq!(
         gcs.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, 1.0),
         MavResult::MAV_RESULT_ACCEPTED
