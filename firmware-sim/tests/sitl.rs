@@ -354,3 +354,77 @@ fn a_lost_link_stops_the_robot_mid_leg() {
         "the robot moved at rest"
     );
 }
+
+/// The robot's modes without a socket: events applied at tick boundaries
+/// as the SITL's loop applies the endpoint's.
+#[test]
+fn a_pause_holds_mid_leg_and_a_continue_finishes_the_mission() {
+    use firmware_sim::sitl::SitlRobot;
+    use wmr_core::reference::route::{Waypoint, Waypoints};
+    use wmr_mavlink::{Event, RobotMode};
+
+    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let limits = setup.route.as_ref().unwrap().limits;
+    let mut robot = SitlRobot::new(&setup).unwrap();
+    let mission = Waypoints::from_slice(&[
+        Waypoint::pass(0.0, 0.0),
+        Waypoint::pass(1.5, 0.0),
+        Waypoint::stop(1.5, 0.5, 0.5),
+    ])
+    .unwrap();
+    for event in [Event::LoadRoute, Event::Arm, Event::Start] {
+        robot.apply(event, &mission, limits);
+    }
+    assert_eq!(robot.mode(), RobotMode::Running);
+    // Mid-leg: past 0.6 m, moving.
+    let mut moving_at = None;
+    for _ in 0..3000 {
+        let r = robot.step().unwrap();
+        if r.x_m > 0.6 && r.v_cmd_m_s > 0.1 {
+            moving_at = Some(r.x_m);
+            break;
+        }
+    }
+    assert!(moving_at.is_some(), "never mid-leg");
+    robot.apply(Event::Pause, &mission, limits);
+    assert_eq!(robot.mode(), RobotMode::Paused);
+    let mut settled = None;
+    for k in 0..300 {
+        let r = robot.step().unwrap();
+        if r.v_cmd_m_s == 0.0 && r.omega_cmd_rad_s == 0.0 {
+            settled = Some((k, r.x_m, r.y_m));
+            break;
+        }
+    }
+    let (k, x, y) = settled.expect("at rest within 3 s");
+    assert!(
+        f64::from(k) * 0.01 < 2.0 && x < 1.4,
+        "held mid-leg: {k} ticks, x {x:.3}"
+    );
+    for _ in 0..200 {
+        let r = robot.step().unwrap();
+        assert_eq!((r.v_cmd_m_s, r.omega_cmd_rad_s), (0.0, 0.0));
+        assert!((r.x_m - x).hypot(r.y_m - y) < 1e-3, "moved while paused");
+    }
+    assert_eq!(robot.view().current, 1, "still driving to item 1");
+    robot.apply(Event::Continue, &mission, limits);
+    assert_eq!(robot.mode(), RobotMode::Running);
+    for _ in 0..6000 {
+        robot.step().unwrap();
+        if robot.mode() == RobotMode::Done {
+            break;
+        }
+    }
+    assert_eq!(robot.mode(), RobotMode::Done);
+    assert_eq!(robot.view().reached, Some(2));
+    let last = robot.last().unwrap();
+    assert!(
+        (last.x_m - 1.5).hypot(last.y_m - 0.5) < 0.02,
+        "ended at ({:.4}, {:.4})",
+        last.x_m,
+        last.y_m
+    );
+    // A disarm holds and idles.
+    robot.apply(Event::Disarm, &mission, limits);
+    assert_eq!((robot.mode(), robot.view().armed), (RobotMode::Idle, false));
+}

@@ -171,7 +171,7 @@ pub fn run(
             }
         }
         let mode_before = robot.mode();
-        let record = robot.step()?.clone();
+        let record = *robot.step()?;
         if mode_before != RobotMode::Done && robot.mode() == RobotMode::Done {
             routes_done += 1;
             log.push(format!("{t_s:.2} s: mission done"));
