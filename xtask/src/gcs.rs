@@ -7,7 +7,7 @@
 //! * `cargo xtask gcs`: builds `firmware-sim` (release) and runs the
 //!   script against it.
 //! * `cargo xtask ci`: [`venv`] before the workspace tests, whose
-//!   `firmware-sim/tests/gcs.rs` runs the script against the
+//!   `firmware-sim/tests/sitl.rs` runs the script against the
 //!   `firmware-sim` that the test build has just built (no build of its
 //!   own), with the environment's Python in `WMR_GCS_PYTHON`.
 

@@ -53,7 +53,7 @@
 //!   against `firmware-sim sitl` (release), in a Python virtual environment
 //!   under `target/gcs-venv` with the pinned `tools/gcs/requirements.txt`
 //!   (`xtask/src/gcs.rs`); `ci` runs the same script from the workspace
-//!   tests (`firmware-sim/tests/gcs.rs`).
+//!   tests (`firmware-sim/tests/sitl.rs`).
 
 mod bench_target;
 mod budgets;
@@ -188,7 +188,7 @@ fn ci() -> Result {
     // image into xtask's target directory too (only the firmware crate is
     // compiled again).
     let firmware_target_dir = target::target_dir().display().to_string();
-    // The pymavlink ground station of firmware-sim/tests/gcs.rs (run
+    // The pymavlink ground station of firmware-sim/tests/sitl.rs (run
     // against the SITL by the workspace tests): its Python environment.
     let gcs_python = gcs::venv()?.display().to_string();
     let mut test_env = vec![
