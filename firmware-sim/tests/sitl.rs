@@ -522,3 +522,62 @@ fn pymavlink_ground_station_against_the_sitl() {
     let passed: u32 = summary.split(' ').next().unwrap().parse().unwrap();
     assert!(passed >= 29, "only {passed} checks ran");
 }
+
+/// A mission uploaded while the robot drives replaces the running route
+/// at its next rest (the core's replacement), and is driven to its end.
+#[test]
+fn a_mission_uploaded_while_driving_replaces_the_route_at_its_next_rest() {
+    use firmware_sim::sitl::SitlRobot;
+    use wmr_core::reference::route::{Waypoint, Waypoints};
+    use wmr_mavlink::{Event, RobotMode};
+
+    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let limits = setup.route.as_ref().unwrap().limits;
+    let mut robot = SitlRobot::new(&setup).unwrap();
+    let first = Waypoints::from_slice(&[
+        Waypoint::pass(0.0, 0.0),
+        Waypoint::stop(1.0, 0.0, 0.5),
+        Waypoint::stop(2.0, 0.0, 0.5),
+    ])
+    .unwrap();
+    for event in [Event::LoadRoute, Event::Arm, Event::Start] {
+        robot.apply(event, &first, limits);
+    }
+    for _ in 0..3000 {
+        let r = robot.step().unwrap();
+        if r.x_m > 0.5 {
+            break;
+        }
+    }
+    // The replacement's first waypoint is taken as the rest point where
+    // the running route next rests: (1, 0).
+    let second = Waypoints::from_slice(&[
+        Waypoint::pass(1.0, 0.0),
+        Waypoint::pass(1.0, 0.6),
+        Waypoint::stop(0.4, 0.6, 0.0),
+    ])
+    .unwrap();
+    robot.apply(Event::LoadRoute, &second, limits);
+    assert_eq!(robot.mode(), RobotMode::Running);
+    let mut max_x: f64 = 0.0;
+    for _ in 0..6000 {
+        let r = robot.step().unwrap();
+        max_x = max_x.max(r.x_m);
+        if robot.mode() == RobotMode::Done {
+            break;
+        }
+    }
+    assert_eq!(robot.mode(), RobotMode::Done);
+    assert_eq!(robot.view().reached, Some(2));
+    assert!(
+        max_x < 1.1,
+        "drove on toward the first mission's end: x {max_x:.3}"
+    );
+    let last = robot.last().unwrap();
+    assert!(
+        (last.x_m - 0.4).hypot(last.y_m - 0.6) < 0.02,
+        "ended at ({:.4}, {:.4})",
+        last.x_m,
+        last.y_m
+    );
+}

@@ -258,7 +258,10 @@ impl SitlRobot {
                     reference,
                     self.deviation_m,
                 );
-                if status.done {
+                // Done once this mission's last item is reached (a route
+                // being replaced may rest on its own end first).
+                let last = self.mission.len().checked_sub(1);
+                if status.done && self.progress.reached.map(usize::from) == last {
                     self.mode = RobotMode::Done;
                 }
             }
