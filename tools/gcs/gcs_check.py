@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """A real ground station (pymavlink) against `firmware-sim sitl`.
 
-Starts the SITL on a route scenario at --speedup N, talks to it over UDP on
-loopback and checks (docs/mavlink.md, "The SITL"):
+Starts the SITL on the embedded `route` scenario's robot at --speedup N,
+talks to it over UDP on loopback and checks (docs/mavlink.md, "The SITL"):
 
 * a route mission (MISSION_ITEM_INT, MAV_FRAME_LOCAL_NED) uploaded, read
   back and compared; armed, started; paused mid-leg (the robot stops and
@@ -368,7 +368,6 @@ def free_port():
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--firmware-sim", required=True, help="the firmware-sim binary")
-    parser.add_argument("--scenario", default="route")
     parser.add_argument("--speedup", type=float, default=50.0)
     args = parser.parse_args()
 
@@ -376,7 +375,7 @@ def main():
     gcs = Gcs(port)
     sitl = subprocess.Popen(
         [
-            args.firmware_sim, "sitl", args.scenario,
+            args.firmware_sim, "sitl", "route",
             "--mavlink", f"udp:127.0.0.1:{port}",
             "--speedup", str(args.speedup),
             "--duration-s", "3600",
