@@ -14,7 +14,8 @@
 //! ```text
 //! tags ──┐
 //! plant ─┴─► devices ─► scenario ─► report ─┬─► simulation ─┬─► hil
-//!                          │                │               └─► sweep
+//!                          │                │               ├─► sweep
+//!                          │                │               └─► sitl
 //!                          │                └─► output ─────────► sweep
 //!                          │                      └─────────────► slip
 //!                          └────────────────────────────────────► slip
@@ -51,6 +52,9 @@
 //!   parallel, convergence and error statistics, their files, shards of
 //!   the runs for other machines and their merge. Uses
 //!   `scenario`, `report`, `simulation`, `output`.
+//! * [`sitl`]: the simulated robot in real time (or faster) behind the
+//!   robot's MAVLink endpoint (`wmr-mavlink`) on UDP (`firmware-sim
+//!   sitl`). Uses `scenario`, `report`, `simulation`.
 //! * [`telemetry`]: a firmware's telemetry log (`firmware-sim plot`) back
 //!   into `run.csv`, `summary.json` and `run.png`. Uses `report`,
 //!   `output`.
@@ -76,6 +80,7 @@ pub mod plant;
 pub mod report;
 pub mod scenario;
 pub mod simulation;
+pub mod sitl;
 pub mod slip;
 pub mod sweep;
 pub mod tags;

@@ -98,6 +98,12 @@ enum Command {
     /// run.csv, summary.json, scenario.toml, errors.png, slip.png and
     /// trajectory.png. The file's keys: `firmware-sim schema --slip`.
     Slip(cli::slip::SlipArgs),
+    /// The simulated robot (a route scenario or a robot file with a route:
+    /// the same plant, devices and core as `run`) in real time, or
+    /// `--speedup N` times faster, behind the robot's MAVLink endpoint on
+    /// UDP, for QGroundControl, MAVProxy or pymavlink (docs/mavlink.md,
+    /// "The SITL"). Starts disarmed, idle, with no mission.
+    Sitl(cli::sitl::SitlArgs),
     /// List the embedded scenarios (the tracking ones, then paper 004's
     /// slip scenarios).
     Scenarios,
@@ -137,6 +143,7 @@ fn real_main() -> anyhow::Result<()> {
         Command::Sweep(args) => args.run(),
         Command::SweepMerge(args) => args.run(),
         Command::Slip(args) => args.run(),
+        Command::Sitl(args) => args.run(),
         Command::Scenarios => cli::scenarios::scenarios(),
         Command::Show(args) => args.run(),
         Command::Schema(args) => args.run(),

@@ -9,8 +9,9 @@
 //!   rustfmt, clippy `-D warnings` on the host and on the microcontroller
 //!   targets (the feature matrix of `features`, and the link), the cross
 //!   builds, all tests (the hardware-in-the-loop tests run the QEMU-board
-//!   firmware), the core's tests again with its default features alone,
-//!   rustdoc with `-D warnings`, the default simulator scenario end to end,
+//!   firmware; a pymavlink ground station, installed into a Python
+//!   virtual environment, checks the MAVLink SITL: `gcs`), the core's
+//!   tests again with its default features alone, rustdoc with `-D warnings`, the default simulator scenario end to end,
 //!   and the on-target gates `size` and `bench-target`, which fail on a
 //!   figure over its budget in `firmware/budgets.toml` (or a software
 //!   `f64` routine in the firmware), the link-time proof that the firmware
@@ -48,11 +49,17 @@
 //! * `opt-levels` — firmware size and tick instructions for each release
 //!   opt-level (3, 2, s, z); writes `target/opt-levels.md`. Slow: every
 //!   level rebuilds all dependencies.
+//! * `gcs` — the pymavlink ground station (`tools/gcs/gcs_check.py`)
+//!   against `firmware-sim sitl` (release), in a Python virtual environment
+//!   under `target/gcs-venv` with the pinned `tools/gcs/requirements.txt`
+//!   (`xtask/src/gcs.rs`); `ci` runs the same script from the workspace
+//!   tests (`firmware-sim/tests/sitl.rs`).
 
 mod bench_target;
 mod budgets;
 mod features;
 mod fuzz;
+mod gcs;
 mod opt_levels;
 mod panic_free;
 mod robot;
@@ -66,7 +73,7 @@ use std::time::Instant;
 const TARGETS: [&str; 2] = ["thumbv7em-none-eabihf", "thumbv6m-none-eabi"];
 
 /// The command line's synopsis.
-const USAGE: &str = "usage: cargo xtask <ci|features|firmware [--robot FILE]|flash --robot FILE|panic-free|bench|bench-target [--write]|size|opt-levels|fuzz [--seconds N]>";
+const USAGE: &str = "usage: cargo xtask <ci|features|firmware [--robot FILE]|flash --robot FILE|panic-free|bench|bench-target [--write]|size|opt-levels|fuzz [--seconds N]|gcs>";
 
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
@@ -117,6 +124,7 @@ fn main() -> ExitCode {
         "size" => size::size(),
         "opt-levels" => opt_levels::opt_levels(),
         "fuzz" => fuzz::fuzz(fuzz_seconds),
+        "gcs" => gcs::gcs(),
         _ => {
             eprintln!("{USAGE}");
             return ExitCode::from(2);
@@ -180,7 +188,11 @@ fn ci() -> Result {
     // image into xtask's target directory too (only the firmware crate is
     // compiled again).
     let firmware_target_dir = target::target_dir().display().to_string();
+    // The pymavlink ground station of firmware-sim/tests/sitl.rs (run
+    // against the SITL by the workspace tests): its Python environment.
+    let gcs_python = gcs::venv()?.display().to_string();
     let mut test_env = vec![
+        ("WMR_GCS_PYTHON", gcs_python.as_str()),
         ("WMR_FIRMWARE_ELF", qemu_elf.as_str()),
         ("WMR_FIRMWARE_TARGET_DIR", firmware_target_dir.as_str()),
     ];

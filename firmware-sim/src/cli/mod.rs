@@ -7,6 +7,7 @@ pub mod robot_image;
 pub mod run;
 pub mod scenarios;
 pub mod schema;
+pub mod sitl;
 pub mod slip;
 pub mod sweep;
 

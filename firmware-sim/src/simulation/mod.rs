@@ -21,7 +21,8 @@
 //! [`TargetLink`] a remote tick runs on, [`hil_configuration`]),
 //! `sources` (the position sources and their faults), `hardware` (the
 //! diff-drive body and its virtual devices), `rig` (the ways a tick runs,
-//! the record of a tick), `summary` (the figures, [`error_stats`]); this
+//! the record of a tick), `summary` (the figures, [`error_stats`]),
+//! `stepper` (a local rig ticked by another module: the SITL); this
 //! file runs the loop ([`run`], [`run_with_target`]).
 //!
 //! [`OutputFeedbackTracker`]: wmr_core::pilot::tracker::OutputFeedbackTracker
@@ -37,6 +38,7 @@ use crate::scenario::{Scenario, ScenarioError, Setup};
 mod hardware;
 mod rig;
 mod sources;
+mod stepper;
 mod summary;
 mod target;
 
@@ -44,6 +46,7 @@ pub use summary::error_stats;
 pub use target::{TargetLink, hil_configuration, hil_map_chunks, hil_route_messages};
 
 use rig::Rig;
+pub(crate) use stepper::Stepper;
 use summary::summarize;
 
 /// Ticks between two progress callbacks.

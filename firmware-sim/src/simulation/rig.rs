@@ -465,6 +465,31 @@ impl<'t> Rig<'t> {
         }
     }
 
+    /// Puts `follower` in place of the route's follower and returns the
+    /// one it replaces; `Err(follower)` back where the rig runs no route
+    /// of its own (state feedback, the firmware's tick).
+    pub(super) fn swap_route(
+        &mut self,
+        follower: Box<RouteFollower>,
+    ) -> Result<Option<Box<RouteFollower>>, Box<RouteFollower>> {
+        match self {
+            Self::Tracker { route, .. } | Self::Pilot { route, .. } | Self::Robot { route, .. } => {
+                Ok(route.replace(follower))
+            }
+            Self::Remote { .. } | Self::Controller { .. } => Err(follower),
+        }
+    }
+
+    /// The route's follower, mutable, on a route run.
+    pub(super) fn route_mut(&mut self) -> Option<&mut RouteFollower> {
+        match self {
+            Self::Tracker { route, .. } | Self::Pilot { route, .. } | Self::Robot { route, .. } => {
+                route.as_deref_mut()
+            }
+            Self::Remote { .. } | Self::Controller { .. } => None,
+        }
+    }
+
     pub(super) fn code_path(&self) -> &'static str {
         match self {
             Self::Tracker { .. } => "tracker",

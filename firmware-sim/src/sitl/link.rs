@@ -1,0 +1,147 @@
+//! The SITL's UDP socket: every datagram waiting is read without
+//! blocking; each MAVLink frame goes out in a datagram of its own.
+
+use std::io::ErrorKind;
+use std::net::{SocketAddr, UdpSocket};
+
+use super::address::MavlinkAddress;
+
+/// Largest datagram read (a MAVLink 2 frame is at most 280 bytes; a
+/// ground station may pack several into one datagram).
+const DATAGRAM_BYTES: usize = 65_536;
+
+/// Counts of the link.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct LinkCounters {
+    /// Datagrams received.
+    pub datagrams_in: u64,
+    /// Bytes received.
+    pub bytes_in: u64,
+    /// Frames sent.
+    pub frames_out: u64,
+    /// Frames not sent: the socket refused them (nobody listening yet),
+    /// or `udpin:` before any ground station spoke.
+    pub frames_unsent: u64,
+}
+
+/// The UDP link to the ground station.
+#[derive(Debug)]
+pub struct UdpLink {
+    socket: UdpSocket,
+    /// Where frames go: the given address (`udp:`) or the last sender
+    /// (`udpin:`).
+    peer: Option<SocketAddr>,
+    listen: bool,
+    buf: Vec<u8>,
+    counters: LinkCounters,
+}
+
+impl UdpLink {
+    /// Opens the socket (non-blocking).
+    ///
+    /// # Errors
+    /// The socket's bind error.
+    pub fn open(address: MavlinkAddress) -> anyhow::Result<Self> {
+        let (bind, peer, listen) = match address {
+            MavlinkAddress::Send(to) => (SocketAddr::new(to.ip(), 0), Some(to), false),
+            MavlinkAddress::Listen(at) => (at, None, true),
+        };
+        let socket = UdpSocket::bind(bind).map_err(|e| anyhow::anyhow!("binding {bind}: {e}"))?;
+        socket.set_nonblocking(true)?;
+        Ok(Self {
+            socket,
+            peer,
+            listen,
+            buf: vec![0; DATAGRAM_BYTES],
+            counters: LinkCounters::default(),
+        })
+    }
+
+    /// The socket's own address.
+    ///
+    /// # Errors
+    /// The socket's error.
+    pub fn local_addr(&self) -> anyhow::Result<SocketAddr> {
+        Ok(self.socket.local_addr()?)
+    }
+
+    /// Where frames go now.
+    #[must_use]
+    pub fn peer(&self) -> Option<SocketAddr> {
+        self.peer
+    }
+
+    /// The counters.
+    #[must_use]
+    pub fn counters(&self) -> LinkCounters {
+        self.counters
+    }
+
+    /// Appends every byte received since the last call to `into`.
+    ///
+    /// # Errors
+    /// A socket error other than "nothing waiting" or a refused earlier
+    /// send (the ICMP answer to a datagram nobody took).
+    pub fn receive(&mut self, into: &mut Vec<u8>) -> anyhow::Result<()> {
+        loop {
+            match self.socket.recv_from(&mut self.buf) {
+                Ok((n, from)) => {
+                    self.counters.datagrams_in += 1;
+                    self.counters.bytes_in += n as u64;
+                    into.extend_from_slice(&self.buf[..n]);
+                    if self.listen {
+                        self.peer = Some(from);
+                    }
+                }
+                Err(e) if e.kind() == ErrorKind::WouldBlock => return Ok(()),
+                Err(e) if e.kind() == ErrorKind::ConnectionRefused => {}
+                Err(e) => return Err(anyhow::Error::new(e).context("receiving MAVLink")),
+            }
+        }
+    }
+
+    /// Sends `bytes` (whole MAVLink 2 frames), a datagram per frame.
+    pub fn send_frames(&mut self, bytes: &[u8]) {
+        let mut rest = bytes;
+        while !rest.is_empty() {
+            let n = frame_len(rest).min(rest.len());
+            let (frame, tail) = rest.split_at(n);
+            rest = tail;
+            let sent = self
+                .peer
+                .is_some_and(|to| self.socket.send_to(frame, to).is_ok());
+            if sent {
+                self.counters.frames_out += 1;
+            } else {
+                self.counters.frames_unsent += 1;
+            }
+        }
+    }
+}
+
+/// The length of the MAVLink frame at the start of `bytes` (MAVLink 2:
+/// 12 bytes around the payload, 13 more with a signature; MAVLink 1: 8
+/// around it); all of `bytes` where it does not start with a frame.
+fn frame_len(bytes: &[u8]) -> usize {
+    match (bytes.first(), bytes.get(1), bytes.get(2)) {
+        (Some(0xFD), Some(&len), Some(&flags)) => {
+            usize::from(len) + 12 + if flags & 1 == 1 { 13 } else { 0 }
+        }
+        (Some(0xFE), Some(&len), _) => usize::from(len) + 8,
+        _ => bytes.len(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_are_split_by_their_length() {
+        let mut two = vec![0xFD, 2, 0, 0, 0, 1, 1, 0, 0, 0, 7, 7, 0xAA, 0xBB];
+        two.extend([0xFE, 1, 0, 1, 1, 0, 9, 0xAA, 0xBB]);
+        assert_eq!(frame_len(&two), 14);
+        assert_eq!(frame_len(&two[14..]), 9);
+        assert_eq!(frame_len(&[1, 2, 3]), 3);
+    }
+}

@@ -1,0 +1,583 @@
+//! `firmware-sim sitl`: an in-process ground station (the `mavlink`
+//! library over a loopback UDP socket) against the SITL loop running in a
+//! thread, on the embedded `route` scenario's robot; the robot's modes
+//! without a socket; and a real ground station, `tools/gcs/gcs_check.py`
+//! (pymavlink), against this test build's `firmware-sim sitl route
+//! --speedup 50` (docs/mavlink.md, "The SITL").
+//!
+//! The pymavlink check's Python: `WMR_GCS_PYTHON` if set (`cargo xtask
+//! ci` makes the virtual environment first), else a virtual environment
+//! made here under `target/gcs-venv-test` with the pinned
+//! `tools/gcs/requirements.txt` (needs `python3` with `venv` and PyPI).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, deprecated)]
+
+use std::net::UdpSocket;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use firmware_sim::Scenario;
+use firmware_sim::sitl::{self, MavlinkAddress, SitlOptions, SitlReport};
+use mavlink::dialects::common::*;
+use mavlink::{MavHeader, MavlinkReader, MavlinkVersion};
+use wmr_mavlink::EndpointSpec;
+
+/// A wall-clock cap on a wait: only a hung SITL reaches it (the waits
+/// themselves are in the robot's simulated time).
+const WALL_CAP: Duration = Duration::from_secs(60);
+
+struct Gcs {
+    socket: UdpSocket,
+    robot: Option<std::net::SocketAddr>,
+    seq: u8,
+    heartbeats: bool,
+    last_heartbeat: Instant,
+    /// The robot's time, ms (from its telemetry).
+    sim_ms: u32,
+    reached: Vec<u16>,
+    mode: Option<u32>,
+}
+
+impl Gcs {
+    fn new() -> Self {
+        let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+        socket
+            .set_read_timeout(Some(Duration::from_millis(2)))
+            .unwrap();
+        Self {
+            socket,
+            robot: None,
+            seq: 0,
+            heartbeats: false,
+            last_heartbeat: Instant::now(),
+            sim_ms: 0,
+            reached: Vec::new(),
+            mode: None,
+        }
+    }
+
+    fn port(&self) -> u16 {
+        self.socket.local_addr().unwrap().port()
+    }
+
+    fn send(&mut self, msg: &MavMessage) {
+        let mut buf = [0u8; 300];
+        let header = MavHeader {
+            system_id: 255,
+            component_id: 190,
+            sequence: self.seq,
+        };
+        self.seq = self.seq.wrapping_add(1);
+        let n = mavlink::write_v2_msg(&mut &mut buf[..], header, msg).unwrap();
+        let to = self.robot.expect("the robot spoke first");
+        self.socket.send_to(&buf[..n], to).unwrap();
+    }
+
+    /// Receives (sending a heartbeat every 5 ms of wall time while
+    /// `heartbeats`) until `until` holds for a message, within
+    /// `sim_timeout_ms` of the robot's time.
+    fn wait(
+        &mut self,
+        what: &str,
+        sim_timeout_ms: u32,
+        mut until: impl FnMut(&MavMessage) -> bool,
+    ) -> MavMessage {
+        let start_sim = self.sim_ms;
+        let wall = Instant::now();
+        let mut buf = [0u8; 2048];
+        loop {
+            if self.heartbeats
+                && self.robot.is_some()
+                && self.last_heartbeat.elapsed() >= Duration::from_millis(5)
+            {
+                self.last_heartbeat = Instant::now();
+                self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                    mavtype: MavType::MAV_TYPE_GCS,
+                    autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+                    system_status: MavState::MAV_STATE_ACTIVE,
+                    mavlink_version: 3,
+                    ..Default::default()
+                }));
+            }
+            if let Ok((n, from)) = self.socket.recv_from(&mut buf) {
+                self.robot = Some(from);
+                let mut reader = MavlinkReader::new(&buf[..n]);
+                while let Ok((_, msg)) = reader.read_message::<MavMessage>(MavlinkVersion::V2) {
+                    match &msg {
+                        MavMessage::LOCAL_POSITION_NED(p) => {
+                            self.sim_ms = self.sim_ms.max(p.time_boot_ms)
+                        }
+                        MavMessage::MISSION_ITEM_REACHED(r) => self.reached.push(r.seq),
+                        MavMessage::HEARTBEAT(h) => self.mode = Some(h.custom_mode),
+                        _ => {}
+                    }
+                    if until(&msg) {
+                        return msg;
+                    }
+                }
+            }
+            assert!(
+                self.sim_ms.saturating_sub(start_sim) <= sim_timeout_ms,
+                "{what}: not within {sim_timeout_ms} ms of simulated time"
+            );
+            assert!(wall.elapsed() < WALL_CAP, "{what}: the SITL hung");
+        }
+    }
+
+    fn mode_is(&mut self, what: &str, mode: u32, sim_timeout_ms: u32) {
+        self.wait(
+            what,
+            sim_timeout_ms,
+            |m| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == mode),
+        );
+    }
+
+    fn command(&mut self, command: MavCmd, p1: f32) -> MavResult {
+        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            command,
+            param1: p1,
+            target_system: 1,
+            target_component: 1,
+            ..Default::default()
+        }));
+        match self.wait(
+            "COMMAND_ACK",
+            5000,
+            |m| matches!(m, MavMessage::COMMAND_ACK(a) if a.command == command),
+        ) {
+            MavMessage::COMMAND_ACK(a) => a.result,
+            _ => unreachable!(),
+        }
+    }
+
+    /// Uploads waypoints (floor x east, y north, m; hold s): the ack.
+    fn upload(&mut self, items: &[(f32, f32, f32)]) -> MavMissionResult {
+        self.send(&MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+            count: items.len() as u16,
+            target_system: 1,
+            target_component: 1,
+        }));
+        loop {
+            let msg = self.wait("upload", 10_000, |m| {
+                matches!(
+                    m,
+                    MavMessage::MISSION_REQUEST_INT(_) | MavMessage::MISSION_ACK(_)
+                )
+            });
+            match msg {
+                MavMessage::MISSION_ACK(a) => return a.mavtype,
+                MavMessage::MISSION_REQUEST_INT(r) => {
+                    let (x, y, hold) = items[usize::from(r.seq)];
+                    self.send(&MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
+                        param1: hold,
+                        param4: f32::NAN,
+                        x: (y * 1e4).round() as i32,
+                        y: (x * 1e4).round() as i32,
+                        seq: r.seq,
+                        command: MavCmd::MAV_CMD_NAV_WAYPOINT,
+                        target_system: 1,
+                        target_component: 1,
+                        frame: MavFrame::MAV_FRAME_LOCAL_NED,
+                        autocontinue: 1,
+                        ..Default::default()
+                    }));
+                }
+                _ => unreachable!(),
+            }
+        }
+    }
+}
+
+/// Runs the SITL on the `route` scenario's robot in a thread; the ground
+/// station, the stop flag and the thread.
+fn start(speedup: f64) -> (Gcs, Arc<AtomicBool>, std::thread::JoinHandle<SitlReport>) {
+    let gcs = Gcs::new();
+    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let options = SitlOptions {
+        address: MavlinkAddress::parse(&format!("udp:127.0.0.1:{}", gcs.port()), false).unwrap(),
+        speedup,
+        duration_s: Some(600.0),
+        endpoint: EndpointSpec {
+            telemetry_period_ms: 100,
+            ..EndpointSpec::default()
+        },
+        keep_records: true,
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let thread = std::thread::spawn(move || sitl::run(&setup, &options, &flag, |_| {}).unwrap());
+    (gcs, stop, thread)
+}
+
+const MISSION: [(f32, f32, f32); 3] = [(0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (0.5, 0.4, 0.5)];
+
+/// A first leg of 2 m: still driving 3 s after it started.
+const LONG_MISSION: [(f32, f32, f32); 3] = [(0.0, 0.0, 0.0), (2.0, 0.0, 0.0), (2.0, 1.0, 0.0)];
+
+#[test]
+fn an_uploaded_mission_is_driven_to_its_end() {
+    // No ground-station heartbeat: no link watch, so any speed-up works.
+    let (mut gcs, stop, thread) = start(100.0);
+    gcs.wait("the robot's heartbeat", 5000, |m| {
+        matches!(m, MavMessage::HEARTBEAT(_))
+    });
+    assert_eq!(gcs.upload(&MISSION), MavMissionResult::MAV_MISSION_ACCEPTED);
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_MISSION_START, 0.0),
+        MavResult::MAV_RESULT_DENIED,
+        "disarmed"
+    );
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, 1.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_MISSION_START, 0.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    gcs.mode_is("running", 1, 2000);
+    gcs.mode_is("done", 3, 60_000);
+    gcs.wait("the last reached", 1000, |m| {
+        matches!(m, MavMessage::LOCAL_POSITION_NED(_))
+    });
+    stop.store(true, Ordering::Relaxed);
+    let report = thread.join().unwrap();
+    assert_eq!(gcs.reached, vec![0, 1, 2]);
+    assert_eq!(
+        (report.routes_done, report.reached, report.mode),
+        (1, Some(2), 3)
+    );
+    assert_eq!(report.link_losses, 0);
+    // The robot itself (the plant's truth) on the last waypoint.
+    let [x, y] = report.position_m.unwrap();
+    assert!((x - 0.5).hypot(y - 0.4) < 0.02, "ended at ({x:.4}, {y:.4})");
+    // The follower ran the uploaded route: it started once, stopped at
+    // the last waypoint, the command held at exactly zero since.
+    let last = report.records.last().unwrap();
+    assert_eq!((last.v_cmd_m_s, last.omega_cmd_rad_s), (0.0, 0.0));
+    assert!(
+        report
+            .log
+            .iter()
+            .any(|l| l.contains("mission of 3 items loaded")),
+        "{:?}",
+        report.log
+    );
+}
+
+#[test]
+fn a_lost_link_stops_the_robot_mid_leg() {
+    // 5x real time: heartbeats every 5 ms of wall time are 25 ms of the
+    // robot's, far inside the 3 s link timeout even on a loaded machine.
+    let (mut gcs, stop, thread) = start(5.0);
+    gcs.wait("the robot's heartbeat", 5000, |m| {
+        matches!(m, MavMessage::HEARTBEAT(_))
+    });
+    gcs.heartbeats = true;
+    assert_eq!(
+        gcs.upload(&LONG_MISSION),
+        MavMissionResult::MAV_MISSION_ACCEPTED
+    );
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, 1.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_MISSION_START, 0.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    gcs.wait(
+        "moving",
+        30_000,
+        |m| matches!(m, MavMessage::LOCAL_POSITION_NED(p) if p.vx.hypot(p.vy) > 0.1),
+    );
+    gcs.heartbeats = false;
+    let silent_from_ms = gcs.sim_ms;
+    gcs.wait(
+        "link lost",
+        10_000,
+        |m| matches!(m, MavMessage::STATUSTEXT(s) if s.text.starts_with(b"link lost")),
+    );
+    gcs.mode_is("stopped", 4, 1000);
+    let at = gcs.sim_ms;
+    gcs.wait(
+        "3 s after the loss",
+        10_000,
+        |m| matches!(m, MavMessage::LOCAL_POSITION_NED(p) if p.time_boot_ms >= at + 5000),
+    );
+    stop.store(true, Ordering::Relaxed);
+    let report = thread.join().unwrap();
+    assert_eq!(
+        (report.link_losses, report.mode, report.routes_done),
+        (1, 4, 0)
+    );
+    assert!(
+        report.reached.is_none_or(|r| r < 2),
+        "stopped before the end"
+    );
+    let lost_at = report
+        .log
+        .iter()
+        .find_map(|l| {
+            l.strip_suffix(" s: link lost: stopped (disarm, re-arm to restart)")
+                .map(|t| t.parse::<f64>().unwrap())
+        })
+        .expect("the loss in the log");
+    // The loss 3 s (the link timeout) after the last heartbeat: that went
+    // out within a few ms of wall time of the position message that ended
+    // the heartbeats; 0.5 s of the robot's time allowed either side for
+    // the scheduling of two threads on a loaded machine.
+    let silence = lost_at - f64::from(silent_from_ms) / 1000.0;
+    assert!(
+        (2.5..=3.5).contains(&silence),
+        "lost {silence:.2} s after the heartbeats stopped"
+    );
+    // Stopped: from the loss on, the command ramps down to exactly zero
+    // and stays there, the robot still.
+    let h = 0.01;
+    let after: Vec<_> = report
+        .records
+        .iter()
+        .filter(|r| r.t_s >= lost_at - h / 2.0)
+        .collect();
+    assert!(after[0].v_cmd_m_s > 0.05, "moving when the link was lost");
+    let settle = after
+        .iter()
+        .position(|r| r.v_cmd_m_s == 0.0 && r.omega_cmd_rad_s == 0.0)
+        .expect("settled");
+    assert!(
+        after[settle..]
+            .iter()
+            .all(|r| r.v_cmd_m_s == 0.0 && r.omega_cmd_rad_s == 0.0)
+    );
+    assert!(
+        settle as f64 * h < 2.0,
+        "the ramp down took {} s",
+        settle as f64 * h
+    );
+    let (rest, end) = (after[settle + 50], after.last().unwrap());
+    assert!(end.t_s - rest.t_s > 2.0);
+    assert!(
+        (end.x_m - rest.x_m).hypot(end.y_m - rest.y_m) < 1e-3,
+        "the robot moved at rest"
+    );
+}
+
+/// The robot's modes without a socket: events applied at tick boundaries
+/// as the SITL's loop applies the endpoint's.
+#[test]
+fn a_pause_holds_mid_leg_and_a_continue_finishes_the_mission() {
+    use firmware_sim::sitl::SitlRobot;
+    use wmr_core::reference::route::{Waypoint, Waypoints};
+    use wmr_mavlink::{Event, RobotMode};
+
+    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let limits = setup.route.as_ref().unwrap().limits;
+    let mut robot = SitlRobot::new(&setup).unwrap();
+    let mission = Waypoints::from_slice(&[
+        Waypoint::pass(0.0, 0.0),
+        Waypoint::pass(1.5, 0.0),
+        Waypoint::stop(1.5, 0.5, 0.5),
+    ])
+    .unwrap();
+    for event in [Event::LoadRoute, Event::Arm, Event::Start] {
+        robot.apply(event, &mission, limits);
+    }
+    assert_eq!(robot.mode(), RobotMode::Running);
+    // Mid-leg: past 0.6 m, moving.
+    let mut moving_at = None;
+    for _ in 0..3000 {
+        let r = robot.step().unwrap();
+        if r.x_m > 0.6 && r.v_cmd_m_s > 0.1 {
+            moving_at = Some(r.x_m);
+            break;
+        }
+    }
+    assert!(moving_at.is_some(), "never mid-leg");
+    robot.apply(Event::Pause, &mission, limits);
+    assert_eq!(robot.mode(), RobotMode::Paused);
+    let mut settled = None;
+    for k in 0..300 {
+        let r = robot.step().unwrap();
+        if r.v_cmd_m_s == 0.0 && r.omega_cmd_rad_s == 0.0 {
+            settled = Some((k, r.x_m, r.y_m));
+            break;
+        }
+    }
+    let (k, x, y) = settled.expect("at rest within 3 s");
+    assert!(
+        f64::from(k) * 0.01 < 2.0 && x < 1.4,
+        "held mid-leg: {k} ticks, x {x:.3}"
+    );
+    for _ in 0..200 {
+        let r = robot.step().unwrap();
+        assert_eq!((r.v_cmd_m_s, r.omega_cmd_rad_s), (0.0, 0.0));
+        assert!((r.x_m - x).hypot(r.y_m - y) < 1e-3, "moved while paused");
+    }
+    assert_eq!(robot.view().current, 1, "still driving to item 1");
+    robot.apply(Event::Continue, &mission, limits);
+    assert_eq!(robot.mode(), RobotMode::Running);
+    for _ in 0..6000 {
+        robot.step().unwrap();
+        if robot.mode() == RobotMode::Done {
+            break;
+        }
+    }
+    assert_eq!(robot.mode(), RobotMode::Done);
+    assert_eq!(robot.view().reached, Some(2));
+    let last = robot.last().unwrap();
+    assert!(
+        (last.x_m - 1.5).hypot(last.y_m - 0.5) < 0.02,
+        "ended at ({:.4}, {:.4})",
+        last.x_m,
+        last.y_m
+    );
+    // A disarm holds and idles.
+    robot.apply(Event::Disarm, &mission, limits);
+    assert_eq!((robot.mode(), robot.view().armed), (RobotMode::Idle, false));
+}
+
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
+}
+
+fn run(program: &Path, args: &[&str]) {
+    let status = Command::new(program)
+        .args(args)
+        .status()
+        .unwrap_or_else(|e| panic!("cannot start {}: {e}", program.display()));
+    assert!(
+        status.success(),
+        "{} {} failed",
+        program.display(),
+        args.join(" ")
+    );
+}
+
+/// The ground station's Python (module documentation).
+fn python() -> PathBuf {
+    if let Some(python) = std::env::var_os("WMR_GCS_PYTHON") {
+        return PathBuf::from(python);
+    }
+    let root = workspace_root();
+    let dir = root.join("target").join("gcs-venv-test");
+    let python = dir.join("bin").join("python");
+    if !python.exists() {
+        run(
+            Path::new("python3"),
+            &["-m", "venv", "--clear", dir.to_str().unwrap()],
+        );
+        let requirements = root.join("tools").join("gcs").join("requirements.txt");
+        run(
+            &python,
+            &[
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "--disable-pip-version-check",
+                "-r",
+                requirements.to_str().unwrap(),
+            ],
+        );
+    }
+    python
+}
+
+#[test]
+fn pymavlink_ground_station_against_the_sitl() {
+    let script = workspace_root()
+        .join("tools")
+        .join("gcs")
+        .join("gcs_check.py");
+    let out = Command::new(python())
+        .arg(&script)
+        .args([
+            "--firmware-sim",
+            env!("CARGO_BIN_EXE_firmware-sim"),
+            "--speedup",
+            "50",
+        ])
+        .output()
+        .expect("start the ground station");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    println!("{stdout}");
+    eprintln!("{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "the ground station's checks failed (above)"
+    );
+    // The script's own count: every check ran and passed.
+    let summary = stdout
+        .lines()
+        .rev()
+        .find(|l| l.ends_with(" failed"))
+        .expect("a summary");
+    assert!(summary.ends_with(", 0 failed"), "{summary}");
+    let passed: u32 = summary.split(' ').next().unwrap().parse().unwrap();
+    assert!(passed >= 29, "only {passed} checks ran");
+}
+
+/// A mission uploaded while the robot drives replaces the running route
+/// at its next rest (the core's replacement), and is driven to its end.
+#[test]
+fn a_mission_uploaded_while_driving_replaces_the_route_at_its_next_rest() {
+    use firmware_sim::sitl::SitlRobot;
+    use wmr_core::reference::route::{Waypoint, Waypoints};
+    use wmr_mavlink::{Event, RobotMode};
+
+    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let limits = setup.route.as_ref().unwrap().limits;
+    let mut robot = SitlRobot::new(&setup).unwrap();
+    let first = Waypoints::from_slice(&[
+        Waypoint::pass(0.0, 0.0),
+        Waypoint::stop(1.0, 0.0, 0.5),
+        Waypoint::stop(2.0, 0.0, 0.5),
+    ])
+    .unwrap();
+    for event in [Event::LoadRoute, Event::Arm, Event::Start] {
+        robot.apply(event, &first, limits);
+    }
+    for _ in 0..3000 {
+        let r = robot.step().unwrap();
+        if r.x_m > 0.5 {
+            break;
+        }
+    }
+    // The replacement's first waypoint is taken as the rest point where
+    // the running route next rests: (1, 0).
+    let second = Waypoints::from_slice(&[
+        Waypoint::pass(1.0, 0.0),
+        Waypoint::pass(1.0, 0.6),
+        Waypoint::stop(0.4, 0.6, 0.0),
+    ])
+    .unwrap();
+    robot.apply(Event::LoadRoute, &second, limits);
+    assert_eq!(robot.mode(), RobotMode::Running);
+    let mut max_x: f64 = 0.0;
+    for _ in 0..6000 {
+        let r = robot.step().unwrap();
+        max_x = max_x.max(r.x_m);
+        if robot.mode() == RobotMode::Done {
+            break;
+        }
+    }
+    assert_eq!(robot.mode(), RobotMode::Done);
+    assert_eq!(robot.view().reached, Some(2));
+    assert!(
+        max_x < 1.1,
+        "drove on toward the first mission's end: x {max_x:.3}"
+    );
+    let last = robot.last().unwrap();
+    assert!(
+        (last.x_m - 0.4).hypot(last.y_m - 0.6) < 0.02,
+        "ended at ({:.4}, {:.4})",
+        last.x_m,
+        last.y_m
+    );
+}

@@ -1,0 +1,85 @@
+//! The pymavlink ground station against the SITL
+//! (`tools/gcs/gcs_check.py`, docs/mavlink.md "The SITL"): a Python
+//! virtual environment under `target/gcs-venv` with the pinned
+//! `tools/gcs/requirements.txt`, made once and re-made when the
+//! requirements change.
+//!
+//! * `cargo xtask gcs`: builds `firmware-sim` (release) and runs the
+//!   script against it.
+//! * `cargo xtask ci`: [`venv`] before the workspace tests, whose
+//!   `firmware-sim/tests/sitl.rs` runs the script against the
+//!   `firmware-sim` that the test build has just built (no build of its
+//!   own), with the environment's Python in `WMR_GCS_PYTHON`.
+
+use std::path::PathBuf;
+
+use crate::target::workspace_root;
+use crate::{Result, cargo, run, step};
+
+/// The script, from the workspace root.
+const SCRIPT: &str = "tools/gcs/gcs_check.py";
+/// Its pinned requirements, from the workspace root.
+const REQUIREMENTS: &str = "tools/gcs/requirements.txt";
+
+/// The environment's Python, made (or re-made) as needed: `python3 -m
+/// venv target/gcs-venv`, then `pip install -r` the requirements; the
+/// requirements installed are kept beside it, so that a later call with
+/// the same requirements does nothing.
+pub fn venv() -> std::result::Result<PathBuf, String> {
+    let root = workspace_root();
+    let dir = root.join("target").join("gcs-venv");
+    let python = dir.join("bin").join("python");
+    let requirements = root.join(REQUIREMENTS);
+    let wanted = std::fs::read_to_string(&requirements)
+        .map_err(|e| format!("{}: {e}", requirements.display()))?;
+    let stamp = dir.join("requirements.installed");
+    if python.exists() && std::fs::read_to_string(&stamp).is_ok_and(|s| s == wanted) {
+        return Ok(python);
+    }
+    step("python venv for the ground station (pymavlink)", || {
+        let dir_text = dir.display().to_string();
+        run("python3", &["-m", "venv", "--clear", &dir_text], &[])?;
+        let python_text = python.display().to_string();
+        let requirements_text = requirements.display().to_string();
+        run(
+            &python_text,
+            &[
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "--disable-pip-version-check",
+                "-r",
+                &requirements_text,
+            ],
+            &[],
+        )?;
+        run(&python_text, &["-c", "import pymavlink.mavutil"], &[])?;
+        std::fs::write(&stamp, &wanted).map_err(|e| format!("{}: {e}", stamp.display()))
+    })?;
+    Ok(python)
+}
+
+/// `cargo xtask gcs`: the script against a release `firmware-sim`.
+pub fn gcs() -> Result {
+    let python = venv()?;
+    step("build firmware-sim (release)", || {
+        cargo(&["build", "--release", "-p", "firmware-sim"], &[])
+    })?;
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(|| workspace_root().join("target"), PathBuf::from);
+    let sim = target.join("release").join("firmware-sim");
+    let script = workspace_root().join(SCRIPT);
+    step("ground station (pymavlink) against the SITL", || {
+        run(
+            &python.display().to_string(),
+            &[
+                &script.display().to_string(),
+                "--firmware-sim",
+                &sim.display().to_string(),
+            ],
+            &[],
+        )
+        .map_err(|e| format!("{e}: a check of the ground station failed (its output above)"))
+    })
+}
