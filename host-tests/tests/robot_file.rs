@@ -347,6 +347,25 @@ fn the_blackpill_robot_file_is_the_boards_default() {
     let _ = SpecError::NotInThisBuild;
 }
 
+/// The Black Pill's build of the firmware crate for size, as xtask gives
+/// it to cargo on every Black Pill build (`xtask/src/target.rs`,
+/// `BLACKPILL_CONFIG`, which says why; an xtask test checks that the two
+/// agree).
+const BLACKPILL_CONFIG: &str = "profile.release.package.wmr-firmware.opt-level=\"z\"";
+
+/// One Black Pill build at a time: each test's build writes the same ELF.
+static BLACKPILL_BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// The Black Pill firmware built with `image` in flash (as
+/// [`build_blackpill_with`]), read while no other test's build can
+/// replace it.
+fn blackpill_elf_with(image: &Path) -> Vec<u8> {
+    let _one_at_a_time = BLACKPILL_BUILD
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    std::fs::read(build_blackpill_with(image)).unwrap()
+}
+
 /// Builds the Black Pill firmware with `image` in flash, into
 /// `WMR_FIRMWARE_TARGET_DIR` if set (`cargo xtask ci` gives its own, where
 /// the firmware's dependencies are built), else `target/robot-firmware`.
@@ -363,6 +382,8 @@ fn build_blackpill_with(image: &Path) -> PathBuf {
             "build",
             "--quiet",
             "--release",
+            "--config",
+            BLACKPILL_CONFIG,
             "-p",
             "wmr-firmware",
             "--bin",
@@ -411,7 +432,7 @@ fn the_flashed_configuration_is_the_simulators() {
     assert_eq!(expected.telemetry_every_ticks, 25);
     let image_file = dir.join("blackpill.robot");
     std::fs::write(&image_file, &expected.bytes).unwrap();
-    let elf = std::fs::read(build_blackpill_with(&image_file)).unwrap();
+    let elf = blackpill_elf_with(&image_file);
     let found: Vec<usize> = elf
         .windows(MAGIC.len())
         .enumerate()
@@ -454,6 +475,74 @@ fn the_flashed_configuration_is_the_simulators() {
             Some(wmr_core::geometry::Vec2::new(*x, *y))
         );
     }
+}
+
+/// Flash of a firmware ELF (32-bit, little-endian), bytes: the sizes of
+/// its sections stored in flash, `.vector_table + .text + .rodata +
+/// .data`, from its section headers (as `cargo xtask size` counts it).
+fn flash_bytes(elf: &[u8]) -> u64 {
+    let u16_at = |at: usize| u16::from_le_bytes([elf[at], elf[at + 1]]) as usize;
+    let u32_at = |at: usize| u32::from_le_bytes(elf[at..at + 4].try_into().unwrap()) as usize;
+    assert_eq!(&elf[..6], b"\x7fELF\x01\x01", "a 32-bit little-endian ELF");
+    let (headers, entry_size, count) = (u32_at(0x20), u16_at(0x2e), u16_at(0x30));
+    let header = |i: usize| headers + i * entry_size;
+    let names = u32_at(header(u16_at(0x32)) + 0x10);
+    let name = |i: usize| {
+        let start = names + u32_at(header(i));
+        let end = start + elf[start..].iter().position(|&b| b == 0).unwrap();
+        std::str::from_utf8(&elf[start..end]).unwrap()
+    };
+    (0..count)
+        .filter(|&i| [".vector_table", ".text", ".rodata", ".data"].contains(&name(i)))
+        .map(|i| u32_at(header(i) + 0x14) as u64)
+        .sum()
+}
+
+/// The Black Pill firmware with a route in its image
+/// (`robots/route_loop.toml`, as `cargo xtask firmware --robot` builds
+/// it): its flash against its budget `[robot_flash_bytes] route_loop` in
+/// `firmware/budgets.toml` (over by more than the file's `tolerance` fails,
+/// as xtask's budgets do) and the board's hard limit `[flash_limit_bytes]
+/// board-blackpill` (48 KiB). One more build of the firmware crate alone:
+/// its dependencies are the Black Pill builds' of `cargo xtask ci`.
+#[test]
+fn the_blackpill_firmware_with_a_route_fits_its_flash() {
+    let robot = Robot::from_file(&robots().join("route_loop.toml")).unwrap();
+    let image = robot.flash_image().unwrap();
+    let image_file = temp_dir("route-flash").join("route_loop.robot");
+    std::fs::write(&image_file, &image.bytes).unwrap();
+    let flash = flash_bytes(&blackpill_elf_with(&image_file)) as f64;
+
+    let text = std::fs::read_to_string(workspace_root().join("firmware").join("budgets.toml"))
+        .expect("read firmware/budgets.toml");
+    let budgets: toml::Table = text.parse().expect("parse firmware/budgets.toml");
+    let number = |v: &toml::Value| v.as_integer().map(|i| i as f64).or_else(|| v.as_float());
+    let entry = |table: &str, name: &str| {
+        budgets
+            .get(table)
+            .and_then(|t| t.get(name))
+            .and_then(number)
+            .unwrap_or_else(|| panic!("firmware/budgets.toml has no [{table}] {name}"))
+    };
+    let budget = entry("robot_flash_bytes", "route_loop");
+    let limit = entry("flash_limit_bytes", "board-blackpill");
+    let tolerance = budgets
+        .get("tolerance")
+        .and_then(number)
+        .expect("tolerance");
+    println!(
+        "Black Pill with robots/route_loop.toml: flash {flash} B, budget {budget} B, limit {limit} B"
+    );
+    assert!(
+        flash <= budget * (1.0 + tolerance),
+        "the Black Pill firmware with robots/route_loop.toml: {flash} B of flash, over its \
+         budget of {budget} B"
+    );
+    assert!(
+        flash <= limit,
+        "the Black Pill firmware with robots/route_loop.toml: {flash} B of flash, over the \
+         board's limit of {limit} B"
+    );
 }
 
 /// A robot on `floor` (the `[floor]` table's body) with its reader in

@@ -97,6 +97,7 @@ impl Budgets {
                     // which measure them.
                     | "hil_peak_stack_bytes"
                     | "hil_peak_stack_limit_bytes"
+                    | "robot_flash_bytes"
             ) {
                 return Err(format!("{FILE}: unknown key `{key}`"));
             }

@@ -47,6 +47,22 @@ pub fn target_dir() -> PathBuf {
     workspace_root().join("target").join("xtask")
 }
 
+/// The Black Pill's build of the firmware crate for size: `--config` for
+/// cargo, on every Black Pill build (`size`, `firmware`, `flash`,
+/// `panic-free`; `host-tests/tests/robot_file.rs` gives the same). The
+/// firmware crate alone (the board's set-up, its run loop, the robot
+/// image's decoding and, monomorphised there, the core's generic robot) at
+/// `opt-level = "z"`: a robot image with a route is 54,016 B at the
+/// release profile's 3, over the board's 48 KiB, and 44,060 B so. The
+/// rest (the core's pilot, estimators, laws and route follower, the
+/// dependencies) keeps opt-level 3, and the dependencies are those of the
+/// QEMU board's build, not compiled again. The QEMU board and the bench
+/// (`bench-target`'s instruction counts) are built at 3.
+pub const BLACKPILL_CONFIG: &str = "profile.release.package.wmr-firmware.opt-level=\"z\"";
+
+/// The Black Pill's feature.
+const BLACKPILL_FEATURE: &str = "board-blackpill";
+
 /// One release build of `wmr-firmware` binaries.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Build<'a> {
@@ -67,6 +83,9 @@ impl Build<'_> {
     pub fn run(&self, label: &str) -> Result<Vec<PathBuf>, String> {
         let features = self.features.join(",");
         let mut args = Vec::new();
+        if self.features.contains(&BLACKPILL_FEATURE) {
+            args.extend(["--config", BLACKPILL_CONFIG]);
+        }
         for bin in self.bins {
             args.extend(["--bin", bin]);
         }
@@ -304,5 +323,19 @@ mod tests {
         assert_eq!(grouped(999), "999");
         assert_eq!(grouped(1000), "1 000");
         assert_eq!(grouped(1_234_567), "1 234 567");
+    }
+
+    /// The host test that builds the Black Pill with a robot image gives
+    /// cargo the same configuration as xtask's Black Pill builds.
+    #[test]
+    fn the_robot_file_test_builds_the_blackpill_as_xtask_does() {
+        let test =
+            std::fs::read_to_string(super::workspace_root().join("host-tests/tests/robot_file.rs"))
+                .unwrap();
+        let quoted = format!("{:?}", super::BLACKPILL_CONFIG);
+        assert!(
+            test.contains(&format!("const BLACKPILL_CONFIG: &str = {quoted};")),
+            "host-tests/tests/robot_file.rs: BLACKPILL_CONFIG is not {quoted}"
+        );
     }
 }

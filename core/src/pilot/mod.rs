@@ -250,15 +250,11 @@ impl Pilot {
     ) -> PilotOutput {
         let odometry = self.odometry(measurement);
         let odometry_step = odometry.unwrap_or_default();
-        let (tracker, holding) = match route {
-            None => (self.tracker.step(&odometry_step, measurement.fix), false),
-            Some(route) => {
-                let out = self
-                    .tracker
-                    .step_route(&odometry_step, measurement.fix, route);
-                (out, route.status().holding)
-            }
-        };
+        let mut route = route;
+        let tracker = self
+            .tracker
+            .step_on(&odometry_step, measurement.fix, route.as_deref_mut());
+        let holding = route.is_some_and(|route| route.is_holding());
 
         let encoder_halt = self.fault_run > self.config.max_encoder_fault_ticks;
         let drive = if encoder_halt {

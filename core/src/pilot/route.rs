@@ -191,6 +191,15 @@ pub const MIN_HEADING_NORM: f32 = 0.5;
 /// reference covers 0.4 mm and 40 ms below this speed.
 pub const SLOW_SPEED_M_S: f32 = 0.02;
 
+/// A squared reference speed above which the speed is certainly not
+/// below [`SLOW_SPEED_M_S`], m²/s²: that speed's square with a 10 % margin
+/// (5 % in speed), far above the rounding of the squared norm and the few
+/// ulps by which [`crate::math::hypot`] may differ from the exact norm, so
+/// the test on the square alone decides as `norm() >= SLOW_SPEED_M_S`
+/// would, without the root; a speed within the margin (or NaN) is decided
+/// by the norm itself.
+const CERTAINLY_NOT_SLOW_M2_S2: f32 = 1.1 * SLOW_SPEED_M_S * SLOW_SPEED_M_S;
+
 /// The arrival approach's gain on the along-heading distance to the rest
 /// point, 1/s: 1 cm short commands 2 cm/s (under the approach's speed cap).
 pub const APPROACH_GAIN_PER_S: f32 = 2.0;
@@ -663,6 +672,11 @@ impl RouteFollower {
         }
     }
 
+    /// [`RouteStatus::holding`], alone.
+    pub(crate) fn is_holding(&self) -> bool {
+        self.holding
+    }
+
     /// A loaded route waits to start.
     pub(crate) fn is_pending(&self) -> bool {
         self.pending.is_some()
@@ -964,19 +978,24 @@ impl RouteFollower {
         position: Option<Vec2>,
         heading: HeadingEstimate,
     ) {
-        let at_zero = command.v_m_s == 0.0 && command.omega_rad_s == 0.0;
+        let at_zero = || command.v_m_s == 0.0 && command.omega_rad_s == 0.0;
         self.holding = false;
-        let Some(sample) = self.sample.filter(|_| self.running) else {
-            self.holding = tracking && at_zero;
-            return;
+        // Read in place: moving on a leg (the common tick) ends here.
+        let sample = match &self.sample {
+            Some(sample) if self.running => sample,
+            _ => {
+                self.holding = tracking && at_zero();
+                return;
+            }
         };
         let RouteMode::Stopped { hold_heading_rad } = sample.mode else {
             return;
         };
+        let sample = *sample;
         let (Some(rest), Some(position)) = (self.rest.as_mut(), position) else {
             return;
         };
-        if !(tracking && at_zero) {
+        if !(tracking && at_zero()) {
             return;
         }
         self.holding = true;
@@ -1024,6 +1043,12 @@ impl RouteFollower {
         heading: HeadingEstimate,
         period_s: f32,
     ) -> Option<BodyVelocity> {
+        // Moving on a leg (the common tick): the squared speed, without
+        // the root, tells it for certain (see `CERTAINLY_NOT_SLOW_M2_S2`).
+        let speed_sq = reference.velocity.dot(reference.velocity);
+        if speed_sq > CERTAINLY_NOT_SLOW_M2_S2 {
+            return None;
+        }
         let speed = reference.velocity.norm();
         if speed.is_nan() || speed >= SLOW_SPEED_M_S {
             return None;

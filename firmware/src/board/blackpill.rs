@@ -105,8 +105,13 @@
 //!
 //! ```text
 //! DEFMT_LOG=info cargo run -p wmr-firmware --release \
+//!     --config 'profile.release.package.wmr-firmware.opt-level="z"' \
 //!     --target thumbv7em-none-eabihf --no-default-features --features board-blackpill
 //! ```
+//!
+//! The `--config` builds this crate for size, as every Black Pill build of
+//! `cargo xtask` does (`size`, `firmware`, `flash`, `panic-free`; docs/budgets.md,
+//! "Flash and static RAM"): the image that was measured and proved panic-free.
 //!
 //! The runner in `.cargo/config.toml` (`probe-rs run --chip STM32F411CEUx`)
 //! flashes the ELF, resets the board and prints the decoded defmt log until
