@@ -61,6 +61,9 @@ pub struct RxCounters {
     pub noise: u32,
     /// Parity errors.
     pub parity: u32,
+    /// The most bytes the ring has held at once: its margin on a real
+    /// line is its capacity minus this.
+    pub peak: u32,
 }
 
 impl RxCounters {
@@ -102,6 +105,7 @@ impl<const N: usize> RxRing<N> {
                 framing: 0,
                 noise: 0,
                 parity: 0,
+                peak: 0,
             },
         }
     }
@@ -128,7 +132,11 @@ impl<const N: usize> RxRing<N> {
     /// the byte is dropped and counted in [`RxCounters::ring_full`].
     pub fn push(&mut self, byte: u8) -> bool {
         if self.bytes.push_back(byte).is_ok() {
-            self.counters.received = self.counters.received.wrapping_add(1);
+            let c = &mut self.counters;
+            c.received = c.received.wrapping_add(1);
+            c.peak = c
+                .peak
+                .max(u32::try_from(self.bytes.len()).unwrap_or(u32::MAX));
             true
         } else {
             self.counters.ring_full = self.counters.ring_full.saturating_add(1);
@@ -214,6 +222,7 @@ mod tests {
         assert_eq!(ring.pop(), None);
         assert_eq!(ring.pop_into(&mut buf), 0);
         assert_eq!(ring.counters().received, 6);
+        assert_eq!(ring.counters().peak, 5);
         assert_eq!(ring.counters().faults(), 0);
     }
 
@@ -227,6 +236,7 @@ mod tests {
         assert!(!ring.push(11));
         let c = ring.counters();
         assert_eq!((c.received, c.ring_full, c.faults()), (4, 2, 2));
+        assert_eq!(c.peak, 4);
         let mut buf = [0; 8];
         assert_eq!(ring.pop_into(&mut buf), 4);
         assert_eq!(buf.get(..4), Some(&[0, 1, 2, 3][..]));
@@ -272,6 +282,8 @@ mod tests {
         in_order: bool,
         ring_full: u32,
         max_len: usize,
+        /// The ring's own [`RxCounters::peak`].
+        peak: u32,
     }
 
     /// A UART line at `baud` (8N1, back-to-back bytes) into a ring of `N`,
@@ -323,6 +335,7 @@ mod tests {
             in_order,
             ring_full: ring.counters().ring_full,
             max_len,
+            peak: ring.counters().peak,
         }
     }
 
@@ -387,6 +400,7 @@ mod tests {
             |_| 16,
         );
         assert!(run.ring_full > 0);
+        assert_eq!(run.peak, 64);
         // Lost bytes are exactly the ones counted: nothing silent.
         assert_eq!(run.read + run.ring_full, run.sent);
     }
@@ -428,6 +442,8 @@ mod tests {
             // The bound is tight to within one byte: the fullest the ring
             // got never exceeds what the longest gap can bring.
             prop_assert!(run.max_len <= needed, "{:?} needed {}", run, needed);
+            // The ring's peak is the fullest it got: just before a tick.
+            prop_assert_eq!(run.peak as usize, run.max_len);
         }
     }
 }
