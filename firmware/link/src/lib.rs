@@ -116,6 +116,7 @@
 
 pub mod image;
 pub mod proxy;
+pub mod rx_ring;
 pub mod session;
 pub mod telemetry;
 

@@ -16,6 +16,8 @@
 //! | Right motor DIR                    | PB13       | GPIO push-pull | —   |
 //! | RFID reader TX → MCU RX            | PA3        | USART2_RX      | AF7 |
 //! | MCU TX → RFID reader (unused)      | PA2        | USART2_TX      | AF7 |
+//! | MAVLink peer TX → MCU RX           | PA10       | USART1_RX      | AF7 |
+//! | MCU TX → MAVLink peer (unused yet) | PA15       | USART1_TX      | AF7 |
 //! | Heartbeat LED (on board, low = on) | PC13       | GPIO push-pull | —   |
 //! | Debug probe (SWD)                  | PA13, PA14 | SWDIO, SWCLK   | AF0 |
 //!
@@ -33,6 +35,14 @@
 //! frames at 9600 Bd 8N1; it runs on 5 V, so put a divider or level shifter
 //! on its TX line unless PA3 is confirmed 5 V tolerant for the package used.
 //!
+//! The MAVLink port (a telemetry radio or a companion computer, 3.3 V,
+//! 115 200 Bd 8N1) is USART1 on PA10/PA15: USART1's other pins are taken
+//! (PA9 is the right motor's PWM, PB6/PB7 its encoder), USART6's PA11/PA12
+//! are the USB connector's D−/D+ (kept free for a USB CDC port), and PB3,
+//! USART1_RX's other pin, is the SWO trace output. PA15 is JTDI after
+//! reset, unused with SWD. The port's bytes are received into a ring and
+//! counted; the MAVLink endpoint (`wmr-mavlink`) is not wired in yet.
+//!
 //! # Clock tree
 //!
 //! ```text
@@ -43,6 +53,7 @@
 //!        │          timers ×2 = 96 MHz: TIM3, TIM4 (encoders),
 //!        │                              TIM5 (PSC 95 → 1 MHz, ARR 9999 → 100 Hz tick)
 //!        └► APB2 /1 = 96 MHz: TIM1 (PSC 0, ARR 4799 → 20 kHz PWM, 4800 duty steps)
+//!                             USART1 (BRR 833: 115 246 Bd, +0.04 %)
 //! LSI ~32 kHz ─► IWDG (/8, reload ~200 → 50 ms)
 //! ```
 //!
@@ -50,16 +61,21 @@
 //!
 //! - **Control tick**: TIM5 counts microseconds and sets its update flag
 //!   every [`TICK_US`] = the pilot spec's `period_s` (10 ms, 100 Hz). The
-//!   loop polls the flag (no interrupts); while it waits it pumps the RFID
-//!   UART into a ring buffer (the USART has no FIFO; see
-//!   `blackpill::devices`). A tick that finds the flag already set has
+//!   loop polls the flag. A tick that finds the flag already set has
 //!   overrun its period: it is counted, logged (once per status interval) and
 //!   runs at once, so the schedule stays on the timer's grid.
+//! - **UARTs**: the RFID reader's USART2 and the MAVLink port's USART1 are
+//!   received by their RX interrupts into rings (the USART has no FIFO;
+//!   see `blackpill::devices`), which the tick empties: the RFID ring
+//!   through the core's `RfidReader`, the MAVLink ring into a byte count.
+//!   Both rings hold at least [`RING_WINDOW_US`] (40 ms, four 10 ms
+//!   periods) of their line at full rate, so a tick late by up to 30 ms
+//!   loses no byte; bytes lost anyway (ring full, hardware overrun,
+//!   framing, noise, parity) are counted per kind and logged every second.
 //! - **Tick work**: `Robot::tick` (encoders, RFID poll, tag lookup, pilot,
 //!   motors), then the watchdog is fed, then events and status are logged.
-//!   The time from the tick to the next pump of the UART is measured with
-//!   the DWT cycle counter and its maximum logged every second; it must stay
-//!   under one UART byte time (1.04 ms) or an RFID byte is overrun (counted).
+//!   The tick's work is measured with the DWT cycle counter and its
+//!   maximum logged every second.
 //! - **Watchdog**: the IWDG resets the MCU if it is not fed for
 //!   [`WATCHDOG_MS`] = 50 ms (five periods; 34 to 94 ms over the LSI's
 //!   17–47 kHz tolerance). It is started first thing, so a hang anywhere,
@@ -79,8 +95,8 @@
 //!   motors stopped, unknown tags ignored, lost fixes → failsafe
 //!   deceleration). The counters are logged every second.
 //! - **Configuration refused** (the compiled-in [`PILOT`] spec, or the
-//!   TIM1, USART2 or TIM5 set-up): the motors are held at duty 0 (unpowered
-//!   if TIM1 itself was refused), the error is logged every 5 s, the LED
+//!   TIM1, USART2, USART1 or TIM5 set-up): the motors are held at duty 0
+//!   (unpowered if TIM1 itself was refused), the error is logged every 5 s, the LED
 //!   blinks fast (5 Hz) and the watchdog keeps being fed, until the board
 //!   is reflashed. Never a panic.
 //! - **Peripherals already taken** (impossible after a reset): an error is
@@ -88,8 +104,8 @@
 //!   float (external pull-downs).
 //! - **Panic**: none can happen. `cargo xtask panic-free` proves at link
 //!   time that the release firmware has no panic path (docs/firmware.md,
-//!   "Panic freedom"); the clocks, TIM1, TIM5 and USART2 are set up by
-//!   register for that (`blackpill::setup`). Were one to appear (a debug
+//!   "Panic freedom"); the clocks, TIM1, TIM5, USART1 and USART2 are set
+//!   up by register for that (`blackpill::setup`). Were one to appear (a debug
 //!   build, say), `panic-probe` prints the message over defmt and faults
 //!   the core; the watchdog then resets
 //!   the MCU within 50 ms, during which the PWM keeps its last duty. Under a
@@ -126,14 +142,16 @@ mod devices;
 mod setup;
 mod tags;
 
-use core::cell::Cell;
+use core::cell::RefCell;
 
-use cortex_m::peripheral::DWT;
-use heapless::spsc::Queue;
+use cortex_m::peripheral::{DWT, NVIC};
+use critical_section::Mutex;
+use embedded_io::Read;
 #[cfg(not(feature = "panic-never"))]
 use panic_probe as _;
 use stm32f4xx_hal::gpio::{Output, PB12, PB13, PC13, PinState, PushPull};
 use stm32f4xx_hal::pac;
+use stm32f4xx_hal::pac::interrupt;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 use wmr_core::devices::{MotorDriver, MotorWiring, RfidReader};
@@ -147,11 +165,12 @@ use wmr_core::pilot::{Pilot, PilotConfig};
 use wmr_core::reference::TrajectorySpec;
 use wmr_link::telemetry::{self, Start};
 
-use devices::{Encoder, LineErrors, RfidPump, RfidUart};
+use devices::{Encoder, Port, PortReader, SharedPort};
 use embedded_hal::pwm::SetDutyCycle;
-use setup::{MotorPwm, PwmChannel, RfidRx, SetupError, TickTimer};
+use setup::{MotorPwm, PwmChannel, SetupError, TickTimer, UartRx};
 #[cfg(not(wmr_robot_image))]
 use tags::{FlashTagTable, SITE_TAGS};
+use wmr_link::rx_ring::{RxCounters, bytes_in_window};
 
 /// Where the board finds its tags: the compiled-in [`SITE_TAGS`], or (built
 /// with `cargo xtask firmware --robot FILE`) the robot image's floor.
@@ -301,10 +320,8 @@ pub const TELEMETRY_EVERY_TICKS: u16 = 10;
 
 /// The tick at which the stack high-water mark is logged, once (10 s in,
 /// when every code path of the tick has run). Finding it scans the unused
-/// stack (most of the 128 KiB RAM, over a millisecond): longer than one
-/// RFID byte time, so a byte arriving then may be overrun (counted, and the
-/// frame it belonged to dropped by the parser). Once, not periodically, so
-/// that a running robot does not lose fixes to its own diagnostics.
+/// stack (most of the 128 KiB RAM, over a millisecond, within the rings'
+/// [`RING_WINDOW_US`]). Once, not periodically: it makes that tick late.
 pub const STACK_LOG_AT_TICK: u32 = 1_000;
 
 /// Ticks between two heartbeat LED toggles (0.5 s).
@@ -340,9 +357,51 @@ const PCLK2_HZ: u32 = 96_000_000;
 const PWM_HZ: u32 = 20_000;
 /// RFID reader line speed, Bd (8N1).
 const RFID_BAUD: u32 = 9_600;
-/// Bytes of the RFID receive ring (one slot stays free: 127 bytes, 130 ms
-/// of reader output at 9600 Bd).
+/// Bytes of the RFID receive ring: 133 ms of reader output at 9600 Bd.
 const RFID_RING_BYTES: usize = 128;
+/// MAVLink port line speed, Bd (8N1): the usual telemetry radio rate.
+const MAVLINK_BAUD: u32 = 115_200;
+/// Bytes of the MAVLink receive ring: 44 ms of line at 115 200 Bd.
+const MAVLINK_RING_BYTES: usize = 512;
+/// The longest time between two reads of a ring that loses no byte, at
+/// each line's full rate: 40 ms, four control periods of 10 ms (a tick
+/// late by three), checked against both rings' capacities at compile time
+/// with [`bytes_in_window`] (whose sizing `wmr_link::rx_ring`'s tests
+/// check against a simulated line and tick). A tick that stalls past the
+/// watchdog's 50 ms resets the MCU anyway.
+const RING_WINDOW_US: u32 = 40_000;
+/// Most ring reads per tick when emptying the MAVLink ring: enough to
+/// empty it full (512 / 16 bytes a read), plus the bytes that arrive
+/// meanwhile.
+const MAVLINK_READS_PER_TICK: u32 = 40;
+
+const _: () = {
+    assert!(RFID_RING_BYTES >= bytes_in_window(RFID_BAUD, RING_WINDOW_US));
+    assert!(MAVLINK_RING_BYTES >= bytes_in_window(MAVLINK_BAUD, RING_WINDOW_US));
+};
+
+/// The RFID reader's USART2 and its ring, shared with [`USART2`].
+static RFID_PORT: SharedPort<pac::USART2, RFID_RING_BYTES> = Mutex::new(RefCell::new(Port::new()));
+/// The MAVLink port's USART1 and its ring, shared with [`USART1`].
+static MAVLINK_PORT: SharedPort<pac::USART1, MAVLINK_RING_BYTES> =
+    Mutex::new(RefCell::new(Port::new()));
+
+/// USART2's receive interrupt: the RFID reader's byte into its ring.
+#[interrupt]
+fn USART2() {
+    devices::on_receive(&RFID_PORT);
+}
+
+/// USART1's receive interrupt: the MAVLink port's byte into its ring.
+#[interrupt]
+fn USART1() {
+    devices::on_receive(&MAVLINK_PORT);
+}
+
+/// The RFID reader's UART as the core reads it.
+type RfidUart = PortReader<pac::USART2, RFID_RING_BYTES>;
+/// The MAVLink port's UART as the tick reads it.
+type MavlinkUart = PortReader<pac::USART1, MAVLINK_RING_BYTES>;
 
 /// Left motor: TIM1_CH1 (PA8) + DIR on PB12.
 type LeftMotor<'a> = MotorDriver<PwmChannel<'a, 1>, PB12<Output<PushPull>>>;
@@ -356,7 +415,7 @@ type BoardRobot<'a> = Robot<
     Encoder<pac::TIM4>,
     LeftMotor<'a>,
     RightMotor<'a>,
-    RfidUart<'a>,
+    RfidUart,
     BoardTags,
 >;
 
@@ -372,8 +431,8 @@ enum Fault {
     /// option, or a waypoint: by its index and key).
     #[cfg(wmr_robot_image)]
     Route(wmr_link::RouteRefusal),
-    /// TIM1 (motor PWM), USART2 (RFID) or TIM5 (tick) refused its
-    /// configuration.
+    /// TIM1 (motor PWM), USART2 (RFID), USART1 (MAVLink) or TIM5 (tick)
+    /// refused its configuration.
     Peripheral(SetupError),
 }
 
@@ -465,7 +524,7 @@ pub fn run() -> ! {
     // The reader only talks; its TX pin stays configured, idle high.
     let _rfid_tx_pin = gpioa.pa2.into_alternate::<7>();
     let _rfid_rx_pin = gpioa.pa3.into_alternate::<7>();
-    let rfid_rx = match RfidRx::new(dp.USART2, &rcc, RFID_BAUD) {
+    let rfid_rx = match UartRx::usart2(dp.USART2, &rcc, RFID_BAUD) {
         Ok(rx) => rx,
         Err(e) => halt(
             Fault::Peripheral(e),
@@ -475,11 +534,34 @@ pub fn run() -> ! {
             sysclk_hz,
         ),
     };
-    let line_errors = Cell::new(LineErrors::default());
-    let mut ring: Queue<u8, RFID_RING_BYTES> = Queue::new();
-    let (ring_in, ring_out) = ring.split();
-    let mut pump = RfidPump::new(rfid_rx, ring_in, &line_errors);
-    let rfid = RfidReader::new(RfidUart::new(ring_out, &line_errors));
+    let _mavlink_tx_pin = gpioa.pa15.into_alternate::<7>();
+    let _mavlink_rx_pin = gpioa.pa10.into_alternate::<7>();
+    let mavlink_rx = match UartRx::usart1(dp.USART1, &rcc, MAVLINK_BAUD) {
+        Ok(rx) => rx,
+        Err(e) => halt(
+            Fault::Peripheral(e),
+            watchdog,
+            Some((left_motor, right_motor)),
+            led,
+            sysclk_hz,
+        ),
+    };
+    // The receivers go to their handlers' ports before the interrupts are
+    // unmasked, so a handler never finds its port empty.
+    devices::attach(&RFID_PORT, rfid_rx);
+    devices::attach(&MAVLINK_PORT, mavlink_rx);
+    // SAFETY: unmasking breaks no critical section: the firmware's critical
+    // sections (cortex-m's single-core `critical-section`, the logger's)
+    // mask every interrupt through PRIMASK, none relies on these two NVIC
+    // lines staying masked; the handlers touch only their ports, through
+    // `critical_section::with`.
+    #[allow(unsafe_code)]
+    unsafe {
+        NVIC::unmask(pac::Interrupt::USART2);
+        NVIC::unmask(pac::Interrupt::USART1);
+    }
+    let rfid = RfidReader::new(RfidUart::new(&RFID_PORT));
+    let mut mavlink = MavlinkUart::new(&MAVLINK_PORT);
 
     #[cfg(not(wmr_robot_image))]
     let (spec, tags, tick_us, telemetry_every) = (PILOT, SITE_TAGS, TICK_US, TELEMETRY_EVERY_TICKS);
@@ -573,13 +655,14 @@ pub fn run() -> ! {
         });
     }
     loop {
-        let overrun = wait_for_tick(&mut tick_timer, &mut pump);
+        let overrun = wait_for_tick(&mut tick_timer);
         let started = DWT::cycle_count();
         #[cfg(wmr_robot_image)]
         let step = robot.tick_on(route.as_deref_mut());
         #[cfg(not(wmr_robot_image))]
         let step = robot.tick();
         watchdog.feed();
+        stats.mavlink_bytes = stats.mavlink_bytes.wrapping_add(drain(&mut mavlink));
         if telemetry::is_emitted(step.pilot.tracker.tick, telemetry_every) {
             crate::telemetry::record(&telemetry::Record::of(
                 &step,
@@ -606,29 +689,47 @@ pub fn run() -> ! {
             led.toggle();
         }
         if stats.ticks.is_multiple_of(LOG_EVERY_TICKS) {
-            log_status(&robot, &step, &stats, line_errors.get(), cycles_per_us);
+            log_status(
+                &robot,
+                &step,
+                &stats,
+                [devices::counters(&RFID_PORT), mavlink.counters()],
+                cycles_per_us,
+            );
             stats.max_work_cycles = 0;
             stats.overrun_logged = false;
         }
-        // Everything between two pumps of the RFID UART, logging included
-        // (a status tick's own time counts in the next interval).
+        // Everything between two waits for the tick, logging included (a
+        // status tick's own time counts in the next interval).
         let work_cycles = DWT::cycle_count().wrapping_sub(started);
         stats.max_work_cycles = stats.max_work_cycles.max(work_cycles);
     }
 }
 
-/// Waits for the next control tick, pumping the RFID UART meanwhile.
-/// Returns whether the tick was already due on arrival (an overrun).
-fn wait_for_tick(timer: &mut TickTimer, rfid: &mut RfidPump<'_>) -> bool {
+/// Waits for the next control tick (the UARTs' interrupts fill their
+/// rings meanwhile). Returns whether the tick was already due on arrival
+/// (an overrun).
+fn wait_for_tick(timer: &mut TickTimer) -> bool {
     if timer.due() {
         return true;
     }
-    loop {
-        rfid.pump();
-        if timer.due() {
-            return false;
+    while !timer.due() {}
+    false
+}
+
+/// Empties the MAVLink ring (at most [`MAVLINK_READS_PER_TICK`] reads) and
+/// returns the bytes taken out: the byte path the MAVLink endpoint will
+/// parse, counted until it is wired in.
+fn drain(uart: &mut MavlinkUart) -> u32 {
+    let mut buf = [0_u8; 16];
+    let mut bytes: u32 = 0;
+    for _ in 0..MAVLINK_READS_PER_TICK {
+        match uart.read(&mut buf) {
+            Ok(0) | Err(_) => break,
+            Ok(n) => bytes = bytes.wrapping_add(n as u32),
         }
     }
+    bytes
 }
 
 /// Sets both motors' duty to 0. The PWM and GPIO writes cannot fail
@@ -674,6 +775,8 @@ struct LoopStats {
     ticks: u32,
     /// Ticks that found their period already over.
     overruns: u32,
+    /// Bytes taken out of the MAVLink ring (wrapping).
+    mavlink_bytes: u32,
     /// An overrun was logged in this status interval.
     overrun_logged: bool,
     /// Longest tick in this status interval, CPU cycles.
@@ -716,7 +819,7 @@ fn log_status(
     robot: &BoardRobot<'_>,
     step: &RobotTick,
     stats: &LoopStats,
-    line_errors: LineErrors,
+    [rfid_uart, mavlink_uart]: [RxCounters; 2],
     cycles_per_us: u32,
 ) {
     let tracker = &step.pilot.tracker;
@@ -734,11 +837,16 @@ fn log_status(
         stats.overruns
     );
     defmt::info!(
-        "counters: robot {} rfid {} pilot {} uart {}",
+        "counters: robot {} rfid {} pilot {} rfid uart {}",
         robot.counters(),
         robot.rfid_counters(),
         robot.pilot().counters(),
-        line_errors
+        rfid_uart
+    );
+    defmt::info!(
+        "mavlink uart {} bytes read {=u32}",
+        mavlink_uart,
+        stats.mavlink_bytes
     );
     if stats.ticks == STACK_LOG_AT_TICK {
         defmt::info!("peak stack {=u32} B", crate::stack::peak_bytes());

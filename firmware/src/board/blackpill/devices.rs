@@ -2,45 +2,47 @@
 //!
 //! - [`Encoder`]: a timer in encoder mode (the HAL's [`Qei`]) as a
 //!   [`QuadratureCounter`].
-//! - [`RfidPump`] + [`RfidUart`]: USART2 as a non-blocking
-//!   [`embedded_io::Read`] + [`embedded_io::ReadReady`] (embedded-io 0.7)
-//!   for the core's `RfidReader`.
+//! - [`Port`] + [`PortReader`]: a USART received by its interrupt into a
+//!   ring ([`wmr_link::rx_ring`]), read by the tick as a non-blocking
+//!   [`embedded_io::Read`] + [`embedded_io::ReadReady`] (embedded-io 0.7):
+//!   the RFID reader's USART2 for the core's `RfidReader`, and the MAVLink
+//!   port's USART1.
 //!
-//! # Why the UART needs a pump
-//! The receiver is USART2 by register (`setup::RfidRx`: the HAL's serial
-//! set-up needs the HAL's clock set-up, which has panic paths), and the
-//! core reads embedded-io 0.7 `Read + ReadReady`, so an adapter is needed
-//! anyway. More importantly, the F411's USART has no receive FIFO: its data register
-//! holds one byte, and at 9600 Bd the next byte arrives 1.04 ms later. A
-//! reader polled once per 10 ms control tick would keep one byte in ten and
-//! count the rest as overruns. So the receiver is split in two halves over
-//! a lock-free single-producer single-consumer ring ([`heapless::spsc`]):
+//! # Why the UARTs are received by interrupt
+//! The F411's USART has no receive FIFO: its data register holds one byte,
+//! and the next arrives one byte time later (1.04 ms at 9600 Bd, 87 µs at
+//! 115 200 Bd). Read only by the control tick, a UART would keep one byte a
+//! tick and overrun the rest. So each USART's receive interrupt (`RXNEIE`:
+//! a byte, or an overrun) moves the byte into the port's ring
+//! ([`on_receive`], [`super::setup::UartRx::service`]), whatever the tick
+//! is doing, and the tick reads the ring ([`PortReader`]) as the core's
+//! `RfidReader` reads any UART, so the core is unchanged. The rings are
+//! sized so that a tick late by several periods loses nothing
+//! (`super::RING_WINDOW_US`).
 //!
-//! - [`RfidPump`] owns the receiver and moves each received byte into the
-//!   ring. The control loop calls [`RfidPump::pump`] continuously while it
-//!   waits for the next tick, i.e. for the whole idle part of every period.
-//! - [`RfidUart`] owns the ring's consumer and is what the core's
-//!   `RfidReader` reads, inside `Robot::tick`, without ever blocking.
-//!
-//! Line errors (overrun, framing, noise, parity) and bytes dropped because
-//! the ring was full are counted per kind in a shared [`LineErrors`] (a
-//! `Cell`: everything runs in one thread, no interrupt touches it), and each
-//! one is also reported once through [`ReadReady::read_ready`], so the core's
-//! `RfidCounters::read_errors` counts them too. An overrun can only happen if
-//! one tick's work (between two pumps) exceeds one byte time, 1.04 ms.
+//! Producer and consumer share each port as a `static`
+//! `critical_section::Mutex<RefCell<Port>>` ([`SharedPort`]): no `unsafe`,
+//! and each access a short critical section (one byte pushed, or at most
+//! [`READ_CHUNK`] bytes popped). Line errors (overrun, framing, noise,
+//! parity) and bytes dropped because a ring was full are counted per kind
+//! in the ring's [`RxCounters`], and each one is also reported once through
+//! [`ReadReady::read_ready`], so the core's `RfidCounters::read_errors`
+//! counts the RFID reader's too.
 
-use core::cell::Cell;
+use core::cell::RefCell;
 use core::convert::Infallible;
-
 use core::ops::Deref;
+
+use critical_section::Mutex;
 use embedded_io::{ErrorKind, ErrorType, Read, ReadReady};
-use heapless::spsc::{Consumer, Producer};
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::pac::tim3::ccmr1_input::ICFILTER;
 use stm32f4xx_hal::qei::{self, Qei};
 use wmr_core::devices::QuadratureCounter;
 
-use super::setup::{LineError, RfidRx};
+use wmr_link::rx_ring::{RxCounters, RxRing};
+
+use super::setup::UartRx;
 
 /// A wheel encoder: a timer in quadrature encoder mode (both edges of both
 /// channels, x4), read as the core's [`QuadratureCounter`].
@@ -91,120 +93,131 @@ where
     }
 }
 
-/// Receive-side faults of the RFID UART, by kind (all counters saturate).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, defmt::Format)]
-pub struct LineErrors {
-    /// A byte arrived before the previous one was read (ORE): at least one
-    /// byte lost.
-    pub overrun: u32,
-    /// Stop bit not found (FE): wrong baud rate, noise or a line break.
-    pub framing: u32,
-    /// Noise detected during a bit (NF).
-    pub noise: u32,
-    /// Parity error (PE; not expected at 8N1).
-    pub parity: u32,
-    /// Bytes received while the ring was full (the reader fell behind).
-    pub ring_full: u32,
+/// A UART's receiver and its receive ring, shared between the UART's
+/// interrupt handler (the producer) and the control tick (the consumer)
+/// in a `static` [`SharedPort`]. See the module documentation.
+pub struct Port<U, const N: usize> {
+    /// The receiver, once [`attach`] has put it there.
+    rx: Option<UartRx<U>>,
+    ring: RxRing<N>,
 }
 
-impl LineErrors {
-    /// All faults of all kinds.
-    pub fn total(&self) -> u32 {
-        self.overrun
-            .saturating_add(self.framing)
-            .saturating_add(self.noise)
-            .saturating_add(self.parity)
-            .saturating_add(self.ring_full)
-    }
-}
-
-/// Adds one to the counter `which` selects.
-fn count(errors: &Cell<LineErrors>, which: impl FnOnce(&mut LineErrors) -> &mut u32) {
-    let mut e = errors.get();
-    let counter = which(&mut e);
-    *counter = counter.saturating_add(1);
-    errors.set(e);
-}
-
-/// The hardware half of the RFID UART: moves received bytes from USART2
-/// into the ring. See the module documentation.
-pub struct RfidPump<'a> {
-    rx: RfidRx,
-    ring: Producer<'a, u8>,
-    errors: &'a Cell<LineErrors>,
-}
-
-impl<'a> RfidPump<'a> {
-    /// Takes the receiver, the ring's producer and the shared error counters.
-    pub fn new(rx: RfidRx, ring: Producer<'a, u8>, errors: &'a Cell<LineErrors>) -> Self {
-        Self { rx, ring, errors }
-    }
-
-    /// Moves the received byte, if any, into the ring, or counts the line
-    /// error the USART flags. Never blocks: one status-register read, and
-    /// one data-register read when a byte or an error is pending (which is
-    /// also what clears the error flags).
-    pub fn pump(&mut self) {
-        match self.rx.read() {
-            Ok(Some(byte)) => {
-                if self.ring.enqueue(byte).is_err() {
-                    count(self.errors, |e| &mut e.ring_full);
-                }
-            }
-            Ok(None) => {}
-            Err(error) => count(self.errors, |e| match error {
-                LineError::Overrun => &mut e.overrun,
-                LineError::Framing => &mut e.framing,
-                LineError::Noise => &mut e.noise,
-                LineError::Parity => &mut e.parity,
-            }),
+impl<U, const N: usize> Port<U, N> {
+    /// No receiver yet, an empty ring (`const`: for a `static`).
+    pub const fn new() -> Self {
+        Self {
+            rx: None,
+            ring: RxRing::new(),
         }
     }
 }
 
-/// The reader half of the RFID UART: the ring's consumer, as embedded-io
-/// 0.7 `Read + ReadReady` for the core's `RfidReader`. See the module
-/// documentation.
+/// A [`Port`] as a `static`: a critical section's mutex around it.
+pub type SharedPort<U, const N: usize> = Mutex<RefCell<Port<U, N>>>;
+
+/// Hands the receiver to its port, for the interrupt handler. Call before
+/// unmasking the UART's interrupt: until then the handler finds no
+/// receiver and does nothing.
+pub fn attach<U, const N: usize>(port: &SharedPort<U, N>, rx: UartRx<U>) {
+    critical_section::with(|cs| {
+        if let Ok(mut port) = port.borrow(cs).try_borrow_mut() {
+            port.rx = Some(rx);
+        }
+    });
+}
+
+/// The UART interrupt handler's body: the received byte, or the error,
+/// into the port's ring ([`UartRx::service`]).
+pub fn on_receive<U, const N: usize>(port: &SharedPort<U, N>)
+where
+    U: Deref<Target = pac::usart1::RegisterBlock>,
+{
+    critical_section::with(|cs| {
+        // Never already borrowed: every borrow is inside a critical
+        // section, and this core runs one at a time.
+        if let Ok(mut port) = port.borrow(cs).try_borrow_mut() {
+            let Port { rx, ring } = &mut *port;
+            if let Some(rx) = rx {
+                rx.service(ring);
+            }
+        }
+    });
+}
+
+/// The counters of `port`'s ring (all zero in the impossible case of a
+/// port already borrowed).
+pub fn counters<U, const N: usize>(port: &SharedPort<U, N>) -> RxCounters {
+    critical_section::with(|cs| {
+        port.borrow(cs)
+            .try_borrow()
+            .map(|port| port.ring.counters())
+            .unwrap_or_default()
+    })
+}
+
+/// Most bytes one [`Read::read`] takes out of a ring, in one critical
+/// section (interrupts masked): 16 byte moves, a few hundred cycles
+/// (not measured on the board; a few µs at 96 MHz), against 87 µs between
+/// two bytes at 115 200 Bd, so no receive interrupt waits long enough to
+/// lose a byte.
+const READ_CHUNK: usize = 16;
+
+/// The tick's side of a [`Port`]: its ring as embedded-io 0.7
+/// `Read + ReadReady`, for the core's `RfidReader` (and the MAVLink
+/// byte path). See the module documentation.
 ///
-/// Never blocks: [`Read::read`] returns what the ring holds, up to the
-/// buffer's length, and at least one byte whenever [`ReadReady::read_ready`]
-/// said `true`. Called on an empty ring (which `RfidReader` never does: it
-/// asks `read_ready` first) it returns `Ok(0)` instead of waiting, since in
-/// this single-threaded firmware nothing would fill the ring while it
-/// waited.
-pub struct RfidUart<'a> {
-    ring: Consumer<'a, u8>,
-    errors: &'a Cell<LineErrors>,
-    /// How many of `errors.total()` were already reported.
+/// Never blocks: [`Read::read`] returns what the ring holds, up to
+/// [`READ_CHUNK`] bytes, and at least one byte whenever
+/// [`ReadReady::read_ready`] said `true` (the interrupt only adds bytes).
+/// Called on an empty ring (which `RfidReader` never does: it asks
+/// `read_ready` first) it returns `Ok(0)` instead of waiting.
+pub struct PortReader<U: 'static, const N: usize> {
+    port: &'static SharedPort<U, N>,
+    /// How many of the ring's faults were already reported.
     reported: u32,
 }
 
-impl<'a> RfidUart<'a> {
-    /// Takes the ring's consumer and the shared error counters.
-    pub fn new(ring: Consumer<'a, u8>, errors: &'a Cell<LineErrors>) -> Self {
-        Self {
-            ring,
-            errors,
-            reported: errors.get().total(),
-        }
+impl<U, const N: usize> PortReader<U, N> {
+    /// The reader of `port`; faults already counted are not reported.
+    pub fn new(port: &'static SharedPort<U, N>) -> Self {
+        let mut reader = Self { port, reported: 0 };
+        reader.reported = reader.counters().faults();
+        reader
+    }
+
+    /// The ring's counters.
+    pub fn counters(&self) -> RxCounters {
+        counters(self.port)
+    }
+
+    /// Bytes waiting and faults counted, in one critical section.
+    fn state(&self) -> (bool, u32) {
+        critical_section::with(|cs| {
+            self.port
+                .borrow(cs)
+                .try_borrow()
+                .map(|port| (!port.ring.is_empty(), port.ring.counters().faults()))
+                .unwrap_or((false, self.reported))
+        })
     }
 }
 
-impl ErrorType for RfidUart<'_> {
+impl<U, const N: usize> ErrorType for PortReader<U, N> {
     /// [`ErrorKind::InvalidData`]: bytes were lost or corrupted on the
-    /// line; the per-kind detail is in [`LineErrors`].
+    /// line; the per-kind detail is in [`RxCounters`].
     type Error = ErrorKind;
 }
 
-impl ReadReady for RfidUart<'_> {
-    /// `true` while the ring holds bytes. Once it is empty, each line error
-    /// not yet reported is returned as one `Err` (after the bytes, so that
-    /// good data is never held back); the reader counts it and ends its poll.
+impl<U, const N: usize> ReadReady for PortReader<U, N> {
+    /// `true` while the ring holds bytes. Once it is empty, each fault not
+    /// yet reported is returned as one `Err` (after the bytes, so that good
+    /// data is never held back); the RFID reader counts it and ends its poll.
     fn read_ready(&mut self) -> Result<bool, ErrorKind> {
-        if self.ring.ready() {
+        let (ready, faults) = self.state();
+        if ready {
             return Ok(true);
         }
-        if self.reported < self.errors.get().total() {
+        if self.reported < faults {
             self.reported = self.reported.saturating_add(1);
             return Err(ErrorKind::InvalidData);
         }
@@ -212,16 +225,18 @@ impl ReadReady for RfidUart<'_> {
     }
 }
 
-impl Read for RfidUart<'_> {
+impl<U, const N: usize> Read for PortReader<U, N> {
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, ErrorKind> {
-        let mut n = 0;
-        for slot in buf.iter_mut() {
-            let Some(byte) = self.ring.dequeue() else {
-                break;
-            };
-            *slot = byte;
-            n += 1;
-        }
-        Ok(n)
+        let len = buf.len().min(READ_CHUNK);
+        let Some(chunk) = buf.get_mut(..len) else {
+            return Ok(0);
+        };
+        Ok(critical_section::with(|cs| {
+            self.port
+                .borrow(cs)
+                .try_borrow_mut()
+                .map(|mut port| port.ring.pop_into(chunk))
+                .unwrap_or(0)
+        }))
     }
 }

@@ -1,5 +1,6 @@
 //! Register-level set-up of the clock tree, the motor PWM timer (TIM1), the
-//! control tick timer (TIM5) and the RFID reader's USART2, through the PAC.
+//! control tick timer (TIM5) and the receivers of the RFID reader (USART2)
+//! and the MAVLink port (USART1), through the PAC.
 //!
 //! Why not the HAL: stm32f4xx-hal's `Rcc::freeze` searches PLL settings
 //! at run time (`MainPll::fast_setup`, `I2sPll::setup`: divisions,
@@ -21,9 +22,11 @@
 //! HAL, which sets them up without a panic path.
 
 use core::convert::Infallible;
+use core::ops::Deref;
 
 use embedded_hal::pwm::{ErrorType, SetDutyCycle};
 use stm32f4xx_hal::pac;
+use wmr_link::rx_ring::{LineError, RxRing};
 
 /// The PLL input divider: HSE 25 MHz / 25 = 1 MHz (VCO input 1–2 MHz).
 const PLL_M: u32 = 25;
@@ -106,8 +109,10 @@ pub enum SetupError {
     PwmFrequency,
     /// The control period is out of TIM5's reach.
     TickPeriod,
-    /// The baud rate is out of USART2's reach.
+    /// The RFID reader's baud rate is out of USART2's reach.
     BaudRate,
+    /// The MAVLink port's baud rate is out of USART1's reach.
+    MavlinkBaudRate,
 }
 
 impl core::fmt::Display for SetupError {
@@ -116,6 +121,7 @@ impl core::fmt::Display for SetupError {
             Self::PwmFrequency => "the motor PWM frequency is out of TIM1's reach",
             Self::TickPeriod => "the control period is out of TIM5's reach",
             Self::BaudRate => "the RFID reader's baud rate is out of USART2's reach",
+            Self::MavlinkBaudRate => "the MAVLink port's baud rate is out of USART1's reach",
         })
     }
 }
@@ -256,54 +262,55 @@ impl TickTimer {
     }
 }
 
-/// A receive error of the USART.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum LineError {
-    /// Parity error.
-    Parity,
-    /// Framing error (no stop bit).
-    Framing,
-    /// Noise detected.
-    Noise,
-    /// A byte arrived before the last was read.
-    Overrun,
+/// A USART receiving at a fixed baud rate, 8N1 (transmitter on, idle
+/// high), with its receive interrupt enabled (`RXNEIE`: a byte received,
+/// or an overrun). USART1 and USART2 share one register block type.
+pub struct UartRx<U> {
+    usart: U,
 }
 
-impl core::fmt::Display for LineError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Self::Parity => "USART2: parity error",
-            Self::Framing => "USART2: framing error (no stop bit)",
-            Self::Noise => "USART2: noise detected",
-            Self::Overrun => "USART2: overrun (a byte arrived before the last was read)",
-        })
-    }
-}
-
-impl core::error::Error for LineError {}
-
-/// USART2 receiving at a fixed baud rate, 8N1 (transmitter on, idle high).
-pub struct RfidRx {
-    usart: pac::USART2,
-}
-
-impl RfidRx {
-    /// Sets USART2 up at `baud`, 8 data bits, no parity, 1 stop bit,
-    /// oversampling by 16 (the pins are set to AF7 by the caller).
+impl UartRx<pac::USART2> {
+    /// USART2 (APB1, [`super::PCLK1_HZ`]), the RFID reader's; see
+    /// [`UartRx::configure`].
     ///
     /// # Errors
     /// [`SetupError::BaudRate`] unless `PCLK1 / baud` (rounded) is 16 to
     /// 65,535.
-    pub fn new(usart: pac::USART2, rcc: &pac::RCC, baud: u32) -> Result<Self, SetupError> {
+    pub fn usart2(usart: pac::USART2, rcc: &pac::RCC, baud: u32) -> Result<Self, SetupError> {
         rcc.apb1enr().modify(|_, w| w.usart2en().set_bit());
         rcc.apb1rstr().modify(|_, w| w.usart2rst().set_bit());
         rcc.apb1rstr().modify(|_, w| w.usart2rst().clear_bit());
-        let brr = super::PCLK1_HZ
+        Self::configure(usart, super::PCLK1_HZ, baud).ok_or(SetupError::BaudRate)
+    }
+}
+
+impl UartRx<pac::USART1> {
+    /// USART1 (APB2, [`super::PCLK2_HZ`]), the MAVLink port's; see
+    /// [`UartRx::configure`].
+    ///
+    /// # Errors
+    /// [`SetupError::MavlinkBaudRate`] unless `PCLK2 / baud` (rounded) is
+    /// 16 to 65,535.
+    pub fn usart1(usart: pac::USART1, rcc: &pac::RCC, baud: u32) -> Result<Self, SetupError> {
+        rcc.apb2enr().modify(|_, w| w.usart1en().set_bit());
+        rcc.apb2rstr().modify(|_, w| w.usart1rst().set_bit());
+        rcc.apb2rstr().modify(|_, w| w.usart1rst().clear_bit());
+        Self::configure(usart, super::PCLK2_HZ, baud).ok_or(SetupError::MavlinkBaudRate)
+    }
+}
+
+impl<U: Deref<Target = pac::usart1::RegisterBlock>> UartRx<U> {
+    /// Sets the USART up at `baud` from its bus clock `pclk_hz`, 8 data
+    /// bits, no parity, 1 stop bit, oversampling by 16, the receive
+    /// interrupt enabled (the pins are set to AF7 by the caller; the NVIC
+    /// line is the caller's to unmask). `None` unless `pclk_hz / baud`
+    /// (rounded) is 16 to 65,535.
+    fn configure(usart: U, pclk_hz: u32, baud: u32) -> Option<Self> {
+        let brr = pclk_hz
             .checked_add(baud / 2)
             .and_then(|n| n.checked_div(baud))
             .and_then(|d| u16::try_from(d).ok())
-            .filter(|&d| d >= 16)
-            .ok_or(SetupError::BaudRate)?;
+            .filter(|&d| d >= 16)?;
         usart.cr3().reset();
         usart.cr2().modify(|_, w| w.stop().stop1());
         usart.brr().write(|w| {
@@ -325,34 +332,46 @@ impl RfidRx {
                 .clear_bit()
                 .over8()
                 .clear_bit()
+                .rxneie()
+                .set_bit()
         });
-        Ok(Self { usart })
+        Some(Self { usart })
     }
 
-    /// The next received byte, `Ok(None)` if none, or the receive error
-    /// (cleared by reading the data register), in the HAL's order: parity,
-    /// framing, noise, overrun.
-    pub fn read(&mut self) -> Result<Option<u8>, LineError> {
+    /// The receive interrupt's work: moves the byte the USART holds, if
+    /// any, into `ring`, and counts the errors it flags. One status read,
+    /// and one data read whenever a byte or an error is pending (the data
+    /// read is what clears `RXNE` and the error flags, so the interrupt
+    /// does not fire again for the same byte).
+    ///
+    /// An overrun (`ORE`) means a byte after the held one was lost; the
+    /// held one is valid (RM0383 §19.3.4) and goes into the ring. A byte
+    /// with a parity, framing or noise error is suspect and is dropped,
+    /// counted by its kind.
+    pub fn service<const N: usize>(&mut self, ring: &mut RxRing<N>) {
         let sr = self.usart.sr().read();
-        let error = if sr.pe().bit_is_set() {
-            Some(LineError::Parity)
-        } else if sr.fe().bit_is_set() {
-            Some(LineError::Framing)
-        } else if sr.nf().bit_is_set() {
-            Some(LineError::Noise)
-        } else if sr.ore().bit_is_set() {
-            Some(LineError::Overrun)
-        } else {
-            None
-        };
-        let data = || self.usart.dr().read().dr().bits().to_le_bytes()[0];
-        match error {
-            Some(e) => {
-                let _ = data();
-                Err(e)
+        let suspect = [
+            (sr.pe().bit_is_set(), LineError::Parity),
+            (sr.fe().bit_is_set(), LineError::Framing),
+            (sr.nf().bit_is_set(), LineError::Noise),
+        ];
+        let overrun = sr.ore().bit_is_set();
+        if !(sr.rxne().bit_is_set() || overrun || suspect.iter().any(|&(set, _)| set)) {
+            return;
+        }
+        let byte = self.usart.dr().read().dr().bits().to_le_bytes()[0];
+        if overrun {
+            ring.line_error(LineError::Overrun);
+        }
+        let mut good = true;
+        for (set, error) in suspect {
+            if set {
+                ring.line_error(error);
+                good = false;
             }
-            None if sr.rxne().bit_is_set() => Ok(Some(data())),
-            None => Ok(None),
+        }
+        if good {
+            ring.push(byte);
         }
     }
 }

@@ -1,0 +1,449 @@
+//! A receive ring for a UART: the bytes an interrupt handler takes off the
+//! line, held until the control tick reads them, with every byte that
+//! could not be held counted.
+//!
+//! [`RxRing`] is plain data with `&mut self` methods: one producer (the
+//! UART's receive interrupt) pushes, one consumer (the tick) pops. A board
+//! shares it between the two as `critical_section::Mutex<RefCell<RxRing<N>>>`
+//! in a `static` (the Black Pill: `firmware/src/board/blackpill/devices.rs`):
+//! no `unsafe`, no heap, and a critical section of a few instructions per
+//! byte pushed or per chunk popped. `heapless::spsc` would avoid the
+//! critical section but needs `&'static mut` queue storage to split
+//! (`unsafe` or a `singleton!`), and its producer would still have to reach
+//! the interrupt handler through a `Mutex<RefCell<Option<…>>>`; with the
+//! mutex there anyway, a [`heapless::Deque`] inside it is the simpler whole.
+//!
+//! # Guarantees
+//! - Bytes come out in the order they went in, none duplicated.
+//! - Lossless until full: a push into a full ring drops that byte and
+//!   counts it in [`RxCounters::ring_full`]; a line error the producer
+//!   reports (the USART's overrun, framing, noise, parity flags) is counted
+//!   by kind. Nothing is dropped without a count.
+//! - Sizing: a consumer that empties the ring at least every `W` µs loses
+//!   nothing on a line of `B` baud if the capacity is at least
+//!   [`bytes_in_window`]`(B, W)` (the bytes that can arrive in `W`, plus one
+//!   for the byte the USART's data register may still hold). The tests
+//!   check that bound against a simulated line and tick.
+//!
+//! Never panics: the deque's pushes and pops are checked, the counters
+//! saturate (except [`RxCounters::received`], a traffic counter that wraps).
+
+use heapless::Deque;
+
+/// A receive-side fault the producer reports with [`RxRing::line_error`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LineError {
+    /// A byte arrived before the previous one was read (the USART's ORE):
+    /// at least one byte lost on the line.
+    Overrun,
+    /// Stop bit not found (FE): wrong baud rate, noise or a line break.
+    Framing,
+    /// Noise detected during a bit (NF).
+    Noise,
+    /// Parity error (PE).
+    Parity,
+}
+
+/// What a ring has seen since it was made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RxCounters {
+    /// Bytes taken into the ring (wrapping: a traffic counter).
+    pub received: u32,
+    /// Bytes dropped because the ring was full (the consumer fell behind).
+    pub ring_full: u32,
+    /// Hardware overruns: bytes lost before they reached the ring.
+    pub overrun: u32,
+    /// Framing errors.
+    pub framing: u32,
+    /// Noise errors.
+    pub noise: u32,
+    /// Parity errors.
+    pub parity: u32,
+    /// The most bytes the ring has held at once: its margin on a real
+    /// line is its capacity minus this.
+    pub peak: u32,
+}
+
+impl RxCounters {
+    /// Every fault of every kind (bytes lost or suspect), saturating.
+    #[must_use]
+    pub fn faults(&self) -> u32 {
+        self.ring_full
+            .saturating_add(self.overrun)
+            .saturating_add(self.framing)
+            .saturating_add(self.noise)
+            .saturating_add(self.parity)
+    }
+}
+
+/// A fixed-capacity receive ring of `N` bytes with its fault counters; see
+/// the module documentation.
+#[derive(Debug)]
+pub struct RxRing<const N: usize> {
+    bytes: Deque<u8, N>,
+    counters: RxCounters,
+}
+
+impl<const N: usize> Default for RxRing<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> RxRing<N> {
+    /// An empty ring (`const`: it can initialise a `static`).
+    #[must_use]
+    pub const fn new() -> Self {
+        Self {
+            bytes: Deque::new(),
+            counters: RxCounters {
+                received: 0,
+                ring_full: 0,
+                overrun: 0,
+                framing: 0,
+                noise: 0,
+                parity: 0,
+                peak: 0,
+            },
+        }
+    }
+
+    /// Bytes the ring holds at most.
+    #[must_use]
+    pub const fn capacity(&self) -> usize {
+        N
+    }
+
+    /// Bytes waiting.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.bytes.len()
+    }
+
+    /// No byte waiting.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.bytes.is_empty()
+    }
+
+    /// Takes a received byte; `false` if the ring was full, in which case
+    /// the byte is dropped and counted in [`RxCounters::ring_full`].
+    pub fn push(&mut self, byte: u8) -> bool {
+        if self.bytes.push_back(byte).is_ok() {
+            let c = &mut self.counters;
+            c.received = c.received.wrapping_add(1);
+            c.peak = c
+                .peak
+                .max(u32::try_from(self.bytes.len()).unwrap_or(u32::MAX));
+            true
+        } else {
+            self.counters.ring_full = self.counters.ring_full.saturating_add(1);
+            false
+        }
+    }
+
+    /// Counts a line error of the kind given.
+    pub fn line_error(&mut self, error: LineError) {
+        let c = &mut self.counters;
+        let counter = match error {
+            LineError::Overrun => &mut c.overrun,
+            LineError::Framing => &mut c.framing,
+            LineError::Noise => &mut c.noise,
+            LineError::Parity => &mut c.parity,
+        };
+        *counter = counter.saturating_add(1);
+    }
+
+    /// The oldest byte waiting, taken out.
+    pub fn pop(&mut self) -> Option<u8> {
+        self.bytes.pop_front()
+    }
+
+    /// Moves the oldest waiting bytes into `buf`, as many as fit; returns
+    /// how many (0 when the ring is empty or `buf` is).
+    pub fn pop_into(&mut self, buf: &mut [u8]) -> usize {
+        let mut n = 0;
+        for slot in buf.iter_mut() {
+            let Some(byte) = self.bytes.pop_front() else {
+                break;
+            };
+            *slot = byte;
+            n += 1;
+        }
+        n
+    }
+
+    /// What the ring has seen.
+    #[must_use]
+    pub fn counters(&self) -> RxCounters {
+        self.counters
+    }
+}
+
+/// The capacity a ring needs on a line of `baud` Bd, 8N1 (10 bits a byte),
+/// emptied at least every `window_us` µs: the bytes that can arrive in the
+/// window (rounded up), plus one that the USART's data register may hold
+/// when the window starts. Saturates at `usize::MAX`.
+#[must_use]
+pub const fn bytes_in_window(baud: u32, window_us: u32) -> usize {
+    // baud / 10 bytes a second; × window / 1e6, rounded up, in u64 (no overflow).
+    let bits = baud as u64 * window_us as u64;
+    let bytes = bits.div_ceil(10_000_000) + 1;
+    if bytes > usize::MAX as u64 {
+        usize::MAX
+    } else {
+        bytes as usize
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn bytes_come_out_in_order() {
+        let mut ring = RxRing::<8>::new();
+        for b in 1..=5 {
+            assert!(ring.push(b));
+        }
+        assert_eq!(ring.len(), 5);
+        assert_eq!(ring.pop(), Some(1));
+        let mut buf = [0; 3];
+        assert_eq!(ring.pop_into(&mut buf), 3);
+        assert_eq!(buf, [2, 3, 4]);
+        assert!(ring.push(6));
+        let mut buf = [0; 8];
+        assert_eq!(ring.pop_into(&mut buf), 2);
+        assert_eq!(buf.get(..2), Some(&[5, 6][..]));
+        assert!(ring.is_empty());
+        assert_eq!(ring.pop(), None);
+        assert_eq!(ring.pop_into(&mut buf), 0);
+        assert_eq!(ring.counters().received, 6);
+        assert_eq!(ring.counters().peak, 5);
+        assert_eq!(ring.counters().faults(), 0);
+    }
+
+    #[test]
+    fn a_full_ring_counts_each_dropped_byte_and_keeps_the_old_ones() {
+        let mut ring = RxRing::<4>::new();
+        for b in 0..4 {
+            assert!(ring.push(b));
+        }
+        assert!(!ring.push(10));
+        assert!(!ring.push(11));
+        let c = ring.counters();
+        assert_eq!((c.received, c.ring_full, c.faults()), (4, 2, 2));
+        assert_eq!(c.peak, 4);
+        let mut buf = [0; 8];
+        assert_eq!(ring.pop_into(&mut buf), 4);
+        assert_eq!(buf.get(..4), Some(&[0, 1, 2, 3][..]));
+        // Room again: the next byte is taken.
+        assert!(ring.push(12));
+        assert_eq!(ring.pop(), Some(12));
+        assert_eq!(ring.counters().ring_full, 2);
+    }
+
+    #[test]
+    fn line_errors_are_counted_by_kind() {
+        let mut ring = RxRing::<4>::new();
+        ring.line_error(LineError::Overrun);
+        ring.line_error(LineError::Overrun);
+        ring.line_error(LineError::Framing);
+        ring.line_error(LineError::Noise);
+        ring.line_error(LineError::Parity);
+        let c = ring.counters();
+        assert_eq!(
+            (c.overrun, c.framing, c.noise, c.parity, c.ring_full),
+            (2, 1, 1, 1, 0)
+        );
+        assert_eq!(c.faults(), 5);
+        assert!(ring.is_empty());
+    }
+
+    #[test]
+    fn window_sizes() {
+        // 9600 Bd: 960 B/s, 0.96 bytes a ms.
+        assert_eq!(bytes_in_window(9_600, 5_000), 5 + 1);
+        assert_eq!(bytes_in_window(9_600, 1_000), 1 + 1);
+        // 115200 Bd: 11.52 bytes a ms.
+        assert_eq!(bytes_in_window(115_200, 5_000), 58 + 1);
+        assert_eq!(bytes_in_window(115_200, 0), 1);
+        assert_eq!(bytes_in_window(u32::MAX, u32::MAX), 1_844_674_406_512 + 1);
+    }
+
+    /// What a simulated run saw.
+    #[derive(Debug, PartialEq, Eq)]
+    struct Run {
+        sent: u32,
+        read: u32,
+        in_order: bool,
+        ring_full: u32,
+        max_len: usize,
+        /// The ring's own [`RxCounters::peak`].
+        peak: u32,
+    }
+
+    /// A UART line at `baud` (8N1, back-to-back bytes) into a ring of `N`,
+    /// for `ticks` control ticks: tick `k` ends `period_us + late_us(k)`
+    /// after tick `k - 1` (a late tick: the previous one overran) and
+    /// empties the ring in reads of `chunk(k)` bytes, as the core's
+    /// `RfidReader` does. The interrupt pushes a byte at each byte time.
+    /// Time in ns, so that 115200 Bd's 86.8 µs byte time is kept exact
+    /// enough (86,805 ns).
+    fn simulate<const N: usize>(
+        baud: u32,
+        period_us: u32,
+        ticks: usize,
+        late_us: impl Fn(usize) -> u32,
+        chunk: impl Fn(usize) -> usize,
+    ) -> Run {
+        let byte_ns = 10_000_000_000_u64 / u64::from(baud);
+        let mut ring = RxRing::<N>::new();
+        let mut next_byte_ns = 0_u64;
+        let mut now_ns = 0_u64;
+        let mut sent: u32 = 0;
+        let mut expect: u32 = 0;
+        let mut in_order = true;
+        let mut max_len = 0;
+        for k in 0..ticks {
+            now_ns += u64::from(period_us + late_us(k)) * 1_000;
+            while next_byte_ns <= now_ns {
+                ring.push(sent.to_le_bytes()[0]);
+                sent += 1;
+                next_byte_ns += byte_ns;
+            }
+            max_len = max_len.max(ring.len());
+            let mut buf = [0_u8; 64];
+            let want = chunk(k).clamp(1, buf.len());
+            loop {
+                let n = ring.pop_into(&mut buf[..want]);
+                if n == 0 {
+                    break;
+                }
+                for &b in &buf[..n] {
+                    in_order &= b == expect.to_le_bytes()[0];
+                    expect += 1;
+                }
+            }
+        }
+        Run {
+            sent,
+            read: expect,
+            in_order,
+            ring_full: ring.counters().ring_full,
+            max_len,
+            peak: ring.counters().peak,
+        }
+    }
+
+    /// The Black Pill's capacities (`firmware/src/board/blackpill.rs`:
+    /// `RFID_RING_BYTES`, `MAVLINK_RING_BYTES`).
+    const RFID_RING: usize = 128;
+    const MAVLINK_RING: usize = 512;
+
+    #[test]
+    fn rfid_at_9600_bd_with_a_5_ms_tick_and_late_ticks_loses_nothing() {
+        // Every 7th tick 8 ms late (a 13 ms gap), one 60 ms stall.
+        let run = simulate::<RFID_RING>(
+            9_600,
+            5_000,
+            2_000,
+            |k| match k {
+                1_000 => 60_000,
+                k if k % 7 == 0 => 8_000,
+                _ => 0,
+            },
+            |k| 1 + k % 16,
+        );
+        assert_eq!(run.ring_full, 0, "{run:?}");
+        assert!(run.in_order, "{run:?}");
+        assert_eq!(run.read, run.sent);
+        // 2000 ticks ≈ 10 s + late time: about 10,800 bytes at 960 B/s.
+        assert!(run.sent > 10_000, "{run:?}");
+        // The stall filled the ring to about 63 bytes of its 128.
+        assert!(run.max_len < RFID_RING, "{run:?}");
+    }
+
+    #[test]
+    fn mavlink_at_115200_bd_with_a_5_ms_tick_and_late_ticks_loses_nothing() {
+        // Every 5th tick 7 ms late (a 12 ms gap), one 35 ms stall.
+        let run = simulate::<MAVLINK_RING>(
+            115_200,
+            5_000,
+            2_000,
+            |k| match k {
+                1_500 => 35_000,
+                k if k % 5 == 0 => 7_000,
+                _ => 0,
+            },
+            |_| 16,
+        );
+        assert_eq!(run.ring_full, 0, "{run:?}");
+        assert!(run.in_order, "{run:?}");
+        assert_eq!(run.read, run.sent);
+        assert!(run.sent > 110_000, "{run:?}");
+        // A 40 ms gap at 11.52 bytes a ms: 461 bytes of 512.
+        assert!(run.max_len > 400 && run.max_len < MAVLINK_RING, "{run:?}");
+    }
+
+    #[test]
+    fn a_stall_longer_than_the_ring_counts_every_lost_byte() {
+        // 115200 Bd into 64 bytes: a 20 ms gap brings 230 bytes.
+        let run = simulate::<64>(
+            115_200,
+            5_000,
+            100,
+            |k| if k == 50 { 15_000 } else { 0 },
+            |_| 16,
+        );
+        assert!(run.ring_full > 0);
+        assert_eq!(run.peak, 64);
+        // Lost bytes are exactly the ones counted: nothing silent.
+        assert_eq!(run.read + run.ring_full, run.sent);
+    }
+
+    proptest! {
+        /// At any line speed and tick period, with ticks late by any
+        /// amount up to a bound and reads of any chunk size, a ring of
+        /// `bytes_in_window(baud, longest gap)` or more loses nothing, and
+        /// the bytes come out in order.
+        #[test]
+        fn capacity_of_the_longest_gap_loses_nothing(
+            baud in 1_200_u32..=230_400,
+            period_us in 1_000_u32..=20_000,
+            max_late_us in 0_u32..=20_000,
+            lates in proptest::collection::vec(0.0_f64..=1.0, 1..64),
+            chunks in proptest::collection::vec(1_usize..=64, 1..16),
+        ) {
+            let gap_us = period_us + max_late_us;
+            let needed = bytes_in_window(baud, gap_us);
+            // The ring's capacity is a const: the smallest of these that fits.
+            let late = |k: usize| {
+                let f = lates.get(k % lates.len()).copied().unwrap_or(0.0);
+                (f * f64::from(max_late_us)) as u32
+            };
+            let chunk = |k: usize| chunks.get(k % chunks.len()).copied().unwrap_or(1);
+            let ticks = 300;
+            let run = if needed <= 64 {
+                simulate::<64>(baud, period_us, ticks, late, chunk)
+            } else if needed <= 256 {
+                simulate::<256>(baud, period_us, ticks, late, chunk)
+            } else if needed <= 1_024 {
+                simulate::<1_024>(baud, period_us, ticks, late, chunk)
+            } else {
+                simulate::<2_048>(baud, period_us, ticks, late, chunk)
+            };
+            prop_assert_eq!(run.ring_full, 0, "{:?}", run);
+            prop_assert!(run.in_order);
+            prop_assert_eq!(run.read, run.sent);
+            // The bound is tight to within one byte: the fullest the ring
+            // got never exceeds what the longest gap can bring.
+            prop_assert!(run.max_len <= needed, "{:?} needed {}", run, needed);
+            // The ring's peak is the fullest it got: just before a tick.
+            prop_assert_eq!(run.peak as usize, run.max_len);
+        }
+    }
+}
