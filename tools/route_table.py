@@ -20,13 +20,18 @@ RUNS = int(sys.argv[1]) if len(sys.argv) > 1 else 100
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 OUT = ROOT / "target" / "route-table"
 SCENARIO = (ROOT / "firmware-sim/scenarios/warehouse_loop.toml").read_text()
-EKF = '[estimator.fusion]\nfilter = "ekf"\n'
+# The fusion filters keep the scenario's fix age (the reader's period of
+# latency, docs/fusion.md); the observers take the tag as it comes.
+LATENCY = ('fix_latency_s = 0.01            # a fix is a period old: the reader reads at '
+           'a tick, polled at the next\n')
+EKF = '[estimator.fusion]\nfilter = "ekf"\n' + LATENCY
 ESTIMATORS = [
     ("fusion EKF", EKF),
     ("paper 001's observer (5)", ""),
     ("paper 002's pose observer", "[estimator.pose_observer]\n"),
-    ("fusion UKF", '[estimator.fusion]\nfilter = "ukf"\n'),
-    ("fusion particle filter (100)", '[estimator.fusion]\nfilter = "particle_filter"\n'),
+    ("fusion UKF", '[estimator.fusion]\nfilter = "ukf"\n' + LATENCY),
+    ("fusion particle filter (100)",
+     '[estimator.fusion]\nfilter = "particle_filter"\n' + LATENCY),
 ]
 KNOWN_HEADING = 'initial_heading = "scenario"'
 KNOWN_START = 'start = "as_given_heading_known"'

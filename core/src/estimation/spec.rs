@@ -55,6 +55,7 @@ impl EstimatorSpecError {
             Self::Fusion(PoseFilterError::BlindDistance | PoseFilterError::TagMapBlindDistance) => {
                 Some("max_blind_distance_m")
             }
+            Self::Fusion(PoseFilterError::FixAge) => Some("fix_latency_s"),
             Self::Fusion(_) | Self::NotInThisBuild => None,
         }
     }
@@ -198,6 +199,15 @@ pub struct FusionSpec {
     /// The particle filter's generator seed (default 1; the other filters
     /// ignore it).
     pub particle_seed: u64,
+    /// The age of a tag fix when the tick that uses it runs, s: from the
+    /// reader's read to the tick's poll (the reader's processing, the
+    /// frame's time on its UART, the wait for the poll). The filters place
+    /// each fix that far behind the robot along its motion
+    /// ([`FusionSettings::with_fix_age_ticks`]). Default 0: a fix of the
+    /// tick's own position. The simulator's reader over its UART reads at
+    /// a tick and its frame is polled at the next: one control period
+    /// (`period_s`) when the frame is shorter than a period.
+    pub fix_latency_s: f32,
 }
 
 impl FusionSpec {
@@ -224,12 +234,17 @@ impl FusionSpec {
 
 #[cfg(feature = "fusion-ekf")]
 impl FusionSpec {
-    /// The validated settings with `sensors`.
+    /// The validated settings with `sensors`, for control period
+    /// `period_s` (s, validated by the caller: finite and > 0).
     ///
     /// # Errors
     /// [`EstimatorSpecError::Fusion`] for a value out of range,
     /// [`EstimatorSpecError::NotInThisBuild`] for a filter this build lacks.
-    pub fn build(&self, sensors: &SensorSpec) -> Result<FusionSettings, EstimatorSpecError> {
+    pub fn build(
+        &self,
+        period_s: f32,
+        sensors: &SensorSpec,
+    ) -> Result<FusionSettings, EstimatorSpecError> {
         // The particle filter's seed; the EKF and UKF draw nothing and keep
         // the configuration's default of 1.
         let (kind, seed) = match self.filter {
@@ -261,6 +276,16 @@ impl FusionSpec {
             }
         })
         .and_then(|settings| settings.with_max_blind_distance(self.max_blind_distance_m(sensors)))
+        .and_then(|settings| {
+            // 0 stays exactly 0 (no division's rounding); a NaN period
+            // makes a NaN age, refused.
+            let ticks = if self.fix_latency_s == 0.0 {
+                0.0
+            } else {
+                self.fix_latency_s / period_s
+            };
+            settings.with_fix_age_ticks(ticks)
+        })
         .map(|settings| {
             settings
                 .with_filter(kind)
@@ -280,6 +305,7 @@ impl Default for FusionSpec {
             max_blind_distance_m: None,
             edge_constraint: false,
             particle_seed: Self::DEFAULT_PARTICLE_SEED,
+            fix_latency_s: 0.0,
         }
     }
 }
@@ -384,7 +410,7 @@ impl EstimatorSpec {
             ),
             #[cfg(feature = "fusion-ekf")]
             Self::Fusion(fusion) => EstimatorChoice::Fusion {
-                settings: fusion.build(sensors)?,
+                settings: fusion.build(period_s, sensors)?,
                 guide: heading_observer,
             },
             #[cfg(not(feature = "fusion-ekf"))]
@@ -428,6 +454,7 @@ impl<'a> arbitrary::Arbitrary<'a> for EstimatorSpec {
                     },
                     edge_constraint: u.arbitrary()?,
                     particle_seed: u.arbitrary()?,
+                    fix_latency_s: float(u, 0.01)?,
                 })
             }
         })

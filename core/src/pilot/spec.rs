@@ -769,6 +769,45 @@ mod tests {
         );
     }
 
+    /// The fix's latency is given in seconds and kept as control periods;
+    /// a negative, non-finite or too old one is refused by its key.
+    #[cfg(feature = "fusion-ekf")]
+    #[test]
+    fn the_fix_latency_becomes_periods_and_is_refused_by_its_key() {
+        use crate::estimation::fusion::{MAX_FIX_AGE_TICKS, PoseFilterError};
+        let mut s = PilotSpec::EXAMPLE;
+        let fusion = |fix_latency_s| {
+            EstimatorSpec::Fusion(FusionSpec {
+                fix_latency_s,
+                ..FusionSpec::default()
+            })
+        };
+        s.tracker.estimator = fusion(2.0 * s.tracker.period_s);
+        let EstimatorSpec::Fusion(spec) = s.tracker.estimator else {
+            unreachable!()
+        };
+        let settings = spec.build(s.tracker.period_s, &s.tracker.sensors).unwrap();
+        assert!((settings.fix_age_ticks() - 2.0).abs() < 1e-6);
+        for bad in [
+            -0.001,
+            f32::NAN,
+            f32::INFINITY,
+            (MAX_FIX_AGE_TICKS + 1.0) * s.tracker.period_s,
+        ] {
+            s.tracker.estimator = fusion(bad);
+            let refused = s.build().map(|_| ()).unwrap_err();
+            assert_eq!(
+                refused,
+                SpecError::Estimator(EstimatorSpecError::Fusion(PoseFilterError::FixAge)),
+                "{bad}"
+            );
+            let SpecError::Estimator(e) = refused else {
+                unreachable!()
+            };
+            assert_eq!(e.field_key(), Some("fix_latency_s"));
+        }
+    }
+
     /// A floor without a grid (tag spacing 0: a tag map) takes the fusion
     /// estimator with a range reader and an explicit blind distance, and
     /// refuses it otherwise, saying which.
@@ -801,7 +840,9 @@ mod tests {
             let EstimatorSpec::Fusion(fusion) = s.tracker.estimator else {
                 unreachable!()
             };
-            let settings = fusion.build(&s.tracker.sensors).unwrap();
+            let settings = fusion
+                .build(s.tracker.period_s, &s.tracker.sensors)
+                .unwrap();
             assert!(!settings.on_grid());
             assert_eq!(settings.max_blind_distance_m(), limit);
             assert!(s.build().is_ok());

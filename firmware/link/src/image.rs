@@ -38,7 +38,7 @@ use crate::{RouteRefusal, RouteSpec};
 pub const MAGIC: [u8; 8] = *b"WMRROBOT";
 /// Bump when the layout (or [`PilotSpec`]'s shape) changes (what each
 /// version changed: `CHANGELOG.md`, "Robot image versions").
-pub const IMAGE_VERSION: u16 = 4;
+pub const IMAGE_VERSION: u16 = 5;
 /// Bytes of one tag record: id `u64`, `x`, `y` `f32`.
 pub const TAG_RECORD_BYTES: usize = 16;
 

@@ -24,6 +24,9 @@ pub enum PoseFilterError {
     ReadRadius,
     /// Blind-distance limit negative or not finite.
     BlindDistance,
+    /// The fix's age negative, not finite, or more than
+    /// [`crate::estimation::fusion::MAX_FIX_AGE_TICKS`] control periods.
+    FixAge,
     /// A floor without a grid (a tag map) with a nearest-tag reader: the
     /// cell measurements need the grid's spacing, so a tag map needs a
     /// range reader (read radius > 0).
@@ -54,6 +57,13 @@ impl core::fmt::Display for PoseFilterError {
                 );
             }
             Self::BlindDistance => "max_blind_distance_m must be finite and ≥ 0 m",
+            Self::FixAge => {
+                return write!(
+                    f,
+                    "fix_latency_s must be finite, ≥ 0 s and at most {} control periods",
+                    crate::estimation::fusion::MAX_FIX_AGE_TICKS
+                );
+            }
             Self::TagMapReader => {
                 "a tag map (no grid spacing) needs a range reader, read_radius_m > 0 m: \
                  the nearest-tag reader's cell measurements need a grid's tag_spacing_m"

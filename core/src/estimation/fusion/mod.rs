@@ -117,6 +117,7 @@ pub struct FusionSettings {
     read_radius_m: f32,
     max_blind_distance_m: f32,
     edge_constraint: bool,
+    fix_age_ticks: f32,
 }
 
 impl FusionSettings {
@@ -185,6 +186,7 @@ impl FusionSettings {
             read_radius_m,
             max_blind_distance_m: 0.0,
             edge_constraint: false,
+            fix_age_ticks: 0.0,
         })
     }
 
@@ -206,6 +208,32 @@ impl FusionSettings {
             edge_constraint,
             ..self
         }
+    }
+
+    /// The age of each fix when the tick that uses it runs, in control
+    /// periods: from the reader's read to the tick's poll (its processing,
+    /// the frame's time on the UART, the wait for the poll). Each
+    /// measurement is moved that many ticks of the last tick's travel on
+    /// ([`TagCellTracker::with_fix_age_ticks`], "The fix's age" in
+    /// [`tag_cells`]). Default 0: the fix is of the tick's own position.
+    ///
+    /// # Errors
+    /// [`PoseFilterError::FixAge`] unless finite and in
+    /// `[0, MAX_FIX_AGE_TICKS]` ([`MAX_FIX_AGE_TICKS`]).
+    pub fn with_fix_age_ticks(self, fix_age_ticks: f32) -> Result<Self, PoseFilterError> {
+        if !(fix_age_ticks.is_finite() && (0.0..=MAX_FIX_AGE_TICKS).contains(&fix_age_ticks)) {
+            return Err(PoseFilterError::FixAge);
+        }
+        Ok(Self {
+            fix_age_ticks,
+            ..self
+        })
+    }
+
+    /// The fix's age, control periods.
+    #[must_use]
+    pub fn fix_age_ticks(&self) -> f32 {
+        self.fix_age_ticks
     }
 
     /// The failsafe on distance instead of time: the tracker takes the fix
@@ -344,9 +372,10 @@ impl FusionEstimator {
             heading_resets: 0,
             start_heading_rad: None,
             // The spacing is validated by `FusionSettings::new`.
-            cells: TagCellTracker::with_validated_spacing(
+            cells: TagCellTracker::with_validated(
                 settings.tag_spacing_m,
                 settings.edge_constraint,
+                settings.fix_age_ticks,
             ),
         }
     }
@@ -410,16 +439,16 @@ impl FusionEstimator {
             let pose = filter.pose();
             let relocalisations = filter.counters().relocalisations;
             let radius = self.settings.read_radius_m;
+            let (sin_theta, cos_theta) = math::sincos(pose.heading_rad);
+            let last_step = Vec2::new(odometry.ds_m * cos_theta, odometry.ds_m * sin_theta);
             if radius > 0.0 {
                 if let Some(measurement) =
                     self.cells
-                        .range_measurement(tag, pose.heading_rad, travel_m, radius)
+                        .range_measurement(tag, pose.heading_rad, travel_m, radius, last_step)
                 {
                     filter.correct(&measurement);
                 }
             } else {
-                let (sin_theta, cos_theta) = math::sincos(pose.heading_rad);
-                let last_step = Vec2::new(odometry.ds_m * cos_theta, odometry.ds_m * sin_theta);
                 // The particle filter takes every read as its cell; the
                 // others the tracker's measurements.
                 if filter
@@ -707,6 +736,11 @@ impl RunningFilter {
     }
 }
 
+/// The largest fix age [`FusionSettings::with_fix_age_ticks`] takes, control
+/// periods (a second at 100 Hz: older fixes are not fixes of where the
+/// robot is).
+pub const MAX_FIX_AGE_TICKS: f32 = 100.0;
+
 /// The variance of a heading known from outside
 /// ([`PoseEstimator::assume_heading`]), rad²: a standard deviation of
 /// 0.05 rad (2.9°), a robot parked at a station by hand or by a dock.
@@ -888,6 +922,82 @@ mod tests {
         ));
     }
 
+    /// A fix one tick old (the simulator's reader over its UART): a
+    /// crossing is placed a tick and a half of travel past the boundary,
+    /// a cell and a range reader's entry point a tick of travel on; 0 keeps
+    /// the tick's own position.
+    #[test]
+    fn a_fix_s_age_moves_its_measurements_on_by_the_travel_since_the_read() {
+        let step = Vec2::new(0.004, -0.002);
+        let aged = |ticks| {
+            TagCellTracker::new(0.1)
+                .unwrap()
+                .with_fix_age_ticks(ticks)
+                .unwrap()
+        };
+        for (ticks, beyond) in [(0.0, 0.5), (1.0, 1.5), (2.5, 3.0)] {
+            let mut cells = aged(ticks);
+            let _ = cells.measurements(Vec2::new(0.0, 0.0), step, Vec2::ZERO);
+            let crossing = cells.measurements(Vec2::new(0.1, 0.0), step, Vec2::ZERO);
+            match crossing.first() {
+                Some(PositionMeasurement::X { value_m, .. }) => {
+                    let expected = 0.05 + beyond * step.x;
+                    assert!((value_m - expected).abs() < 1e-7, "{ticks}: {value_m}");
+                }
+                other => panic!("{ticks}: {other:?}"),
+            }
+            let cell = cells.cell(Vec2::new(0.1, 0.0), step).unwrap();
+            assert_eq!(cell.lag, step.scaled(ticks));
+            // A robot whose span during the read's tick, moved on by the
+            // lag, just reaches the cell's near edge is in it; a millimetre
+            // (the edge's softening) short of it is not.
+            let edge = 0.05 + cell.lag.x;
+            assert!(cell.distance_sq(edge, 0.0) < 1e-6);
+            assert!(cell.distance_sq(edge - 0.001 - 1e-6, 0.0) > 0.9);
+            let mut range = aged(ticks);
+            let Some(PositionMeasurement::Ellipse { position, .. }) =
+                range.range_measurement(Vec2::new(1.0, 1.0), 0.0, 0.0, 0.05, step)
+            else {
+                panic!("{ticks}: no entry point");
+            };
+            let back = core::f32::consts::FRAC_PI_4 * 0.05;
+            assert!((position.x - (1.0 - back + ticks * step.x)).abs() < 1e-6);
+            assert!((position.y - (1.0 + ticks * step.y)).abs() < 1e-6);
+        }
+        assert!(
+            TagCellTracker::new(0.1)
+                .unwrap()
+                .with_fix_age_ticks(-1.0)
+                .is_none()
+        );
+        assert!(
+            TagCellTracker::new(0.1)
+                .unwrap()
+                .with_fix_age_ticks(f32::NAN)
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn a_fix_age_beyond_its_range_is_refused() {
+        let settings = FusionSettings::new(config(), 0.1, 0.0).unwrap();
+        for ticks in [-0.5, f32::NAN, f32::INFINITY, MAX_FIX_AGE_TICKS + 1.0] {
+            assert_eq!(
+                settings.with_fix_age_ticks(ticks),
+                Err(PoseFilterError::FixAge),
+                "{ticks}"
+            );
+        }
+        for ticks in [0.0, 1.0, MAX_FIX_AGE_TICKS] {
+            assert_eq!(
+                settings
+                    .with_fix_age_ticks(ticks)
+                    .map(|s| s.fix_age_ticks()),
+                Ok(ticks)
+            );
+        }
+    }
+
     proptest! {
         /// Finite input keeps the state finite and the covariance symmetric
         /// with a non-negative diagonal.
@@ -958,7 +1068,7 @@ mod tests {
         let Some(PositionMeasurement::Ellipse {
             position,
             covariance_m2: [xx, xy, yy],
-        }) = cells.range_measurement(tag, 0.0, 0.0, 0.05)
+        }) = cells.range_measurement(tag, 0.0, 0.0, 0.05, Vec2::ZERO)
         else {
             panic!("first read");
         };
@@ -973,19 +1083,27 @@ mod tests {
         let Some(PositionMeasurement::Ellipse {
             covariance_m2: [txx, _, tyy],
             ..
-        }) = turned.range_measurement(tag, core::f32::consts::FRAC_PI_2, 0.0, 0.05)
+        }) = turned.range_measurement(tag, core::f32::consts::FRAC_PI_2, 0.0, 0.05, Vec2::ZERO)
         else {
             panic!("first read");
         };
         assert!((txx - yy).abs() < 1e-8 && (tyy - xx).abs() < 1e-8);
         // Repeats while in range: nothing, counted.
-        assert!(cells.range_measurement(tag, 0.0, 0.02, 0.05).is_none());
-        assert_eq!(cells.same_tag_reads(), 1);
-        // The same tag after driving more than 2r: a new pass.
-        assert!(cells.range_measurement(tag, 0.0, 0.2, 0.05).is_some());
         assert!(
             cells
-                .range_measurement(Vec2::new(f32::NAN, 0.0), 0.0, 1.0, 0.05)
+                .range_measurement(tag, 0.0, 0.02, 0.05, Vec2::ZERO)
+                .is_none()
+        );
+        assert_eq!(cells.same_tag_reads(), 1);
+        // The same tag after driving more than 2r: a new pass.
+        assert!(
+            cells
+                .range_measurement(tag, 0.0, 0.2, 0.05, Vec2::ZERO)
+                .is_some()
+        );
+        assert!(
+            cells
+                .range_measurement(Vec2::new(f32::NAN, 0.0), 0.0, 1.0, 0.05, Vec2::ZERO)
                 .is_none()
         );
     }

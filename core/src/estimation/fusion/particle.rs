@@ -399,6 +399,7 @@ mod tests {
                     centre: Vec2::new(x, y),
                     half_width_m: half,
                     sweep: Vec2::new(sweep, -sweep),
+                    lag: Vec2::new(0.5 * sweep, 0.0),
                     edge_std_m: edge,
                 };
                 let _ = filter.correct_cell(&cell);

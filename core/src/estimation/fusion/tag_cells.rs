@@ -15,6 +15,19 @@
 //! A particle filter can take the read as what it is instead, the cell
 //! itself ([`TagCellTracker::cell`], [`TagCell`]), on every read: see
 //! [`crate::estimation::fusion::particle`].
+//!
+//! # The fix's age
+//! A fix reaches the tick some time after the reader read the tag: the
+//! reader's processing, the frame's time on its UART and the wait for the
+//! tick's poll ([`TagCellTracker::with_fix_age_ticks`], in control
+//! periods; the simulator's reader reads at a tick and is polled at the
+//! next, one period). The robot has driven on meanwhile, at the speed of
+//! the last tick, so every measurement is moved that far along the last
+//! tick's displacement: a crossing is `age + ½` ticks of travel behind
+//! the robot instead of `½`, a range reader's entry point `age` ticks, a
+//! cell `age` ticks. Unmodelled, the age is a bias along the motion of a
+//! tick's travel per period of age (5 mm at 0.5 m/s and 10 ms), which the
+//! filters take for a heading error wherever the robot turns.
 
 use crate::estimation::fusion::gate::{PI_SQUARED, PositionMeasurement};
 use crate::geometry::Vec2;
@@ -39,6 +52,7 @@ pub struct TagCellTracker {
     same_tag_reads: u32,
     edge_corrections: u32,
     edges: bool,
+    fix_age_ticks: f32,
 }
 
 /// A nearest-tag read as what it says exactly: the robot was in the read
@@ -57,6 +71,9 @@ pub struct TagCell {
     pub half_width_m: f32,
     /// The robot's displacement during the last tick, m.
     pub sweep: Vec2,
+    /// How far the robot drove since the read, m (the fix's age times
+    /// `sweep`; [`TagCellTracker::with_fix_age_ticks`]).
+    pub lag: Vec2,
     /// The softening of the cell's edges, m (> 0).
     pub edge_std_m: f32,
 }
@@ -64,8 +81,8 @@ pub struct TagCell {
 impl TagCell {
     /// Twice the cell's negative log-likelihood at the position `(x, y)`
     /// now (nats, up to a constant): per axis, the gap `g` between the
-    /// cell and the span `[p − max(sweep, 0), p − min(sweep, 0)]` the robot
-    /// covered during the tick, `Σ_axis (max(g, 0)/σ_e)²`: 0 if the span
+    /// cell and the span `[p − lag − max(sweep, 0), p − lag − min(sweep, 0)]`
+    /// the robot covered during the tick of the read, `Σ_axis (max(g, 0)/σ_e)²`: 0 if the span
     /// meets the cell, a Gaussian tail of `σ_e` outside it. NaN for a
     /// non-finite position (the filter gives such a particle no weight).
     #[must_use]
@@ -85,13 +102,13 @@ impl TagCell {
                 0.0
             }
         };
-        let dx = outside(x, self.centre.x, self.sweep.x);
-        let dy = outside(y, self.centre.y, self.sweep.y);
+        let dx = outside(x - self.lag.x, self.centre.x, self.sweep.x);
+        let dy = outside(y - self.lag.y, self.centre.y, self.sweep.y);
         dx * dx + dy * dy
     }
 
     /// The cell as a Gaussian of the same moments, centred half the sweep
-    /// ahead of the tag with variance `h²/3 + sweep²/12 + σ_e²` per axis
+    /// and the lag ahead of the tag with variance `h²/3 + sweep²/12 + σ_e²` per axis
     /// (the uniform square's `(2h)²/12`, the sweep's uniform share): what
     /// the gate and the re-localisation of
     /// [`crate::estimation::fusion::gate`] take.
@@ -101,7 +118,10 @@ impl TagCell {
         let e2 = self.edge_std_m * self.edge_std_m;
         let (sx, sy) = (self.sweep.x, self.sweep.y);
         PositionMeasurement::Point {
-            position: Vec2::new(self.centre.x + 0.5 * sx, self.centre.y + 0.5 * sy),
+            position: Vec2::new(
+                self.centre.x + self.lag.x + 0.5 * sx,
+                self.centre.y + self.lag.y + 0.5 * sy,
+            ),
             variance_m2: [
                 h * h / 3.0 + sx * sx / 12.0 + e2,
                 h * h / 3.0 + sy * sy / 12.0 + e2,
@@ -123,19 +143,31 @@ impl TagCellTracker {
             same_tag_reads: 0,
             edge_corrections: 0,
             edges: false,
+            fix_age_ticks: 0.0,
         })
     }
 
-    /// For a spacing already validated (finite and positive), with the
-    /// edge constraint on or off.
-    pub(super) fn with_validated_spacing(spacing_m: f32, edges: bool) -> Self {
+    /// For a spacing and a fix age already validated (finite, the spacing
+    /// positive, the age ≥ 0), with the edge constraint on or off.
+    pub(super) fn with_validated(spacing_m: f32, edges: bool, fix_age_ticks: f32) -> Self {
         Self {
             spacing_m,
             last_tag: None,
             same_tag_reads: 0,
             edge_corrections: 0,
             edges,
+            fix_age_ticks,
         }
+    }
+
+    /// The age of each fix when its tick runs, in control periods (module
+    /// docs, "The fix's age"; default 0); `None` unless finite and ≥ 0.
+    #[must_use]
+    pub fn with_fix_age_ticks(self, fix_age_ticks: f32) -> Option<Self> {
+        (fix_age_ticks.is_finite() && fix_age_ticks >= 0.0).then_some(Self {
+            fix_age_ticks,
+            ..self
+        })
     }
 
     /// Whether reads of an unchanged tag pull an estimate that has left its
@@ -170,7 +202,8 @@ impl TagCellTracker {
 
     /// The measurement of a read of `tag` by a reader of range `radius_m`
     /// ([`crate::estimation::fusion::FusionSettings::with_read_radius`]) on a robot heading `heading`
-    /// (rad), `travel_m` driven since the last read: the first read of each
+    /// (rad), `travel_m` driven since the last read, `last_step` during the
+    /// last tick (moved on by the fix's age, module docs): the first read of each
     /// pass (a different tag, or the same one after more than `2r` driven:
     /// a range reader repeats its read while the tag stays in range, so a
     /// gap in the reads alone does not end a pass) is where the antenna
@@ -188,8 +221,9 @@ impl TagCellTracker {
         heading: f32,
         travel_m: f32,
         radius_m: f32,
+        last_step: Vec2,
     ) -> Option<PositionMeasurement> {
-        if !(tag.is_finite() && heading.is_finite()) {
+        if !(tag.is_finite() && heading.is_finite() && last_step.is_finite()) {
             return None;
         }
         if self.last_tag.replace(tag) == Some(tag) && travel_m <= 2.0 * radius_m {
@@ -200,8 +234,9 @@ impl TagCellTracker {
         let r2 = radius_m * radius_m;
         let (along, across) = (ENTRY_ALONG_VARIANCE * r2, r2 / 3.0);
         let (s, c) = math::sincos(heading);
+        let lag = last_step.scaled(self.fix_age_ticks);
         Some(PositionMeasurement::Ellipse {
-            position: Vec2::new(tag.x - back * c, tag.y - back * s),
+            position: Vec2::new(tag.x - back * c + lag.x, tag.y - back * s + lag.y),
             // R(θ) diag(along, across) R(θ)ᵀ.
             covariance_m2: [
                 along * c * c + across * s * s,
@@ -230,13 +265,15 @@ impl TagCellTracker {
         {
             self.same_tag_reads = self.same_tag_reads.saturating_add(1);
         }
+        // `max`/`min`, not `clamp`: `clamp` has a panic path (for bounds
+        // the optimiser cannot prove ordered), which the release firmware
+        // must not link.
+        let sweep = Vec2::new(last_step.x.max(-s).min(s), last_step.y.max(-s).min(s));
         Some(TagCell {
             centre: tag,
             half_width_m: 0.5 * s,
-            // `max`/`min`, not `clamp`: `clamp` has a panic path (for
-            // bounds the optimiser cannot prove ordered), which the
-            // release firmware must not link.
-            sweep: Vec2::new(last_step.x.max(-s).min(s), last_step.y.max(-s).min(s)),
+            sweep,
+            lag: sweep.scaled(self.fix_age_ticks),
             edge_std_m: CELL_EDGE_STD_M,
         })
     }
@@ -298,12 +335,14 @@ impl TagCellTracker {
             });
             return out;
         }
-        // The robot crossed the boundary during the last tick and is now
-        // beyond it by a uniform fraction of that tick's travel.
+        // The robot crossed the boundary during the tick of the read and is
+        // now beyond it by a uniform fraction of that tick's travel, plus
+        // the travel of the fix's age (module docs).
+        let beyond = 0.5 + self.fix_age_ticks;
         let crossing = |from: f32, to: f32, step: f32| {
             let boundary = 0.5 * (from + to);
             let travel = step.abs().min(s);
-            let value = boundary + (to - from).signum() * 0.5 * travel;
+            let value = boundary + (to - from).signum() * beyond * travel;
             // Travel²/12, plus 1 mm² for the reader's own position error.
             (value, travel * travel / 12.0 + 1e-6)
         };
