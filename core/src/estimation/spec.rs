@@ -203,7 +203,7 @@ pub struct FusionSpec {
     /// reader's read to the tick's poll (the reader's processing, the
     /// frame's time on its UART, the wait for the poll). The filters place
     /// each fix that far behind the robot along its motion
-    /// ([`FusionSettings::with_fix_age_ticks`]). Default 0: a fix of the
+    /// (the core's `FusionSettings::with_fix_age_ticks`). Default 0: a fix of the
     /// tick's own position. The simulator's reader over its UART reads at
     /// a tick and its frame is polled at the next: one control period
     /// (`period_s`) when the frame is shorter than a period.
