@@ -277,14 +277,8 @@ impl FusionSpec {
         })
         .and_then(|settings| settings.with_max_blind_distance(self.max_blind_distance_m(sensors)))
         .and_then(|settings| {
-            // 0 stays exactly 0 (no division's rounding); a NaN period
-            // makes a NaN age, refused.
-            let ticks = if self.fix_latency_s == 0.0 {
-                0.0
-            } else {
-                self.fix_latency_s / period_s
-            };
-            settings.with_fix_age_ticks(ticks)
+            // A NaN or infinite latency makes an age that is refused.
+            settings.with_fix_age_ticks(self.fix_latency_s / period_s)
         })
         .map(|settings| {
             settings

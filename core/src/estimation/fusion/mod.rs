@@ -439,16 +439,19 @@ impl FusionEstimator {
             let pose = filter.pose();
             let relocalisations = filter.counters().relocalisations;
             let radius = self.settings.read_radius_m;
-            let (sin_theta, cos_theta) = math::sincos(pose.heading_rad);
-            let last_step = Vec2::new(odometry.ds_m * cos_theta, odometry.ds_m * sin_theta);
             if radius > 0.0 {
-                if let Some(measurement) =
-                    self.cells
-                        .range_measurement(tag, pose.heading_rad, travel_m, radius, last_step)
-                {
+                if let Some(measurement) = self.cells.range_measurement(
+                    tag,
+                    pose.heading_rad,
+                    travel_m,
+                    radius,
+                    odometry.ds_m,
+                ) {
                     filter.correct(&measurement);
                 }
             } else {
+                let (sin_theta, cos_theta) = math::sincos(pose.heading_rad);
+                let last_step = Vec2::new(odometry.ds_m * cos_theta, odometry.ds_m * sin_theta);
                 // The particle filter takes every read as its cell; the
                 // others the tracker's measurements.
                 if filter
@@ -956,13 +959,14 @@ mod tests {
             assert!(cell.distance_sq(edge - 0.001 - 1e-6, 0.0) > 0.9);
             let mut range = aged(ticks);
             let Some(PositionMeasurement::Ellipse { position, .. }) =
-                range.range_measurement(Vec2::new(1.0, 1.0), 0.0, 0.0, 0.05, step)
+                range.range_measurement(Vec2::new(1.0, 1.0), 0.0, 0.0, 0.05, step.x)
             else {
                 panic!("{ticks}: no entry point");
             };
             let back = core::f32::consts::FRAC_PI_4 * 0.05;
             assert!((position.x - (1.0 - back + ticks * step.x)).abs() < 1e-6);
-            assert!((position.y - (1.0 + ticks * step.y)).abs() < 1e-6);
+            // Heading 0: the step is along x only.
+            assert!((position.y - 1.0).abs() < 1e-6);
         }
         assert!(
             TagCellTracker::new(0.1)
@@ -1068,7 +1072,7 @@ mod tests {
         let Some(PositionMeasurement::Ellipse {
             position,
             covariance_m2: [xx, xy, yy],
-        }) = cells.range_measurement(tag, 0.0, 0.0, 0.05, Vec2::ZERO)
+        }) = cells.range_measurement(tag, 0.0, 0.0, 0.05, 0.0)
         else {
             panic!("first read");
         };
@@ -1083,27 +1087,19 @@ mod tests {
         let Some(PositionMeasurement::Ellipse {
             covariance_m2: [txx, _, tyy],
             ..
-        }) = turned.range_measurement(tag, core::f32::consts::FRAC_PI_2, 0.0, 0.05, Vec2::ZERO)
+        }) = turned.range_measurement(tag, core::f32::consts::FRAC_PI_2, 0.0, 0.05, 0.0)
         else {
             panic!("first read");
         };
         assert!((txx - yy).abs() < 1e-8 && (tyy - xx).abs() < 1e-8);
         // Repeats while in range: nothing, counted.
-        assert!(
-            cells
-                .range_measurement(tag, 0.0, 0.02, 0.05, Vec2::ZERO)
-                .is_none()
-        );
+        assert!(cells.range_measurement(tag, 0.0, 0.02, 0.05, 0.0).is_none());
         assert_eq!(cells.same_tag_reads(), 1);
         // The same tag after driving more than 2r: a new pass.
+        assert!(cells.range_measurement(tag, 0.0, 0.2, 0.05, 0.0).is_some());
         assert!(
             cells
-                .range_measurement(tag, 0.0, 0.2, 0.05, Vec2::ZERO)
-                .is_some()
-        );
-        assert!(
-            cells
-                .range_measurement(Vec2::new(f32::NAN, 0.0), 0.0, 1.0, 0.05, Vec2::ZERO)
+                .range_measurement(Vec2::new(f32::NAN, 0.0), 0.0, 1.0, 0.05, 0.0)
                 .is_none()
         );
     }

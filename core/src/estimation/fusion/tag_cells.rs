@@ -202,8 +202,9 @@ impl TagCellTracker {
 
     /// The measurement of a read of `tag` by a reader of range `radius_m`
     /// ([`crate::estimation::fusion::FusionSettings::with_read_radius`]) on a robot heading `heading`
-    /// (rad), `travel_m` driven since the last read, `last_step` during the
-    /// last tick (moved on by the fix's age, module docs): the first read of each
+    /// (rad), `travel_m` driven since the last read, `step_m` during the
+    /// last tick (along the heading: the entry point is moved on by the
+    /// fix's age times that step, module docs): the first read of each
     /// pass (a different tag, or the same one after more than `2r` driven:
     /// a range reader repeats its read while the tag stays in range, so a
     /// gap in the reads alone does not end a pass) is where the antenna
@@ -221,9 +222,9 @@ impl TagCellTracker {
         heading: f32,
         travel_m: f32,
         radius_m: f32,
-        last_step: Vec2,
+        step_m: f32,
     ) -> Option<PositionMeasurement> {
-        if !(tag.is_finite() && heading.is_finite() && last_step.is_finite()) {
+        if !(tag.is_finite() && heading.is_finite() && step_m.is_finite()) {
             return None;
         }
         if self.last_tag.replace(tag) == Some(tag) && travel_m <= 2.0 * radius_m {
@@ -234,7 +235,7 @@ impl TagCellTracker {
         let r2 = radius_m * radius_m;
         let (along, across) = (ENTRY_ALONG_VARIANCE * r2, r2 / 3.0);
         let (s, c) = math::sincos(heading);
-        let lag = last_step.scaled(self.fix_age_ticks);
+        let lag = Vec2::new(c, s).scaled(step_m * self.fix_age_ticks);
         Some(PositionMeasurement::Ellipse {
             position: Vec2::new(tag.x - back * c + lag.x, tag.y - back * s + lag.y),
             // R(θ) diag(along, across) R(θ)ᵀ.
