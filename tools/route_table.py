@@ -91,6 +91,13 @@ if VARIANTS:
         # A finer floor sends more frames: the line at 1 MBd carries them.
         return lambda t: replaced(replaced(t, SPACING, f"spacing_m = {s}\n"), BAUD, "baud = 1000000")
 
+    def slipping(v):
+        # The plant's wheels slip: each rolls with a travel variance of `v`
+        # per metre (the filter keeps its own setting unless told).
+        return lambda t: replaced(
+            t, "substeps = 10\n",
+            f"substeps = 10\n\n[plant.wheels]\ntravel_variance_m2_per_m = {v}\n")
+
     def on_station(t):
         return replaced(t, RADIUS, "start_radius_m = [0.0, 0.0]")
 
@@ -111,6 +118,10 @@ if VARIANTS:
         ("filter wheel noise 1e-4 m²/m", wheels("1e-4")),
         ("filter wheel noise 1e-5 m²/m", wheels("1e-5")),
         ("filter wheel noise 1e-6 m²/m", wheels("1e-6")),
+        ("wheels slipping 1e-6 m²/m, filter at its default", slipping("1e-6")),
+        ("wheels slipping 1e-6 m²/m, filter matched", both(slipping("1e-6"), wheels("1e-6"))),
+        ("wheels slipping 1e-5 m²/m, filter at its default", slipping("1e-5")),
+        ("wheels slipping 1e-5 m²/m, filter matched", both(slipping("1e-5"), wheels("1e-5"))),
         ("started on the station (radius 0)", on_station),
         ("5 cm floor", spacing("0.05")),
         ("2 cm floor", spacing("0.02")),
@@ -122,6 +133,8 @@ if VARIANTS:
          both(on_corners, on_station)),
         ("stations on cell corners, started on the station, wheel noise 1e-5",
          both(on_corners, on_station, wheels("1e-5"))),
+        ("stations on cell corners, started on the station, wheels slipping 1e-6 m²/m, "
+         "filter matched", both(on_corners, on_station, slipping("1e-6"), wheels("1e-6"))),
     ]
     print("| fusion EKF, heading known | done | stop position p50 / p90 / worst (m) "
           "| worst stop heading (°) | cross-track p50 / worst (m) | worst time ratio |")
