@@ -713,6 +713,28 @@ fn tick(k: u32, counts: u32) -> HostMessage {
     })
 }
 
+/// A configured firmware left silent past its timeout reports it
+/// (`LinkSilent`, motors stopped), as it does when a loaded machine keeps
+/// the host from its next configuration step; the host checks the report
+/// and takes the answer after it, so the next configuration succeeds.
+#[test]
+fn a_silence_report_between_configuration_steps_is_checked_and_passed_over() {
+    let mut target = QemuTarget::start(&firmware(), &options()).unwrap();
+    target.configure(configure(), &[], &[]).unwrap();
+    std::thread::sleep(Duration::from_millis(
+        3 * u64::from(wmr_link::LINK_TIMEOUT_MS),
+    ));
+    target.configure(configure(), &[], &[]).unwrap();
+    let TargetMessage::Finished(finished) = target.exchange(&HostMessage::Finish).unwrap() else {
+        panic!("no report")
+    };
+    assert!(
+        finished.counters.link.timeouts >= 1,
+        "{:?}",
+        finished.counters.link
+    );
+}
+
 /// The firmware refuses what the core refuses, and ticks before a
 /// configuration; it counts corrupt frames and carries on; a silent link
 /// stops the motors.

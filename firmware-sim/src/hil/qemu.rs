@@ -522,6 +522,20 @@ impl QemuTarget {
         self.receive()
     }
 
+    /// [`Self::exchange`] for a step of the configuration: a `LinkSilent`
+    /// report that comes first is checked and counted as during a tick
+    /// (a loaded machine kept the host from its next step past the
+    /// firmware's timeout: the motors are at rest before the run anyway)
+    /// and the answer is awaited after it.
+    fn configuration_step(&mut self, message: &HostMessage) -> anyhow::Result<TargetMessage> {
+        let mut answer = self.exchange(message)?;
+        while let TargetMessage::LinkSilent { motors, silent_ms } = answer {
+            self.silence_reported(motors, silent_ms)?;
+            answer = self.receive()?;
+        }
+        Ok(answer)
+    }
+
     /// Configures the run: `configure`, then, if it announces a tag map,
     /// `map`'s chunks ([`crate::simulation::hil_map_chunks`]), each sent
     /// once the firmware has acknowledged the tags before it, then, for a
@@ -539,14 +553,14 @@ impl QemuTarget {
         map: &[MapChunk],
         route: &[HostMessage],
     ) -> anyhow::Result<()> {
-        let mut answer = self.exchange(&HostMessage::Configure(configure))?;
+        let mut answer = self.configuration_step(&HostMessage::Configure(configure))?;
         let mut asked = "Configure".to_owned();
         for chunk in map {
             match answer {
                 TargetMessage::MapLoaded { tags } if tags == chunk.first => {}
                 other => return not_configured(&asked, other, map),
             }
-            answer = self.exchange(&HostMessage::MapChunk(chunk.clone()))?;
+            answer = self.configuration_step(&HostMessage::MapChunk(chunk.clone()))?;
             asked = format!("the map chunk from tag {}", chunk.first);
         }
         for message in route {
@@ -556,7 +570,7 @@ impl QemuTarget {
                     if waypoints == chunk.first => {}
                 (_, other) => return not_configured(&asked, other, map),
             }
-            answer = self.exchange(message)?;
+            answer = self.configuration_step(message)?;
             asked = match message {
                 HostMessage::RouteChunk(chunk) => {
                     format!("the route chunk from waypoint {}", chunk.first)
