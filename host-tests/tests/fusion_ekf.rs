@@ -162,60 +162,111 @@ fn random_slip_with_the_cell_edge_constraint() {
 /// `wheel_variance_per_m = 3e-5`, `edge_constraint = true`)
 /// on the simulator's exact-odometry unicycle and on the full device
 /// stack, whose plants have no slip. Medians over 32 starts
-/// (`host_tests::ENSEMBLE_OFFSETS_M`), max / mean with the f32 kernels
-/// [libm's sinf/cosf]: EKF 0.0177 [0.0222] / 0.0013 [0.0014] and 0.0175
-/// [0.0205] / 0.0021 [0.0023] m, UKF 0.0067 / 0.0008 and 0.0077 / 0.0019 m
-/// (docs/fusion.md). The EKF's spread is wide (0.0044–0.0256 m on the
-/// unicycle): a single run can be one of its best starts (0.0045 m), so
-/// the test holds the ensemble's medians.
+/// (`host_tests::ENSEMBLE_OFFSETS_M`), max / mean with the f32 kernels:
+/// EKF 0.0216 / 0.0014 and 0.0222 / 0.0025 m, UKF 0.0171 / 0.0013 and
+/// 0.0204 / 0.0023 m (docs/fusion.md). The EKF's spread is wide
+/// (0.0108–0.0269 m on the unicycle): a single run can be one of its best
+/// starts, so the test holds the ensemble's medians: each filter within
+/// its bounds, and the UKF within 1.5× of the EKF's medians (issue 32's
+/// goal for the filters' consistency). The UKF's 0.0067 / 0.0008 m here
+/// before its centre mean (docs/fusion.md, "The UKF at the default wheel
+/// noise") came from the points' mean lagging the motion, which on these
+/// slip-free plants kept the estimate off the cell edges; on wheels that
+/// do slip (`[plant.wheels]`) the two means give the same errors.
 #[test]
 fn the_slip_tuning_in_the_pilot() {
+    // (scenario, EKF bounds, UKF bounds) on the median max / mean, m.
     let runs = [
         (
-            FusionFilterSpec::Ekf,
             "figure_eight_rfid_fusion_ekf",
-            0.025,
-            0.0016,
+            (0.025, 0.0016),
+            (0.025, 0.0016),
         ),
-        (
-            FusionFilterSpec::Ekf,
-            "figure_eight_rfid_full_stack",
-            0.03,
-            0.003,
-        ),
-        (
-            FusionFilterSpec::Ukf,
-            "figure_eight_rfid_fusion_ekf",
-            0.009,
-            0.0011,
-        ),
-        (
-            FusionFilterSpec::Ukf,
-            "figure_eight_rfid_full_stack",
-            0.01,
-            0.0025,
-        ),
+        ("figure_eight_rfid_full_stack", (0.03, 0.003), (0.03, 0.003)),
     ];
     let mut failures = Vec::new();
-    for (kind, name, max_bound, mean_bound) in runs {
-        // The ensemble of starts (`host_tests::ENSEMBLE_OFFSETS_M`): the
-        // bounds hold for its median.
-        let ensemble = host_tests::run_scenario_ensemble(name, |scenario| {
-            scenario.estimator = EstimatorSpec::Fusion(FusionSpec {
-                filter: kind,
-                wheel_variance_per_m: 3e-5,
-                edge_constraint: true,
-                ..FusionSpec::default()
+    for (name, ekf_bounds, ukf_bounds) in runs {
+        let medians = |kind| {
+            // The ensemble of starts (`host_tests::ENSEMBLE_OFFSETS_M`):
+            // the bounds hold for its median.
+            let ensemble = host_tests::run_scenario_ensemble(name, |scenario| {
+                scenario.estimator = EstimatorSpec::Fusion(FusionSpec {
+                    filter: kind,
+                    wheel_variance_per_m: 3e-5,
+                    edge_constraint: true,
+                    ..FusionSpec::default()
+                });
             });
-        });
-        let errors = host_tests::EnsembleErrors::new(
-            &format!("{kind:?}, {name}"),
-            ensemble.iter().map(|s| (s.max_error_m, s.mean_error_m)),
-        );
-        let (max, mean) = (errors.median_max(), errors.median_mean());
-        if !(max < max_bound && mean < mean_bound) {
+            let errors = host_tests::EnsembleErrors::new(
+                &format!("{kind:?}, {name}"),
+                ensemble.iter().map(|s| (s.max_error_m, s.mean_error_m)),
+            );
+            (errors.median_max(), errors.median_mean())
+        };
+        let ekf = medians(FusionFilterSpec::Ekf);
+        let ukf = medians(FusionFilterSpec::Ukf);
+        for (kind, (max, mean), (max_bound, mean_bound)) in [
+            (FusionFilterSpec::Ekf, ekf, ekf_bounds),
+            (FusionFilterSpec::Ukf, ukf, ukf_bounds),
+        ] {
+            if !(max < max_bound && mean < mean_bound) {
+                failures.push(format!(
+                    "{kind:?} {name}: median max {max}, median mean {mean}"
+                ));
+            }
+        }
+        if !(ukf.0 <= 1.5 * ekf.0 && ukf.1 <= 1.5 * ekf.1) {
             failures.push(format!(
-                "{kind:?} {name}: median max {max}, median mean {mean}"
+                "{name}: UKF {ukf:?} not within 1.5x of EKF {ekf:?}"
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The UKF with the template's defaults (`figure_eight_rfid_fusion_ekf`,
+/// `filter = "ukf"`, wheel noise 1e-3 m²/m) on the 10, 20 and 30 cm
+/// nearest-tag floors: issue 32's targets, medians over 32 starts
+/// (`host_tests::ENSEMBLE_OFFSETS_M`) at most 0.01 / 0.001 m on the
+/// template's 10 cm floor and within 1.5× of the EKF's medians on each
+/// floor. Measured medians, max / mean (m), UKF against EKF: 10 cm 0.0056
+/// / 0.0005 against 0.0051 / 0.0005; 20 cm 0.0130 / 0.0011 against 0.0134
+/// / 0.0011; 30 cm 0.0129 / 0.0012 against 0.0129 / 0.0013. Before the
+/// UKF's centre mean (docs/fusion.md, "The UKF at the default wheel
+/// noise"), single runs gave 0.103 / 0.0121, 0.124 / 0.0197 and 0.199 /
+/// 0.0328 m.
+#[test]
+fn the_ukf_at_the_template_defaults() {
+    use firmware_sim::scenario::PositionSpec;
+    let mut failures = Vec::new();
+    for spacing in [0.1_f64, 0.2, 0.3] {
+        let medians = |kind| {
+            let ensemble =
+                host_tests::run_scenario_ensemble("figure_eight_rfid_fusion_ekf", |scenario| {
+                    if let EstimatorSpec::Fusion(fusion) = &mut scenario.estimator {
+                        fusion.filter = kind;
+                    }
+                    if let PositionSpec::NearestTag { spacing_m, .. } = &mut scenario.position {
+                        *spacing_m = spacing;
+                    }
+                });
+            assert!(ensemble.iter().all(|s| s.non_finite_ticks == 0));
+            let errors = host_tests::EnsembleErrors::new(
+                &format!("{kind:?}, template defaults, {spacing} m tags"),
+                ensemble.iter().map(|s| (s.max_error_m, s.mean_error_m)),
+            );
+            (errors.median_max(), errors.median_mean())
+        };
+        let (ekf, ukf) = (
+            medians(FusionFilterSpec::Ekf),
+            medians(FusionFilterSpec::Ukf),
+        );
+        if spacing == 0.1 && !(ukf.0 <= 0.01 && ukf.1 <= 0.001) {
+            failures.push(format!("{spacing} m: UKF {ukf:?} over 0.01 / 0.001 m"));
+        }
+        if !(ukf.0 <= 1.5 * ekf.0 && ukf.1 <= 1.5 * ekf.1) {
+            failures.push(format!(
+                "{spacing} m: UKF {ukf:?} not within 1.5x of EKF {ekf:?}"
             ));
         }
     }
@@ -408,21 +459,18 @@ fn sparse_reader_range_mode() {
 
 /// Paper 004's UKF and particle filter as the `Pilot`'s fusion estimator
 /// (`[estimator.fusion]`, `filter = "ukf"` / `"particle_filter"`), with
-/// the guide observer, on the unicycle and on the full device stack. Both
-/// need a wheel-noise model close to the truth instead of the EKF's default
-/// 1e-3 m²/m: with the EKF's inflated heading variance the UKF's mean,
-/// which carries `E[cos θ] = cos θ̂ e^{−σθ²/2}`, falls short of the tags on
-/// every straight and the crossings pull the heading onto the axis (1e-3:
-/// 0.102 / 0.0121 m; 3e-5 meets it), and the particles spread too thin for
-/// 100 of them (1e-3: 0.343 / 0.0296 m; the simulated plants' wheels are
+/// the guide observer, on the unicycle and on the full device stack. The
+/// UKF runs at 3e-5 m²/m here and at the template's 1e-3 in
+/// `the_ukf_at_the_template_defaults`; the particle filter needs a
+/// wheel-noise model close to the truth: its particles spread too thin for
+/// 100 of them at 1e-3 (0.343 / 0.0296 m; the simulated plants' wheels are
 /// exact, and the particle filter's tuning is [`PF_WHEEL_VARIANCE`]).
 /// The particle filter's runs repeat from the seed.
 #[test]
 fn the_ukf_and_the_particle_filter_as_the_pilots_estimator() {
     // (kind, scenario, wheel variance, bounds on the ensemble's median max
-    // / mean); medians over 32 starts, m, with the f32 kernels [libm's
-    // sinf/cosf]: UKF 0.0065 [0.0063] / 0.0008 and 0.0067 / 0.0019
-    // (docs/fusion.md). The particle filter (every read as its tag's cell,
+    // / mean); medians over 32 starts, m, with the f32 kernels: UKF 0.0046
+    // / 0.0004 and 0.0043 / 0.0016 (docs/fusion.md). The particle filter (every read as its tag's cell,
     // roughening; docs/fusion.md) is held to issue 17's target, 0.02 /
     // 0.005 m (the EKF, above: 0.0053 / 0.0005 and 0.0051 / 0.0016).
     let runs = [

@@ -7,8 +7,25 @@
 //! # Prediction
 //! The 11 Merwe sigma points of `(x, y, θ, ε_R, ε_L)` are each moved along
 //! the exact arc of their own wheel travels `(1 + ε) s` (as the EKF's
-//! mean, [`crate::estimation::fusion`], "Prediction"); their weighted mean (circular
-//! for `θ`) and covariance plus `Q` are the prior. `Q = G Σ Gᵀ` (the wheel
+//! mean, [`crate::estimation::fusion`], "Prediction"). The prior mean is
+//! the centre point's image, the mean moved along its own arc, and the
+//! prior covariance the points' spread about it plus `Q`
+//! ([`UnscentedKalmanFilter::with_centre_mean`]): the points' weighted
+//! mean would add the second-order term of the heading's spread, `ds cos θ̂
+//! (E[cos δ] − 1)` along the motion (Julier & Uhlmann 2004, section IV;
+//! Gustafsson & Hendeby 2012, "Some relations between extended and
+//! unscented Kalman filters", IEEE Trans. Signal Processing 60(2), whose
+//! EKF2 carries the same term), the expected shortening of a step whose
+//! heading is uncertain. The robot moves its full step along its one
+//! heading, and along a row of tags, where only the crossings along the
+//! path are seen and the heading's variance grows unobserved (0.05 rad²/m
+//! at the template's 1e-3 m²/m), that term made every crossing find the
+//! estimate up to 11 mm short of the boundary; those one-signed
+//! innovations drove the heading through the points' position–heading
+//! covariance until it oscillated (docs/fusion.md, "The UKF at the default
+//! wheel noise": 0.103 m worst error on the template's figure-eight, 0.0057
+//! m with the centre mean, the EKF's 0.0056). The points still carry the
+//! covariance through the nonlinear arc. `Q = G Σ Gᵀ` (the wheel
 //! travel noise mapped into the pose at the current mean, and the scale
 //! errors' random walk) is the EKF's, set before each step
 //! ([`UnscentedKalmanFilter::set_process_noise`]): additive process noise,
@@ -184,7 +201,7 @@ impl PoseFilterCore for UkfCore {
         )
         .ok()
         .map(|filter| Self {
-            filter: filter.with_redrawn_update_points(),
+            filter: filter.with_redrawn_update_points().with_centre_mean(),
         })
     }
 
@@ -294,6 +311,37 @@ mod tests {
             ukf.core().filter().counters(),
             crate::filters::ukf::UkfCounters::default()
         );
+    }
+
+    /// Along a row of tags the heading's variance grows unobserved; the
+    /// prior mean still moves the whole step along the mean heading (the
+    /// centre mean, module docs), as the EKF's does: 0.4 rad² of heading
+    /// variance (the template's 1e-3 m²/m after 8 m of a row), 10 cm driven
+    /// in 2.5 mm steps along `x`. The points' mean would fall 17 mm short.
+    #[test]
+    fn a_wide_heading_does_not_shorten_the_step() {
+        let config = PoseFilterConfig::new(0.2, 1e-3, 1e-9, 3.0).unwrap();
+        let start = Pose::new(0.0, 0.0, 0.0);
+        let variances = [1e-6, 1e-6, 0.4, 0.0];
+        let mut ekf = PoseEkf::new(config, start, variances).unwrap();
+        let mut ukf = PoseUkf::new(config, start, variances).unwrap();
+        let step = OdometryStep {
+            ds_m: 0.0025,
+            ..OdometryStep::default()
+        };
+        for _ in 0..40 {
+            ekf.predict(&step);
+            ukf.predict(&step);
+        }
+        let (e, u) = (ekf.pose().position, ukf.pose().position);
+        assert!((u.x - 0.1).abs() < 1e-5 && u.y.abs() < 1e-6, "{u:?}");
+        assert!((u - e).norm() < 1e-5, "{u:?} {e:?}");
+        // The points still carry the spread through the arc: the cross-track
+        // variance is the points' `Σ W (d sin δ)²`, half the EKF's `d² σθ²`
+        // (`sin² (√5 σθ)` at weight 0.2 is 0.195 against `σθ²` = 0.4).
+        let (pe, pu) = (ekf.covariance(), ukf.covariance());
+        let ratio = pu.m22 / pe.m22;
+        assert!(ratio > 0.4 && ratio < 0.6, "{} {}", pu.m22, pe.m22);
     }
 
     /// An unknown heading (`σθ = π`) is held at the cap, and so is a
