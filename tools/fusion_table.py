@@ -1,0 +1,158 @@
+#!/usr/bin/env python3
+"""The fusion filters side by side (issue 32, item 3): the tables of
+docs/fusion.md, "The three filters together".
+
+    python3 tools/fusion_table.py [RUNS]   # from the repository root; default 32
+
+1. The template's defaults: `firmware-sim show figure_eight_rfid_fusion_ekf`
+   run as it is and with only `filter` switched; max / mean / rms position
+   error after its 100 s transient, m.
+2. The grid: paper 001's RFID figure-eight, a circle (2 m radius, 0.1 m/s)
+   and a line (0.1 m/s), each on 10, 20 and 30 cm tag floors, the plant's
+   wheels slipping with a travel variance of 1e-6, 1e-4 and 1e-2 m²/m
+   (`[plant.wheels]`), each filter's `wheel_variance_per_m` matched to it
+   and 10x off either way; a sweep of RUNS starts within 1 m of the
+   reference's start, any heading, the tag lattice offset anywhere in a
+   cell. Each cell is the median over the runs of each run's max position
+   error after the 100 s transient, m; paper 001's observer (5) on the
+   same runs is the floor every filter must beat.
+
+The goals of issue 32 are checked at the end and printed as counts.
+The sweeps' files go to target/fusion-table/. About two hours on 2
+cores at 32 runs (the particle filter's sweeps are most of it).
+"""
+
+import json
+import pathlib
+import re
+import subprocess
+import sys
+
+RUNS = int(sys.argv[1]) if len(sys.argv) > 1 else 32
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+OUT = ROOT / "target" / "fusion-table"
+OUT.mkdir(parents=True, exist_ok=True)
+SIM = ["cargo", "run", "--release", "-q", "-p", "firmware-sim", "--"]
+
+TEMPLATE = subprocess.run(SIM + ["show", "figure_eight_rfid_fusion_ekf"], cwd=ROOT,
+                          check=True, capture_output=True, text=True).stdout
+FILTERS = [("EKF", "ekf"), ("UKF", "ukf"), ("particle filter", "particle_filter")]
+FILTER_LINE = 'filter = "ekf"'
+WHEEL_LINE = re.compile(r"^wheel_variance_per_m = .*$", re.M)
+PLANT = '[plant]\nkind = "unicycle"\n'
+SPACING = "spacing_m = 0.1\n"
+for needed in (FILTER_LINE, PLANT, SPACING, "[reference]\n", "[initial]\n"):
+    assert needed in TEMPLATE, f"the template no longer has {needed!r}"
+assert WHEEL_LINE.search(TEMPLATE), "the template no longer sets wheel_variance_per_m"
+
+
+def run(name, text):
+    """One run of `text`: its summary."""
+    path = OUT / f"{name}.toml"
+    path.write_text(text)
+    subprocess.run(SIM + ["run", str(path), "--no-plot", "--out", str(OUT / name)],
+                   cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    return json.loads((OUT / name / "summary.json").read_text())
+
+
+def sweep(name, text):
+    """A sweep of `text`: its summary's median of the per-run max errors, m."""
+    path = OUT / f"{name}.toml"
+    path.write_text(text)
+    subprocess.run(SIM + ["sweep", str(path), "--runs", str(RUNS), "--no-plot",
+                          "--out", str(OUT / name)],
+                   cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    s = json.loads((OUT / name / "summary.json").read_text())
+    return s["max_error_m"]["p50"]
+
+
+def with_filter(text, kind, wheel_variance=None):
+    text = text.replace(FILTER_LINE, f'filter = "{kind}"')
+    if wheel_variance is not None:
+        text = WHEEL_LINE.sub(f"wheel_variance_per_m = {wheel_variance:g}", text)
+    return text
+
+
+def without_filter(text):
+    """Paper 001's observer (5): the template without its [estimator.fusion] table."""
+    start = text.index("[estimator.fusion]")
+    end = text.index("\n[", start + 1) + 1
+    return text[:start] + text[end:]
+
+
+def with_reference(text, reference):
+    start = text.index("[reference]\n")
+    end = text.index("[initial]\n")
+    return text[:start] + reference + "\n" + text[end:]
+
+
+# 1. The template's defaults, single runs.
+print("| filter (template defaults) | max (m) | mean (m) | rms (m) |")
+print("| --- | ---: | ---: | ---: |")
+for label, kind in FILTERS:
+    s = run(f"template-{kind}", with_filter(TEMPLATE, kind))
+    print(f"| {label} | {s['max_error_m']:.4f} | {s['mean_error_m']:.4f} | {s['rms_error_m']:.4f} |")
+s = run("template-observer", without_filter(TEMPLATE))
+print(f"| paper 001's observer (5) | {s['max_error_m']:.4f} | {s['mean_error_m']:.4f} "
+      f"| {s['rms_error_m']:.4f} |")
+print()
+
+# 2. The grid.
+CURVES = [
+    ("figure-eight", None),
+    ("circle", '[reference]\nkind = "circle"\ncenter_m = [0.0, 0.0]\nradius_m = 2.0\n'
+               'rate_rad_s = 0.05\nphase_rad = 0.0\n'),
+    ("line", '[reference]\nkind = "line"\nstart_m = [0.0, 0.0]\nheading_rad = 0.5\n'
+             'speed_m_s = 0.1\n'),
+]
+SWEEP = ('\n[sweep]\nstart_radius_m = [0.0, 1.0]\ninitial_heading = "any"\n'
+         'tag_offset = true\n')
+FLOORS = [0.1, 0.2, 0.3]
+NOISES = [1e-6, 1e-4, 1e-2]
+TUNINGS = [("matched", 1.0), ("×10", 10.0), ("÷10", 0.1)]
+
+header = "| curve | floor (m) | wheels (m²/m) | observer (5) |"
+rule = "| --- | ---: | ---: | ---: |"
+for label, _ in FILTERS:
+    for tuning, _ in TUNINGS:
+        header += f" {label} {tuning} |"
+        rule += " ---: |"
+print(header)
+print(rule)
+checks = {"within 1.5x of the EKF (matched)": [0, 0], "within 2x of its matched (mis-tuned)": [0, 0],
+          "no worse than observer (5)": [0, 0]}
+for curve, reference in CURVES:
+    base = TEMPLATE if reference is None else with_reference(TEMPLATE, reference)
+    base += SWEEP
+    for floor in FLOORS:
+        for noise in NOISES:
+            text = (base.replace(SPACING, f"spacing_m = {floor:g}\n")
+                    .replace(PLANT, PLANT + f"\n[plant.wheels]\ntravel_variance_m2_per_m = {noise:g}\n"))
+            name = f"{curve}-{floor:g}-{noise:g}"
+            observer = sweep(f"{name}-observer", without_filter(text))
+            row = f"| {curve} | {floor:g} | {noise:g} | {observer:.4f} |"
+            figures = {}
+            for _, kind in FILTERS:
+                for tuning, factor in TUNINGS:
+                    m = sweep(f"{name}-{kind}-{tuning}", with_filter(text, kind, noise * factor))
+                    figures[(kind, tuning)] = m
+                    row += f" {m:.4f} |"
+            print(row, flush=True)
+            ekf = figures[("ekf", "matched")]
+            for _, kind in FILTERS:
+                matched = figures[(kind, "matched")]
+                if kind != "ekf":
+                    c = checks["within 1.5x of the EKF (matched)"]
+                    c[0] += matched <= 1.5 * ekf
+                    c[1] += 1
+                for tuning, _ in TUNINGS[1:]:
+                    c = checks["within 2x of its matched (mis-tuned)"]
+                    c[0] += figures[(kind, tuning)] <= 2.0 * matched
+                    c[1] += 1
+                for tuning, _ in TUNINGS:
+                    c = checks["no worse than observer (5)"]
+                    c[0] += figures[(kind, tuning)] <= observer
+                    c[1] += 1
+print()
+for goal, (met, cases) in checks.items():
+    print(f"- {goal}: {met} of {cases} cases")
