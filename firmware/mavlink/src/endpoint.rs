@@ -200,13 +200,22 @@ impl MavlinkEndpoint {
     // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     pub fn new(config: EndpointConfig, limits: RouteLimits) -> Self {
+        Self::new_in_place(config, limits)
+    }
+
+    /// As [`Self::new`], always inlined: built where its caller puts it
+    /// (a `static` of a board with little stack), not in a frame of its
+    /// own and copied out.
+    #[must_use]
+    #[inline(always)]
+    pub fn new_in_place(config: EndpointConfig, limits: RouteLimits) -> Self {
         Self {
             config,
             limits,
             parser: Parser::new(),
             counters: Counters::default(),
             seq: 0,
-            missions: [Mission::new(), Mission::new()],
+            missions: [const { Mission::new() }; 2],
             active: 0,
             upload: None,
             gcs_heartbeat_ms: None,
@@ -235,6 +244,35 @@ impl MavlinkEndpoint {
     #[must_use]
     pub fn route(&self) -> Waypoints {
         self.mission().waypoints(self.config.origin.as_ref())
+    }
+
+    /// [`Self::route`] written into `out` in place.
+    pub fn route_into(&self, out: &mut Waypoints) {
+        self.mission()
+            .write_waypoints(self.config.origin.as_ref(), out);
+    }
+
+    /// As [`Self::new`], in place: no mission, nothing heard, counters
+    /// zero (a new run of a robot whose endpoint lives in a `static`; no
+    /// endpoint is built on the stack).
+    pub fn reset(&mut self, config: EndpointConfig, limits: RouteLimits) {
+        self.config = config;
+        self.limits = limits;
+        self.parser.reset();
+        self.counters = Counters::default();
+        self.seq = 0;
+        for mission in &mut self.missions {
+            mission.clear();
+        }
+        self.active = 0;
+        self.upload = None;
+        self.gcs_heartbeat_ms = None;
+        self.link_lost = false;
+        self.last_heartbeat_ms = None;
+        self.last_telemetry_ms = None;
+        self.last_current = None;
+        self.last_reached = None;
+        self.last_mode = None;
     }
 
     /// Whether the link is lost (a ground station was heard, then not for

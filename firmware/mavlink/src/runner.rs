@@ -121,6 +121,9 @@ pub struct MissionRunner {
     /// A SetCurrent came after the last Done (a Start then starts there,
     /// not at item 0).
     current_set: bool,
+    /// Where a route from a later item is built for [`Self::load`], in
+    /// place (not on the stack).
+    route: Waypoints,
 }
 
 impl MissionRunner {
@@ -139,7 +142,33 @@ impl MissionRunner {
             deviation_m: limits.blend_deviation_m(),
             progress: Progress::default(),
             current_set: false,
+            route: Waypoints::new(),
         }
+    }
+
+    /// Armed and running `mission` from item 0, as started with
+    /// `start`: a robot whose route runs from power-on. The owner's
+    /// follower is loaded with it already (nothing to do).
+    #[must_use]
+    pub fn running(mission: &Waypoints, start: RouteStart, limits: RouteLimits) -> Self {
+        let mut runner = Self::new(start, limits);
+        runner.reset_running(mission, start, limits);
+        runner
+    }
+
+    /// As [`Self::running`], in place (a runner that lives in a `static`;
+    /// no runner is built on the stack).
+    pub fn reset_running(&mut self, mission: &Waypoints, start: RouteStart, limits: RouteLimits) {
+        self.first_start = start;
+        self.started_once = true;
+        self.armed = true;
+        self.mode = RobotMode::Running;
+        self.mission.clone_from(mission);
+        self.limits = limits;
+        self.deviation_m = limits.blend_deviation_m();
+        self.progress = Progress::loaded(0, true, None, 0, 0);
+        self.current_set = false;
+        self.route.clear();
     }
 
     /// The mode.
@@ -198,10 +227,27 @@ impl MissionRunner {
         limits: RouteLimits,
         counters: RouteCounters,
     ) -> Applied {
+        self.apply_with(event, |m| m.clone_from(mission), limits, counters)
+    }
+
+    /// As [`Self::apply`], the endpoint's mission written by
+    /// `write_mission` into the runner's in place (called for
+    /// [`Event::LoadRoute`] only): an owner with little stack does not
+    /// copy the route out first.
+    pub fn apply_with<F>(
+        &mut self,
+        event: Event,
+        write_mission: F,
+        limits: RouteLimits,
+        counters: RouteCounters,
+    ) -> Applied
+    where
+        F: FnOnce(&mut Waypoints),
+    {
         self.limits = limits;
         match event {
             Event::LoadRoute => {
-                self.mission = *mission;
+                write_mission(&mut self.mission);
                 let count = self.count();
                 if self.mode == RobotMode::Running {
                     self.deviation_m = limits.blend_deviation_m();
@@ -273,20 +319,21 @@ impl MissionRunner {
     /// given for [`FollowerAction::Replace`] (into the running follower),
     /// the mission from item `base` for [`FollowerAction::Run`] (into the
     /// owner's fresh follower). Nothing for the other actions.
-    pub fn load(&self, action: FollowerAction, follower: &mut RouteFollower) {
+    pub fn load(&mut self, action: FollowerAction, follower: &mut RouteFollower) {
         match action {
             FollowerAction::Replace => {
                 follower.load(&self.mission, &self.limits, RouteStart::AsGiven);
             }
             FollowerAction::Run { base, start } => {
-                if let Some(route) = self
-                    .mission
-                    .as_slice()
-                    .get(usize::from(base)..)
-                    .and_then(|rest| Waypoints::from_slice(rest).ok())
-                {
-                    follower.load(&route, &self.limits, start);
+                let Some(rest) = self.mission.as_slice().get(usize::from(base)..) else {
+                    return;
+                };
+                self.route.clear();
+                for &w in rest {
+                    // No more than the mission holds: cannot fail.
+                    let _ = self.route.push(w);
                 }
+                follower.load(&self.route, &self.limits, start);
             }
             FollowerAction::Keep | FollowerAction::Hold => {}
         }

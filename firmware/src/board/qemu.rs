@@ -45,12 +45,14 @@ use host_file::HostFile;
 // The device crate's interrupt vectors (cortex-m-rt's `device` feature):
 // this board uses no peripheral of it.
 use stm32f4xx_hal as _;
+use wmr_core::reference::route::RouteLimits;
 use wmr_link::proxy::ProxyBus;
-use wmr_link::session::{LinkTagMap, RouteStore, Session};
+use wmr_link::session::{LinkTagMap, MavlinkStore, RouteStore, Session};
 use wmr_link::{
     HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, HostMessage, LINK_TIMEOUT_MS, LinkError, MAX_FRAME_BYTES,
     PROTOCOL_VERSION, Receiver, Sender, TargetMessage,
 };
+use wmr_mavlink::{EndpointConfig, EndpointSpec};
 
 /// Core clock of the `netduinoplus2` model, Hz.
 const CORE_CLOCK_HZ: u32 = 168_000_000;
@@ -194,16 +196,43 @@ fn fail() -> ! {
     }
 }
 
+/// The MAVLink endpoint and mission runner of route runs (about 9 KB
+/// with the channel's queues), in a static. Not inlined: what building it
+/// puts on the stack (the endpoint, 3 KB) is in this frame, gone before
+/// the run loop's ([`run`]).
+#[inline(never)]
+fn mavlink_store() -> Option<&'static mut MavlinkStore> {
+    let (Ok(config), Ok(limits)) = (
+        EndpointConfig::new(&EndpointSpec::default()),
+        RouteLimits::new(&MavlinkStore::IDLE_LIMITS),
+    ) else {
+        return None;
+    };
+    cortex_m::singleton!(: MavlinkStore = MavlinkStore::new(config, limits))
+}
+
 /// The firmware: serve the link until the host says `Finish`.
 ///
 /// The long-lived state (the proxy bus, the session with its robot, the
 /// link receiver: about 1.9 KB; the tag map a run may load,
 /// `wmr_link::MAP_CAPACITY` tags, 64 KiB; the route a run may follow,
-/// its `RouteStore`) lives in statics
+/// its `RouteStore`; the MAVLink endpoint of route runs, its
+/// `MavlinkStore`) lives in statics
 /// (`cortex_m::singleton!`, in `.bss`), not in this function's frame, so
 /// the stack holds only what a message's handling needs (docs/budgets.md,
 /// "Stack").
 pub fn run() -> ! {
+    // Built first, in a frame of its own that is gone before the run
+    // loop's: the endpoint passes through the stack on its way to its
+    // static, and stacked on the run loop's frame it would be the deepest
+    // point of a run.
+    let mav = mavlink_store();
+    serve(mav)
+}
+
+/// [`run`]'s loop, lent the MAVLink store.
+#[inline(never)]
+fn serve(mav: Option<&'static mut MavlinkStore>) -> ! {
     let Some(cp) = cortex_m::Peripherals::take() else {
         // Only possible if something took them before `main`.
         fail()
@@ -236,6 +265,8 @@ pub fn run() -> ! {
     else {
         fail()
     };
+    let Some(mav) = mav else { fail() };
+    session.lend_mavlink(mav);
     let Some(rx) = cortex_m::singleton!(: Receiver = Receiver::new()) else {
         fail()
     };
