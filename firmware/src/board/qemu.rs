@@ -45,14 +45,12 @@ use host_file::HostFile;
 // The device crate's interrupt vectors (cortex-m-rt's `device` feature):
 // this board uses no peripheral of it.
 use stm32f4xx_hal as _;
-use wmr_core::reference::route::RouteLimits;
 use wmr_link::proxy::ProxyBus;
 use wmr_link::session::{LinkTagMap, MavlinkStore, RouteStore, Session};
 use wmr_link::{
     HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, HostMessage, LINK_TIMEOUT_MS, LinkError, MAX_FRAME_BYTES,
     PROTOCOL_VERSION, Receiver, Sender, TargetMessage,
 };
-use wmr_mavlink::{EndpointConfig, EndpointSpec};
 
 /// Core clock of the `netduinoplus2` model, Hz.
 const CORE_CLOCK_HZ: u32 = 168_000_000;
@@ -200,8 +198,11 @@ fn fail() -> ! {
 /// with the channel's queues), in a static. Not inlined: what building it
 /// puts on the stack (the endpoint, 3 KB) is in this frame, gone before
 /// the run loop's ([`run`]).
+#[cfg(not(feature = "fusion-particle-filter"))]
 #[inline(never)]
 fn mavlink_store() -> Option<&'static mut MavlinkStore> {
+    use wmr_core::reference::route::RouteLimits;
+    use wmr_mavlink::{EndpointConfig, EndpointSpec};
     let (Ok(config), Ok(limits)) = (
         EndpointConfig::new(&EndpointSpec::default()),
         RouteLimits::new(&MavlinkStore::IDLE_LIMITS),
@@ -225,8 +226,15 @@ pub fn run() -> ! {
     // Built first, in a frame of its own that is gone before the run
     // loop's: the endpoint passes through the stack on its way to its
     // static, and stacked on the run loop's frame it would be the deepest
-    // point of a run.
-    let mav = mavlink_store();
+    // point of a run. Not in the particle filter's build: its 27.8 KB of
+    // stack leave no RAM for the store's 9 KB (its route runs count a
+    // ground station's bytes dropped).
+    #[cfg(not(feature = "fusion-particle-filter"))]
+    let Some(mav) = mavlink_store().map(Some) else {
+        fail()
+    };
+    #[cfg(feature = "fusion-particle-filter")]
+    let mav = None;
     serve(mav)
 }
 
@@ -265,8 +273,9 @@ fn serve(mav: Option<&'static mut MavlinkStore>) -> ! {
     else {
         fail()
     };
-    let Some(mav) = mav else { fail() };
-    session.lend_mavlink(mav);
+    if let Some(mav) = mav {
+        session.lend_mavlink(mav);
+    }
     let Some(rx) = cortex_m::singleton!(: Receiver = Receiver::new()) else {
         fail()
     };
