@@ -948,3 +948,107 @@ fn the_firmware_answers_a_ground_station_over_the_link() {
         "the fresh follower holds"
     );
 }
+
+/// A mission uploaded over the link's MAVLink channel while the route
+/// runs (`MISSION_COUNT`, each `MISSION_ITEM_INT` the firmware asks for
+/// with `MISSION_REQUEST_INT`) is accepted (`MISSION_ACK` 0) and loaded
+/// into the running follower; prints the run's peak stack, the upload's
+/// path being the endpoint's deepest.
+#[test]
+fn the_firmware_takes_a_mission_over_the_link() {
+    use wmr_link::{MavlinkChunk, MavlinkIn};
+    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let mut target = QemuTarget::start(&firmware(), &options()).unwrap();
+    target
+        .configure(
+            firmware_sim::simulation::hil_configuration(&setup).unwrap(),
+            &firmware_sim::simulation::hil_map_chunks(&setup).unwrap(),
+            &firmware_sim::simulation::hil_route_messages(&setup),
+        )
+        .unwrap();
+    let mut seq = 0_u32;
+    let mut k = 0_u32;
+    // Sends `bytes`, runs a tick, and returns what the endpoint wrote.
+    let mut step = |target: &mut QemuTarget, bytes: &[u8]| {
+        let mut got = Vec::new();
+        let mut rest = bytes;
+        let mut ticked = false;
+        loop {
+            let chunk = MavlinkChunk::from_slice(rest);
+            rest = &rest[chunk.len()..];
+            let m = HostMessage::Mavlink(MavlinkIn { seq, bytes: chunk });
+            seq += 1;
+            let TargetMessage::Mavlink(out) = target.exchange(&m).unwrap() else {
+                panic!("not a MAVLink answer")
+            };
+            got.extend_from_slice(out.bytes.as_slice());
+            if rest.is_empty() && out.pending == 0 {
+                if ticked {
+                    return mavlink_frames(&got);
+                }
+                let input = TickInput {
+                    tick: k,
+                    left_count: Some(0),
+                    right_count: Some(0),
+                    uart: heapless::Vec::new(),
+                };
+                k += 1;
+                let TargetMessage::Ticked(_) = target.exchange(&HostMessage::Tick(input)).unwrap()
+                else {
+                    panic!("not ticked")
+                };
+                ticked = true;
+            }
+        }
+    };
+    for _ in 0..10 {
+        step(&mut target, &[]);
+    }
+    // Two waypoints, local NED (x north, y east, 1e-4 m).
+    let items = [(0_i32, 0_i32), (5_000, 0)];
+    let mut count = Vec::new();
+    count.extend_from_slice(&(items.len() as u16).to_le_bytes());
+    count.extend_from_slice(&[1, 1, 0]);
+    let mut gcs_seq = 0_u8;
+    let mut frames = step(&mut target, &mavlink_frame(gcs_seq, 44, 221, &count));
+    let mut ack = None;
+    for _ in 0..10 {
+        if let Some((_, p)) = frames.iter().find(|(id, _)| *id == 47) {
+            ack = Some(p.clone());
+            break;
+        }
+        let Some((_, request)) = frames.iter().find(|(id, _)| *id == 51) else {
+            panic!("no item asked for: {frames:?}")
+        };
+        // MISSION_REQUEST_INT: seq (u16) first.
+        let i = usize::from(u16::from_le_bytes([
+            request[0],
+            request.get(1).copied().unwrap_or(0),
+        ]));
+        let (x, y) = items[i];
+        let mut item = Vec::new();
+        item.extend_from_slice(&0.0_f32.to_le_bytes()); // hold
+        item.extend_from_slice(&0.0_f32.to_le_bytes());
+        item.extend_from_slice(&0.0_f32.to_le_bytes());
+        item.extend_from_slice(&f32::NAN.to_le_bytes()); // yaw: none
+        item.extend_from_slice(&x.to_le_bytes());
+        item.extend_from_slice(&y.to_le_bytes());
+        item.extend_from_slice(&0.0_f32.to_le_bytes());
+        item.extend_from_slice(&(i as u16).to_le_bytes());
+        item.extend_from_slice(&16_u16.to_le_bytes()); // NAV_WAYPOINT
+        item.extend_from_slice(&[1, 1, 1, 0, 1, 0]); // targets, LOCAL_NED, current, autocontinue, type
+        gcs_seq = gcs_seq.wrapping_add(1);
+        frames = step(&mut target, &mavlink_frame(gcs_seq, 73, 38, &item));
+    }
+    let ack = ack.expect("MISSION_ACK");
+    // MISSION_ACK: target system, component, result (0: accepted).
+    assert_eq!(ack.get(2).copied().unwrap_or(0), 0, "accepted: {ack:?}");
+    for _ in 0..10 {
+        step(&mut target, &[]);
+    }
+    let finished = target.end().unwrap();
+    println!(
+        "a mission over the link: peak stack {} B",
+        finished.peak_stack_bytes
+    );
+}

@@ -262,7 +262,8 @@ impl RouteLoad {
 }
 
 /// The MAVLink side of a session's route runs (module documentation):
-/// the endpoint and the mission runner, about 7.5 KB; the board lends it
+/// the endpoint, the mission runner and the channel's queues, about
+/// 11 KB; the board lends it
 /// ([`Session::lend_mavlink`]) from a `static`, and each route run resets
 /// it in place, so neither is built on the stack.
 #[derive(Debug, Clone)]
@@ -276,6 +277,9 @@ pub struct MavlinkStore {
     active: bool,
     /// The channel's queues (the crate docs, "MAVLink").
     queues: MavlinkQueues,
+    /// Where the endpoint writes an uploaded mission as a route to check
+    /// it (`MavlinkEndpoint::handle_in`): here, not on the stack.
+    route_check: Waypoints,
 }
 
 impl MavlinkStore {
@@ -306,6 +310,7 @@ impl MavlinkStore {
             period_us: 0,
             active: false,
             queues: MavlinkQueues::new(),
+            route_check: Waypoints::new(),
         }
     }
 
@@ -851,6 +856,7 @@ fn mavlink_tick(
         endpoint,
         runner,
         queues,
+        route_check,
         ..
     } = mav;
     let view = runner.view(last.map(|a| Estimate {
@@ -863,7 +869,7 @@ fn mavlink_tick(
     let mut events = Events::default();
     queues.tick(|rx, room| {
         let mut tx = TxBuffer::new(room);
-        events = endpoint.handle(now_ms, rx, &view, check_mission, &mut tx);
+        events = endpoint.handle_in(now_ms, rx, &view, check_mission, &mut tx, route_check);
         (tx.len(), tx.dropped())
     });
     if !events.as_slice().is_empty() {

@@ -184,6 +184,13 @@ pub struct MavlinkEndpoint {
     pub(crate) last_mode: Option<(bool, RobotMode)>,
 }
 
+/// An upload's route check and where the uploaded route is written for
+/// it ([`MavlinkEndpoint::handle_in`]).
+pub(crate) struct RouteCheck<'r, F> {
+    pub check: F,
+    pub route: &'r mut Waypoints,
+}
+
 /// Heartbeat period, ms (MAVLink's 1 Hz).
 const HEARTBEAT_PERIOD_MS: u32 = 1_000;
 
@@ -301,12 +308,38 @@ impl MavlinkEndpoint {
         now_ms: u32,
         rx: &[u8],
         view: &RobotView,
-        mut check_route: F,
+        check_route: F,
         tx: &mut TxBuffer<'_>,
     ) -> Events
     where
         F: FnMut(&Waypoints) -> Result<(), RouteError>,
     {
+        let mut route = Waypoints::new();
+        self.handle_in(now_ms, rx, view, check_route, tx, &mut route)
+    }
+
+    /// As [`Self::handle`], an uploaded mission written as a route into
+    /// `route` for `check_route` (a caller with little stack keeps it in
+    /// a `static`; [`Self::handle`] has it in its frame, 1.8 KB).
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
+    pub fn handle_in<F>(
+        &mut self,
+        now_ms: u32,
+        rx: &[u8],
+        view: &RobotView,
+        check_route: F,
+        tx: &mut TxBuffer<'_>,
+        route: &mut Waypoints,
+    ) -> Events
+    where
+        F: FnMut(&Waypoints) -> Result<(), RouteError>,
+    {
+        let mut check_route = RouteCheck {
+            check: check_route,
+            route,
+        };
         let mut events = Events::default();
         let dropped_before = tx.dropped();
         for &byte in rx {
@@ -339,7 +372,7 @@ impl MavlinkEndpoint {
         now_ms: u32,
         frame: &RxFrame,
         view: &RobotView,
-        check_route: &mut F,
+        check_route: &mut RouteCheck<'_, F>,
         tx: &mut TxBuffer<'_>,
         events: &mut Events,
     ) where

@@ -194,8 +194,8 @@ fn fail() -> ! {
     }
 }
 
-/// The MAVLink endpoint and mission runner of route runs (about 9 KB
-/// with the channel's queues), in a static. Not inlined: what building it
+/// The MAVLink endpoint and mission runner of route runs (about 11 KB
+/// with the channel's queues and the upload check's route), in a static. Not inlined: what building it
 /// puts on the stack (the endpoint, 3 KB) is in this frame, gone before
 /// the run loop's ([`run`]).
 #[cfg(not(feature = "fusion-particle-filter"))]
@@ -227,7 +227,7 @@ pub fn run() -> ! {
     // loop's: the endpoint passes through the stack on its way to its
     // static, and stacked on the run loop's frame it would be the deepest
     // point of a run. Not in the particle filter's build: its 27.8 KB of
-    // stack leave no RAM for the store's 9 KB (its route runs count a
+    // stack leave no RAM for the store's 11 KB (its route runs count a
     // ground station's bytes dropped).
     #[cfg(not(feature = "fusion-particle-filter"))]
     let Some(mav) = mavlink_store().map(Some) else {
