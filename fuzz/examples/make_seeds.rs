@@ -17,9 +17,9 @@ use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
 use wmr_core::reference::TrajectorySpec;
 use wmr_core::reference::route::{RouteError, RouteLimitsSpec, Waypoint, WaypointKey, Waypoints};
 use wmr_link::{
-    Configure, Diagnostics, Finished, FloorSpec, HostMessage, MAX_FRAME_BYTES, MotorOutput,
-    PROTOCOL_VERSION, Refusal, RouteRefusal, Sender, TargetMessage, TickInput, TickOutput,
-    route_messages,
+    Configure, Diagnostics, Finished, FloorSpec, HostMessage, MAX_FRAME_BYTES, MavlinkChunk,
+    MavlinkCounters, MavlinkIn, MavlinkOut, MotorOutput, PROTOCOL_VERSION, Refusal, RouteRefusal,
+    Sender, TargetMessage, TickInput, TickOutput, route_messages,
 };
 
 /// Where the seeds go: the first argument, or the committed corpus.
@@ -130,6 +130,16 @@ fn main() {
         ("route_chunk", frame(&mut tx, chunk)),
         ("tick", frame(&mut tx, tick)),
         ("finish", frame(&mut tx, HostMessage::Finish)),
+        (
+            "mavlink_in",
+            frame(
+                &mut tx,
+                HostMessage::Mavlink(MavlinkIn {
+                    seq: 5,
+                    bytes: MavlinkChunk::from_slice(&[0xFD, 9, 0, 0, 0, 255, 190, 0, 0, 0]),
+                }),
+            ),
+        ),
     ];
     let ticked = TargetMessage::Ticked(TickOutput {
         tick: 3,
@@ -187,6 +197,18 @@ fn main() {
         ),
         ("ticked", frame(&mut tx, ticked)),
         ("finished", frame(&mut tx, finished)),
+        (
+            "mavlink_out",
+            frame(
+                &mut tx,
+                TargetMessage::Mavlink(MavlinkOut {
+                    seq: 5,
+                    bytes: MavlinkChunk::from_slice(&[0xFD, 9, 0, 0, 7, 1, 1, 0, 0, 0]),
+                    pending: 21,
+                    counters: MavlinkCounters::default(),
+                }),
+            ),
+        ),
     ];
     let mut stream = Vec::new();
     for (name, bytes) in host.iter().chain(&target) {

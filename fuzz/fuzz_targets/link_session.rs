@@ -4,7 +4,7 @@
 //!
 //! The bytes come as a sequence of operations: well-formed messages
 //! (configurations from arbitrary specs, ticks with arbitrary encoder
-//! counters and UART bytes, finish), the same with bytes corrupted,
+//! counters and UART bytes, finish, MAVLink chunks), the same with bytes corrupted,
 //! arbitrary payloads framed correctly (so that they reach postcard), raw
 //! garbage, and link silences.
 //!
@@ -35,9 +35,10 @@ use wmr_link::FloorSpec;
 use wmr_link::proxy::{ProxyBus, Side};
 use wmr_link::session::{LinkTagMap, RouteStore, Session};
 use wmr_link::{
-    Configure, Frame, HostMessage, MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, MapRefusal,
-    PROTOCOL_VERSION, ROUTE_CHUNK_WAYPOINTS, Receiver, Refusal, RouteChunk, RouteOptionsSpec,
-    RouteRefusal, RouteSpec, Sender, TargetMessage, TickInput, decode, encode,
+    Configure, Frame, HostMessage, MAVLINK_CHUNK_BYTES, MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK,
+    MapRefusal, MavlinkChunk, MavlinkIn, PROTOCOL_VERSION, ROUTE_CHUNK_WAYPOINTS, Receiver,
+    Refusal, RouteChunk, RouteOptionsSpec, RouteRefusal, RouteSpec, Sender, TargetMessage,
+    TickInput, decode, encode,
 };
 
 /// Operations per input at most.
@@ -259,6 +260,12 @@ impl Harness<'_> {
                     assert_eq!(u32::from(t.fix), used, "{t:?}");
                 }
             }
+            // The channel answers every message, any time: its own seq,
+            // and nothing queued without an endpoint (counted dropped).
+            (HostMessage::Mavlink(m), TargetMessage::Mavlink(out)) => {
+                assert_eq!(out.seq, m.seq);
+                assert!(out.bytes.len() <= MAVLINK_CHUNK_BYTES);
+            }
             (HostMessage::Finish, TargetMessage::Finished(f)) => {
                 let full = max(self.pwm_max_duty);
                 assert!(f.motors.iter().all(|m| m.duty <= full), "{f:?}");
@@ -434,7 +441,7 @@ fn run(u: &mut Unstructured, bus: &ProxyBus) -> Result<()> {
         } else {
             None
         };
-        match u.int_in_range(0_u8..=18)? {
+        match u.int_in_range(0_u8..=19)? {
             0..=1 => {
                 let m = h.configure(u)?;
                 h.send(m, corrupt);
@@ -444,6 +451,12 @@ fn run(u: &mut Unstructured, bus: &ProxyBus) -> Result<()> {
                 h.send(m, corrupt);
             }
             12 => h.send(HostMessage::Finish, corrupt),
+            19 => {
+                let len = u.int_in_range(0..=MAVLINK_CHUNK_BYTES)?;
+                let bytes = MavlinkChunk::from_slice(u.bytes(len)?);
+                let seq = u.arbitrary()?;
+                h.send(HostMessage::Mavlink(MavlinkIn { seq, bytes }), corrupt);
+            }
             16 => {
                 let m = h.route(u)?;
                 h.send(m, corrupt);

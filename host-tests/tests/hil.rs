@@ -833,3 +833,244 @@ fn firmware_reacts_to_bad_configuration_corrupt_frames_and_silence() {
     assert_eq!(finished.motors[1].duty, 0, "right motor still driven");
     assert_eq!(finished.ticks, 100);
 }
+
+/// A MAVLink 2 frame from a ground station (system 255, component 190),
+/// its CRC with the message's extra byte.
+fn mavlink_frame(seq: u8, msg_id: u32, extra: u8, payload: &[u8]) -> Vec<u8> {
+    let id = msg_id.to_le_bytes();
+    let mut f = vec![
+        0xFD,
+        payload.len() as u8,
+        0,
+        0,
+        seq,
+        255,
+        190,
+        id[0],
+        id[1],
+        id[2],
+    ];
+    f.extend_from_slice(payload);
+    let mut crc: u16 = 0xFFFF;
+    for &b in f[1..].iter().chain(std::iter::once(&extra)) {
+        let mut t = b ^ (crc & 0xFF) as u8;
+        t ^= t << 4;
+        crc = (crc >> 8) ^ (u16::from(t) << 8) ^ (u16::from(t) << 3) ^ (u16::from(t) >> 4);
+    }
+    f.extend_from_slice(&crc.to_le_bytes());
+    f
+}
+
+/// The frames (message id, payload) in a MAVLink 2 byte stream.
+fn mavlink_frames(bytes: &[u8]) -> Vec<(u32, Vec<u8>)> {
+    let mut frames = Vec::new();
+    let mut i = 0;
+    while i + 12 <= bytes.len() {
+        assert_eq!(bytes[i], 0xFD, "a frame starts at {i}");
+        let len = usize::from(bytes[i + 1]);
+        let id = u32::from_le_bytes([bytes[i + 7], bytes[i + 8], bytes[i + 9], 0]);
+        frames.push((id, bytes[i + 10..i + 10 + len].to_vec()));
+        i += 12 + len;
+    }
+    assert_eq!(i, bytes.len(), "whole frames");
+    frames
+}
+
+/// The firmware under QEMU answers a ground station over the link's
+/// MAVLink channel (protocol 17) on a route run: heartbeats and
+/// telemetry out while the route runs, and a pause (`COMMAND_LONG`
+/// `MAV_CMD_DO_PAUSE_CONTINUE`, 0) acknowledged accepted and applied at
+/// the next tick (the follower replaced by a fresh one, which holds:
+/// no route running at the end). Prints the run's peak stack.
+#[test]
+fn the_firmware_answers_a_ground_station_over_the_link() {
+    use wmr_link::{MavlinkChunk, MavlinkIn};
+    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let mut target = QemuTarget::start(&firmware(), &options()).unwrap();
+    target
+        .configure(
+            firmware_sim::simulation::hil_configuration(&setup).unwrap(),
+            &firmware_sim::simulation::hil_map_chunks(&setup).unwrap(),
+            &firmware_sim::simulation::hil_route_messages(&setup),
+        )
+        .unwrap();
+    let mut seq = 0_u32;
+    // Sends `bytes` over the channel and asks until nothing is pending.
+    let mut exchange = |target: &mut QemuTarget, bytes: &[u8]| {
+        let mut got = Vec::new();
+        let mut rest = bytes;
+        loop {
+            let chunk = MavlinkChunk::from_slice(rest);
+            rest = &rest[chunk.len()..];
+            let m = HostMessage::Mavlink(MavlinkIn { seq, bytes: chunk });
+            seq += 1;
+            let TargetMessage::Mavlink(out) = target.exchange(&m).unwrap() else {
+                panic!("not a MAVLink answer")
+            };
+            assert_eq!(out.counters.rx_dropped_bytes, 0);
+            got.extend_from_slice(out.bytes.as_slice());
+            if rest.is_empty() && out.pending == 0 {
+                return got;
+            }
+        }
+    };
+    let tick = |target: &mut QemuTarget, k: u32| {
+        let input = TickInput {
+            tick: k,
+            left_count: Some(0),
+            right_count: Some(0),
+            uart: heapless::Vec::new(),
+        };
+        let TargetMessage::Ticked(_) = target.exchange(&HostMessage::Tick(input)).unwrap() else {
+            panic!("not ticked")
+        };
+    };
+    let mut sent = Vec::new();
+    for k in 0..120 {
+        tick(&mut target, k);
+        sent.extend(exchange(&mut target, &[]));
+    }
+    let ids: Vec<u32> = mavlink_frames(&sent).iter().map(|(id, _)| *id).collect();
+    // HEARTBEAT (0) at 1 Hz: ticks 0 and 100 of 10 ms.
+    assert_eq!(ids.iter().filter(|&&id| id == 0).count(), 2, "{ids:?}");
+    let gcs_heartbeat = mavlink_frame(0, 0, 50, &[0, 0, 0, 0, 6, 8, 0, 4, 3]);
+    let mut pause = Vec::new();
+    pause.extend_from_slice(&0.0_f32.to_le_bytes());
+    pause.extend_from_slice(&[0; 24]);
+    pause.extend_from_slice(&193_u16.to_le_bytes());
+    pause.extend_from_slice(&[1, 1, 0]);
+    let mut bytes = gcs_heartbeat;
+    bytes.extend(mavlink_frame(1, 76, 152, &pause));
+    assert!(
+        exchange(&mut target, &bytes).is_empty(),
+        "answered at the next tick"
+    );
+    tick(&mut target, 120);
+    let answer = mavlink_frames(&exchange(&mut target, &[]));
+    let ack = answer
+        .iter()
+        .find(|(id, _)| *id == 77)
+        .unwrap_or_else(|| panic!("no COMMAND_ACK: {answer:?}"));
+    // COMMAND_ACK: command (u16), result (0: accepted).
+    assert_eq!(&ack.1[..2], &193_u16.to_le_bytes());
+    assert_eq!(ack.1.get(2).copied().unwrap_or(0), 0, "accepted");
+    for k in 121..150 {
+        tick(&mut target, k);
+        exchange(&mut target, &[]);
+    }
+    let finished = target.end().unwrap();
+    println!(
+        "MAVLink over the link: {} frames before the pause; peak stack {} B",
+        ids.len(),
+        finished.peak_stack_bytes
+    );
+    assert!(!finished.route_done);
+    assert_eq!(
+        finished.counters.route.routes_started, 0,
+        "the fresh follower holds"
+    );
+}
+
+/// A mission uploaded over the link's MAVLink channel while the route
+/// runs (`MISSION_COUNT`, each `MISSION_ITEM_INT` the firmware asks for
+/// with `MISSION_REQUEST_INT`) is accepted (`MISSION_ACK` 0) and loaded
+/// into the running follower; prints the run's peak stack, the upload's
+/// path being the endpoint's deepest.
+#[test]
+fn the_firmware_takes_a_mission_over_the_link() {
+    use wmr_link::{MavlinkChunk, MavlinkIn};
+    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let mut target = QemuTarget::start(&firmware(), &options()).unwrap();
+    target
+        .configure(
+            firmware_sim::simulation::hil_configuration(&setup).unwrap(),
+            &firmware_sim::simulation::hil_map_chunks(&setup).unwrap(),
+            &firmware_sim::simulation::hil_route_messages(&setup),
+        )
+        .unwrap();
+    let mut seq = 0_u32;
+    let mut k = 0_u32;
+    // Sends `bytes`, runs a tick, and returns what the endpoint wrote.
+    let mut step = |target: &mut QemuTarget, bytes: &[u8]| {
+        let mut got = Vec::new();
+        let mut rest = bytes;
+        let mut ticked = false;
+        loop {
+            let chunk = MavlinkChunk::from_slice(rest);
+            rest = &rest[chunk.len()..];
+            let m = HostMessage::Mavlink(MavlinkIn { seq, bytes: chunk });
+            seq += 1;
+            let TargetMessage::Mavlink(out) = target.exchange(&m).unwrap() else {
+                panic!("not a MAVLink answer")
+            };
+            got.extend_from_slice(out.bytes.as_slice());
+            if rest.is_empty() && out.pending == 0 {
+                if ticked {
+                    return mavlink_frames(&got);
+                }
+                let input = TickInput {
+                    tick: k,
+                    left_count: Some(0),
+                    right_count: Some(0),
+                    uart: heapless::Vec::new(),
+                };
+                k += 1;
+                let TargetMessage::Ticked(_) = target.exchange(&HostMessage::Tick(input)).unwrap()
+                else {
+                    panic!("not ticked")
+                };
+                ticked = true;
+            }
+        }
+    };
+    for _ in 0..10 {
+        step(&mut target, &[]);
+    }
+    // Two waypoints, local NED (x north, y east, 1e-4 m).
+    let items = [(0_i32, 0_i32), (5_000, 0)];
+    let mut count = Vec::new();
+    count.extend_from_slice(&(items.len() as u16).to_le_bytes());
+    count.extend_from_slice(&[1, 1, 0]);
+    let mut gcs_seq = 0_u8;
+    let mut frames = step(&mut target, &mavlink_frame(gcs_seq, 44, 221, &count));
+    let mut ack = None;
+    for _ in 0..10 {
+        if let Some((_, p)) = frames.iter().find(|(id, _)| *id == 47) {
+            ack = Some(p.clone());
+            break;
+        }
+        let Some((_, request)) = frames.iter().find(|(id, _)| *id == 51) else {
+            panic!("no item asked for: {frames:?}")
+        };
+        // MISSION_REQUEST_INT: seq (u16) first.
+        let i = usize::from(u16::from_le_bytes([
+            request[0],
+            request.get(1).copied().unwrap_or(0),
+        ]));
+        let (x, y) = items[i];
+        let mut item = Vec::new();
+        item.extend_from_slice(&0.0_f32.to_le_bytes()); // hold
+        item.extend_from_slice(&0.0_f32.to_le_bytes());
+        item.extend_from_slice(&0.0_f32.to_le_bytes());
+        item.extend_from_slice(&f32::NAN.to_le_bytes()); // yaw: none
+        item.extend_from_slice(&x.to_le_bytes());
+        item.extend_from_slice(&y.to_le_bytes());
+        item.extend_from_slice(&0.0_f32.to_le_bytes());
+        item.extend_from_slice(&(i as u16).to_le_bytes());
+        item.extend_from_slice(&16_u16.to_le_bytes()); // NAV_WAYPOINT
+        item.extend_from_slice(&[1, 1, 1, 0, 1, 0]); // targets, LOCAL_NED, current, autocontinue, type
+        gcs_seq = gcs_seq.wrapping_add(1);
+        frames = step(&mut target, &mavlink_frame(gcs_seq, 73, 38, &item));
+    }
+    let ack = ack.expect("MISSION_ACK");
+    // MISSION_ACK: target system, component, result (0: accepted).
+    assert_eq!(ack.get(2).copied().unwrap_or(0), 0, "accepted: {ack:?}");
+    for _ in 0..10 {
+        step(&mut target, &[]);
+    }
+    let finished = target.end().unwrap();
+    println!(
+        "a mission over the link: peak stack {} B",
+        finished.peak_stack_bytes
+    );
+}

@@ -79,6 +79,9 @@ struct FaultyLink {
 }
 
 /// What one wait for the firmware gave.
+// One at a time, on the host: a MAVLink answer's 192-byte chunk makes
+// `Message` the large variant, which boxing would not make cheaper.
+#[allow(clippy::large_enum_variant)]
 enum Event {
     Message(TargetMessage),
     /// A corrupt frame (dropped and counted by the receiver).

@@ -14,19 +14,19 @@
 //! 3. apply the endpoint's events to the robot at this tick boundary
 //!    ([`robot`]);
 //! 4. run the robot's tick (the same rig as `firmware-sim run`) and
-//!    advance the plant; update the mission's progress ([`progress`]);
+//!    advance the plant; update the mission's progress
+//!    ([`wmr_mavlink::progress`]);
 //! 5. send what the endpoint wrote, a datagram per frame.
 //!
 //! Files, each using only those above it: [`address`] (the `--mavlink`
 //! address and the loopback rule), [`link`] (the UDP socket), [`pace`]
-//! (the wall clock), [`progress`] (reached items), [`robot`] (the robot
-//! and its modes); this file runs the loop ([`run`]). Uses `scenario`,
+//! (the wall clock), [`robot`] (the robot on the mission runner of
+//! `wmr-mavlink`); this file runs the loop ([`run`]). Uses `scenario`,
 //! `report` and `simulation` of this crate.
 
 pub mod address;
 pub mod link;
 pub mod pace;
-pub mod progress;
 pub mod robot;
 
 use std::sync::atomic::{AtomicBool, Ordering};

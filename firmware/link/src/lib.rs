@@ -76,6 +76,26 @@
 //! (`RouteCounters::routes_refused`, in [`Finished`]) and holds the robot
 //! still.
 //!
+//! # MAVLink
+//! A ground station's MAVLink bytes cross the link as a channel beside
+//! the devices, outside the lock-step of the ticks, so a run without a
+//! ground station sends exactly the frames it sent before the channel
+//! existed. [`HostMessage::Mavlink`] ([`MavlinkIn`]) carries up to
+//! [`MAVLINK_CHUNK_BYTES`] bytes received from the ground station; the
+//! firmware queues them for its endpoint's next tick and answers
+//! [`TargetMessage::Mavlink`] ([`MavlinkOut`]) with the next chunk of
+//! the bytes its endpoint wrote and how many are still queued; the host
+//! asks again with no bytes until none are. The firmware's queues are
+//! bounded ([`MavlinkQueues`]): bytes or frames that do not fit are
+//! dropped and counted ([`MavlinkCounters`], in every answer). A message
+//! sent again (its answer lost) carries the same `seq` and is answered
+//! again from a cache, its bytes not queued twice.
+//!
+//! ```text
+//!    │ ◄──── Mavlink{seq, ≤ MAVLINK_CHUNK_BYTES from the GCS} ─ │  any time
+//!    │ ── Mavlink{seq, next output chunk, pending, counters} ─► │  configured
+//! ```
+//!
 //! # Faults
 //! A frame that arrives corrupt is dropped and counted, and the firmware
 //! answers it with [`TargetMessage::Nack`], so that the host resends its
@@ -124,6 +144,7 @@ mod channel;
 mod codec;
 mod diagnostics;
 mod floor;
+mod mavlink;
 mod message;
 mod protocol;
 mod route;
@@ -134,13 +155,17 @@ pub use channel::{Receiver, Sender};
 pub use codec::{Frame, LinkError, decode, encode};
 pub use diagnostics::{DIAGNOSTIC_COUNTERS, Diagnostics, LinkCounters};
 pub use floor::{FloorSpec, MapChunk, MapRefusal, MapTag};
+pub use mavlink::{
+    MAVLINK_RX_QUEUE_BYTES, MAVLINK_TX_QUEUE_BYTES, MavlinkChunk, MavlinkCounters, MavlinkIn,
+    MavlinkOut, MavlinkQueues,
+};
 pub use message::{
     Configure, Finished, HostMessage, MotorOutput, Refusal, TargetMessage, TickInput, TickOutput,
 };
 pub use protocol::{
     HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, LINK_TIMEOUT_MS, MAP_CAPACITY, MAP_CHUNK_TAGS,
-    MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, PROTOCOL_VERSION, ROUTE_CHUNK_WAYPOINTS,
-    STALE_WINDOW,
+    MAVLINK_CHUNK_BYTES, MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, PROTOCOL_VERSION,
+    ROUTE_CHUNK_WAYPOINTS, STALE_WINDOW,
 };
 pub use route::{RouteChunk, RouteRefusal, RouteSpec, route_messages};
 pub use wmr_core::pilot::route::RouteOptionsSpec;

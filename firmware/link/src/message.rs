@@ -6,8 +6,8 @@ use wmr_core::pilot::spec::{PilotSpec, SpecError};
 use wmr_core::pilot::tracker::TrackerMode;
 
 use crate::{
-    Diagnostics, FloorSpec, MAX_UART_BYTES_PER_TICK, MapChunk, MapRefusal, RouteChunk,
-    RouteRefusal, RouteSpec,
+    Diagnostics, FloorSpec, MAX_UART_BYTES_PER_TICK, MapChunk, MapRefusal, MavlinkIn, MavlinkOut,
+    RouteChunk, RouteRefusal, RouteSpec,
 };
 
 /// What the host sends.
@@ -28,6 +28,10 @@ pub enum HostMessage {
     Tick(TickInput),
     /// End of run: report and stop.
     Finish,
+    /// MAVLink bytes from the ground station, and a request for the
+    /// firmware's next output chunk (the crate docs, "MAVLink"). Appended
+    /// last: the other variants keep their encoding.
+    Mavlink(MavlinkIn),
 }
 
 /// Configuration of a run.
@@ -111,6 +115,9 @@ pub enum TargetMessage {
         /// Milliseconds of silence when they were stopped.
         silent_ms: u32,
     },
+    /// Answer to [`HostMessage::Mavlink`]: the endpoint's next output
+    /// bytes.
+    Mavlink(MavlinkOut),
 }
 
 /// Why a configuration was refused.

@@ -4,7 +4,7 @@
 /// The link's version: the shape of every message, as this crate defines
 /// it (bumped when one changes); both sides refuse a mismatch. What each
 /// version changed: `CHANGELOG.md`, "HIL link protocol versions".
-pub const PROTOCOL_VERSION: u16 = 16;
+pub const PROTOCOL_VERSION: u16 = 17;
 
 /// Most tags the firmware's tag map holds under HIL (the QEMU board's
 /// static table: 16 B a tag, 64 KiB of its 128 KiB of RAM): the robot
@@ -60,3 +60,12 @@ pub const MAX_FRAME_BYTES: usize = 512;
 /// UART bytes the host can hand over in one tick. At 115 200 Bd a 10 ms
 /// tick carries at most 116 bytes.
 pub const MAX_UART_BYTES_PER_TICK: usize = 160;
+
+/// MAVLink bytes one [`MavlinkChunk`] carries at most, either way: its
+/// largest frame (a full chunk, every varint at its longest) is well
+/// within the [`MAX_FRAME_BYTES`] (`a_full_mavlink_chunk_fits_a_frame`),
+/// and [`HostMessage`] does not grow (it is smaller than `Configure`).
+///
+/// [`MavlinkChunk`]: crate::MavlinkChunk
+/// [`HostMessage`]: crate::HostMessage
+pub const MAVLINK_CHUNK_BYTES: usize = 192;

@@ -14,6 +14,23 @@
 //! pushed in place into its `Waypoints`, planned once into its scratch
 //! `RoutePlan` to check them, and handed to its `RouteFollower`, which the
 //! robot's tick is lent ([`Robot::tick_on`]).
+//!
+//! A run with a route has a MAVLink endpoint and the mission runner of
+//! `wmr-mavlink` (the crate docs, "MAVLink"): the runner starts armed and
+//! running the loaded route (the robot drives it from its first tick, as
+//! without a ground station). At each tick, before the robot's, the
+//! endpoint takes the bytes the host brought since the last tick and the
+//! runner's view, and writes its output into the send queue; its events
+//! are applied to the runner, and what the runner asks is done to the
+//! store's follower in place (a hold: a fresh follower with no route; a
+//! start: a fresh follower loaded from an item; a replacement: a load
+//! into the running follower). After the robot's tick the runner reads
+//! the follower's status. A run that receives no MAVLink byte gets no
+//! event, so its robot runs exactly as without the endpoint. An uploaded
+//! mission is checked only for its size here (no second 20 KB plan to
+//! plan it into): one the planner refuses is refused by the follower when
+//! it starts, counted (`RouteCounters::routes_refused`), and the robot
+//! holds where it is.
 
 use core::cell::RefCell;
 
@@ -23,14 +40,19 @@ use wmr_core::pilot::Pilot;
 use wmr_core::pilot::robot::Robot;
 use wmr_core::pilot::route::{RouteFollower, RouteOptions, RouteStart, RouteStatus};
 use wmr_core::pilot::spec::SpecError;
-use wmr_core::reference::route::{ROUTE_CAPACITY, RouteLimits, RoutePlan, Waypoint, Waypoints};
+use wmr_core::reference::route::{
+    ROUTE_CAPACITY, RouteError, RouteLimits, RouteLimitsSpec, RoutePlan, Waypoint, Waypoints,
+};
+use wmr_mavlink::{
+    EndpointConfig, Estimate, Events, FollowerAction, MavlinkEndpoint, MissionRunner, TxBuffer,
+};
 
 use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
 use crate::route::CAPACITY_U8;
 use crate::{
     Configure, Diagnostics, Finished, FloorSpec, HostMessage, LinkCounters, MAP_CAPACITY, MapChunk,
-    MapRefusal, MotorOutput, PROTOCOL_VERSION, Refusal, RouteChunk, RouteRefusal, RouteSpec,
-    TargetMessage, TickOutput, telemetry,
+    MapRefusal, MavlinkCounters, MavlinkOut, MavlinkQueues, MotorOutput, PROTOCOL_VERSION, Refusal,
+    RouteChunk, RouteRefusal, RouteSpec, TargetMessage, TickOutput, telemetry,
 };
 
 /// The tag map of a HIL session: the core's, [`MAP_CAPACITY`] tags.
@@ -175,6 +197,15 @@ impl RouteStore {
         self.waypoints.push(waypoint).map_err(RouteRefusal::Route)
     }
 
+    /// Makes the follower a fresh one with no route, in place (the robot
+    /// holds where it is); nothing before a follower exists.
+    pub fn reset_follower(&mut self) {
+        let options = self.options;
+        if let Slot::Follower(f) = &mut self.slot {
+            *f = RouteFollower::new(options);
+        }
+    }
+
     /// The waypoints loaded so far.
     #[must_use]
     pub fn waypoints(&self) -> &Waypoints {
@@ -230,6 +261,71 @@ impl RouteLoad {
     }
 }
 
+/// The MAVLink side of a session's route runs (module documentation):
+/// the endpoint, the mission runner and the channel's queues, about
+/// 11 KB; the board lends it
+/// ([`Session::lend_mavlink`]) from a `static`, and each route run resets
+/// it in place, so neither is built on the stack.
+#[derive(Debug, Clone)]
+pub struct MavlinkStore {
+    config: EndpointConfig,
+    endpoint: MavlinkEndpoint,
+    runner: MissionRunner,
+    /// The control period, µs: the endpoint's clock is the tick's time.
+    period_us: u32,
+    /// The run has a route: the endpoint and the runner are its.
+    active: bool,
+    /// The channel's queues (the crate docs, "MAVLink").
+    queues: MavlinkQueues,
+    /// Where the endpoint writes an uploaded mission as a route to check
+    /// it (`MavlinkEndpoint::handle_in`): here, not on the stack.
+    route_check: Waypoints,
+}
+
+impl MavlinkStore {
+    /// Route limits to build an idle store with ([`Self::new`]): valid,
+    /// and replaced by each run's.
+    pub const IDLE_LIMITS: RouteLimitsSpec = RouteLimitsSpec {
+        max_speed_m_s: 0.3,
+        max_tangential_accel_m_s2: 0.5,
+        max_lateral_accel_m_s2: 0.5,
+        blend_deviation_m: 0.02,
+        pivot_threshold_rad: 0.5,
+        pivot_rate_rad_s: 1.0,
+        pivot_accel_rad_s2: 2.0,
+    };
+
+    /// Idle (no run), its endpoint configured by `config` for every run
+    /// (system and component ids, timeouts, telemetry period, origin);
+    /// `limits` are replaced by each run's ([`Self::IDLE_LIMITS`] will
+    /// do). Infallible and inlined, so that a board builds it in its
+    /// `static`, not on the stack.
+    #[must_use]
+    #[inline(always)]
+    pub fn new(config: EndpointConfig, limits: RouteLimits) -> Self {
+        Self {
+            config,
+            endpoint: MavlinkEndpoint::new_in_place(config, limits),
+            runner: MissionRunner::new(RouteStart::AsGiven, limits),
+            period_us: 0,
+            active: false,
+            queues: MavlinkQueues::new(),
+            route_check: Waypoints::new(),
+        }
+    }
+
+    /// A new route run: the endpoint reset, the runner running
+    /// `waypoints` as `load` starts them, in place.
+    fn activate(&mut self, waypoints: &Waypoints, load: &RouteLoad, period_s: f32) {
+        self.endpoint.reset(self.config, load.limits);
+        self.runner
+            .reset_running(waypoints, load.start, load.limits);
+        // A period of at most hours (the pilot's check): fits.
+        self.period_us = (period_s * 1.0e6 + 0.5) as u32;
+        self.active = true;
+    }
+}
+
 /// The robot a HIL session runs: the core's [`Robot`] on proxy devices.
 pub type ProxyRobot<'a> = Robot<
     ProxyEncoder<'a>,
@@ -262,6 +358,11 @@ pub struct Session<'a> {
     telemetry_every_ticks: u16,
     /// The record of the tick just run, if it is one to emit.
     telemetry: Option<telemetry::Record>,
+    /// MAVLink bytes dropped for want of a [`MavlinkStore`].
+    mavlink_dropped: u32,
+    /// The endpoint and mission runner of route runs, if the board lent
+    /// them.
+    mav: Option<&'a mut MavlinkStore>,
 }
 
 impl<'a> Session<'a> {
@@ -282,7 +383,22 @@ impl<'a> Session<'a> {
             stale_ticks: 0,
             telemetry_every_ticks: 0,
             telemetry: None,
+            mavlink_dropped: 0,
+            mav: None,
         }
+    }
+
+    /// Lends the session the MAVLink endpoint and mission runner its
+    /// route runs use (module documentation); without, a run's MAVLink
+    /// bytes are counted dropped.
+    pub fn lend_mavlink(&mut self, store: &'a mut MavlinkStore) {
+        store.active = false;
+        self.mav = Some(store);
+    }
+
+    /// The run's MAVLink side, while it has one.
+    fn mav_active(&mut self) -> Option<&mut MavlinkStore> {
+        self.mav.as_deref_mut().filter(|m| m.active)
     }
 
     /// The telemetry start of the run just configured (`None`: telemetry
@@ -365,8 +481,18 @@ impl<'a> Session<'a> {
                     }
                     (Some(robot), _) => {
                         self.bus.load(input);
+                        if let Some(mav) = self.mav.as_deref_mut().filter(|m| m.active) {
+                            mavlink_tick(mav, self.route, input.tick, self.last_answer.as_ref());
+                        }
                         let route = self.route_load.and_then(|_| self.route.follower_mut());
                         let out = robot.tick_on(route);
+                        if let (Some(mav), Some(f)) = (
+                            self.mav.as_deref_mut().filter(|m| m.active),
+                            self.route.follower(),
+                        ) {
+                            let r = out.pilot.tracker.reference.position;
+                            mav.runner.after_tick(&f.status(), f.counters(), r);
+                        }
                         // A few scalars, not `&out`: taking the tick's address
                         // kept all of it in this (inlined, deepest) frame.
                         let extra = telemetry::Extra::of(&out);
@@ -407,6 +533,24 @@ impl<'a> Session<'a> {
                 }),
                 true,
             ),
+            HostMessage::Mavlink(m) => {
+                let out = match self.mav.as_deref_mut() {
+                    Some(mav) => mav.queues.exchange(m, configured && mav.active),
+                    None => {
+                        let n = u32::try_from(m.bytes.len()).unwrap_or(u32::MAX);
+                        self.mavlink_dropped = self.mavlink_dropped.wrapping_add(n);
+                        MavlinkOut {
+                            seq: m.seq,
+                            counters: MavlinkCounters {
+                                rx_dropped_bytes: self.mavlink_dropped,
+                                ..MavlinkCounters::default()
+                            },
+                            ..MavlinkOut::default()
+                        }
+                    }
+                };
+                (TargetMessage::Mavlink(out), false)
+            }
         }
     }
 
@@ -475,6 +619,10 @@ impl<'a> Session<'a> {
                 // The last run's robot goes before its map is emptied.
                 self.robot = None;
                 self.route_load = None;
+                if let Some(mav) = self.mav.as_deref_mut() {
+                    mav.active = false;
+                    mav.queues.reset();
+                }
                 self.map_load = match c.floor {
                     FloorSpec::Grid(_) => None,
                     FloorSpec::Map { tags } => {
@@ -583,6 +731,9 @@ impl<'a> Session<'a> {
         self.robot = None;
         self.map_load = None;
         self.route_load = None;
+        if let Some(mav) = self.mav_active() {
+            mav.active = false;
+        }
         self.bus.stop_motors();
         TargetMessage::Refused(Refusal::Route(why))
     }
@@ -677,7 +828,99 @@ impl<'a> Session<'a> {
             .as_ref()
             .map_or(0.0, |r| r.pilot().tracker().config().clock().period_s());
         self.route.finish(&load.limits, load.start, period_s)?;
+        let load = *load;
+        if let Some(mav) = self.mav.as_deref_mut() {
+            mav.activate(self.route.waypoints(), &load, period_s);
+        }
         Ok(TargetMessage::Configured)
+    }
+}
+
+/// The MAVLink endpoint's part of a tick, before the robot's (module
+/// documentation): the bytes received since the last tick in, its output
+/// into the send queue, its events applied to the runner and the
+/// follower. `last` is the last tick's answer (the estimate the endpoint
+/// reports). Not inlined: the route it reads out of the endpoint (1.8 KB)
+/// is in this frame, off the robot's tick's deepest path.
+#[inline(never)]
+fn mavlink_tick(
+    mav: &mut MavlinkStore,
+    route: &mut RouteStore,
+    tick: u32,
+    last: Option<&TickOutput>,
+) {
+    let now_us = u64::from(tick) * u64::from(mav.period_us);
+    // The endpoint's clock wraps (it takes differences only).
+    let now_ms = u32::try_from((now_us / 1000) & u64::from(u32::MAX)).unwrap_or(0);
+    let MavlinkStore {
+        endpoint,
+        runner,
+        queues,
+        route_check,
+        ..
+    } = mav;
+    let view = runner.view(last.map(|a| Estimate {
+        x_m: a.position_m[0],
+        y_m: a.position_m[1],
+        heading_rad: libm::atan2f(a.heading[1], a.heading[0]),
+        speed_m_s: a.command[0],
+        turn_rate_rad_s: a.command[1],
+    }));
+    let mut events = Events::default();
+    queues.tick(|rx, room| {
+        let mut tx = TxBuffer::new(room);
+        events = endpoint.handle_in(now_ms, rx, &view, check_mission, &mut tx, route_check);
+        (tx.len(), tx.dropped())
+    });
+    if !events.as_slice().is_empty() {
+        apply_events(endpoint, runner, route, &events);
+    }
+}
+
+/// Applies the endpoint's events to the runner and what it asks to the
+/// follower, in place. Not inlined: a route loaded into the follower
+/// passes through this frame (about 2 KB), which ticks without an event
+/// do not take.
+#[inline(never)]
+fn apply_events(
+    endpoint: &MavlinkEndpoint,
+    runner: &mut MissionRunner,
+    route: &mut RouteStore,
+    events: &Events,
+) {
+    let limits = endpoint.route_limits();
+    for &event in events.as_slice() {
+        let counters = route
+            .follower()
+            .map(RouteFollower::counters)
+            .unwrap_or_default();
+        let write = |m: &mut Waypoints| endpoint.route_into(m);
+        let action = runner.apply_with(event, write, limits, counters).action;
+        match action {
+            FollowerAction::Keep => {}
+            FollowerAction::Hold => route.reset_follower(),
+            FollowerAction::Replace => {
+                if let Some(f) = route.follower_mut() {
+                    runner.load(action, f);
+                }
+            }
+            FollowerAction::Run { .. } => {
+                route.reset_follower();
+                if let Some(f) = route.follower_mut() {
+                    runner.load(action, f);
+                }
+            }
+        }
+    }
+}
+
+/// The check of an uploaded mission on the firmware: its size (module
+/// documentation).
+fn check_mission(route: &Waypoints) -> Result<(), RouteError> {
+    if route.len() < 2 {
+        Err(RouteError::TooFewWaypoints)
+    } else {
+        Ok(())
     }
 }
 
@@ -717,6 +960,7 @@ mod tests {
     use crate::ROUTE_CHUNK_WAYPOINTS;
     use crate::TickInput;
     use crate::{MAP_CHUNK_TAGS, MapTag};
+    use crate::{MavlinkChunk, MavlinkIn};
     use wmr_core::devices::TagMapError;
     use wmr_core::devices::encode_frame;
     use wmr_core::devices::tag_grid::TagGridSpec;
@@ -1313,6 +1557,172 @@ mod tests {
         assert_eq!(f.counters.route.routes_refused, 0);
         assert!(!f.route_done);
         assert!(f.counters.route.clock_wait_ticks > 0);
+    }
+
+    fn idle_store() -> MavlinkStore {
+        use wmr_mavlink::EndpointSpec;
+        MavlinkStore::new(
+            EndpointConfig::new(&EndpointSpec::default()).unwrap(),
+            RouteLimits::new(&MavlinkStore::IDLE_LIMITS).unwrap(),
+        )
+    }
+
+    /// A MAVLink 2 frame from a ground station (system 255, component
+    /// 190), its CRC with the message's extra byte.
+    fn mav_frame(seq: u8, msg_id: u32, extra: u8, payload: &[u8]) -> std::vec::Vec<u8> {
+        let id = msg_id.to_le_bytes();
+        let mut f = std::vec![
+            0xFD,
+            payload.len() as u8,
+            0,
+            0,
+            seq,
+            255,
+            190,
+            id[0],
+            id[1],
+            id[2]
+        ];
+        f.extend_from_slice(payload);
+        let mut crc: u16 = 0xFFFF;
+        for &b in f[1..].iter().chain(core::iter::once(&extra)) {
+            let mut t = b ^ (crc & 0xFF) as u8;
+            t ^= t << 4;
+            crc = (crc >> 8) ^ (u16::from(t) << 8) ^ (u16::from(t) << 3) ^ (u16::from(t) >> 4);
+        }
+        f.extend_from_slice(&crc.to_le_bytes());
+        f
+    }
+
+    /// A ground station's heartbeat (`MAV_TYPE_GCS`).
+    fn gcs_heartbeat(seq: u8) -> std::vec::Vec<u8> {
+        mav_frame(seq, 0, 50, &[0, 0, 0, 0, 6, 8, 0, 4, 3])
+    }
+
+    /// `COMMAND_LONG` to system 1, component 1.
+    fn command_long(seq: u8, command: u16, param1: f32) -> std::vec::Vec<u8> {
+        let mut p = std::vec::Vec::new();
+        p.extend_from_slice(&param1.to_le_bytes());
+        p.extend_from_slice(&[0; 24]);
+        p.extend_from_slice(&command.to_le_bytes());
+        p.extend_from_slice(&[1, 1, 0]);
+        mav_frame(seq, 76, 152, &p)
+    }
+
+    /// Sends `bytes` and then asks until nothing is pending; returns
+    /// what the firmware's endpoint wrote.
+    fn exchange(s: &mut Session<'_>, seq: &mut u32, bytes: &[u8]) -> std::vec::Vec<u8> {
+        let link = LinkCounters::default();
+        let mut got = std::vec::Vec::new();
+        let mut rest = bytes;
+        loop {
+            let chunk = MavlinkChunk::from_slice(rest);
+            rest = &rest[chunk.len()..];
+            let m = HostMessage::Mavlink(MavlinkIn {
+                seq: *seq,
+                bytes: chunk,
+            });
+            *seq += 1;
+            let TargetMessage::Mavlink(out) = s.handle(&m, link, || 0).0 else {
+                panic!("not a MAVLink answer")
+            };
+            got.extend_from_slice(out.bytes.as_slice());
+            if rest.is_empty() && out.pending == 0 {
+                return got;
+            }
+        }
+    }
+
+    /// The message ids of the MAVLink 2 frames in `bytes`, in order.
+    fn frame_ids(bytes: &[u8]) -> std::vec::Vec<u32> {
+        let mut ids = std::vec::Vec::new();
+        let mut i = 0;
+        while i + 12 <= bytes.len() {
+            assert_eq!(bytes[i], 0xFD, "a frame starts at {i}");
+            let len = usize::from(bytes[i + 1]);
+            ids.push(u32::from_le_bytes([
+                bytes[i + 7],
+                bytes[i + 8],
+                bytes[i + 9],
+                0,
+            ]));
+            i += 12 + len;
+        }
+        assert_eq!(i, bytes.len(), "whole frames");
+        ids
+    }
+
+    /// A route run's session answers a ground station through its
+    /// endpoint: heartbeats out, and a pause command stops the route (a
+    /// fresh follower holds the robot) and is acknowledged; the run's
+    /// ticks before it are those of a run without MAVLink. A run
+    /// without a route has no endpoint: its bytes are counted dropped.
+    /// (The session is lent the endpoint's store as the QEMU board lends
+    /// it.)
+    #[test]
+    fn a_route_run_talks_mavlink_and_a_pause_holds_the_robot() {
+        let link = LinkCounters::default();
+        let ticks = |with_mavlink: bool| {
+            let bus = ProxyBus::new();
+            let map = RefCell::new(LinkTagMap::new());
+            let mut route = RouteStore::new();
+            let mut store = std::boxed::Box::new(idle_store());
+            let mut s = Session::new(&bus, &map, &mut route);
+            s.lend_mavlink(&mut store);
+            let answer = |s: &mut Session<'_>, m: &HostMessage| s.handle(m, link, || 0).0;
+            answer(&mut s, &HostMessage::Configure(configure()));
+            answer(&mut s, &announce(3));
+            assert_eq!(
+                answer(&mut s, &route_chunk(0, &zigzag(3))),
+                TargetMessage::Configured
+            );
+            let mut seq = 0;
+            let mut outs = std::vec::Vec::new();
+            let mut sent = std::vec::Vec::new();
+            for k in 0..40 {
+                outs.push(answer(&mut s, &still_tick(k, true)));
+                if with_mavlink {
+                    sent.extend(exchange(&mut s, &mut seq, &[]));
+                }
+            }
+            let status = s.route_status().unwrap();
+            assert!(status.running, "the route runs from the first tick");
+            if with_mavlink {
+                // Heartbeats (id 0) and the rest of the endpoint's output.
+                let ids = frame_ids(&sent);
+                assert!(ids.contains(&0), "{ids:?}");
+                let mut bytes = gcs_heartbeat(0);
+                bytes.extend(command_long(1, 193, 0.0));
+                let got = exchange(&mut s, &mut seq, &bytes);
+                assert!(got.is_empty(), "answered at the next tick");
+                answer(&mut s, &still_tick(40, true));
+                let got = exchange(&mut s, &mut seq, &[]);
+                // COMMAND_ACK (77).
+                assert!(frame_ids(&got).contains(&77), "{:?}", frame_ids(&got));
+                let status = s.route_status().unwrap();
+                assert!(!status.running, "a fresh follower: holding");
+                assert_eq!(s.route_follower().unwrap().counters().routes_started, 0);
+            }
+            outs
+        };
+        assert_eq!(ticks(false), ticks(true), "MAVLink output changes no tick");
+
+        let bus = ProxyBus::new();
+        let map = RefCell::new(LinkTagMap::new());
+        let mut route = RouteStore::new();
+        let mut store = std::boxed::Box::new(idle_store());
+        let mut s = Session::new(&bus, &map, &mut route);
+        s.lend_mavlink(&mut store);
+        s.handle(&HostMessage::Configure(configure()), link, || 0);
+        let m = HostMessage::Mavlink(MavlinkIn {
+            seq: 0,
+            bytes: MavlinkChunk::from_slice(&gcs_heartbeat(0)),
+        });
+        let TargetMessage::Mavlink(out) = s.handle(&m, link, || 0).0 else {
+            panic!("not a MAVLink answer")
+        };
+        assert_eq!(out.counters.rx_dropped_bytes, gcs_heartbeat(0).len() as u32);
+        assert!(out.bytes.is_empty());
     }
 
     /// Without a route the session's robot is the core's `Robot`, bit for

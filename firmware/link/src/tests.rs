@@ -107,6 +107,151 @@ fn a_full_map_chunk_fits_a_frame() {
     assert!(u16::try_from(MAP_CAPACITY).is_ok());
 }
 
+/// A full MAVLink chunk (bytes that do not compress, every varint at its
+/// longest) is one frame either way, decodes back, and a longer one is
+/// refused by the decoder; in RAM the host's is no larger than
+/// `Configure`, so the firmware's receive path needs no more stack.
+#[test]
+fn a_full_mavlink_chunk_fits_a_frame() {
+    let bytes: std::vec::Vec<u8> = (0..MAVLINK_CHUNK_BYTES)
+        .map(|i| (i % 255) as u8 + 1)
+        .collect();
+    let chunk = MavlinkChunk::from_slice(&bytes);
+    assert_eq!(chunk.as_slice(), &bytes[..]);
+    // A longer slice fills one chunk; the rest is the caller's.
+    let mut longer = bytes.clone();
+    longer.push(7);
+    assert_eq!(MavlinkChunk::from_slice(&longer), chunk);
+    let host = HostMessage::Mavlink(MavlinkIn {
+        seq: u32::MAX,
+        bytes: chunk,
+    });
+    let target = TargetMessage::Mavlink(MavlinkOut {
+        seq: u32::MAX,
+        bytes: chunk,
+        pending: u16::MAX,
+        counters: MavlinkCounters {
+            rx_dropped_bytes: u32::MAX,
+            tx_dropped_frames: u32::MAX,
+            repeated: u32::MAX,
+        },
+    });
+    let mut out = [0; MAX_FRAME_BYTES];
+    let mut tx = Sender { seq: u32::MAX };
+    let frame = tx.frame(host.clone(), &mut out).unwrap().to_vec();
+    println!(
+        "largest MAVLink chunk in: {} B of {MAX_FRAME_BYTES}",
+        frame.len()
+    );
+    assert_eq!(
+        feed::<HostMessage>(&mut Receiver::new(), &frame),
+        vec![Ok(host)]
+    );
+    let frame = tx.frame(target, &mut out).unwrap().to_vec();
+    println!(
+        "largest MAVLink chunk out: {} B of {MAX_FRAME_BYTES}",
+        frame.len()
+    );
+    assert_eq!(
+        feed::<TargetMessage>(&mut Receiver::new(), &frame),
+        vec![Ok(target)]
+    );
+    assert!(core::mem::size_of::<MavlinkIn>() <= core::mem::size_of::<Configure>());
+    // A chunk over the limit on the wire is refused, not cut.
+    let mut buf = [0_u8; 2 * MAVLINK_CHUNK_BYTES];
+    let long = postcard::to_slice(&longer[..], &mut buf).unwrap();
+    assert!(postcard::from_bytes::<MavlinkChunk>(long).is_err());
+    let exact = postcard::to_slice(&bytes[..], &mut buf).unwrap();
+    assert_eq!(postcard::from_bytes::<MavlinkChunk>(exact).unwrap(), chunk);
+}
+
+/// The firmware's queues: bytes queued up to their room and the rest
+/// counted, output handed out in chunks in order, a message sent again
+/// answered again without queueing twice.
+#[test]
+fn mavlink_queues_bound_count_and_answer_resends_again() {
+    let mut q = MavlinkQueues::new();
+    let full = MavlinkChunk::from_slice(&[9; MAVLINK_CHUNK_BYTES]);
+    // Not accepted (no endpoint): all counted.
+    let a = q.exchange(
+        &MavlinkIn {
+            seq: 0,
+            bytes: full,
+        },
+        false,
+    );
+    assert_eq!((a.bytes.len(), a.pending), (0, 0));
+    assert_eq!(a.counters.rx_dropped_bytes, MAVLINK_CHUNK_BYTES as u32);
+    // Accepted up to the queue's room, the rest counted.
+    let chunks = MAVLINK_RX_QUEUE_BYTES / MAVLINK_CHUNK_BYTES;
+    for seq in 1..=chunks as u32 + 1 {
+        q.exchange(&MavlinkIn { seq, bytes: full }, true);
+    }
+    assert_eq!(
+        q.counters().rx_dropped_bytes,
+        2 * MAVLINK_CHUNK_BYTES as u32
+    );
+    // Sent again: the same answer, nothing queued, counted as repeated.
+    let again = q.exchange(
+        &MavlinkIn {
+            seq: chunks as u32 + 1,
+            bytes: full,
+        },
+        true,
+    );
+    assert_eq!(
+        again.counters.rx_dropped_bytes,
+        2 * MAVLINK_CHUNK_BYTES as u32
+    );
+    assert_eq!(again.counters.repeated, 1);
+    // The tick sees every queued byte and writes output; 3 frames dropped.
+    let mut seen = 0;
+    q.tick(|rx, room| {
+        seen = rx.len();
+        assert_eq!(room.len(), MAVLINK_TX_QUEUE_BYTES);
+        for (i, b) in room.iter_mut().take(500).enumerate() {
+            *b = (i % 251) as u8;
+        }
+        (500, 3)
+    });
+    assert_eq!(seen, MAVLINK_RX_QUEUE_BYTES);
+    assert_eq!(q.counters().tx_dropped_frames, 3);
+    // Output in order, chunk by chunk, until nothing is pending.
+    let mut got = std::vec::Vec::new();
+    let mut seq = 100;
+    loop {
+        let a = q.exchange(
+            &MavlinkIn {
+                seq,
+                bytes: MavlinkChunk::new(),
+            },
+            true,
+        );
+        got.extend_from_slice(a.bytes.as_slice());
+        seq += 1;
+        if a.pending == 0 {
+            break;
+        }
+    }
+    assert_eq!(
+        got,
+        (0..500)
+            .map(|i| (i % 251) as u8)
+            .collect::<std::vec::Vec<_>>()
+    );
+    // The receive queue was emptied by the tick; output written after a
+    // partial take goes after what is left.
+    q.tick(|rx, room| {
+        assert!(rx.is_empty());
+        room[0] = 1;
+        (1, 0)
+    });
+    assert_eq!(q.pending(), 1);
+    // A writer claiming more than the room is held to the room.
+    q.tick(|_, room| (room.len() + 10, 0));
+    assert_eq!(q.pending(), MAVLINK_TX_QUEUE_BYTES);
+}
+
 /// A route chunk of [`ROUTE_CHUNK_WAYPOINTS`] waypoints at their longest
 /// (each a stop facing a heading, with a speed limit) fits a frame; in
 /// RAM it is no larger than `Configure`, so the firmware's receive path

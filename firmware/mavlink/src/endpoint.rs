@@ -184,6 +184,13 @@ pub struct MavlinkEndpoint {
     pub(crate) last_mode: Option<(bool, RobotMode)>,
 }
 
+/// An upload's route check and where the uploaded route is written for
+/// it ([`MavlinkEndpoint::handle_in`]).
+pub(crate) struct RouteCheck<'r, F> {
+    pub check: F,
+    pub route: &'r mut Waypoints,
+}
+
 /// Heartbeat period, ms (MAVLink's 1 Hz).
 const HEARTBEAT_PERIOD_MS: u32 = 1_000;
 
@@ -200,13 +207,22 @@ impl MavlinkEndpoint {
     // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     pub fn new(config: EndpointConfig, limits: RouteLimits) -> Self {
+        Self::new_in_place(config, limits)
+    }
+
+    /// As [`Self::new`], always inlined: built where its caller puts it
+    /// (a `static` of a board with little stack), not in a frame of its
+    /// own and copied out.
+    #[must_use]
+    #[inline(always)]
+    pub fn new_in_place(config: EndpointConfig, limits: RouteLimits) -> Self {
         Self {
             config,
             limits,
             parser: Parser::new(),
             counters: Counters::default(),
             seq: 0,
-            missions: [Mission::new(), Mission::new()],
+            missions: [const { Mission::new() }; 2],
             active: 0,
             upload: None,
             gcs_heartbeat_ms: None,
@@ -237,6 +253,35 @@ impl MavlinkEndpoint {
         self.mission().waypoints(self.config.origin.as_ref())
     }
 
+    /// [`Self::route`] written into `out` in place.
+    pub fn route_into(&self, out: &mut Waypoints) {
+        self.mission()
+            .write_waypoints(self.config.origin.as_ref(), out);
+    }
+
+    /// As [`Self::new`], in place: no mission, nothing heard, counters
+    /// zero (a new run of a robot whose endpoint lives in a `static`; no
+    /// endpoint is built on the stack).
+    pub fn reset(&mut self, config: EndpointConfig, limits: RouteLimits) {
+        self.config = config;
+        self.limits = limits;
+        self.parser.reset();
+        self.counters = Counters::default();
+        self.seq = 0;
+        for mission in &mut self.missions {
+            mission.clear();
+        }
+        self.active = 0;
+        self.upload = None;
+        self.gcs_heartbeat_ms = None;
+        self.link_lost = false;
+        self.last_heartbeat_ms = None;
+        self.last_telemetry_ms = None;
+        self.last_current = None;
+        self.last_reached = None;
+        self.last_mode = None;
+    }
+
     /// Whether the link is lost (a ground station was heard, then not for
     /// the link timeout).
     #[must_use]
@@ -263,12 +308,38 @@ impl MavlinkEndpoint {
         now_ms: u32,
         rx: &[u8],
         view: &RobotView,
-        mut check_route: F,
+        check_route: F,
         tx: &mut TxBuffer<'_>,
     ) -> Events
     where
         F: FnMut(&Waypoints) -> Result<(), RouteError>,
     {
+        let mut route = Waypoints::new();
+        self.handle_in(now_ms, rx, view, check_route, tx, &mut route)
+    }
+
+    /// As [`Self::handle`], an uploaded mission written as a route into
+    /// `route` for `check_route` (a caller with little stack keeps it in
+    /// a `static`; [`Self::handle`] has it in its frame, 1.8 KB).
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
+    pub fn handle_in<F>(
+        &mut self,
+        now_ms: u32,
+        rx: &[u8],
+        view: &RobotView,
+        check_route: F,
+        tx: &mut TxBuffer<'_>,
+        route: &mut Waypoints,
+    ) -> Events
+    where
+        F: FnMut(&Waypoints) -> Result<(), RouteError>,
+    {
+        let mut check_route = RouteCheck {
+            check: check_route,
+            route,
+        };
         let mut events = Events::default();
         let dropped_before = tx.dropped();
         for &byte in rx {
@@ -301,7 +372,7 @@ impl MavlinkEndpoint {
         now_ms: u32,
         frame: &RxFrame,
         view: &RobotView,
-        check_route: &mut F,
+        check_route: &mut RouteCheck<'_, F>,
         tx: &mut TxBuffer<'_>,
         events: &mut Events,
     ) where

@@ -71,6 +71,8 @@ pub mod endpoint;
 pub mod geo;
 pub mod mission;
 pub mod params;
+pub mod progress;
+pub mod runner;
 pub mod telemetry;
 pub mod upload;
 pub mod wire;
@@ -80,4 +82,6 @@ pub use endpoint::{
     Counters, EVENT_CAPACITY, Estimate, Event, Events, MavlinkEndpoint, RobotMode, RobotView,
 };
 pub use mission::{Item, Mission};
+pub use progress::Progress;
+pub use runner::{Applied, FollowerAction, MissionRunner, Note};
 pub use wire::{RxCounters, TxBuffer};

@@ -250,6 +250,15 @@ impl Mission {
     #[must_use]
     pub fn waypoints(&self, origin: Option<&Origin>) -> Waypoints {
         let mut out = Waypoints::new();
+        self.write_waypoints(origin, &mut out);
+        out
+    }
+
+    /// [`Self::waypoints`] written into `out` in place (its waypoints
+    /// replaced): a caller with little stack keeps the route where it
+    /// lives.
+    pub fn write_waypoints(&self, origin: Option<&Origin>, out: &mut Waypoints) {
+        out.clear();
         for item in self.items.iter().take(usize::from(self.len)) {
             let (x_m, y_m) = if item.is_global() {
                 match origin {
@@ -280,6 +289,5 @@ impl Mission {
             // At most ROUTE_CAPACITY items: the push cannot fail.
             let _ = out.push(waypoint);
         }
-        out
     }
 }

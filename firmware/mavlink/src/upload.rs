@@ -16,7 +16,7 @@ use mavlink::MessageData;
 use mavlink::dialects::common as c;
 use wmr_core::reference::route::{ROUTE_CAPACITY, RouteError, Waypoints};
 
-use crate::endpoint::{Event, Events, MavlinkEndpoint, RobotView, Upload};
+use crate::endpoint::{Event, Events, MavlinkEndpoint, RobotView, RouteCheck, Upload};
 use crate::mission::{Coord, RawItem, check_item, route_refusal};
 use crate::wire::{RxFrame, TxBuffer};
 
@@ -57,7 +57,7 @@ impl MavlinkEndpoint {
         now_ms: u32,
         frame: &RxFrame,
         view: &RobotView,
-        check_route: &mut F,
+        check_route: &mut RouteCheck<'_, F>,
         tx: &mut TxBuffer<'_>,
         events: &mut Events,
     ) where
@@ -250,7 +250,7 @@ impl MavlinkEndpoint {
         now_ms: u32,
         frame: &RxFrame,
         from: (u8, u8),
-        check_route: &mut F,
+        check_route: &mut RouteCheck<'_, F>,
         tx: &mut TxBuffer<'_>,
         events: &mut Events,
     ) where
@@ -305,11 +305,13 @@ impl MavlinkEndpoint {
             return;
         }
         self.upload = None;
-        let route = match self.missions.get(staging_index) {
-            Some(m) => m.waypoints(self.config.origin.as_ref()),
-            None => Waypoints::new(),
-        };
-        if let Err(error) = check_route(&route) {
+        // Written in place, where the caller keeps it (not built here).
+        let RouteCheck { check, route } = check_route;
+        match self.missions.get(staging_index) {
+            Some(m) => m.write_waypoints(self.config.origin.as_ref(), route),
+            None => route.clear(),
+        }
+        if let Err(error) = check(route) {
             self.status_text(
                 tx,
                 c::MavSeverity::MAV_SEVERITY_WARNING,

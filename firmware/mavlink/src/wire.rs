@@ -147,6 +147,11 @@ impl Parser {
         }
     }
 
+    /// Empties the parser, in place.
+    pub fn reset(&mut self) {
+        self.len = 0;
+    }
+
     /// Appends a byte; call [`Parser::next_frame`] until `None` after each.
     pub fn push(&mut self, byte: u8, counters: &mut RxCounters) {
         if self.len >= MAX_FRAME {

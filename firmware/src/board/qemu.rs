@@ -46,7 +46,7 @@ use host_file::HostFile;
 // this board uses no peripheral of it.
 use stm32f4xx_hal as _;
 use wmr_link::proxy::ProxyBus;
-use wmr_link::session::{LinkTagMap, RouteStore, Session};
+use wmr_link::session::{LinkTagMap, MavlinkStore, RouteStore, Session};
 use wmr_link::{
     HIL_TO_HOST_PIPE, HIL_TO_TARGET_FILE, HostMessage, LINK_TIMEOUT_MS, LinkError, MAX_FRAME_BYTES,
     PROTOCOL_VERSION, Receiver, Sender, TargetMessage,
@@ -194,16 +194,53 @@ fn fail() -> ! {
     }
 }
 
+/// The MAVLink endpoint and mission runner of route runs (about 11 KB
+/// with the channel's queues and the upload check's route), in a static. Not inlined: what building it
+/// puts on the stack (the endpoint, 3 KB) is in this frame, gone before
+/// the run loop's ([`run`]).
+#[cfg(not(feature = "fusion-particle-filter"))]
+#[inline(never)]
+fn mavlink_store() -> Option<&'static mut MavlinkStore> {
+    use wmr_core::reference::route::RouteLimits;
+    use wmr_mavlink::{EndpointConfig, EndpointSpec};
+    let (Ok(config), Ok(limits)) = (
+        EndpointConfig::new(&EndpointSpec::default()),
+        RouteLimits::new(&MavlinkStore::IDLE_LIMITS),
+    ) else {
+        return None;
+    };
+    cortex_m::singleton!(: MavlinkStore = MavlinkStore::new(config, limits))
+}
+
 /// The firmware: serve the link until the host says `Finish`.
 ///
 /// The long-lived state (the proxy bus, the session with its robot, the
 /// link receiver: about 1.9 KB; the tag map a run may load,
 /// `wmr_link::MAP_CAPACITY` tags, 64 KiB; the route a run may follow,
-/// its `RouteStore`) lives in statics
+/// its `RouteStore`; the MAVLink endpoint of route runs, its
+/// `MavlinkStore`) lives in statics
 /// (`cortex_m::singleton!`, in `.bss`), not in this function's frame, so
 /// the stack holds only what a message's handling needs (docs/budgets.md,
 /// "Stack").
 pub fn run() -> ! {
+    // Built first, in a frame of its own that is gone before the run
+    // loop's: the endpoint passes through the stack on its way to its
+    // static, and stacked on the run loop's frame it would be the deepest
+    // point of a run. Not in the particle filter's build: its 27.8 KB of
+    // stack leave no RAM for the store's 11 KB (its route runs count a
+    // ground station's bytes dropped).
+    #[cfg(not(feature = "fusion-particle-filter"))]
+    let Some(mav) = mavlink_store().map(Some) else {
+        fail()
+    };
+    #[cfg(feature = "fusion-particle-filter")]
+    let mav = None;
+    serve(mav)
+}
+
+/// [`run`]'s loop, lent the MAVLink store.
+#[inline(never)]
+fn serve(mav: Option<&'static mut MavlinkStore>) -> ! {
     let Some(cp) = cortex_m::Peripherals::take() else {
         // Only possible if something took them before `main`.
         fail()
@@ -236,6 +273,9 @@ pub fn run() -> ! {
     else {
         fail()
     };
+    if let Some(mav) = mav {
+        session.lend_mavlink(mav);
+    }
     let Some(rx) = cortex_m::singleton!(: Receiver = Receiver::new()) else {
         fail()
     };

@@ -144,6 +144,12 @@ impl Waypoints {
         self.items.get_mut(..self.len).unwrap_or(&mut [])
     }
 
+    /// Removes every waypoint, in place (a route rebuilt where it lives,
+    /// not built on the stack and copied).
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+
     /// How many.
     #[must_use]
     pub fn len(&self) -> usize {

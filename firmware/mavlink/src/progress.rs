@@ -50,7 +50,11 @@ impl Progress {
         stops: u32,
     ) -> Self {
         Self {
-            current: if base_pending { base } else { base + 1 },
+            current: if base_pending {
+                base
+            } else {
+                base.saturating_add(1)
+            },
             reached,
             base,
             started_before: started,
@@ -83,7 +87,7 @@ impl Progress {
         let Some(last) = items.len().checked_sub(1) else {
             return;
         };
-        let last = last as u16;
+        let last = u16::try_from(last).unwrap_or(u16::MAX);
         if status.done && started > self.started_before {
             self.reach(last, stops);
             return;
