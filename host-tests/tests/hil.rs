@@ -834,31 +834,28 @@ fn firmware_reacts_to_bad_configuration_corrupt_frames_and_silence() {
     assert_eq!(finished.ticks, 100);
 }
 
+/// The firmware under QEMU, configured for the embedded `route` scenario
+/// (its tag grid and its route sent over the link).
+fn configured_for_the_route() -> QemuTarget {
+    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let mut target = QemuTarget::start(&firmware(), &options()).unwrap();
+    target
+        .configure(
+            firmware_sim::simulation::hil_configuration(&setup).unwrap(),
+            &firmware_sim::simulation::hil_map_chunks(&setup).unwrap(),
+            &firmware_sim::simulation::hil_route_messages(&setup),
+        )
+        .unwrap();
+    target
+}
+
 /// A MAVLink 2 frame from a ground station (system 255, component 190),
-/// its CRC with the message's extra byte.
+/// written by the endpoint's own encoder.
 fn mavlink_frame(seq: u8, msg_id: u32, extra: u8, payload: &[u8]) -> Vec<u8> {
-    let id = msg_id.to_le_bytes();
-    let mut f = vec![
-        0xFD,
-        payload.len() as u8,
-        0,
-        0,
-        seq,
-        255,
-        190,
-        id[0],
-        id[1],
-        id[2],
-    ];
-    f.extend_from_slice(payload);
-    let mut crc: u16 = 0xFFFF;
-    for &b in f[1..].iter().chain(std::iter::once(&extra)) {
-        let mut t = b ^ (crc & 0xFF) as u8;
-        t ^= t << 4;
-        crc = (crc >> 8) ^ (u16::from(t) << 8) ^ (u16::from(t) << 3) ^ (u16::from(t) >> 4);
-    }
-    f.extend_from_slice(&crc.to_le_bytes());
-    f
+    let mut buf = [0_u8; 300];
+    let mut tx = wmr_mavlink::TxBuffer::new(&mut buf);
+    assert!(tx.frame([seq, 255, 190], msg_id, extra, payload));
+    tx.as_slice().to_vec()
 }
 
 /// The frames (message id, payload) in a MAVLink 2 byte stream.
@@ -885,15 +882,7 @@ fn mavlink_frames(bytes: &[u8]) -> Vec<(u32, Vec<u8>)> {
 #[test]
 fn the_firmware_answers_a_ground_station_over_the_link() {
     use wmr_link::{MavlinkChunk, MavlinkIn};
-    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
-    let mut target = QemuTarget::start(&firmware(), &options()).unwrap();
-    target
-        .configure(
-            firmware_sim::simulation::hil_configuration(&setup).unwrap(),
-            &firmware_sim::simulation::hil_map_chunks(&setup).unwrap(),
-            &firmware_sim::simulation::hil_route_messages(&setup),
-        )
-        .unwrap();
+    let mut target = configured_for_the_route();
     let mut seq = 0_u32;
     // Sends `bytes` over the channel and asks until nothing is pending.
     let mut exchange = |target: &mut QemuTarget, bytes: &[u8]| {
@@ -979,15 +968,7 @@ fn the_firmware_answers_a_ground_station_over_the_link() {
 #[test]
 fn the_firmware_takes_a_mission_over_the_link() {
     use wmr_link::{MavlinkChunk, MavlinkIn};
-    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
-    let mut target = QemuTarget::start(&firmware(), &options()).unwrap();
-    target
-        .configure(
-            firmware_sim::simulation::hil_configuration(&setup).unwrap(),
-            &firmware_sim::simulation::hil_map_chunks(&setup).unwrap(),
-            &firmware_sim::simulation::hil_route_messages(&setup),
-        )
-        .unwrap();
+    let mut target = configured_for_the_route();
     let mut seq = 0_u32;
     let mut k = 0_u32;
     // Sends `bytes`, runs a tick, and returns what the endpoint wrote.

@@ -1568,30 +1568,12 @@ mod tests {
     }
 
     /// A MAVLink 2 frame from a ground station (system 255, component
-    /// 190), its CRC with the message's extra byte.
+    /// 190), written by the endpoint's own encoder.
     fn mav_frame(seq: u8, msg_id: u32, extra: u8, payload: &[u8]) -> std::vec::Vec<u8> {
-        let id = msg_id.to_le_bytes();
-        let mut f = std::vec![
-            0xFD,
-            payload.len() as u8,
-            0,
-            0,
-            seq,
-            255,
-            190,
-            id[0],
-            id[1],
-            id[2]
-        ];
-        f.extend_from_slice(payload);
-        let mut crc: u16 = 0xFFFF;
-        for &b in f[1..].iter().chain(core::iter::once(&extra)) {
-            let mut t = b ^ (crc & 0xFF) as u8;
-            t ^= t << 4;
-            crc = (crc >> 8) ^ (u16::from(t) << 8) ^ (u16::from(t) << 3) ^ (u16::from(t) >> 4);
-        }
-        f.extend_from_slice(&crc.to_le_bytes());
-        f
+        let mut buf = [0_u8; 300];
+        let mut tx = wmr_mavlink::TxBuffer::new(&mut buf);
+        assert!(tx.frame([seq, 255, 190], msg_id, extra, payload));
+        tx.as_slice().to_vec()
     }
 
     /// A ground station's heartbeat (`MAV_TYPE_GCS`).

@@ -314,17 +314,14 @@ impl<'a> TxBuffer<'a> {
     }
 
     /// Appends one MAVLink 2 frame (`header`: sequence, system id,
-    /// component id); `false` (and counted) if it does not fit.
+    /// component id) of message `msg_id`, its CRC seeded with the
+    /// message's `extra` byte ([`crc_extra`]); `false` (and counted) if it
+    /// does not fit. Public so that a test's ground station frames its
+    /// messages with the endpoint's own encoder.
     // Out of line: called from many places; inlined at each (opt-level 3,
     // fat LTO) it cost flash (docs/mavlink.md, Cost).
     #[inline(never)]
-    pub(crate) fn frame(
-        &mut self,
-        header: [u8; 3],
-        msg_id: u32,
-        extra: u8,
-        payload: &[u8],
-    ) -> bool {
+    pub fn frame(&mut self, header: [u8; 3], msg_id: u32, extra: u8, payload: &[u8]) -> bool {
         // A MAVLink 2 payload keeps at least one byte after the trailing
         // zeros are cut.
         let n = payload.len().clamp(1, MAX_PAYLOAD);
