@@ -167,12 +167,8 @@ fn random_slip_with_the_cell_edge_constraint() {
 /// 0.0204 / 0.0023 m (docs/fusion.md). The EKF's spread is wide
 /// (0.0108–0.0269 m on the unicycle): a single run can be one of its best
 /// starts, so the test holds the ensemble's medians: each filter within
-/// its bounds, and the UKF within 1.5× of the EKF's medians (issue 32's
-/// goal for the filters' consistency). The UKF's 0.0067 / 0.0008 m here
-/// before its centre mean (docs/fusion.md, "The UKF at the default wheel
-/// noise") came from the points' mean lagging the motion, which on these
-/// slip-free plants kept the estimate off the cell edges; on wheels that
-/// do slip (`[plant.wheels]`) the two means give the same errors.
+/// its bounds, and the UKF within 1.5× of the EKF's medians (the filters'
+/// consistency goal of docs/fusion.md).
 #[test]
 fn the_slip_tuning_in_the_pilot() {
     // (scenario, EKF bounds, UKF bounds) on the median max / mean, m.
@@ -226,15 +222,13 @@ fn the_slip_tuning_in_the_pilot() {
 
 /// The UKF with the template's defaults (`figure_eight_rfid_fusion_ekf`,
 /// `filter = "ukf"`, wheel noise 1e-3 m²/m) on the 10, 20 and 30 cm
-/// nearest-tag floors: issue 32's targets, medians over 32 starts
+/// nearest-tag floors: the filters' targets, medians over 32 starts
 /// (`host_tests::ENSEMBLE_OFFSETS_M`) at most 0.01 / 0.001 m on the
 /// template's 10 cm floor and within 1.5× of the EKF's medians on each
 /// floor. Measured medians, max / mean (m), UKF against EKF: 10 cm 0.0056
 /// / 0.0005 against 0.0051 / 0.0005; 20 cm 0.0130 / 0.0011 against 0.0134
-/// / 0.0011; 30 cm 0.0129 / 0.0012 against 0.0129 / 0.0013. Before the
-/// UKF's centre mean (docs/fusion.md, "The UKF at the default wheel
-/// noise"), single runs gave 0.103 / 0.0121, 0.124 / 0.0197 and 0.199 /
-/// 0.0328 m.
+/// / 0.0011; 30 cm 0.0129 / 0.0012 against 0.0129 / 0.0013 (docs/fusion.md,
+/// "The UKF at the default wheel noise").
 #[test]
 fn the_ukf_at_the_template_defaults() {
     use firmware_sim::scenario::PositionSpec;
