@@ -292,6 +292,9 @@ pub fn format_summary(s: &Summary) -> String {
                 r.stale_answers
             );
         }
+        if let Some(m) = &h.mavlink {
+            format_mavlink_bridge(&mut o, m);
+        }
     }
     if let Some(n) = s.floor_tags {
         let _ = writeln!(o, "floor         {n} tags");
@@ -610,4 +613,55 @@ fn error_panel(
     }
     draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 16)?;
     Ok(())
+}
+
+/// The lines of a run with a ground station (`firmware-sim hil
+/// --mavlink`).
+fn format_mavlink_bridge(o: &mut String, m: &crate::hil::MavlinkBridgeReport) {
+    let _ = writeln!(
+        o,
+        "mavlink       {:.1}x real time (asked {}x){}; udp in {} datagrams {} B, out {} frames ({} unsent); backlog dropped {} datagrams {} B (largest {} B)",
+        m.speedup_achieved,
+        m.speedup,
+        if m.interrupted {
+            ", ended by Ctrl-C"
+        } else {
+            ""
+        },
+        m.udp.datagrams_in,
+        m.udp.bytes_in,
+        m.udp.frames_out,
+        m.udp.frames_unsent,
+        m.dropped_datagrams,
+        m.dropped_bytes,
+        m.largest_backlog_bytes
+    );
+    let _ = writeln!(
+        o,
+        "mavlink       channel: {} messages, {} B to the firmware, {} B back; firmware dropped {} B in, {} frames out",
+        m.messages,
+        m.bytes_to_firmware,
+        m.bytes_from_firmware,
+        m.firmware.rx_dropped_bytes,
+        m.firmware.tx_dropped_frames
+    );
+    let copy = if m.copy_mismatches == 0 {
+        format!(
+            "all {} answers equal: the run's route status is the firmware's",
+            m.copy_compared
+        )
+    } else {
+        format!(
+            "DIFFERS: {} of {} answers, the first before tick {}: the run's route status is the host copy's, not the firmware's",
+            m.copy_mismatches,
+            m.copy_compared,
+            m.first_mismatch_tick
+                .map_or_else(|| "?".to_owned(), |t| t.to_string())
+        )
+    };
+    let _ = writeln!(o, "mavlink       host copy of the session: {copy}");
+    let _ = writeln!(
+        o,
+        "route         no route report: a ground station steers the route (its missions, pauses and stops)"
+    );
 }

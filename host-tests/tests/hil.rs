@@ -91,6 +91,7 @@ fn options() -> HilOptions {
         answer_timeout: Duration::from_secs(20),
         faults: None,
         telemetry_every_ticks: firmware_sim::hil::DEFAULT_TELEMETRY_EVERY_TICKS,
+        mavlink: None,
     }
 }
 

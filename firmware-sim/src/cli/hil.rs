@@ -3,9 +3,14 @@
 use super::{load, progress_bar};
 use std::path::PathBuf;
 
-use firmware_sim::hil::{HilOptions, LinkFaultSpec, run_hil};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use firmware_sim::hil::{HilOptions, LinkFaultSpec, MavlinkBridgeSpec, run_hil};
 use firmware_sim::output::{format_summary, write_all};
 use firmware_sim::scenario::Scenario;
+use firmware_sim::sitl::MavlinkAddress;
+use signal_hook::consts::{SIGINT, SIGTERM};
 
 /// The arguments of `hil`.
 #[derive(Debug, clap::Args)]
@@ -45,6 +50,27 @@ pub struct HilArgs {
     /// Also copy the decoded firmware log (OUT/firmware.log) to FILE.
     #[arg(long, value_name = "FILE")]
     firmware_log: Option<PathBuf>,
+    /// Bridge a ground station to the firmware's MAVLink endpoint:
+    /// `udp:HOST:PORT` sends to one listening there (QGroundControl
+    /// listens on 14550), `udpin:HOST:PORT` listens there and answers the
+    /// last sender (as `firmware-sim sitl`). The run is paced to wall
+    /// time (`--speedup`), lasts its duration (Ctrl-C ends it early,
+    /// cleanly) and needs a route.
+    #[arg(long, value_name = "ADDRESS")]
+    mavlink: Option<String>,
+    /// With `--mavlink`: allow an address outside loopback (127.0.0.0/8,
+    /// ::1): the robot is then reachable from other machines.
+    #[arg(long, requires = "mavlink")]
+    allow_non_loopback: bool,
+    /// With `--mavlink`: times real time (a tick may take at most 25 ms of
+    /// wall time); a machine that cannot keep up runs flat out.
+    #[arg(long, requires = "mavlink", default_value_t = 1.0)]
+    speedup: f64,
+}
+
+/// Prints the bridge's address line.
+fn announce(line: &str) {
+    eprintln!("hil: {line}");
 }
 
 impl HilArgs {
@@ -60,6 +86,9 @@ impl HilArgs {
             no_plot,
             telemetry_every,
             firmware_log,
+            mavlink,
+            allow_non_loopback,
+            speedup,
         } = self;
         let mut scenario = match scenario {
             None => Scenario::embedded("figure_eight_rfid_full_stack_fusion_ekf")?,
@@ -75,6 +104,21 @@ impl HilArgs {
             timeout_s.is_finite() && timeout_s > 0.0,
             "--timeout-s must be positive"
         );
+        let mavlink = match mavlink {
+            Some(address) => {
+                let stop = Arc::new(AtomicBool::new(false));
+                for signal in [SIGINT, SIGTERM] {
+                    signal_hook::flag::register(signal, Arc::clone(&stop))?;
+                }
+                Some(MavlinkBridgeSpec {
+                    address: MavlinkAddress::parse(&address, allow_non_loopback)?,
+                    speedup,
+                    stop: Some(stop),
+                    announce: Some(announce),
+                })
+            }
+            None => None,
+        };
         let out =
             out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}-hil", scenario.name)));
         std::fs::create_dir_all(&out)?;
@@ -87,6 +131,7 @@ impl HilArgs {
                 Some(n) => n,
                 None => firmware_sim::hil::default_telemetry_every_ticks(&scenario)?,
             },
+            mavlink,
         };
         let bar = progress_bar(&scenario, 0.0)?;
         let run = run_hil(&scenario, &options, |done, _| bar.set_position(done));

@@ -28,17 +28,19 @@ use anyhow::{Context, ensure};
 use wmr_core::pilot::spec::PilotSpec;
 
 use crate::report::{HilReport, RunResult};
-use crate::scenario::Scenario;
+use crate::scenario::{ReferenceSpec, Scenario};
 use crate::simulation::{hil_configuration, hil_map_chunks, hil_route_messages, run_with_target};
 
 mod faults;
 mod firmware;
+mod mavlink;
 mod qemu;
 
 pub use faults::{ExpectedCounters, InjectedFaults, LinkFaultReport, LinkFaultSpec, OUTAGE_MS};
 pub use firmware::{
     FIRMWARE_TARGET, build_firmware, build_firmware_with, decode_defmt_log, workspace_root,
 };
+pub use mavlink::{BACKLOG_BYTES, MAX_WALL_PER_TICK_S, MavlinkBridgeReport, MavlinkBridgeSpec};
 pub use qemu::{DEFAULT_TELEMETRY_EVERY_TICKS, HilOptions, QEMU, QemuTarget};
 
 /// A run through the firmware.
@@ -74,6 +76,27 @@ pub fn default_telemetry_every_ticks(scenario: &Scenario) -> anyhow::Result<u16>
     })
 }
 
+/// `scenario` as a run with a ground station goes (docs/hil.md, "A
+/// ground station on the firmware under QEMU"): it needs a route (the
+/// firmware's MAVLink endpoint is its route runs'), and it lasts its
+/// duration, not ending `settle_s` after the route is done (the ground
+/// station may send another mission).
+///
+/// # Errors
+/// A scenario without a route.
+fn for_a_ground_station(scenario: &Scenario) -> anyhow::Result<Scenario> {
+    let mut scenario = scenario.clone();
+    let duration_s = scenario.duration_s;
+    match &mut scenario.reference {
+        ReferenceSpec::Route(route) => route.settle_s = duration_s,
+        _ => anyhow::bail!(
+            "--mavlink needs a route scenario or a robot file with a route \
+             ([reference] kind = \"route\"): the firmware's MAVLink endpoint runs with its route"
+        ),
+    }
+    Ok(scenario)
+}
+
 /// Runs `scenario` with its control tick in the firmware under QEMU (built
 /// with the [`firmware_features`] it needs, unless `options.firmware`
 /// names an ELF).
@@ -87,6 +110,14 @@ pub fn run_hil(
     options: &HilOptions,
     progress: impl FnMut(u64, u64),
 ) -> anyhow::Result<HilRun> {
+    let bridged;
+    let scenario = match &options.mavlink {
+        Some(_) => {
+            bridged = for_a_ground_station(scenario)?;
+            &bridged
+        }
+        None => scenario,
+    };
     let setup = scenario.validate()?;
     let configure = wmr_link::Configure {
         telemetry_every_ticks: options.telemetry_every_ticks,
@@ -103,8 +134,24 @@ pub fn run_hil(
     );
     let map = hil_map_chunks(&setup)?;
     let route = hil_route_messages(&setup);
+    if options.mavlink.is_some() {
+        ensure!(
+            options.faults.is_none(),
+            "--mavlink and --link-faults cannot be combined: the MAVLink channel is not \
+             resent over a faulty link"
+        );
+        let features = firmware_features(&configure.pilot);
+        ensure!(
+            !features.contains(&wmr_core::builds::FUSION_PARTICLE_FILTER.feature),
+            "--mavlink: the firmware with the fusion particle filter has no MAVLink endpoint \
+             (no RAM left for it beside the filter): a ground station's bytes would be dropped"
+        );
+    }
     let mut target = QemuTarget::start(&firmware, options)?;
     target.configure(configure, &map, &route)?;
+    if let Some(spec) = &options.mavlink {
+        target.attach_bridge(spec, setup.period_s)?;
+    }
     let mut result = run_with_target(scenario, &mut target, progress)?;
     let finished = target
         .finished
@@ -119,7 +166,14 @@ pub fn run_hil(
         stale_ticks: finished.counters.stale_ticks,
         route_done: finished.route_done,
         link_faults: target.fault_report(),
+        mavlink: target.bridge.as_ref().map(mavlink::Bridge::report),
     };
+    if report.mavlink.is_some() {
+        // The route report measures the run against the scenario's
+        // waypoints and stops, which a ground station may have replaced,
+        // paused or stopped: not made (docs/hil.md).
+        result.summary.route = None;
+    }
     result.summary.hil = Some(report);
     if let Some(raw) = &options.log {
         // QEMU has exited: the log is complete. It is diagnostics, so a

@@ -26,7 +26,8 @@ use wmr_link::{
 };
 
 use super::faults::{Frame, Injector, LinkFaultReport, LinkFaultSpec, OUTAGE_MS};
-use crate::simulation::TargetLink;
+use super::mavlink::{Bridge, MavlinkBridgeSpec};
+use crate::simulation::{MavlinkLog, TargetLink};
 
 /// How long the host waits for a tick's answer before sending the tick
 /// again: well inside the firmware's link timeout, so that a lost frame
@@ -51,6 +52,9 @@ pub struct HilOptions {
     /// A telemetry record on the firmware's log every this many ticks (0:
     /// none): `Configure::telemetry_every_ticks`.
     pub telemetry_every_ticks: u16,
+    /// A ground station bridged to the link's MAVLink channel (`None`: the
+    /// run sends no MAVLink message).
+    pub mavlink: Option<MavlinkBridgeSpec>,
 }
 
 /// [`HilOptions::telemetry_every_ticks`] by default: every tick, so that
@@ -65,6 +69,7 @@ impl Default for HilOptions {
             answer_timeout: Duration::from_secs(10),
             faults: None,
             telemetry_every_ticks: DEFAULT_TELEMETRY_EVERY_TICKS,
+            mavlink: None,
         }
     }
 }
@@ -112,6 +117,8 @@ pub struct QemuTarget {
     faulty: Option<FaultyLink>,
     /// The firmware's end-of-run report, once received.
     pub(super) finished: Option<Finished>,
+    /// The ground station's bridge, when the run has one.
+    pub(super) bridge: Option<Bridge>,
     // Keeps the link's directory alive.
     _dir: tempfile::TempDir,
 }
@@ -159,7 +166,14 @@ impl QemuTarget {
             ),
             None => Stdio::null(),
         };
-        let child = Command::new(QEMU)
+        let mut command = Command::new(QEMU);
+        if options.mavlink.as_ref().is_some_and(|m| m.stop.is_some()) {
+            // Its own process group: Ctrl-C in a terminal reaches this
+            // process only, which ends the run and then QEMU through
+            // `Finish` (QEMU would otherwise die with it, mid-run).
+            std::os::unix::process::CommandExt::process_group(&mut command, 0);
+        }
+        let child = command
             .current_dir(dir.path())
             .args([
                 "-M",
@@ -198,6 +212,7 @@ impl QemuTarget {
             inbox: VecDeque::with_capacity(4096),
             faulty: None,
             finished: None,
+            bridge: None,
             _dir: dir,
         };
         if let Some(spec) = options.faults {
@@ -587,6 +602,36 @@ impl QemuTarget {
         }
     }
 
+    /// One exchange on the MAVLink channel: `message`, then the
+    /// firmware's answer (a `LinkSilent` report before it is checked and
+    /// counted, as during a tick).
+    ///
+    /// # Errors
+    /// The link failed, or the firmware answered anything else.
+    pub fn mavlink_exchange(
+        &mut self,
+        message: &wmr_link::MavlinkIn,
+    ) -> anyhow::Result<wmr_link::MavlinkOut> {
+        match self.configuration_step(&HostMessage::Mavlink(*message))? {
+            TargetMessage::Mavlink(out) => Ok(out),
+            other => bail!("unexpected answer to a MAVLink message: {other:?}"),
+        }
+    }
+
+    /// Bridges a ground station to the run from its next tick on
+    /// (`super::mavlink`), ticking every `period_s`.
+    ///
+    /// # Errors
+    /// As `Bridge::open`.
+    pub(super) fn attach_bridge(
+        &mut self,
+        spec: &MavlinkBridgeSpec,
+        period_s: f64,
+    ) -> anyhow::Result<()> {
+        self.bridge = Some(Bridge::open(spec, period_s)?);
+        Ok(())
+    }
+
     /// Ends the run: `Finish`, the firmware's report, QEMU's exit.
     ///
     /// # Errors
@@ -649,6 +694,11 @@ impl TargetLink for QemuTarget {
         if self.faulty.is_some() {
             return self.faulty_tick(input);
         }
+        if let Some(mut bridge) = self.bridge.take() {
+            let bridged = bridge.before_tick(self, input.tick);
+            self.bridge = Some(bridge);
+            bridged?;
+        }
         self.send(&HostMessage::Tick(input.clone()))?;
         loop {
             match self.receive()? {
@@ -669,6 +719,14 @@ impl TargetLink for QemuTarget {
 
     fn finish(&mut self) -> anyhow::Result<Diagnostics> {
         Ok(self.end()?.counters)
+    }
+
+    fn mavlink_log(&mut self) -> Option<&mut MavlinkLog> {
+        self.bridge.as_mut().map(|b| &mut b.log)
+    }
+
+    fn stop_requested(&self) -> bool {
+        self.bridge.as_ref().is_some_and(Bridge::stop_requested)
     }
 }
 

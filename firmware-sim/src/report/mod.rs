@@ -440,6 +440,11 @@ pub struct HilReport {
     /// side must have counted.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub link_faults: Option<link_faults::LinkFaultReport>,
+    /// The ground station bridged to the run (`--mavlink`): the UDP side,
+    /// the channel, and the host's copy of the session against the
+    /// firmware.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mavlink: Option<crate::hil::MavlinkBridgeReport>,
 }
 
 /// Everything a run produced.

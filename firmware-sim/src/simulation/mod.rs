@@ -43,7 +43,7 @@ mod summary;
 mod target;
 
 pub use summary::error_stats;
-pub use target::{TargetLink, hil_configuration, hil_map_chunks, hil_route_messages};
+pub use target::{MavlinkLog, TargetLink, hil_configuration, hil_map_chunks, hil_route_messages};
 
 use rig::Rig;
 pub(crate) use stepper::Stepper;
@@ -81,7 +81,7 @@ pub fn run_with_target(
     progress: impl FnMut(u64, u64),
 ) -> anyhow::Result<RunResult> {
     let setup = scenario.validate()?;
-    let mut storage = target::ShadowStorage::new();
+    let mut storage = target::ShadowStorage::new(target.mavlink_log().is_some())?;
     let shadow = target::RouteShadow::new(&setup, &mut storage)?;
     let rig = Rig::remote(&setup, target, shadow)?;
     simulate(scenario, setup, rig, progress)
@@ -106,6 +106,9 @@ fn simulate(
     let mut route_ticks = Vec::new();
     let mut done_at: Option<u32> = None;
     for k in 0..setup.ticks {
+        if rig.stop_requested() {
+            break;
+        }
         let t = f64::from(k) * setup.period_s;
         let mut record = rig.tick(k, t)?;
         if let Some(status) = rig.route().map(|f| f.status()) {

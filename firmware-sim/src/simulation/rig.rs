@@ -386,6 +386,19 @@ impl<'t> Rig<'t> {
                     uart: drain_uart(uart),
                 };
                 let out = target.tick(&input)?;
+                // The MAVLink messages the firmware got before this tick,
+                // then the tick: the copy sees what it saw (a run without
+                // a route has no copy: each answer counts as differing).
+                if let Some(log) = target.mavlink_log() {
+                    for (message, answer) in std::mem::take(&mut log.exchanges) {
+                        log.compared += 1;
+                        let copy = shadow.as_mut().and_then(|s| s.mavlink(&message));
+                        if copy != Some(answer) {
+                            log.mismatches = log.mismatches.saturating_add(1);
+                            log.first_mismatch_tick.get_or_insert(k);
+                        }
+                    }
+                }
                 if let Some(shadow) = shadow {
                     shadow.tick(&input);
                 }
@@ -451,6 +464,14 @@ impl<'t> Rig<'t> {
             Self::Robot { hw, .. } | Self::Pilot { hw, .. } | Self::Remote { hw, .. } => {
                 hw.advance(dt_s);
             }
+        }
+    }
+
+    /// Whether the remote target asks the run to end now.
+    pub(super) fn stop_requested(&self) -> bool {
+        match self {
+            Self::Remote { target, .. } => target.stop_requested(),
+            _ => false,
         }
     }
 

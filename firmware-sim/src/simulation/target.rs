@@ -6,10 +6,10 @@ use wmr_core::devices::tag_grid::TagGridSpec;
 
 use wmr_core::pilot::route::RouteFollower;
 use wmr_link::proxy::ProxyBus;
-use wmr_link::session::{LinkTagMap, RouteStore, Session};
+use wmr_link::session::{LinkTagMap, MavlinkStore, RouteStore, Session};
 use wmr_link::{
     Configure, Diagnostics, FloorSpec, HostMessage, LinkCounters, MAP_CAPACITY, MAP_CHUNK_TAGS,
-    MapChunk, MapTag, TargetMessage, TickInput, TickOutput,
+    MapChunk, MapTag, MavlinkIn, MavlinkOut, TargetMessage, TickInput, TickOutput,
 };
 
 use crate::scenario::{PlantSetup, PositionSetup, Setup};
@@ -34,6 +34,41 @@ pub trait TargetLink {
     /// # Errors
     /// The link failed.
     fn finish(&mut self) -> anyhow::Result<Diagnostics>;
+
+    /// The link's MAVLink channel, when the run carries one (a ground
+    /// station bridged to it: `firmware-sim hil --mavlink`): the
+    /// exchanges made before each tick, which the host's copy of the
+    /// session is fed too ([`MavlinkLog`]). `None` (the default): the run
+    /// sends no MAVLink message.
+    fn mavlink_log(&mut self) -> Option<&mut MavlinkLog> {
+        None
+    }
+
+    /// The run is to end before its next tick (Ctrl-C): the loop stops,
+    /// the target is finished and the run reported up to here. `false`
+    /// by default.
+    fn stop_requested(&self) -> bool {
+        false
+    }
+}
+
+/// The MAVLink messages a remote run sends its target between ticks, and
+/// how the host's copy of the firmware's session ([`RouteShadow`])
+/// answered the same: the copy is fed each message before the tick the
+/// target got it before, so that its route (the run's route status and
+/// end) follows what the ground station did to the target's, and each of
+/// its answers is compared with the target's, byte for byte.
+#[derive(Debug, Clone, Default)]
+pub struct MavlinkLog {
+    /// The exchanges made before the tick now being run, in order: the
+    /// host's message and the target's answer (the rig takes them).
+    pub exchanges: Vec<(MavlinkIn, MavlinkOut)>,
+    /// Answers the copy was asked for.
+    pub compared: u64,
+    /// Answers of the copy that differ from the target's.
+    pub mismatches: u32,
+    /// The tick before which the first differing answer came.
+    pub first_mismatch_tick: Option<u32>,
 }
 
 /// What the firmware must be configured with to run `setup` (diff-drive
@@ -136,20 +171,37 @@ pub fn hil_route_messages(setup: &Setup) -> Vec<HostMessage> {
 
 /// Storage a [`RouteShadow`] lends its session: the link's proxies, tag
 /// map and route store, as the QEMU board holds them (the route store is
-/// about 24 KB: on the heap).
+/// about 24 KB: on the heap), and, for a run that carries MAVLink, the
+/// endpoint's store.
 pub(super) struct ShadowStorage {
     bus: ProxyBus,
     map: RefCell<LinkTagMap>,
     route: Box<RouteStore>,
+    mavlink: Option<Box<MavlinkStore>>,
 }
 
 impl ShadowStorage {
-    pub(super) fn new() -> Self {
-        Self {
+    /// With `mavlink`, a MAVLink store configured as the QEMU board's
+    /// (`firmware/src/board/qemu.rs`, `mavlink_store`: the endpoint's
+    /// default configuration, the idle route limits replaced by the
+    /// run's); a difference would show as answers that differ
+    /// ([`MavlinkLog::mismatches`]).
+    pub(super) fn new(mavlink: bool) -> anyhow::Result<Self> {
+        let mavlink = if mavlink {
+            let config = wmr_mavlink::EndpointConfig::new(&wmr_mavlink::EndpointSpec::default())
+                .map_err(|e| anyhow::anyhow!("the MAVLink endpoint's configuration: {e}"))?;
+            let limits = wmr_core::reference::route::RouteLimits::new(&MavlinkStore::IDLE_LIMITS)
+                .map_err(|e| anyhow::anyhow!("the idle route limits: {e:?}"))?;
+            Some(Box::new(MavlinkStore::new(config, limits)))
+        } else {
+            None
+        };
+        Ok(Self {
             bus: ProxyBus::new(),
             map: RefCell::new(LinkTagMap::new()),
             route: Box::new(RouteStore::new()),
-        }
+            mavlink,
+        })
     }
 }
 
@@ -179,6 +231,9 @@ impl<'s> RouteShadow<'s> {
             return Ok(None);
         }
         let mut session = Session::new(&storage.bus, &storage.map, &mut storage.route);
+        if let Some(store) = storage.mavlink.as_deref_mut() {
+            session.lend_mavlink(store);
+        }
         let messages = core::iter::once(HostMessage::Configure(hil_configuration(setup)?))
             .chain(
                 hil_map_chunks(setup)?
@@ -205,6 +260,16 @@ impl<'s> RouteShadow<'s> {
     pub(super) fn tick(&mut self, input: &TickInput) {
         let message = HostMessage::Tick(input.clone());
         let _ = self.session.handle(&message, LinkCounters::default(), || 0);
+    }
+
+    /// Handles a MAVLink message the firmware was sent; returns the
+    /// session's answer.
+    pub(super) fn mavlink(&mut self, message: &MavlinkIn) -> Option<MavlinkOut> {
+        let message = HostMessage::Mavlink(*message);
+        match self.session.handle(&message, LinkCounters::default(), || 0) {
+            (TargetMessage::Mavlink(out), _) => Some(out),
+            _ => None,
+        }
     }
 
     /// The route's follower.

@@ -83,12 +83,21 @@ impl UdpLink {
     /// A socket error other than "nothing waiting" or a refused earlier
     /// send (the ICMP answer to a datagram nobody took).
     pub fn receive(&mut self, into: &mut Vec<u8>) -> anyhow::Result<()> {
+        self.receive_datagrams(|datagram| into.extend_from_slice(datagram))
+    }
+
+    /// Hands every datagram received since the last call to `take`, one
+    /// at a time, in order.
+    ///
+    /// # Errors
+    /// As [`Self::receive`].
+    pub fn receive_datagrams(&mut self, mut take: impl FnMut(&[u8])) -> anyhow::Result<()> {
         loop {
             match self.socket.recv_from(&mut self.buf) {
                 Ok((n, from)) => {
                     self.counters.datagrams_in += 1;
                     self.counters.bytes_in += n as u64;
-                    into.extend_from_slice(&self.buf[..n]);
+                    take(&self.buf[..n]);
                     if self.listen {
                         self.peer = Some(from);
                     }
