@@ -620,7 +620,7 @@ fn error_panel(
 fn format_mavlink_bridge(o: &mut String, m: &crate::hil::MavlinkBridgeReport) {
     let _ = writeln!(
         o,
-        "mavlink       {:.1}x real time (asked {}x){}; udp in {} datagrams {} B, out {} frames ({} unsent); backlog dropped {} datagrams {} B (largest {} B)",
+        "mavlink       {:.1}x real time (asked {}x){}; udp in {} datagrams {} B, out {} frames ({} unsent); backlog dropped {} datagrams {} B (largest {} B, {} B left at the end)",
         m.speedup_achieved,
         m.speedup,
         if m.interrupted {
@@ -634,7 +634,8 @@ fn format_mavlink_bridge(o: &mut String, m: &crate::hil::MavlinkBridgeReport) {
         m.udp.frames_unsent,
         m.dropped_datagrams,
         m.dropped_bytes,
-        m.largest_backlog_bytes
+        m.largest_backlog_bytes,
+        m.left_in_backlog_bytes
     );
     let _ = writeln!(
         o,

@@ -1,15 +1,19 @@
-//! The pymavlink ground station against the SITL
-//! (`tools/gcs/gcs_check.py`, docs/mavlink.md "The SITL"): a Python
-//! virtual environment under `target/gcs-venv` with the pinned
-//! `tools/gcs/requirements.txt`, made once and re-made when the
-//! requirements change.
+//! The pymavlink ground station against the SITL and against the firmware
+//! under QEMU (`tools/gcs/gcs_check.py`, docs/mavlink.md "The SITL" and
+//! "The firmware under QEMU"): a Python virtual environment under
+//! `target/gcs-venv` with the pinned `tools/gcs/requirements.txt`, made
+//! once and re-made when the requirements change.
 //!
 //! * `cargo xtask gcs`: builds `firmware-sim` (release) and runs the
-//!   script against it.
+//!   script against its SITL.
+//! * `cargo xtask gcs --hil`: builds `firmware-sim` (release) and the
+//!   QEMU-board firmware (as `cargo xtask firmware` does) and runs the
+//!   script with `--hil` against `firmware-sim hil --mavlink`.
 //! * `cargo xtask ci`: [`venv`] before the workspace tests, whose
-//!   `firmware-sim/tests/sitl.rs` runs the script against the
-//!   `firmware-sim` that the test build has just built (no build of its
-//!   own), with the environment's Python in `WMR_GCS_PYTHON`.
+//!   `firmware-sim/tests/sitl.rs` and `firmware-sim/tests/hil_mavlink.rs`
+//!   run the script against the `firmware-sim` that the test build has
+//!   just built (no build of their own), with the environment's Python in
+//!   `WMR_GCS_PYTHON` and the firmware in `WMR_FIRMWARE_ELF`.
 
 use std::path::PathBuf;
 
@@ -60,26 +64,46 @@ pub fn venv() -> std::result::Result<PathBuf, String> {
     Ok(python)
 }
 
-/// `cargo xtask gcs`: the script against a release `firmware-sim`.
-pub fn gcs() -> Result {
+/// `cargo xtask gcs [--hil]`: the script against a release
+/// `firmware-sim`'s SITL, or with `hil` against the firmware under QEMU.
+pub fn gcs(hil: bool) -> Result {
     let python = venv()?;
+    let firmware = if hil {
+        let elfs = crate::build_firmware()?;
+        let elf = elfs
+            .into_iter()
+            .find(|(board, _)| *board == "qemu")
+            .map(|(_, elf)| elf)
+            .ok_or("no QEMU-board firmware")?;
+        Some(elf.display().to_string())
+    } else {
+        None
+    };
     step("build firmware-sim (release)", || {
         cargo(&["build", "--release", "-p", "firmware-sim"], &[])
     })?;
     let target = std::env::var_os("CARGO_TARGET_DIR")
         .map_or_else(|| workspace_root().join("target"), PathBuf::from);
     let sim = target.join("release").join("firmware-sim");
-    let script = workspace_root().join(SCRIPT);
-    step("ground station (pymavlink) against the SITL", || {
-        run(
-            &python.display().to_string(),
-            &[
-                &script.display().to_string(),
-                "--firmware-sim",
-                &sim.display().to_string(),
-            ],
-            &[],
-        )
-        .map_err(|e| format!("{e}: a check of the ground station failed (its output above)"))
-    })
+    let script = workspace_root().join(SCRIPT).display().to_string();
+    let sim = sim.display().to_string();
+    let mut args = vec![script.as_str(), "--firmware-sim", sim.as_str()];
+    if let Some(elf) = &firmware {
+        // 20x: the firmware under QEMU keeps up with it on a loaded
+        // 2-core machine (docs/mavlink.md, "The firmware under QEMU").
+        args.extend(["--hil", "--firmware", elf.as_str(), "--speedup", "20"]);
+    }
+    let against = if hil {
+        "the firmware under QEMU"
+    } else {
+        "the SITL"
+    };
+    step(
+        &format!("ground station (pymavlink) against {against}"),
+        || {
+            run(&python.display().to_string(), &args, &[]).map_err(|e| {
+                format!("{e}: a check of the ground station failed (its output above)")
+            })
+        },
+    )
 }

@@ -49,11 +49,13 @@
 //! * `opt-levels` — firmware size and tick instructions for each release
 //!   opt-level (3, 2, s, z); writes `target/opt-levels.md`. Slow: every
 //!   level rebuilds all dependencies.
-//! * `gcs` — the pymavlink ground station (`tools/gcs/gcs_check.py`)
-//!   against `firmware-sim sitl` (release), in a Python virtual environment
-//!   under `target/gcs-venv` with the pinned `tools/gcs/requirements.txt`
-//!   (`xtask/src/gcs.rs`); `ci` runs the same script from the workspace
-//!   tests (`firmware-sim/tests/sitl.rs`).
+//! * `gcs [--hil]` — the pymavlink ground station (`tools/gcs/gcs_check.py`)
+//!   against `firmware-sim sitl` (release), or with `--hil` against the
+//!   firmware under QEMU (`firmware-sim hil --mavlink`), in a Python
+//!   virtual environment under `target/gcs-venv` with the pinned
+//!   `tools/gcs/requirements.txt` (`xtask/src/gcs.rs`); `ci` runs the same
+//!   script both ways from the workspace tests
+//!   (`firmware-sim/tests/sitl.rs`, `firmware-sim/tests/hil_mavlink.rs`).
 
 mod bench_target;
 mod budgets;
@@ -73,7 +75,7 @@ use std::time::Instant;
 const TARGETS: [&str; 2] = ["thumbv7em-none-eabihf", "thumbv6m-none-eabi"];
 
 /// The command line's synopsis.
-const USAGE: &str = "usage: cargo xtask <ci|features|firmware [--robot FILE]|flash --robot FILE|panic-free|bench|bench-target [--write]|size|opt-levels|fuzz [--seconds N]|gcs>";
+const USAGE: &str = "usage: cargo xtask <ci|features|firmware [--robot FILE]|flash --robot FILE|panic-free|bench|bench-target [--write]|size|opt-levels|fuzz [--seconds N]|gcs [--hil]>";
 
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
@@ -82,7 +84,9 @@ fn main() -> ExitCode {
     let mut write = false;
     let mut fuzz_seconds = fuzz::CI_SECONDS;
     let mut robot = None;
+    let mut gcs_hil = false;
     match (task.as_str(), options.as_slice()) {
+        ("gcs", [flag]) if flag == "--hil" => gcs_hil = true,
         ("bench-target", [flag]) if flag == "--write" => write = true,
         ("firmware" | "flash", [flag, file]) if flag == "--robot" => robot = Some(file.clone()),
         ("flash", _) => {
@@ -124,7 +128,7 @@ fn main() -> ExitCode {
         "size" => size::size(),
         "opt-levels" => opt_levels::opt_levels(),
         "fuzz" => fuzz::fuzz(fuzz_seconds),
-        "gcs" => gcs::gcs(),
+        "gcs" => gcs::gcs(gcs_hil),
         _ => {
             eprintln!("{USAGE}");
             return ExitCode::from(2);

@@ -64,7 +64,14 @@ pub fn build_firmware_with(
         "building the firmware failed ({status}); is the target installed? \
          `rustup target add {FIRMWARE_TARGET}`"
     );
-    let dir = target_dir.map_or_else(|| root.join("target"), Path::to_path_buf);
+    // Where cargo put it: the directory given, else `CARGO_TARGET_DIR`
+    // (cargo honours it; relative to the workspace root, where cargo
+    // runs), else the workspace's.
+    let dir = match (target_dir, std::env::var_os("CARGO_TARGET_DIR")) {
+        (Some(dir), _) => dir.to_path_buf(),
+        (None, Some(env)) => root.join(env),
+        (None, None) => root.join("target"),
+    };
     Ok(dir
         .join(FIRMWARE_TARGET)
         .join("release")

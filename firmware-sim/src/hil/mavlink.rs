@@ -80,6 +80,9 @@ pub struct MavlinkBridgeReport {
     pub dropped_bytes: u64,
     /// The most bytes the backlog held before a tick.
     pub largest_backlog_bytes: u64,
+    /// Bytes left in the backlog when the run ended (never sent: every
+    /// byte received is sent to the firmware, dropped or left here).
+    pub left_in_backlog_bytes: u64,
     /// Bytes sent to the firmware.
     pub bytes_to_firmware: u64,
     /// Bytes the firmware's endpoint wrote, sent on.
@@ -165,6 +168,7 @@ impl Bridge {
                 dropped_datagrams: 0,
                 dropped_bytes: 0,
                 largest_backlog_bytes: 0,
+                left_in_backlog_bytes: 0,
                 bytes_to_firmware: 0,
                 bytes_from_firmware: 0,
                 messages: 0,
@@ -249,6 +253,7 @@ impl Bridge {
         MavlinkBridgeReport {
             speedup_achieved: if wall_s > 0.0 { sim_s / wall_s } else { 0.0 },
             udp: self.link.counters(),
+            left_in_backlog_bytes: self.backlog.len() as u64,
             copy_compared: self.log.compared,
             copy_mismatches: self.log.mismatches,
             first_mismatch_tick: self.log.first_mismatch_tick,

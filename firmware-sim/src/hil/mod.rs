@@ -19,8 +19,10 @@
 //!
 //! `firmware` builds the ELF and decodes its log, `qemu` runs it and
 //! speaks the link ([`QemuTarget`], a
-//! [`TargetLink`](crate::simulation::TargetLink)); this file runs a
-//! scenario through them ([`run_hil`]).
+//! [`TargetLink`](crate::simulation::TargetLink)), `mavlink` bridges a
+//! ground station on UDP to the link's MAVLink channel before each tick
+//! (`--mavlink`, with the SITL's UDP code); this file runs a scenario
+//! through them ([`run_hil`]).
 
 use std::path::PathBuf;
 

@@ -1,0 +1,267 @@
+//! `firmware-sim hil --mavlink`: a ground station on loopback UDP talks
+//! to the release firmware under QEMU through the link's MAVLink channel
+//! (docs/hil.md, "A ground station on the firmware under QEMU"): an
+//! in-process one (the `mavlink` library) against `run_hil` in a thread,
+//! and the real one, `tools/gcs/gcs_check.py --hil` (pymavlink), against
+//! this test build's `firmware-sim hil route --mavlink`.
+//!
+//! Needs `qemu-system-arm` and the firmware ELF, found as
+//! `host-tests/tests/hil.rs` finds them: `WMR_FIRMWARE_ELF` if set
+//! (relative paths from the workspace root; `cargo xtask ci` builds it),
+//! else built here into `target/hil-firmware`. The pymavlink check's
+//! Python as in `tests/sitl.rs` (`gcs`).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, deprecated)]
+
+mod gcs;
+
+use std::net::{SocketAddr, UdpSocket};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use firmware_sim::Scenario;
+use firmware_sim::hil::{
+    BACKLOG_BYTES, HilOptions, MavlinkBridgeSpec, build_firmware, run_hil, workspace_root,
+};
+use firmware_sim::sitl::MavlinkAddress;
+use mavlink::dialects::common::*;
+use mavlink::{MavHeader, MavlinkReader, MavlinkVersion};
+
+/// A wall-clock cap on any wait: only a hung run reaches it.
+const WALL_CAP: Duration = Duration::from_secs(60);
+
+fn firmware() -> PathBuf {
+    match std::env::var_os("WMR_FIRMWARE_ELF") {
+        Some(path) => workspace_root().join(path),
+        None => build_firmware(Some(&workspace_root().join("target").join("hil-firmware")))
+            .expect("build the QEMU-board firmware"),
+    }
+}
+
+/// The in-process ground station: a socket, the robot's address once it
+/// has spoken, the robot's time from its telemetry.
+struct Gcs {
+    socket: UdpSocket,
+    robot: Option<SocketAddr>,
+    seq: u8,
+    sim_ms: u32,
+}
+
+impl Gcs {
+    fn new() -> Self {
+        let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+        socket
+            .set_read_timeout(Some(Duration::from_millis(2)))
+            .unwrap();
+        Self {
+            socket,
+            robot: None,
+            seq: 0,
+            sim_ms: 0,
+        }
+    }
+
+    fn send(&mut self, msg: &MavMessage) {
+        let mut buf = [0u8; 300];
+        let header = MavHeader {
+            system_id: 255,
+            component_id: 190,
+            sequence: self.seq,
+        };
+        self.seq = self.seq.wrapping_add(1);
+        let n = mavlink::write_v2_msg(&mut &mut buf[..], header, msg).unwrap();
+        let to = self.robot.expect("the robot spoke first");
+        self.socket.send_to(&buf[..n], to).unwrap();
+    }
+
+    fn heartbeat(&mut self) {
+        self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            mavtype: MavType::MAV_TYPE_GCS,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+            system_status: MavState::MAV_STATE_ACTIVE,
+            mavlink_version: 3,
+            ..Default::default()
+        }));
+    }
+
+    /// Receives (a heartbeat every 20 ms of wall time once the robot has
+    /// spoken) until `until` holds for a message, within `sim_timeout_ms`
+    /// of the robot's time.
+    fn wait(
+        &mut self,
+        what: &str,
+        sim_timeout_ms: u32,
+        mut until: impl FnMut(&MavMessage) -> bool,
+    ) -> MavMessage {
+        let start_sim = self.sim_ms;
+        let wall = Instant::now();
+        let mut last_heartbeat = Instant::now();
+        let mut buf = [0u8; 2048];
+        loop {
+            if self.robot.is_some() && last_heartbeat.elapsed() >= Duration::from_millis(20) {
+                last_heartbeat = Instant::now();
+                self.heartbeat();
+            }
+            if let Ok((n, from)) = self.socket.recv_from(&mut buf) {
+                self.robot = Some(from);
+                let mut reader = MavlinkReader::new(&buf[..n]);
+                while let Ok((_, msg)) = reader.read_message::<MavMessage>(MavlinkVersion::V2) {
+                    if let MavMessage::LOCAL_POSITION_NED(p) = &msg {
+                        self.sim_ms = self.sim_ms.max(p.time_boot_ms);
+                    }
+                    if until(&msg) {
+                        return msg;
+                    }
+                }
+            }
+            assert!(
+                self.sim_ms.saturating_sub(start_sim) <= sim_timeout_ms,
+                "{what}: not within {sim_timeout_ms} ms of the robot's time"
+            );
+            assert!(wall.elapsed() < WALL_CAP, "{what}: the HIL run hung");
+        }
+    }
+
+    fn read_max_speed(&mut self) -> f32 {
+        self.send(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+            param_index: -1,
+            target_system: 1,
+            target_component: 1,
+            param_id: "RT_MAX_SPEED".into(),
+        }));
+        match self.wait("PARAM_VALUE", 5000, |m| {
+            matches!(m, MavMessage::PARAM_VALUE(p) if p.param_id.to_str() == Ok("RT_MAX_SPEED"))
+        }) {
+            MavMessage::PARAM_VALUE(p) => p.param_value,
+            _ => unreachable!(),
+        }
+    }
+}
+
+/// The firmware under QEMU answers a ground station on UDP through
+/// `run_hil` with a bridge: its heartbeat says it runs the scenario's
+/// route (mode 1) armed; a parameter read gives the route's speed limit;
+/// a pause is acknowledged accepted and the heartbeat says paused. A
+/// flood of garbage past the host's backlog is counted, every byte
+/// accounted for (sent to the firmware, dropped whole by datagram, or
+/// left at the end), none dropped by the firmware's queues (the host
+/// never sends more than they hold between two ticks), and the endpoint
+/// still answers after it. The stop flag (Ctrl-C) ends the run cleanly:
+/// the firmware finished, the host's copy of the session gave every
+/// answer the firmware gave, and no route report is made.
+#[test]
+fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
+    let mut gcs = Gcs::new();
+    let port = gcs.socket.local_addr().unwrap().port();
+    let mut scenario = Scenario::embedded("route").unwrap();
+    scenario.duration_s = 60.0;
+    let limit = scenario
+        .validate()
+        .unwrap()
+        .route
+        .unwrap()
+        .limits_spec
+        .max_speed_m_s;
+    let stop = Arc::new(AtomicBool::new(false));
+    let options = HilOptions {
+        firmware: Some(firmware()),
+        answer_timeout: Duration::from_secs(20),
+        telemetry_every_ticks: 0,
+        mavlink: Some(MavlinkBridgeSpec {
+            address: MavlinkAddress::parse(&format!("udp:127.0.0.1:{port}"), false).unwrap(),
+            speedup: 5.0,
+            stop: Some(Arc::clone(&stop)),
+            announce: None,
+        }),
+        ..HilOptions::default()
+    };
+    let run = std::thread::spawn(move || run_hil(&scenario, &options, |_, _| {}));
+
+    let heartbeat = gcs.wait("the robot's heartbeat", 5000, |m| {
+        matches!(m, MavMessage::HEARTBEAT(_))
+    });
+    let MavMessage::HEARTBEAT(h) = heartbeat else {
+        unreachable!()
+    };
+    assert_eq!(h.mavtype, MavType::MAV_TYPE_GROUND_ROVER);
+    assert_eq!(h.custom_mode, 1, "running the scenario's route");
+    assert!(
+        h.base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
+    );
+    assert_eq!(gcs.read_max_speed(), limit as f32);
+
+    gcs.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        command: MavCmd::MAV_CMD_DO_PAUSE_CONTINUE,
+        param1: 0.0,
+        target_system: 1,
+        target_component: 1,
+        ..Default::default()
+    }));
+    let ack = gcs.wait("COMMAND_ACK", 5000, |m| {
+        matches!(m, MavMessage::COMMAND_ACK(a) if a.command == MavCmd::MAV_CMD_DO_PAUSE_CONTINUE)
+    });
+    let MavMessage::COMMAND_ACK(ack) = ack else {
+        unreachable!()
+    };
+    assert_eq!(ack.result, MavResult::MAV_RESULT_ACCEPTED);
+    gcs.wait(
+        "paused",
+        5000,
+        |m| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == 2),
+    );
+
+    // A flood: three times the backlog in datagrams of 1,000 garbage
+    // bytes, sent as fast as the socket takes them.
+    let robot = gcs.robot.unwrap();
+    let garbage = [0x55_u8; 1000];
+    for _ in 0..3 * BACKLOG_BYTES / garbage.len() {
+        gcs.socket.send_to(&garbage, robot).unwrap();
+    }
+    assert_eq!(gcs.read_max_speed(), limit as f32, "answering after it");
+
+    stop.store(true, Ordering::Relaxed);
+    let run = run.join().unwrap().expect("the HIL run");
+    let report = run.report.mavlink.expect("the bridge's report");
+    println!("{report:#?}");
+    assert!(report.interrupted);
+    assert!(
+        run.result.records.len() < 6000,
+        "ended by the flag, not at 60 s"
+    );
+    assert_eq!(report.copy_mismatches, 0, "{report:?}");
+    assert!(report.copy_compared >= run.result.records.len() as u64);
+    assert!(
+        report.dropped_datagrams > 0,
+        "the flood overflowed the backlog"
+    );
+    assert_eq!(report.dropped_bytes, 1000 * report.dropped_datagrams);
+    assert_eq!(
+        report.udp.bytes_in,
+        report.bytes_to_firmware + report.dropped_bytes + report.left_in_backlog_bytes,
+        "every byte received accounted for"
+    );
+    assert_eq!(report.firmware.rx_dropped_bytes, 0);
+    assert_eq!(report.firmware.tx_dropped_frames, 0);
+    assert!(report.udp.frames_out > 0 && report.udp.frames_unsent == 0);
+    assert!(run.result.summary.route.is_none(), "no route report");
+}
+
+/// The pymavlink ground station (`tools/gcs/gcs_check.py --hil`) against
+/// this build's `firmware-sim hil route --mavlink`, at 20x real time:
+/// every check of the SITL's list passes or is skipped by name (the
+/// global-frame mission: the QEMU firmware's endpoint has no origin).
+#[test]
+fn pymavlink_ground_station_against_the_firmware_under_qemu() {
+    let elf = firmware();
+    let (passed, skipped) = gcs::gcs_check(&[
+        "--hil",
+        "--firmware",
+        elf.to_str().unwrap(),
+        "--speedup",
+        "20",
+    ]);
+    assert!(passed >= 30, "only {passed} checks ran");
+    assert_eq!(skipped, 5, "the global-frame mission's five checks");
+}
