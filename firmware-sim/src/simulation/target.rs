@@ -53,7 +53,7 @@ pub trait TargetLink {
 }
 
 /// The MAVLink messages a remote run sends its target between ticks, and
-/// how the host's copy of the firmware's session ([`RouteShadow`])
+/// how the host's copy of the firmware's session (`RouteShadow`)
 /// answered the same: the copy is fed each message before the tick the
 /// target got it before, so that its route (the run's route status and
 /// end) follows what the ground station did to the target's, and each of
