@@ -16,8 +16,8 @@ mod gcs;
 
 use std::net::{SocketAddr, UdpSocket};
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 use firmware_sim::Scenario;
@@ -32,11 +32,13 @@ use mavlink::{MavHeader, MavlinkReader, MavlinkVersion};
 const WALL_CAP: Duration = Duration::from_secs(60);
 
 fn firmware() -> PathBuf {
-    match std::env::var_os("WMR_FIRMWARE_ELF") {
+    static ELF: OnceLock<PathBuf> = OnceLock::new();
+    ELF.get_or_init(|| match std::env::var_os("WMR_FIRMWARE_ELF") {
         Some(path) => workspace_root().join(path),
         None => build_firmware(Some(&workspace_root().join("target").join("hil-firmware")))
             .expect("build the QEMU-board firmware"),
-    }
+    })
+    .clone()
 }
 
 /// The in-process ground station: a socket, the robot's address once it
