@@ -14,8 +14,8 @@
 //! ```text
 //! tags ──┐
 //! plant ─┴─► devices ─► scenario ─► report ─┬─► simulation ─┬─► hil
-//!                          │                │               ├─► sweep
-//!                          │                │               └─► sitl
+//!                          │         ▲      │               ├─► sweep
+//! udp ─────────────────────┼─────────┘      │               └─► sitl
 //!                          │                └─► output ─────────► sweep
 //!                          │                      └─────────────► slip
 //!                          └────────────────────────────────────► slip
@@ -24,6 +24,9 @@
 //! (`A ─► B`: `B` uses `A`; uses that follow along the chain, such as
 //! `simulation` using `scenario`, are not drawn.)
 //!
+//! * [`udp`]: a ground station's UDP side (the `--mavlink` address and
+//!   the loopback rule, the socket, the wall-clock pace), shared by `sitl`
+//!   and `hil`. Uses nothing of this crate.
 //! * [`tags`]: the floor's tag grid (the core's `TagGrid` encoding) and the
 //!   nearest-tag lookup. Uses nothing of this crate.
 //! * [`plant`]: the kinematic unicycle of paper 001 (exact arcs) and a
@@ -38,7 +41,7 @@
 //!   Uses `devices`, `plant`, `tags`.
 //! * [`report`]: what a run reports: the per-tick [`Record`], the
 //!   [`Summary`] (with the HIL figures), the [`RunResult`]. Uses
-//!   `devices`, `scenario`.
+//!   `devices`, `scenario`, `udp`.
 //! * [`output`]: CSV, JSON summary and PNG plot, and the plot helpers
 //!   `sweep` and `slip` share. Uses `report`.
 //! * [`simulation`]: the loop, calling the core's tracker or controller
@@ -46,15 +49,16 @@
 //!   drive), or a remote tick over a `TargetLink`. Uses `devices`, `plant`,
 //!   `tags`, `scenario`, `report`.
 //! * [`hil`]: the same runs with the control tick in the real firmware
-//!   under QEMU, in lock-step over a serial link. Uses `scenario`,
-//!   `report`, `simulation`.
+//!   under QEMU, in lock-step over a serial link, and a ground station on
+//!   UDP bridged to its MAVLink endpoint. Uses `scenario`, `report`,
+//!   `simulation`, `udp`.
 //! * [`sweep`]: Monte Carlo sweeps: seeded variations of a scenario run in
 //!   parallel, convergence and error statistics, their files, shards of
 //!   the runs for other machines and their merge. Uses
 //!   `scenario`, `report`, `simulation`, `output`.
 //! * [`sitl`]: the simulated robot in real time (or faster) behind the
 //!   robot's MAVLink endpoint (`wmr-mavlink`) on UDP (`firmware-sim
-//!   sitl`). Uses `scenario`, `report`, `simulation`.
+//!   sitl`). Uses `scenario`, `report`, `simulation`, `udp`.
 //! * [`telemetry`]: a firmware's telemetry log (`firmware-sim plot`) back
 //!   into `run.csv`, `summary.json` and `run.png`. Uses `report`,
 //!   `output`.
@@ -85,6 +89,7 @@ pub mod slip;
 pub mod sweep;
 pub mod tags;
 pub mod telemetry;
+pub mod udp;
 
 pub use report::{Record, RunResult, Summary};
 pub use scenario::{EMBEDDED, Scenario, ScenarioError, Setup};

@@ -617,7 +617,7 @@ fn error_panel(
 
 /// The lines of a run with a ground station (`firmware-sim hil
 /// --mavlink`).
-fn format_mavlink_bridge(o: &mut String, m: &crate::hil::MavlinkBridgeReport) {
+fn format_mavlink_bridge(o: &mut String, m: &crate::report::mavlink_bridge::MavlinkBridgeReport) {
     let _ = writeln!(
         o,
         "mavlink       {:.1}x real time (asked {}x){}; udp in {} datagrams {} B, out {} frames ({} unsent); backlog dropped {} datagrams {} B (largest {} B, {} B left at the end)",

@@ -24,7 +24,7 @@ use firmware_sim::Scenario;
 use firmware_sim::hil::{
     BACKLOG_BYTES, HilOptions, MavlinkBridgeSpec, build_firmware, run_hil, workspace_root,
 };
-use firmware_sim::sitl::MavlinkAddress;
+use firmware_sim::udp::MavlinkAddress;
 use mavlink::dialects::common::*;
 use mavlink::{MavHeader, MavlinkReader, MavlinkVersion};
 

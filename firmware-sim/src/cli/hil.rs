@@ -9,7 +9,7 @@ use std::sync::atomic::AtomicBool;
 use firmware_sim::hil::{HilOptions, LinkFaultSpec, MavlinkBridgeSpec, run_hil};
 use firmware_sim::output::{format_summary, write_all};
 use firmware_sim::scenario::Scenario;
-use firmware_sim::sitl::MavlinkAddress;
+use firmware_sim::udp::MavlinkAddress;
 use signal_hook::consts::{SIGINT, SIGTERM};
 
 /// The arguments of `hil`.

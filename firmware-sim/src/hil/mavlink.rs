@@ -35,9 +35,9 @@ use wmr_link::{
 };
 
 use super::qemu::QemuTarget;
+use crate::report::mavlink_bridge::MavlinkBridgeReport;
 use crate::simulation::MavlinkLog;
-use crate::sitl::pace::Pace;
-use crate::sitl::{LinkCounters, MavlinkAddress, UdpLink};
+use crate::udp::{LinkCounters, MavlinkAddress, Pace, UdpLink};
 
 /// Bytes from the ground station the host holds for the firmware: about
 /// 85 ticks of the firmware's queue, far more than a ground station
@@ -63,44 +63,6 @@ pub struct MavlinkBridgeSpec {
     /// Called once the socket is open, with a line naming its address
     /// and the ground station's (the command line prints it).
     pub announce: Option<fn(&str)>,
-}
-
-/// What the bridge did (in the summary's `hil.mavlink`).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct MavlinkBridgeReport {
-    /// Times real time asked for.
-    pub speedup: f64,
-    /// Simulated time over wall time from the first tick to the last.
-    pub speedup_achieved: f64,
-    /// The UDP side: datagrams and bytes in, frames out and unsent.
-    pub udp: LinkCounters,
-    /// Datagrams dropped whole for want of room in the backlog.
-    pub dropped_datagrams: u64,
-    /// Their bytes.
-    pub dropped_bytes: u64,
-    /// The most bytes the backlog held before a tick.
-    pub largest_backlog_bytes: u64,
-    /// Bytes left in the backlog when the run ended (never sent: every
-    /// byte received is sent to the firmware, dropped or left here).
-    pub left_in_backlog_bytes: u64,
-    /// Bytes sent to the firmware.
-    pub bytes_to_firmware: u64,
-    /// Bytes the firmware's endpoint wrote, sent on.
-    pub bytes_from_firmware: u64,
-    /// `HostMessage::Mavlink` messages sent.
-    pub messages: u64,
-    /// The firmware's side of the channel (its last answer's counters).
-    pub firmware: MavlinkCounters,
-    /// Answers of the host's copy of the session compared with the
-    /// firmware's.
-    pub copy_compared: u64,
-    /// Those that differ (0: the host's copy, and with it the run's route
-    /// status, followed the firmware).
-    pub copy_mismatches: u32,
-    /// The tick before which the first differing answer came.
-    pub first_mismatch_tick: Option<u32>,
-    /// The run was ended by Ctrl-C before its duration.
-    pub interrupted: bool,
 }
 
 /// The bridge of a run: the UDP link, the wall clock, the backlog.

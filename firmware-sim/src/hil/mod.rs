@@ -21,7 +21,7 @@
 //! speaks the link ([`QemuTarget`], a
 //! [`TargetLink`](crate::simulation::TargetLink)), `mavlink` bridges a
 //! ground station on UDP to the link's MAVLink channel before each tick
-//! (`--mavlink`, with the SITL's UDP code); this file runs a scenario
+//! (`--mavlink`, with `crate::udp`, the SITL's UDP code); this file runs a scenario
 //! through them ([`run_hil`]).
 
 use std::path::PathBuf;
@@ -38,11 +38,12 @@ mod firmware;
 mod mavlink;
 mod qemu;
 
+pub use crate::report::mavlink_bridge::MavlinkBridgeReport;
 pub use faults::{ExpectedCounters, InjectedFaults, LinkFaultReport, LinkFaultSpec, OUTAGE_MS};
 pub use firmware::{
     FIRMWARE_TARGET, build_firmware, build_firmware_with, decode_defmt_log, workspace_root,
 };
-pub use mavlink::{BACKLOG_BYTES, MAX_WALL_PER_TICK_S, MavlinkBridgeReport, MavlinkBridgeSpec};
+pub use mavlink::{BACKLOG_BYTES, MAX_WALL_PER_TICK_S, MavlinkBridgeSpec};
 pub use qemu::{DEFAULT_TELEMETRY_EVERY_TICKS, HilOptions, QEMU, QemuTarget};
 
 /// A run through the firmware.

@@ -6,6 +6,7 @@
 //! counters; nothing here runs a simulation.
 
 pub mod link_faults;
+pub mod mavlink_bridge;
 
 use serde::Serialize;
 use wmr_core::control::LawChoice;
@@ -444,7 +445,7 @@ pub struct HilReport {
     /// the channel, and the host's copy of the session against the
     /// firmware.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub mavlink: Option<crate::hil::MavlinkBridgeReport>,
+    pub mavlink: Option<mavlink_bridge::MavlinkBridgeReport>,
 }
 
 /// Everything a run produced.

@@ -18,15 +18,14 @@
 //!    ([`wmr_mavlink::progress`]);
 //! 5. send what the endpoint wrote, a datagram per frame.
 //!
-//! Files, each using only those above it: [`address`] (the `--mavlink`
-//! address and the loopback rule), [`link`] (the UDP socket), [`pace`]
-//! (the wall clock), [`robot`] (the robot on the mission runner of
-//! `wmr-mavlink`); this file runs the loop ([`run`]). Uses `scenario`,
-//! `report` and `simulation` of this crate.
+//! The UDP side is [`crate::udp`]'s, shared with `firmware-sim hil
+//! --mavlink` ([`address`]: the `--mavlink` address and the loopback
+//! rule, [`link`]: the UDP socket, [`pace`]: the wall clock; re-exported
+//! here). [`robot`]: the robot on the mission runner of `wmr-mavlink`;
+//! this file runs the loop ([`run`]). Uses `udp`, `scenario`, `report`
+//! and `simulation` of this crate.
 
-pub mod address;
-pub mod link;
-pub mod pace;
+pub use crate::udp::{address, link, pace};
 pub mod robot;
 
 use std::sync::atomic::{AtomicBool, Ordering};

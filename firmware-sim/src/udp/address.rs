@@ -1,6 +1,6 @@
-//! The `--mavlink` address: `udp:HOST:PORT` (the SITL sends to a ground
-//! station listening there) or `udpin:HOST:PORT` (the SITL listens there
-//! and answers whoever sent last), and the loopback rule.
+//! The `--mavlink` address: `udp:HOST:PORT` (the robot, SITL or HIL,
+//! sends to a ground station listening there) or `udpin:HOST:PORT` (it
+//! listens there and answers whoever sent last), and the loopback rule.
 
 use std::net::{SocketAddr, ToSocketAddrs};
 

@@ -1,5 +1,6 @@
-//! The SITL's UDP socket: every datagram waiting is read without
-//! blocking; each MAVLink frame goes out in a datagram of its own.
+//! The robot's UDP socket (SITL or HIL): every datagram waiting is read
+//! without blocking; each MAVLink frame goes out in a datagram of its
+//! own.
 
 use std::io::ErrorKind;
 use std::net::{SocketAddr, UdpSocket};
