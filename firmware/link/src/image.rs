@@ -29,7 +29,7 @@ use wmr_core::devices::tag_grid::TagGridSpec;
 use wmr_core::devices::{TagGrid, TagId, TagLocator};
 use wmr_core::geometry::Vec2;
 use wmr_core::pilot::spec::{PilotSpec, SpecError};
-use wmr_core::reference::route::Waypoint;
+use wmr_core::reference::route::{RouteLimits, Waypoint};
 
 use crate::session::RouteStore;
 use crate::{RouteRefusal, RouteSpec};
@@ -190,15 +190,22 @@ impl<'a> ImageRoute<'a> {
     /// session loads one ([`RouteStore::begin`], [`RouteStore::push`],
     /// [`RouteStore::finish`]) at the control period `period_s`.
     ///
+    /// Returns the validated limits (a MAVLink run's, `MavlinkRun::activate`).
+    ///
     /// # Errors
     /// The first [`RouteRefusal`]: the count, a limit or an option, or
     /// the planner's refusal naming the waypoint and its key.
-    pub fn load_into(&self, store: &mut RouteStore, period_s: f32) -> Result<(), RouteRefusal> {
+    pub fn load_into(
+        &self,
+        store: &mut RouteStore,
+        period_s: f32,
+    ) -> Result<RouteLimits, RouteRefusal> {
         let limits = store.begin(&self.spec)?;
         for w in self.waypoints() {
             store.push(w)?;
         }
-        store.finish(&limits, self.spec.start, period_s)
+        store.finish(&limits, self.spec.start, period_s)?;
+        Ok(limits)
     }
 }
 

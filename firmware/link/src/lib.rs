@@ -135,6 +135,7 @@
 )]
 
 pub mod image;
+pub mod mavlink_run;
 pub mod proxy;
 pub mod rx_ring;
 pub mod session;

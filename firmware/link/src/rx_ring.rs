@@ -182,6 +182,102 @@ impl<const N: usize> RxRing<N> {
     }
 }
 
+/// What a transmit ring has seen since it was made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TxCounters {
+    /// Bytes handed to the UART (wrapping: a traffic counter).
+    pub sent: u32,
+    /// Bytes refused because the ring was full (the caller offered more
+    /// than [`TxRing::room`]), saturating.
+    pub ring_full: u32,
+    /// The most bytes the ring has held at once.
+    pub peak: u32,
+}
+
+/// A fixed-capacity transmit ring of `N` bytes: the tick queues whole
+/// frames ([`TxRing::push_slice`], within [`TxRing::room`]), the UART's
+/// transmit interrupt takes one byte at each "data register empty"
+/// ([`TxRing::pop`]). Shared between the two as [`RxRing`] is (module
+/// documentation). Never panics; a byte that finds no room is refused
+/// and counted, never silently lost.
+#[derive(Debug)]
+pub struct TxRing<const N: usize> {
+    bytes: Deque<u8, N>,
+    counters: TxCounters,
+}
+
+impl<const N: usize> Default for TxRing<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> TxRing<N> {
+    /// An empty ring (`const`: it can initialise a `static`).
+    #[must_use]
+    pub const fn new() -> Self {
+        Self {
+            bytes: Deque::new(),
+            counters: TxCounters {
+                sent: 0,
+                ring_full: 0,
+                peak: 0,
+            },
+        }
+    }
+
+    /// Bytes waiting to be sent.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.bytes.len()
+    }
+
+    /// Nothing waiting.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.bytes.is_empty()
+    }
+
+    /// Bytes that can still be queued.
+    #[must_use]
+    pub fn room(&self) -> usize {
+        N.saturating_sub(self.bytes.len())
+    }
+
+    /// Queues what fits of `bytes`, in order; returns how many. The rest
+    /// is counted in [`TxCounters::ring_full`].
+    pub fn push_slice(&mut self, bytes: &[u8]) -> usize {
+        let mut n = 0;
+        for &b in bytes {
+            if self.bytes.push_back(b).is_err() {
+                break;
+            }
+            n += 1;
+        }
+        let refused = u32::try_from(bytes.len().saturating_sub(n)).unwrap_or(u32::MAX);
+        let c = &mut self.counters;
+        c.ring_full = c.ring_full.saturating_add(refused);
+        c.peak = c
+            .peak
+            .max(u32::try_from(self.bytes.len()).unwrap_or(u32::MAX));
+        n
+    }
+
+    /// The next byte to send, taken out (counted sent).
+    pub fn pop(&mut self) -> Option<u8> {
+        let b = self.bytes.pop_front()?;
+        self.counters.sent = self.counters.sent.wrapping_add(1);
+        Some(b)
+    }
+
+    /// What the ring has seen.
+    #[must_use]
+    pub fn counters(&self) -> TxCounters {
+        self.counters
+    }
+}
+
 /// The capacity a ring needs on a line of `baud` Bd, 8N1 (10 bits a byte),
 /// emptied at least every `window_us` µs: the bytes that can arrive in the
 /// window (rounded up), plus one that the USART's data register may hold
@@ -403,6 +499,112 @@ mod tests {
         assert_eq!(run.peak, 64);
         // Lost bytes are exactly the ones counted: nothing silent.
         assert_eq!(run.read + run.ring_full, run.sent);
+    }
+
+    #[test]
+    fn the_tx_ring_sends_in_order_and_counts_what_it_refuses() {
+        let mut ring = TxRing::<4>::new();
+        assert_eq!(ring.room(), 4);
+        assert_eq!(ring.push_slice(&[1, 2, 3]), 3);
+        assert_eq!(ring.room(), 1);
+        assert_eq!(ring.push_slice(&[4, 5, 6]), 1);
+        assert_eq!(ring.counters().ring_full, 2);
+        assert_eq!(ring.counters().peak, 4);
+        let out: Vec<u8> = core::iter::from_fn(|| ring.pop()).collect();
+        assert_eq!(out, [1, 2, 3, 4]);
+        assert!(ring.is_empty());
+        assert_eq!(ring.counters().sent, 4);
+        assert_eq!(ring.pop(), None);
+    }
+
+    /// The Black Pill's MAVLink transmit ring (`MAVLINK_TX_RING_BYTES`).
+    const MAVLINK_TX_RING: usize = 1_024;
+
+    /// A tick of `period_us` that queues `frame(k)` bytes (only when they
+    /// fit the ring's room, as the board gives the endpoint the room as
+    /// its buffer; a frame that does not fit is the endpoint's to count)
+    /// into a [`TxRing`] that the transmit interrupt empties at one byte
+    /// per byte time of a `baud` line. Returns the bytes queued, sent,
+    /// whether in order, the frames that found no room, and the ring's
+    /// counters.
+    fn simulate_tx<const N: usize>(
+        baud: u32,
+        period_us: u32,
+        ticks: usize,
+        frame: impl Fn(usize) -> usize,
+    ) -> (u32, u32, bool, u32, TxCounters) {
+        let byte_ns = 10_000_000_000_u64 / u64::from(baud);
+        let mut ring = TxRing::<N>::new();
+        let (mut queued, mut sent, mut in_order, mut no_room) = (0_u32, 0_u32, true, 0_u32);
+        let mut next_byte_ns = 0_u64;
+        let mut now_ns = 0_u64;
+        for k in 0..ticks {
+            let tick_end = now_ns + u64::from(period_us) * 1_000;
+            let n = frame(k);
+            if n <= ring.room() {
+                let bytes: Vec<u8> = (0..n)
+                    .map(|i| (queued + i as u32).to_le_bytes()[0])
+                    .collect();
+                assert_eq!(ring.push_slice(&bytes), n);
+                queued += n as u32;
+            } else {
+                no_room += 1;
+            }
+            // The line: a byte leaves at each byte time while the ring
+            // holds one (the interrupt refills the data register).
+            next_byte_ns = next_byte_ns.max(now_ns);
+            while next_byte_ns + byte_ns <= tick_end {
+                let Some(b) = ring.pop() else { break };
+                in_order &= b == sent.to_le_bytes()[0];
+                sent += 1;
+                next_byte_ns += byte_ns;
+            }
+            now_ns = tick_end;
+        }
+        (queued, sent, in_order, no_room, ring.counters())
+    }
+
+    #[test]
+    fn mavlink_telemetry_at_10_hz_goes_out_whole_at_115200_bd_with_a_5_ms_tick() {
+        // The endpoint's output at 10 Hz telemetry: LOCAL_POSITION_NED
+        // (40 B), ATTITUDE (40 B) and GLOBAL_POSITION_INT (40 B) every
+        // 20th tick of 5 ms, HEARTBEAT (21 B) and SYS_STATUS (43 B) every
+        // 200th, and a mission download's MISSION_ITEM_INT (50 B) every
+        // 3rd tick for a while: far under the line's 57.6 bytes a tick.
+        let frame = |k: usize| {
+            let mut n = 0;
+            if k % 20 == 0 {
+                n += 120;
+            }
+            if k % 200 == 0 {
+                n += 64;
+            }
+            if (400..600).contains(&k) && k % 3 == 0 {
+                n += 50;
+            }
+            n
+        };
+        let (queued, sent, in_order, no_room, c) =
+            simulate_tx::<MAVLINK_TX_RING>(115_200, 5_000, 4_000, frame);
+        assert_eq!((no_room, c.ring_full), (0, 0), "{c:?}");
+        assert!(in_order);
+        // All queued bytes left but for the last tick's.
+        assert!(queued - sent <= 184, "{queued} queued, {sent} sent");
+        assert!(queued > 20_000);
+        assert!((c.peak as usize) < MAVLINK_TX_RING / 4, "{c:?}");
+    }
+
+    #[test]
+    fn output_past_the_line_rate_is_refused_and_counted_never_lost_unseen() {
+        // 100 bytes every 1 ms tick onto a 9600 Bd line (0.96 bytes a
+        // ms): the ring fills, and every frame that then finds no room
+        // is refused whole; what was queued goes out in order.
+        let (queued, sent, in_order, no_room, c) = simulate_tx::<256>(9_600, 1_000, 1_000, |_| 100);
+        assert!(no_room > 900, "{no_room}");
+        assert!(in_order);
+        assert_eq!(c.sent, sent);
+        assert!(queued >= sent && queued - sent <= 256);
+        assert_eq!(c.ring_full, 0);
     }
 
     proptest! {

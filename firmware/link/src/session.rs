@@ -19,18 +19,10 @@
 //! `wmr-mavlink` (the crate docs, "MAVLink"): the runner starts armed and
 //! running the loaded route (the robot drives it from its first tick, as
 //! without a ground station). At each tick, before the robot's, the
-//! endpoint takes the bytes the host brought since the last tick and the
-//! runner's view, and writes its output into the send queue; its events
-//! are applied to the runner, and what the runner asks is done to the
-//! store's follower in place (a hold: a fresh follower with no route; a
-//! start: a fresh follower loaded from an item; a replacement: a load
-//! into the running follower). After the robot's tick the runner reads
-//! the follower's status. A run that receives no MAVLink byte gets no
-//! event, so its robot runs exactly as without the endpoint. An uploaded
-//! mission is checked only for its size here (no second 20 KB plan to
-//! plan it into): one the planner refuses is refused by the follower when
-//! it starts, counted (`RouteCounters::routes_refused`), and the robot
-//! holds where it is.
+//! endpoint takes the bytes the host brought since the last tick
+//! ([`MavlinkStore`]'s queues) and answers into the send queue; the glue
+//! between endpoint, runner and follower is [`crate::mavlink_run`]'s,
+//! which the Black Pill's UART shares.
 
 use core::cell::RefCell;
 
@@ -43,10 +35,9 @@ use wmr_core::pilot::spec::SpecError;
 use wmr_core::reference::route::{
     ROUTE_CAPACITY, RouteError, RouteLimits, RouteLimitsSpec, RoutePlan, Waypoint, Waypoints,
 };
-use wmr_mavlink::{
-    EndpointConfig, Estimate, Events, FollowerAction, MavlinkEndpoint, MissionRunner, TxBuffer,
-};
+use wmr_mavlink::EndpointConfig;
 
+use crate::mavlink_run::{self, MavlinkRun};
 use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
 use crate::route::CAPACITY_U8;
 use crate::{
@@ -262,38 +253,21 @@ impl RouteLoad {
 }
 
 /// The MAVLink side of a session's route runs (module documentation):
-/// the endpoint, the mission runner and the channel's queues, about
-/// 11 KB; the board lends it
+/// the endpoint and mission runner ([`MavlinkRun`]) and the channel's
+/// queues, about 11 KB; the board lends it
 /// ([`Session::lend_mavlink`]) from a `static`, and each route run resets
 /// it in place, so neither is built on the stack.
 #[derive(Debug, Clone)]
 pub struct MavlinkStore {
-    config: EndpointConfig,
-    endpoint: MavlinkEndpoint,
-    runner: MissionRunner,
-    /// The control period, µs: the endpoint's clock is the tick's time.
-    period_us: u32,
-    /// The run has a route: the endpoint and the runner are its.
-    active: bool,
+    run: MavlinkRun,
     /// The channel's queues (the crate docs, "MAVLink").
     queues: MavlinkQueues,
-    /// Where the endpoint writes an uploaded mission as a route to check
-    /// it (`MavlinkEndpoint::handle_in`): here, not on the stack.
-    route_check: Waypoints,
 }
 
 impl MavlinkStore {
     /// Route limits to build an idle store with ([`Self::new`]): valid,
     /// and replaced by each run's.
-    pub const IDLE_LIMITS: RouteLimitsSpec = RouteLimitsSpec {
-        max_speed_m_s: 0.3,
-        max_tangential_accel_m_s2: 0.5,
-        max_lateral_accel_m_s2: 0.5,
-        blend_deviation_m: 0.02,
-        pivot_threshold_rad: 0.5,
-        pivot_rate_rad_s: 1.0,
-        pivot_accel_rad_s2: 2.0,
-    };
+    pub const IDLE_LIMITS: RouteLimitsSpec = MavlinkRun::IDLE_LIMITS;
 
     /// Idle (no run), its endpoint configured by `config` for every run
     /// (system and component ids, timeouts, telemetry period, origin);
@@ -304,25 +278,9 @@ impl MavlinkStore {
     #[inline(always)]
     pub fn new(config: EndpointConfig, limits: RouteLimits) -> Self {
         Self {
-            config,
-            endpoint: MavlinkEndpoint::new_in_place(config, limits),
-            runner: MissionRunner::new(RouteStart::AsGiven, limits),
-            period_us: 0,
-            active: false,
+            run: MavlinkRun::new(config, limits),
             queues: MavlinkQueues::new(),
-            route_check: Waypoints::new(),
         }
-    }
-
-    /// A new route run: the endpoint reset, the runner running
-    /// `waypoints` as `load` starts them, in place.
-    fn activate(&mut self, waypoints: &Waypoints, load: &RouteLoad, period_s: f32) {
-        self.endpoint.reset(self.config, load.limits);
-        self.runner
-            .reset_running(waypoints, load.start, load.limits);
-        // A period of at most hours (the pilot's check): fits.
-        self.period_us = (period_s * 1.0e6 + 0.5) as u32;
-        self.active = true;
     }
 }
 
@@ -392,13 +350,13 @@ impl<'a> Session<'a> {
     /// route runs use (module documentation); without, a run's MAVLink
     /// bytes are counted dropped.
     pub fn lend_mavlink(&mut self, store: &'a mut MavlinkStore) {
-        store.active = false;
+        store.run.deactivate();
         self.mav = Some(store);
     }
 
     /// The run's MAVLink side, while it has one.
     fn mav_active(&mut self) -> Option<&mut MavlinkStore> {
-        self.mav.as_deref_mut().filter(|m| m.active)
+        self.mav.as_deref_mut().filter(|m| m.run.is_active())
     }
 
     /// The telemetry start of the run just configured (`None`: telemetry
@@ -481,17 +439,14 @@ impl<'a> Session<'a> {
                     }
                     (Some(robot), _) => {
                         self.bus.load(input);
-                        if let Some(mav) = self.mav.as_deref_mut().filter(|m| m.active) {
+                        if let Some(mav) = self.mav.as_deref_mut().filter(|m| m.run.is_active()) {
                             mavlink_tick(mav, self.route, input.tick, self.last_answer.as_ref());
                         }
                         let route = self.route_load.and_then(|_| self.route.follower_mut());
                         let out = robot.tick_on(route);
-                        if let (Some(mav), Some(f)) = (
-                            self.mav.as_deref_mut().filter(|m| m.active),
-                            self.route.follower(),
-                        ) {
+                        if let Some(mav) = self.mav.as_deref_mut() {
                             let r = out.pilot.tracker.reference.position;
-                            mav.runner.after_tick(&f.status(), f.counters(), r);
+                            mav.run.after_tick(self.route, r);
                         }
                         // A few scalars, not `&out`: taking the tick's address
                         // kept all of it in this (inlined, deepest) frame.
@@ -535,7 +490,7 @@ impl<'a> Session<'a> {
             ),
             HostMessage::Mavlink(m) => {
                 let out = match self.mav.as_deref_mut() {
-                    Some(mav) => mav.queues.exchange(m, configured && mav.active),
+                    Some(mav) => mav.queues.exchange(m, configured && mav.run.is_active()),
                     None => {
                         let n = u32::try_from(m.bytes.len()).unwrap_or(u32::MAX);
                         self.mavlink_dropped = self.mavlink_dropped.wrapping_add(n);
@@ -620,7 +575,7 @@ impl<'a> Session<'a> {
                 self.robot = None;
                 self.route_load = None;
                 if let Some(mav) = self.mav.as_deref_mut() {
-                    mav.active = false;
+                    mav.run.deactivate();
                     mav.queues.reset();
                 }
                 self.map_load = match c.floor {
@@ -732,7 +687,7 @@ impl<'a> Session<'a> {
         self.map_load = None;
         self.route_load = None;
         if let Some(mav) = self.mav_active() {
-            mav.active = false;
+            mav.run.deactivate();
         }
         self.bus.stop_motors();
         TargetMessage::Refused(Refusal::Route(why))
@@ -830,7 +785,8 @@ impl<'a> Session<'a> {
         self.route.finish(&load.limits, load.start, period_s)?;
         let load = *load;
         if let Some(mav) = self.mav.as_deref_mut() {
-            mav.activate(self.route.waypoints(), &load, period_s);
+            mav.run
+                .activate(self.route.waypoints(), load.start, load.limits, period_s);
         }
         Ok(TargetMessage::Configured)
     }
@@ -838,90 +794,17 @@ impl<'a> Session<'a> {
 
 /// The MAVLink endpoint's part of a tick, before the robot's (module
 /// documentation): the bytes received since the last tick in, its output
-/// into the send queue, its events applied to the runner and the
-/// follower. `last` is the last tick's answer (the estimate the endpoint
-/// reports). Not inlined: the route it reads out of the endpoint (1.8 KB)
-/// is in this frame, off the robot's tick's deepest path.
-#[inline(never)]
+/// into the send queue ([`MavlinkRun::before_tick`]). `last` is the last
+/// tick's answer (the estimate the endpoint reports).
 fn mavlink_tick(
     mav: &mut MavlinkStore,
     route: &mut RouteStore,
     tick: u32,
     last: Option<&TickOutput>,
 ) {
-    let now_us = u64::from(tick) * u64::from(mav.period_us);
-    // The endpoint's clock wraps (it takes differences only).
-    let now_ms = u32::try_from((now_us / 1000) & u64::from(u32::MAX)).unwrap_or(0);
-    let MavlinkStore {
-        endpoint,
-        runner,
-        queues,
-        route_check,
-        ..
-    } = mav;
-    let view = runner.view(last.map(|a| Estimate {
-        x_m: a.position_m[0],
-        y_m: a.position_m[1],
-        heading_rad: libm::atan2f(a.heading[1], a.heading[0]),
-        speed_m_s: a.command[0],
-        turn_rate_rad_s: a.command[1],
-    }));
-    let mut events = Events::default();
-    queues.tick(|rx, room| {
-        let mut tx = TxBuffer::new(room);
-        events = endpoint.handle_in(now_ms, rx, &view, check_mission, &mut tx, route_check);
-        (tx.len(), tx.dropped())
-    });
-    if !events.as_slice().is_empty() {
-        apply_events(endpoint, runner, route, &events);
-    }
-}
-
-/// Applies the endpoint's events to the runner and what it asks to the
-/// follower, in place. Not inlined: a route loaded into the follower
-/// passes through this frame (about 2 KB), which ticks without an event
-/// do not take.
-#[inline(never)]
-fn apply_events(
-    endpoint: &MavlinkEndpoint,
-    runner: &mut MissionRunner,
-    route: &mut RouteStore,
-    events: &Events,
-) {
-    let limits = endpoint.route_limits();
-    for &event in events.as_slice() {
-        let counters = route
-            .follower()
-            .map(RouteFollower::counters)
-            .unwrap_or_default();
-        let write = |m: &mut Waypoints| endpoint.route_into(m);
-        let action = runner.apply_with(event, write, limits, counters).action;
-        match action {
-            FollowerAction::Keep => {}
-            FollowerAction::Hold => route.reset_follower(),
-            FollowerAction::Replace => {
-                if let Some(f) = route.follower_mut() {
-                    runner.load(action, f);
-                }
-            }
-            FollowerAction::Run { .. } => {
-                route.reset_follower();
-                if let Some(f) = route.follower_mut() {
-                    runner.load(action, f);
-                }
-            }
-        }
-    }
-}
-
-/// The check of an uploaded mission on the firmware: its size (module
-/// documentation).
-fn check_mission(route: &Waypoints) -> Result<(), RouteError> {
-    if route.len() < 2 {
-        Err(RouteError::TooFewWaypoints)
-    } else {
-        Ok(())
-    }
+    let estimate = last.map(|a| mavlink_run::estimate(a.position_m, a.heading, a.command));
+    let MavlinkStore { run, queues } = mav;
+    queues.tick(|rx, room| run.before_tick(route, tick, estimate, rx, room));
 }
 
 /// Whether `chunk` is the last one loaded, sent again: it ends where the

@@ -1,0 +1,230 @@
+//! The MAVLink endpoint and mission runner of a robot that follows a
+//! route (the crate docs, "MAVLink"), whatever carries its bytes: the QEMU
+//! board's session takes them from the HIL link's channel
+//! ([`crate::session::MavlinkStore`]), the Black Pill from its MAVLink
+//! UART's ring. One home for the glue, so both boards behave alike.
+//!
+//! At each tick, before the robot's ([`MavlinkRun::before_tick`]), the
+//! endpoint takes the bytes received since the last tick and the runner's
+//! view, and writes its output into the caller's room; its events are
+//! applied to the runner, and what the runner asks is done to the
+//! [`RouteStore`]'s follower in place (a hold: a fresh follower with no
+//! route; a start: a fresh follower loaded from an item; a replacement: a
+//! load into the running follower). After the robot's tick
+//! ([`MavlinkRun::after_tick`]) the runner reads the follower's status. A
+//! run that receives no MAVLink byte gets no event, so its robot runs
+//! exactly as without the endpoint; a ground station heard and then
+//! silent for the link timeout is [`wmr_mavlink::Event::LinkLost`]: the
+//! runner holds the robot where it is. An uploaded mission is checked
+//! only for its size here (no second 20 KB plan to plan it into): one the
+//! planner refuses is refused by the follower when it starts, counted
+//! (`RouteCounters::routes_refused`), and the robot holds where it is.
+
+use wmr_core::geometry::Vec2;
+use wmr_core::pilot::route::{RouteFollower, RouteStart};
+use wmr_core::reference::route::{RouteError, RouteLimits, RouteLimitsSpec, Waypoints};
+use wmr_mavlink::{
+    EndpointConfig, Estimate, Events, FollowerAction, MavlinkEndpoint, MissionRunner, TxBuffer,
+};
+
+use crate::session::RouteStore;
+
+/// A route run's MAVLink side (module documentation): the endpoint, the
+/// mission runner and where an uploaded mission is written for its check,
+/// about 9 KB; keep it in a `static`, built in place ([`Self::new`]) and
+/// reset in place by each run ([`Self::activate`]).
+#[derive(Debug, Clone)]
+pub struct MavlinkRun {
+    config: EndpointConfig,
+    endpoint: MavlinkEndpoint,
+    runner: MissionRunner,
+    /// The control period, µs: the endpoint's clock is the tick's time.
+    period_us: u32,
+    /// The run has a route: the endpoint and the runner are its.
+    active: bool,
+    /// Where the endpoint writes an uploaded mission as a route to check
+    /// it (`MavlinkEndpoint::handle_in`): here, not on the stack.
+    route_check: Waypoints,
+}
+
+impl MavlinkRun {
+    /// Route limits to build an idle run with ([`Self::new`]): valid, and
+    /// replaced by each run's.
+    pub const IDLE_LIMITS: RouteLimitsSpec = RouteLimitsSpec {
+        max_speed_m_s: 0.3,
+        max_tangential_accel_m_s2: 0.5,
+        max_lateral_accel_m_s2: 0.5,
+        blend_deviation_m: 0.02,
+        pivot_threshold_rad: 0.5,
+        pivot_rate_rad_s: 1.0,
+        pivot_accel_rad_s2: 2.0,
+    };
+
+    /// Idle (no run), its endpoint configured by `config` for every run
+    /// (system and component ids, timeouts, telemetry period, origin);
+    /// `limits` are replaced by each run's ([`Self::IDLE_LIMITS`] will
+    /// do). Infallible and inlined, so that a board builds it in its
+    /// `static`, not on the stack.
+    #[must_use]
+    #[inline(always)]
+    pub fn new(config: EndpointConfig, limits: RouteLimits) -> Self {
+        Self {
+            config,
+            endpoint: MavlinkEndpoint::new_in_place(config, limits),
+            runner: MissionRunner::new(RouteStart::AsGiven, limits),
+            period_us: 0,
+            active: false,
+            route_check: Waypoints::new(),
+        }
+    }
+
+    /// A new route run: the endpoint reset, the runner running
+    /// `waypoints` (the route just loaded) as `start` says under
+    /// `limits`, in place; the endpoint's clock ticks `period_s` a tick.
+    pub fn activate(
+        &mut self,
+        waypoints: &Waypoints,
+        start: RouteStart,
+        limits: RouteLimits,
+        period_s: f32,
+    ) {
+        self.endpoint.reset(self.config, limits);
+        self.runner.reset_running(waypoints, start, limits);
+        // A period of at most hours (the pilot's check): fits.
+        self.period_us = (period_s * 1.0e6 + 0.5) as u32;
+        self.active = true;
+    }
+
+    /// Ends the run's MAVLink side (no route any more).
+    pub fn deactivate(&mut self) {
+        self.active = false;
+    }
+
+    /// Whether a route run is on.
+    #[must_use]
+    pub fn is_active(&self) -> bool {
+        self.active
+    }
+
+    /// The endpoint (its counters, for a log).
+    #[must_use]
+    pub fn endpoint(&self) -> &MavlinkEndpoint {
+        &self.endpoint
+    }
+
+    /// The mission runner (its mode, for a log).
+    #[must_use]
+    pub fn runner(&self) -> &MissionRunner {
+        &self.runner
+    }
+
+    /// The endpoint's part of tick `tick` (counted from 0), before the
+    /// robot's: `rx` (the bytes received since the last tick) in, its
+    /// output written at the start of `room`, its events applied to the
+    /// runner and `route`'s follower. `estimate` is the last tick's (the
+    /// one the endpoint reports). Returns the bytes written and the
+    /// frames dropped for want of room. Nothing while no run is on. Not
+    /// inlined: the route it reads out of the endpoint (1.8 KB) is in
+    /// this frame, off the robot's tick's deepest path.
+    #[inline(never)]
+    pub fn before_tick(
+        &mut self,
+        route: &mut RouteStore,
+        tick: u32,
+        estimate: Option<Estimate>,
+        rx: &[u8],
+        room: &mut [u8],
+    ) -> (usize, u32) {
+        if !self.active {
+            return (0, 0);
+        }
+        let now_us = u64::from(tick) * u64::from(self.period_us);
+        // The endpoint's clock wraps (it takes differences only).
+        let now_ms = u32::try_from((now_us / 1000) & u64::from(u32::MAX)).unwrap_or(0);
+        let Self {
+            endpoint,
+            runner,
+            route_check,
+            ..
+        } = self;
+        let view = runner.view(estimate);
+        let room_len = room.len();
+        let mut tx = TxBuffer::new(room);
+        let events = endpoint.handle_in(now_ms, rx, &view, check_mission, &mut tx, route_check);
+        let written = (tx.len().min(room_len), tx.dropped());
+        if !events.as_slice().is_empty() {
+            apply_events(endpoint, runner, route, &events);
+        }
+        written
+    }
+
+    /// After the robot's tick: the runner reads the follower's status and
+    /// counters, `reference` the tick's reference position. Nothing while
+    /// no run is on or before the route has a follower.
+    pub fn after_tick(&mut self, route: &RouteStore, reference: Vec2) {
+        if let (true, Some(f)) = (self.active, route.follower()) {
+            self.runner.after_tick(&f.status(), f.counters(), reference);
+        }
+    }
+}
+
+/// The estimate a tick reports to the endpoint: its position (m), its
+/// heading as (cos, sin) and its command (forward speed m/s, turn rate
+/// rad/s).
+#[must_use]
+pub fn estimate(position_m: [f32; 2], heading: [f32; 2], command: [f32; 2]) -> Estimate {
+    Estimate {
+        x_m: position_m[0],
+        y_m: position_m[1],
+        heading_rad: libm::atan2f(heading[1], heading[0]),
+        speed_m_s: command[0],
+        turn_rate_rad_s: command[1],
+    }
+}
+
+/// Applies the endpoint's events to the runner and what it asks to the
+/// follower, in place. Not inlined: a route loaded into the follower
+/// passes through this frame (about 2 KB), which ticks without an event
+/// do not take.
+#[inline(never)]
+fn apply_events(
+    endpoint: &MavlinkEndpoint,
+    runner: &mut MissionRunner,
+    route: &mut RouteStore,
+    events: &Events,
+) {
+    let limits = endpoint.route_limits();
+    for &event in events.as_slice() {
+        let counters = route
+            .follower()
+            .map(RouteFollower::counters)
+            .unwrap_or_default();
+        let write = |m: &mut Waypoints| endpoint.route_into(m);
+        let action = runner.apply_with(event, write, limits, counters).action;
+        match action {
+            FollowerAction::Keep => {}
+            FollowerAction::Hold => route.reset_follower(),
+            FollowerAction::Replace => {
+                if let Some(f) = route.follower_mut() {
+                    runner.load(action, f);
+                }
+            }
+            FollowerAction::Run { .. } => {
+                route.reset_follower();
+                if let Some(f) = route.follower_mut() {
+                    runner.load(action, f);
+                }
+            }
+        }
+    }
+}
+
+/// The check of an uploaded mission on the firmware: its size (module
+/// documentation).
+fn check_mission(route: &Waypoints) -> Result<(), RouteError> {
+    if route.len() < 2 {
+        Err(RouteError::TooFewWaypoints)
+    } else {
+        Ok(())
+    }
+}
