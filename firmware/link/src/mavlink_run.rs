@@ -138,9 +138,7 @@ impl MavlinkRun {
         if !self.active {
             return (0, 0);
         }
-        let now_us = u64::from(tick) * u64::from(self.period_us);
-        // The endpoint's clock wraps (it takes differences only).
-        let now_ms = u32::try_from((now_us / 1000) & u64::from(u32::MAX)).unwrap_or(0);
+        let now_ms = tick_ms(tick, self.period_us);
         let Self {
             endpoint,
             runner,
@@ -166,6 +164,21 @@ impl MavlinkRun {
             self.runner.after_tick(&f.status(), f.counters(), reference);
         }
     }
+}
+
+/// The start of tick `tick` of `period_us`, ms, wrapping (the endpoint's
+/// clock takes differences only): `tick × period_us / 1000` rounded down,
+/// modulo 2^32, in `u32` arithmetic (a `u64` division links 0.9 KB of
+/// `__aeabi_uldivmod` into a firmware that had none). With `tick = 1000 a
+/// + b` and `period_us = 1000 p + r`: `tick × p + a × r + ⌊b × r / 1000⌋`,
+/// where `b × r < 10^6`.
+#[must_use]
+pub fn tick_ms(tick: u32, period_us: u32) -> u32 {
+    let (a, b) = (tick / 1000, tick % 1000);
+    let (p, r) = (period_us / 1000, period_us % 1000);
+    tick.wrapping_mul(p)
+        .wrapping_add(a.wrapping_mul(r))
+        .wrapping_add(b * r / 1000)
 }
 
 /// The estimate a tick reports to the endpoint: its position (m), its
@@ -226,5 +239,22 @@ fn check_mission(route: &Waypoints) -> Result<(), RouteError> {
         Err(RouteError::TooFewWaypoints)
     } else {
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tick_ms;
+
+    /// The `u32` clock agrees with the `u64` computation it replaces,
+    /// wrapping included.
+    #[test]
+    fn the_tick_clock_is_the_u64_product_over_1000_wrapped() {
+        let exact = |t: u32, p: u32| ((u64::from(t) * u64::from(p) / 1000) & u64::from(u32::MAX)) as u32;
+        for p in [1, 999, 1_000, 1_001, 5_000, 10_000, 12_345, 99_999, 3_600_000_000] {
+            for t in [0, 1, 7, 999, 1_000, 1_001, 123_456, 4_294_966, u32::MAX / 3, u32::MAX] {
+                assert_eq!(tick_ms(t, p), exact(t, p), "tick {t} period {p} us");
+            }
+        }
     }
 }

@@ -33,7 +33,7 @@ use wmr_core::pilot::robot::Robot;
 use wmr_core::pilot::route::{RouteFollower, RouteOptions, RouteStart, RouteStatus};
 use wmr_core::pilot::spec::SpecError;
 use wmr_core::reference::route::{
-    ROUTE_CAPACITY, RouteError, RouteLimits, RouteLimitsSpec, RoutePlan, Waypoint, Waypoints,
+    ROUTE_CAPACITY, RouteLimits, RouteLimitsSpec, RoutePlan, Waypoint, Waypoints,
 };
 use wmr_mavlink::EndpointConfig;
 

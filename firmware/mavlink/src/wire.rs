@@ -166,6 +166,10 @@ impl Parser {
         }
     }
 
+    // Out of line: inlined into `push` with `n = 1`, LLVM turns the loop
+    // into a call of `memmove`, which links 1.5 KB of it into a firmware
+    // that had none.
+    #[inline(never)]
     fn drop_front(&mut self, n: usize) {
         let len = self.len.min(MAX_FRAME);
         let n = n.min(len);

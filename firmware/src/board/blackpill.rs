@@ -363,6 +363,10 @@ const RFID_RING_BYTES: usize = 128;
 const MAVLINK_BAUD: u32 = 115_200;
 /// Bytes of the MAVLink receive ring: 44 ms of line at 115 200 Bd.
 const MAVLINK_RING_BYTES: usize = 512;
+/// Bytes of the MAVLink transmit ring: 89 ms of line at 115 200 Bd, the
+/// endpoint's room for a tick's frames (a full `PARAM_VALUE` burst or a
+/// mission download's items; 10 Hz telemetry is about 12 B a tick).
+const MAVLINK_TX_RING_BYTES: usize = 1_024;
 /// The longest time between two reads of a ring that loses no byte, at
 /// each line's full rate: 40 ms, four control periods of 10 ms (a tick
 /// late by three), checked against both rings' capacities at compile time
@@ -381,27 +385,29 @@ const _: () = {
 };
 
 /// The RFID reader's USART2 and its ring, shared with [`USART2`].
-static RFID_PORT: SharedPort<pac::USART2, RFID_RING_BYTES> = Mutex::new(RefCell::new(Port::new()));
-/// The MAVLink port's USART1 and its ring, shared with [`USART1`].
-static MAVLINK_PORT: SharedPort<pac::USART1, MAVLINK_RING_BYTES> =
+static RFID_PORT: SharedPort<pac::USART2, RFID_RING_BYTES, 1> =
+    Mutex::new(RefCell::new(Port::new()));
+/// The MAVLink port's USART1 and its rings, shared with [`USART1`].
+static MAVLINK_PORT: SharedPort<pac::USART1, MAVLINK_RING_BYTES, MAVLINK_TX_RING_BYTES> =
     Mutex::new(RefCell::new(Port::new()));
 
 /// USART2's receive interrupt: the RFID reader's byte into its ring.
 #[interrupt]
 fn USART2() {
-    devices::on_receive(&RFID_PORT);
+    devices::on_interrupt(&RFID_PORT);
 }
 
-/// USART1's receive interrupt: the MAVLink port's byte into its ring.
+/// USART1's interrupt: the MAVLink port's byte received into its ring,
+/// the next byte to send out of its transmit ring.
 #[interrupt]
 fn USART1() {
-    devices::on_receive(&MAVLINK_PORT);
+    devices::on_interrupt(&MAVLINK_PORT);
 }
 
 /// The RFID reader's UART as the core reads it.
-type RfidUart = PortReader<pac::USART2, RFID_RING_BYTES>;
+type RfidUart = PortReader<pac::USART2, RFID_RING_BYTES, 1>;
 /// The MAVLink port's UART as the tick reads it.
-type MavlinkUart = PortReader<pac::USART1, MAVLINK_RING_BYTES>;
+type MavlinkUart = PortReader<pac::USART1, MAVLINK_RING_BYTES, MAVLINK_TX_RING_BYTES>;
 
 /// Left motor: TIM1_CH1 (PA8) + DIR on PB12.
 type LeftMotor<'a> = MotorDriver<PwmChannel<'a, 1>, PB12<Output<PushPull>>>;
@@ -604,9 +610,13 @@ pub fn run() -> ! {
         ),
     };
     // The image's route, loaded through the core's checks into a static
-    // (`RouteStore`: 24 KB, in `.bss`, never on the stack).
+    // (`RouteStore`: 24 KB, in `.bss`, never on the stack), and with it
+    // the MAVLink endpoint and mission runner (`MavlinkPort`, a static
+    // too), running that route.
     #[cfg(wmr_robot_image)]
-    let mut route = match image_route {
+    let mut mav: Option<&'static mut MavlinkPort> = None;
+    #[cfg(wmr_robot_image)]
+    let mut route: Option<&'static mut wmr_link::session::RouteStore> = match image_route {
         None => None,
         Some(image_route) => {
             let Some(store) = cortex_m::singleton!(
@@ -619,7 +629,14 @@ pub fn run() -> ! {
             };
             let period_s = pilot.tracker().config().clock().period_s();
             match image_route.load_into(store, period_s) {
-                Ok(()) => store.follower_mut(),
+                Ok(limits) => {
+                    mav = mavlink_port(limits);
+                    if let Some(mav) = mav.as_deref_mut() {
+                        mav.run
+                            .activate(store.waypoints(), image_route.spec.start, limits, period_s);
+                    }
+                    Some(store)
+                }
                 Err(e) => halt(
                     Fault::Route(e),
                     watchdog,
@@ -657,12 +674,35 @@ pub fn run() -> ! {
     loop {
         let overrun = wait_for_tick(&mut tick_timer);
         let started = DWT::cycle_count();
+        // A route run talks MAVLink around the robot's tick (`MavlinkPort`);
+        // otherwise the MAVLink port's bytes are counted and dropped.
+        // (One call of the robot's tick: a call in each arm of a match
+        // doubled its code, 1.7 KB.)
         #[cfg(wmr_robot_image)]
-        let step = robot.tick_on(route.as_deref_mut());
+        let read = match (route.as_deref_mut(), mav.as_deref_mut()) {
+            (Some(store), Some(mav)) => mav.before_tick(store, &mut mavlink, stats.ticks),
+            _ => drain(&mut mavlink),
+        };
+        #[cfg(wmr_robot_image)]
+        let step = robot.tick_on(
+            route
+                .as_deref_mut()
+                .and_then(wmr_link::session::RouteStore::follower_mut),
+        );
+        #[cfg(wmr_robot_image)]
+        {
+            stats.mavlink_bytes = stats.mavlink_bytes.wrapping_add(read);
+            if let (Some(store), Some(mav)) = (route.as_deref(), mav.as_deref_mut()) {
+                mav.after_tick(store, &step);
+            }
+        }
         #[cfg(not(wmr_robot_image))]
         let step = robot.tick();
+        #[cfg(not(wmr_robot_image))]
+        {
+            stats.mavlink_bytes = stats.mavlink_bytes.wrapping_add(drain(&mut mavlink));
+        }
         watchdog.feed();
-        stats.mavlink_bytes = stats.mavlink_bytes.wrapping_add(drain(&mut mavlink));
         if telemetry::is_emitted(step.pilot.tracker.tick, telemetry_every) {
             crate::telemetry::record(&telemetry::Record::of(
                 &step,
@@ -696,6 +736,10 @@ pub fn run() -> ! {
                 [devices::counters(&RFID_PORT), mavlink.counters()],
                 cycles_per_us,
             );
+            #[cfg(wmr_robot_image)]
+            if let Some(mav) = mav.as_deref() {
+                mav.log_status();
+            }
             stats.max_work_cycles = 0;
             stats.overrun_logged = false;
         }
@@ -718,8 +762,9 @@ fn wait_for_tick(timer: &mut TickTimer) -> bool {
 }
 
 /// Empties the MAVLink ring (at most [`MAVLINK_READS_PER_TICK`] reads) and
-/// returns the bytes taken out: the byte path the MAVLink endpoint will
-/// parse, counted until it is wired in.
+/// returns the bytes taken out, dropped: a firmware without a route has
+/// no MAVLink endpoint (`MavlinkPort`), as the QEMU board's runs without
+/// a route have none.
 fn drain(uart: &mut MavlinkUart) -> u32 {
     let mut buf = [0_u8; 16];
     let mut bytes: u32 = 0;
@@ -730,6 +775,114 @@ fn drain(uart: &mut MavlinkUart) -> u32 {
         }
     }
     bytes
+}
+
+/// The MAVLink side of a route run (`wmr_link::mavlink_run`, shared with
+/// the QEMU board's session): the endpoint and mission runner, the bytes
+/// taken out of the receive ring for the tick, the endpoint's output
+/// before it goes to the transmit ring, and the last tick's estimate.
+/// About 11 KB, in a static ([`mavlink_port`]).
+#[cfg(wmr_robot_image)]
+struct MavlinkPort {
+    run: wmr_link::mavlink_run::MavlinkRun,
+    rx: [u8; MAVLINK_RING_BYTES],
+    tx: [u8; MAVLINK_TX_RING_BYTES],
+    /// The last tick's estimate, reported by the endpoint.
+    estimate: Option<wmr_mavlink::Estimate>,
+}
+
+#[cfg(wmr_robot_image)]
+impl MavlinkPort {
+    /// Before the robot's tick `tick` (counted from 0): the receive ring
+    /// emptied into the endpoint, its output queued on the transmit ring
+    /// (the endpoint gets the ring's free room as its buffer: a frame
+    /// that does not fit is dropped whole and counted by it), its events
+    /// applied to the runner and `store`'s follower. Returns the bytes
+    /// read. Not inlined: its buffers' moves stay out of the loop's frame.
+    #[inline(never)]
+    fn before_tick(
+        &mut self,
+        store: &mut wmr_link::session::RouteStore,
+        uart: &mut MavlinkUart,
+        tick: u32,
+    ) -> u32 {
+        let mut n = 0;
+        for _ in 0..MAVLINK_READS_PER_TICK {
+            match self.rx.get_mut(n..).map(|free| uart.read(free)) {
+                Some(Ok(k)) if k > 0 => n += k,
+                _ => break,
+            }
+        }
+        let room = devices::tx_room(&MAVLINK_PORT).min(self.tx.len());
+        let rx = self.rx.get(..n).unwrap_or(&[]);
+        let (written, _dropped) = match self.tx.get_mut(..room) {
+            Some(room) => self.run.before_tick(store, tick, self.estimate, rx, room),
+            None => (0, 0),
+        };
+        devices::queue_tx(&MAVLINK_PORT, self.tx.get(..written).unwrap_or(&[]));
+        // At most the ring's 512 bytes.
+        u32::try_from(n).unwrap_or(u32::MAX)
+    }
+
+    /// After the robot's tick: the runner reads the follower, and the
+    /// tick's estimate is kept for the next.
+    fn after_tick(&mut self, store: &wmr_link::session::RouteStore, step: &RobotTick) {
+        let t = &step.pilot.tracker;
+        self.run.after_tick(store, t.reference.position);
+        self.estimate = Some(wmr_link::mavlink_run::estimate(
+            [t.position.x, t.position.y],
+            [t.heading.cos_theta, t.heading.sin_theta],
+            [t.command.v_m_s, t.command.omega_rad_s],
+        ));
+    }
+
+    /// The once-a-second MAVLink status: the runner's mode (the heartbeat's
+    /// `custom_mode`), armed, the link, and the endpoint's and transmit
+    /// ring's counters.
+    fn log_status(&self) {
+        let runner = self.run.runner();
+        let c = self.run.endpoint().counters();
+        defmt::info!(
+            "mavlink mode {=u8} armed {=bool} link lost {=bool} ({=u32} losses) | frames {=u32} crc errors {=u32} garbage {=u32} unknown {=u32} | refused: mission {=u32} command {=u32} param {=u32} | tx frames dropped {=u32}, ring {}",
+            runner.mode() as u8,
+            runner.armed(),
+            self.run.endpoint().link_lost(),
+            c.link_losses,
+            c.rx.frames,
+            c.rx.crc_errors,
+            c.rx.garbage_bytes,
+            c.rx.unknown_messages,
+            c.mission_refusals,
+            c.command_refusals,
+            c.param_refusals,
+            c.tx_dropped,
+            devices::tx_counters(&MAVLINK_PORT)
+        );
+    }
+}
+
+/// The MAVLink side of a route run, in a static, its parameters starting
+/// from the route's `limits` (`None`: the endpoint's configuration
+/// refused, impossible for the default one, or the static already taken).
+/// The endpoint's settings are `EndpointSpec::default()`, as on the QEMU
+/// board (the robot image carries none yet). Not inlined: what building
+/// it puts on the stack is gone before the loop runs.
+#[cfg(wmr_robot_image)]
+#[inline(never)]
+fn mavlink_port(
+    limits: wmr_core::reference::route::RouteLimits,
+) -> Option<&'static mut MavlinkPort> {
+    use wmr_link::mavlink_run::MavlinkRun;
+    use wmr_mavlink::{EndpointConfig, EndpointSpec};
+    let Ok(config) = EndpointConfig::new(&EndpointSpec::default()) else {
+        return None;
+    };
+    cortex_m::singleton!(: MavlinkPort = MavlinkPort {
+        run: MavlinkRun::new(config, limits),
+        rx: [0; MAVLINK_RING_BYTES],
+        tx: [0; MAVLINK_TX_RING_BYTES],
+        estimate: None,
+    })
 }
 
 /// Sets both motors' duty to 0. The PWM and GPIO writes cannot fail

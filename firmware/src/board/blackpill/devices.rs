@@ -6,7 +6,24 @@
 //!   ring ([`wmr_link::rx_ring`]), read by the tick as a non-blocking
 //!   [`embedded_io::Read`] + [`embedded_io::ReadReady`] (embedded-io 0.7):
 //!   the RFID reader's USART2 for the core's `RfidReader`, and the MAVLink
-//!   port's USART1.
+//!   port's USART1, which also transmits by interrupt from the port's
+//!   transmit ring ([`queue_tx`]).
+//!
+//! # Why the MAVLink port transmits by interrupt
+//! The endpoint writes its frames at the tick (a few hundred bytes at
+//! most: a telemetry burst, a mission item, a parameter); at 115 200 Bd
+//! each byte takes 87 µs on the line, so writing them by polling `TXE`
+//! would hold the tick for tens of milliseconds. The tick copies them
+//! into the transmit ring ([`queue_tx`], [`TX_CHUNK`] bytes per critical
+//! section) and turns the transmit interrupt on; the interrupt moves one
+//! byte per "data register empty" and turns itself off when the ring is
+//! empty. DMA (DMA2 stream 7, channel 4) would save the interrupt per
+//! byte (about 11,500 a second at the line's full rate, some 50 cycles
+//! each: 0.6 % of the core), at the price of `unsafe` buffer addresses
+//! handed to the DMA controller; the interrupt is safe code and cheap
+//! enough. The endpoint is given the ring's free room as its buffer, so
+//! a frame that does not fit is dropped whole and counted by it, never
+//! cut.
 //!
 //! # Why the UARTs are received by interrupt
 //! The F411's USART has no receive FIFO: its data register holds one byte,
@@ -14,7 +31,7 @@
 //! 115 200 Bd). Read only by the control tick, a UART would keep one byte a
 //! tick and overrun the rest. So each USART's receive interrupt (`RXNEIE`:
 //! a byte, or an overrun) moves the byte into the port's ring
-//! ([`on_receive`], [`super::setup::UartRx::service`]), whatever the tick
+//! ([`on_interrupt`], [`super::setup::UartRx::service`]), whatever the tick
 //! is doing, and the tick reads the ring ([`PortReader`]) as the core's
 //! `RfidReader` reads any UART, so the core is unchanged. The rings are
 //! sized so that a tick late by several periods loses nothing
@@ -40,7 +57,7 @@ use stm32f4xx_hal::pac::tim3::ccmr1_input::ICFILTER;
 use stm32f4xx_hal::qei::{self, Qei};
 use wmr_core::devices::QuadratureCounter;
 
-use wmr_link::rx_ring::{RxCounters, RxRing};
+use wmr_link::rx_ring::{RxCounters, RxRing, TxCounters, TxRing};
 
 use super::setup::UartRx;
 
@@ -93,32 +110,36 @@ where
     }
 }
 
-/// A UART's receiver and its receive ring, shared between the UART's
-/// interrupt handler (the producer) and the control tick (the consumer)
-/// in a `static` [`SharedPort`]. See the module documentation.
-pub struct Port<U, const N: usize> {
+/// A UART's receiver and its receive ring of `N` bytes, and its transmit
+/// ring of `T` bytes (1 for a port that sends nothing), shared between
+/// the UART's interrupt handler (the producer of received bytes, the
+/// consumer of bytes to send) and the control tick in a `static`
+/// [`SharedPort`]. See the module documentation.
+pub struct Port<U, const N: usize, const T: usize> {
     /// The receiver, once [`attach`] has put it there.
     rx: Option<UartRx<U>>,
     ring: RxRing<N>,
+    tx: TxRing<T>,
 }
 
-impl<U, const N: usize> Port<U, N> {
-    /// No receiver yet, an empty ring (`const`: for a `static`).
+impl<U, const N: usize, const T: usize> Port<U, N, T> {
+    /// No receiver yet, empty rings (`const`: for a `static`).
     pub const fn new() -> Self {
         Self {
             rx: None,
             ring: RxRing::new(),
+            tx: TxRing::new(),
         }
     }
 }
 
 /// A [`Port`] as a `static`: a critical section's mutex around it.
-pub type SharedPort<U, const N: usize> = Mutex<RefCell<Port<U, N>>>;
+pub type SharedPort<U, const N: usize, const T: usize> = Mutex<RefCell<Port<U, N, T>>>;
 
 /// Hands the receiver to its port, for the interrupt handler. Call before
 /// unmasking the UART's interrupt: until then the handler finds no
 /// receiver and does nothing.
-pub fn attach<U, const N: usize>(port: &SharedPort<U, N>, rx: UartRx<U>) {
+pub fn attach<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>, rx: UartRx<U>) {
     critical_section::with(|cs| {
         if let Ok(mut port) = port.borrow(cs).try_borrow_mut() {
             port.rx = Some(rx);
@@ -127,8 +148,9 @@ pub fn attach<U, const N: usize>(port: &SharedPort<U, N>, rx: UartRx<U>) {
 }
 
 /// The UART interrupt handler's body: the received byte, or the error,
-/// into the port's ring ([`UartRx::service`]).
-pub fn on_receive<U, const N: usize>(port: &SharedPort<U, N>)
+/// into the port's ring ([`UartRx::service`]); then, if the transmitter
+/// is waiting for one, the next byte to send ([`UartRx::service_tx`]).
+pub fn on_interrupt<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>)
 where
     U: Deref<Target = pac::usart1::RegisterBlock>,
 {
@@ -136,17 +158,78 @@ where
         // Never already borrowed: every borrow is inside a critical
         // section, and this core runs one at a time.
         if let Ok(mut port) = port.borrow(cs).try_borrow_mut() {
-            let Port { rx, ring } = &mut *port;
+            let Port { rx, ring, tx } = &mut *port;
             if let Some(rx) = rx {
                 rx.service(ring);
+                rx.service_tx(tx);
             }
         }
     });
 }
 
+/// Most bytes one critical section of [`queue_tx`] copies into a
+/// transmit ring (interrupts masked for about as long as a
+/// [`READ_CHUNK`] read).
+#[cfg_attr(not(wmr_robot_image), allow(dead_code))]
+pub const TX_CHUNK: usize = 16;
+
+/// Free room of `port`'s transmit ring, bytes (0 in the impossible case
+/// of a port already borrowed).
+#[cfg_attr(not(wmr_robot_image), allow(dead_code))]
+pub fn tx_room<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>) -> usize {
+    critical_section::with(|cs| {
+        port.borrow(cs)
+            .try_borrow()
+            .map(|port| port.tx.room())
+            .unwrap_or(0)
+    })
+}
+
+/// Queues `bytes` on `port`'s transmit ring, [`TX_CHUNK`] bytes per
+/// critical section, and turns the transmit interrupt on; returns the
+/// bytes queued (all of them when they fit [`tx_room`]; the rest are
+/// counted in the ring's [`TxCounters::ring_full`]).
+#[cfg_attr(not(wmr_robot_image), allow(dead_code))]
+pub fn queue_tx<U, const N: usize, const T: usize>(
+    port: &SharedPort<U, N, T>,
+    bytes: &[u8],
+) -> usize
+where
+    U: Deref<Target = pac::usart1::RegisterBlock>,
+{
+    let mut queued = 0;
+    for chunk in bytes.chunks(TX_CHUNK) {
+        queued += critical_section::with(|cs| {
+            port.borrow(cs)
+                .try_borrow_mut()
+                .map(|mut port| {
+                    let Port { rx, tx, .. } = &mut *port;
+                    let n = tx.push_slice(chunk);
+                    if let Some(rx) = rx.as_mut().filter(|_| n > 0) {
+                        rx.start_tx();
+                    }
+                    n
+                })
+                .unwrap_or(0)
+        });
+    }
+    queued
+}
+
+/// The counters of `port`'s transmit ring.
+#[cfg_attr(not(wmr_robot_image), allow(dead_code))]
+pub fn tx_counters<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>) -> TxCounters {
+    critical_section::with(|cs| {
+        port.borrow(cs)
+            .try_borrow()
+            .map(|port| port.tx.counters())
+            .unwrap_or_default()
+    })
+}
+
 /// The counters of `port`'s ring (all zero in the impossible case of a
 /// port already borrowed).
-pub fn counters<U, const N: usize>(port: &SharedPort<U, N>) -> RxCounters {
+pub fn counters<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>) -> RxCounters {
     critical_section::with(|cs| {
         port.borrow(cs)
             .try_borrow()
@@ -171,15 +254,15 @@ const READ_CHUNK: usize = 16;
 /// [`ReadReady::read_ready`] said `true` (the interrupt only adds bytes).
 /// Called on an empty ring (which `RfidReader` never does: it asks
 /// `read_ready` first) it returns `Ok(0)` instead of waiting.
-pub struct PortReader<U: 'static, const N: usize> {
-    port: &'static SharedPort<U, N>,
+pub struct PortReader<U: 'static, const N: usize, const T: usize> {
+    port: &'static SharedPort<U, N, T>,
     /// How many of the ring's faults were already reported.
     reported: u32,
 }
 
-impl<U, const N: usize> PortReader<U, N> {
+impl<U, const N: usize, const T: usize> PortReader<U, N, T> {
     /// The reader of `port`; faults already counted are not reported.
-    pub fn new(port: &'static SharedPort<U, N>) -> Self {
+    pub fn new(port: &'static SharedPort<U, N, T>) -> Self {
         let mut reader = Self { port, reported: 0 };
         reader.reported = reader.counters().faults();
         reader
@@ -202,13 +285,13 @@ impl<U, const N: usize> PortReader<U, N> {
     }
 }
 
-impl<U, const N: usize> ErrorType for PortReader<U, N> {
+impl<U, const N: usize, const T: usize> ErrorType for PortReader<U, N, T> {
     /// [`ErrorKind::InvalidData`]: bytes were lost or corrupted on the
     /// line; the per-kind detail is in [`RxCounters`].
     type Error = ErrorKind;
 }
 
-impl<U, const N: usize> ReadReady for PortReader<U, N> {
+impl<U, const N: usize, const T: usize> ReadReady for PortReader<U, N, T> {
     /// `true` while the ring holds bytes. Once it is empty, each fault not
     /// yet reported is returned as one `Err` (after the bytes, so that good
     /// data is never held back); the RFID reader counts it and ends its poll.
@@ -225,7 +308,7 @@ impl<U, const N: usize> ReadReady for PortReader<U, N> {
     }
 }
 
-impl<U, const N: usize> Read for PortReader<U, N> {
+impl<U, const N: usize, const T: usize> Read for PortReader<U, N, T> {
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, ErrorKind> {
         let len = buf.len().min(READ_CHUNK);
         let Some(chunk) = buf.get_mut(..len) else {

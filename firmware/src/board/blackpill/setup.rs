@@ -26,7 +26,7 @@ use core::ops::Deref;
 
 use embedded_hal::pwm::{ErrorType, SetDutyCycle};
 use stm32f4xx_hal::pac;
-use wmr_link::rx_ring::{LineError, RxRing};
+use wmr_link::rx_ring::{LineError, RxRing, TxRing};
 
 /// The PLL input divider: HSE 25 MHz / 25 = 1 MHz (VCO input 1–2 MHz).
 const PLL_M: u32 = 25;
@@ -264,7 +264,9 @@ impl TickTimer {
 
 /// A USART receiving at a fixed baud rate, 8N1 (transmitter on, idle
 /// high), with its receive interrupt enabled (`RXNEIE`: a byte received,
-/// or an overrun). USART1 and USART2 share one register block type.
+/// or an overrun), and transmitting by interrupt (`TXEIE`, on while bytes
+/// are queued: the MAVLink port's). USART1 and USART2 share one register
+/// block type.
 pub struct UartRx<U> {
     usart: U,
 }
@@ -336,6 +338,30 @@ impl<U: Deref<Target = pac::usart1::RegisterBlock>> UartRx<U> {
                 .set_bit()
         });
         Some(Self { usart })
+    }
+
+    /// The transmit interrupt's work: while the transmit interrupt is on
+    /// (`TXEIE`, [`Self::start_tx`]) and the data register is empty
+    /// (`TXE`), the next byte of `ring` into it (the write clears `TXE`);
+    /// an empty ring turns the interrupt off, so it does not fire again
+    /// until bytes are queued.
+    pub fn service_tx<const N: usize>(&mut self, ring: &mut TxRing<N>) {
+        if self.usart.cr1().read().txeie().bit_is_clear()
+            || self.usart.sr().read().txe().bit_is_clear()
+        {
+            return;
+        }
+        match ring.pop() {
+            Some(byte) => self.usart.dr().write(|w| w.dr().set(u16::from(byte))),
+            None => self.usart.cr1().modify(|_, w| w.txeie().clear_bit()),
+        };
+    }
+
+    /// Turns the transmit interrupt on: bytes are queued for
+    /// [`Self::service_tx`].
+    #[cfg_attr(not(wmr_robot_image), allow(dead_code))]
+    pub fn start_tx(&mut self) {
+        self.usart.cr1().modify(|_, w| w.txeie().set_bit());
     }
 
     /// The receive interrupt's work: moves the byte the USART holds, if
