@@ -12,9 +12,12 @@
 //!
 //! The matrix: each board in its default configuration, and each board
 //! with each estimator feature of `firmware/Cargo.toml` alone (the rows
-//! of [`rows`]; a test checks them against the manifest). Each row is one
-//! release build of the firmware crate and the core with that feature set,
-//! in xtask's own target directory.
+//! of [`rows`]; a test checks them against the manifest); then the Black
+//! Pill with the robot image of [`ROUTE_ROBOT`] (`cargo xtask firmware
+//! --robot`), the build that links the MAVLink endpoint and mission runner
+//! on its UART (a robot image with a route: docs/mavlink.md). Each row is
+//! one release build of the firmware crate and the core with that feature
+//! set, in xtask's own target directory.
 
 use std::time::Instant;
 
@@ -33,6 +36,10 @@ pub fn rows() -> Vec<Vec<&'static str>> {
         )
         .collect()
 }
+
+/// The robot file whose image (a route in it) the Black Pill's last row
+/// is built with: its MAVLink endpoint is linked only with a route.
+pub const ROUTE_ROBOT: &str = "robots/route_loop.toml";
 
 /// The undefined symbol the `panic-never` handler calls.
 const SENTINEL: &str = "wmr_firmware_has_a_panic_path";
@@ -76,6 +83,7 @@ pub fn panic_free() -> crate::Result {
             proved.push(format!("{board} [{name}]"));
         }
     }
+    proved.push(route_image_row()?);
     eprintln!(
         "\npanic-free: {} release builds link with the never-linking panic handler \
          ({:.0} s): {}",
@@ -84,6 +92,46 @@ pub fn panic_free() -> crate::Result {
         proved.join(", ")
     );
     Ok(())
+}
+
+/// The Black Pill built with [`ROUTE_ROBOT`]'s image (validated and
+/// written by `firmware-sim robot-image`, as `cargo xtask firmware
+/// --robot` does), with the features the image needs and `panic-never`.
+fn route_image_row() -> Result<String, String> {
+    let root = crate::target::workspace_root();
+    let file = root.join(ROUTE_ROBOT);
+    let dir = crate::target::target_dir().join("panic-free");
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let image = dir.join("route_loop.robot");
+    let mut extra = Vec::new();
+    crate::step(&format!("write {ROUTE_ROBOT}'s image"), || {
+        extra = crate::robot::robot_image(&file, &image)?;
+        Ok(())
+    })?;
+    let image_arg = image.to_string_lossy().into_owned();
+    let features: Vec<&str> = ["board-blackpill"]
+        .into_iter()
+        .chain(extra.iter().map(String::as_str))
+        .chain(["panic-never"])
+        .collect();
+    let name = format!("blackpill [{ROUTE_ROBOT}: route, MAVLink endpoint]");
+    crate::step(&format!("panic-free {name}"), || {
+        crate::target::Build {
+            bins: &["wmr-firmware"],
+            no_default_features: true,
+            features: &features,
+            env: &[("WMR_ROBOT_IMAGE", &image_arg)],
+        }
+        .run("panic-free-blackpill-route")
+        .map(|_| ())
+        .map_err(|e| {
+            format!(
+                "{e}\n\nThe Black Pill firmware with {ROUTE_ROBOT}'s image has a panic path: \
+                 the link failed if it names `{SENTINEL}` (docs/firmware.md, \"Panic freedom\")"
+            )
+        })
+    })?;
+    Ok(name)
 }
 
 #[cfg(test)]

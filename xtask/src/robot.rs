@@ -27,7 +27,7 @@ fn absolute(file: &str) -> Result<PathBuf, String> {
 
 /// Validates `file` and writes its image; returns the image and the
 /// firmware features it needs.
-fn robot_image(file: &Path, image: &Path) -> Result<Vec<String>, String> {
+pub(crate) fn robot_image(file: &Path, image: &Path) -> Result<Vec<String>, String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = Command::new(cargo)
         .current_dir(target::workspace_root())

@@ -250,9 +250,31 @@ mod tests {
     /// wrapping included.
     #[test]
     fn the_tick_clock_is_the_u64_product_over_1000_wrapped() {
-        let exact = |t: u32, p: u32| ((u64::from(t) * u64::from(p) / 1000) & u64::from(u32::MAX)) as u32;
-        for p in [1, 999, 1_000, 1_001, 5_000, 10_000, 12_345, 99_999, 3_600_000_000] {
-            for t in [0, 1, 7, 999, 1_000, 1_001, 123_456, 4_294_966, u32::MAX / 3, u32::MAX] {
+        let exact =
+            |t: u32, p: u32| ((u64::from(t) * u64::from(p) / 1000) & u64::from(u32::MAX)) as u32;
+        for p in [
+            1,
+            999,
+            1_000,
+            1_001,
+            5_000,
+            10_000,
+            12_345,
+            99_999,
+            3_600_000_000,
+        ] {
+            for t in [
+                0,
+                1,
+                7,
+                999,
+                1_000,
+                1_001,
+                123_456,
+                4_294_966,
+                u32::MAX / 3,
+                u32::MAX,
+            ] {
                 assert_eq!(tick_ms(t, p), exact(t, p), "tick {t} period {p} us");
             }
         }

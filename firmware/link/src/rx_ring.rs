@@ -573,13 +573,13 @@ mod tests {
         // 3rd tick for a while: far under the line's 57.6 bytes a tick.
         let frame = |k: usize| {
             let mut n = 0;
-            if k % 20 == 0 {
+            if k.is_multiple_of(20) {
                 n += 120;
             }
-            if k % 200 == 0 {
+            if k.is_multiple_of(200) {
                 n += 64;
             }
-            if (400..600).contains(&k) && k % 3 == 0 {
+            if (400..600).contains(&k) && k.is_multiple_of(3) {
                 n += 50;
             }
             n

@@ -17,7 +17,7 @@
 //! | RFID reader TX → MCU RX            | PA3        | USART2_RX      | AF7 |
 //! | MCU TX → RFID reader (unused)      | PA2        | USART2_TX      | AF7 |
 //! | MAVLink peer TX → MCU RX           | PA10       | USART1_RX      | AF7 |
-//! | MCU TX → MAVLink peer (unused yet) | PA15       | USART1_TX      | AF7 |
+//! | MCU TX → MAVLink peer              | PA15       | USART1_TX      | AF7 |
 //! | Heartbeat LED (on board, low = on) | PC13       | GPIO push-pull | —   |
 //! | Debug probe (SWD)                  | PA13, PA14 | SWDIO, SWCLK   | AF0 |
 //!
@@ -40,8 +40,21 @@
 //! (PA9 is the right motor's PWM, PB6/PB7 its encoder), USART6's PA11/PA12
 //! are the USB connector's D−/D+ (kept free for a USB CDC port), and PB3,
 //! USART1_RX's other pin, is the SWO trace output. PA15 is JTDI after
-//! reset, unused with SWD. The port's bytes are received into a ring and
-//! counted; the MAVLink endpoint (`wmr-mavlink`) is not wired in yet.
+//! reset, unused with SWD. Built with a robot image that has a route
+//! (`cargo xtask firmware --robot FILE`), the board runs the MAVLink
+//! endpoint and mission runner of `wmr-mavlink` on this port, as the QEMU
+//! board's route runs do (the glue is `wmr_link::mavlink_run`, shared):
+//! each tick, before the robot's, the receive ring is emptied into the
+//! endpoint and its frames are queued on the port's transmit ring, which
+//! USART1's transmit interrupt empties (`blackpill::devices`, "Why the
+//! MAVLink port transmits by interrupt"); after the robot's tick the
+//! mission runner reads the route follower. The runner starts armed and
+//! running the image's route, so without a ground station the robot
+//! drives it from power-on as before; a ground station heard and then
+//! silent for the link timeout (3 s) stops the robot where it is
+//! (`LinkLost`, a `STATUSTEXT` says so). Without a route (the
+//! compiled-in [`PILOT`], or an image without one) the port's bytes are
+//! counted and dropped.
 //!
 //! # Clock tree
 //!
@@ -67,7 +80,10 @@
 //! - **UARTs**: the RFID reader's USART2 and the MAVLink port's USART1 are
 //!   received by their RX interrupts into rings (the USART has no FIFO;
 //!   see `blackpill::devices`), which the tick empties: the RFID ring
-//!   through the core's `RfidReader`, the MAVLink ring into a byte count.
+//!   through the core's `RfidReader`, the MAVLink ring into the MAVLink
+//!   endpoint (a route run) or a byte count. The MAVLink port transmits
+//!   from a 1 KiB ring by its transmit interrupt: the tick only copies
+//!   the endpoint's frames into the ring (16 bytes per critical section).
 //!   Both rings hold at least [`RING_WINDOW_US`] (40 ms, four 10 ms
 //!   periods) of their line at full rate, so a tick late by up to 30 ms
 //!   loses no byte; bytes lost anyway (ring full, hardware overrun,
@@ -632,8 +648,12 @@ pub fn run() -> ! {
                 Ok(limits) => {
                     mav = mavlink_port(limits);
                     if let Some(mav) = mav.as_deref_mut() {
-                        mav.run
-                            .activate(store.waypoints(), image_route.spec.start, limits, period_s);
+                        mav.run.activate(
+                            store.waypoints(),
+                            image_route.spec.start,
+                            limits,
+                            period_s,
+                        );
                     }
                     Some(store)
                 }

@@ -11,7 +11,7 @@ pub const BACKENDS: [(&str, &[&str]); 3] = [
 ];
 
 /// Stages of the main table: the bench's name and the row label.
-pub(super) const STAGES: [(&str, &str); 13] = [
+pub(super) const STAGES: [(&str, &str); 14] = [
     (
         "odometry",
         "odometry (2 counter deltas + `OdometryStep::from_counts`)",
@@ -56,6 +56,10 @@ pub(super) const STAGES: [(&str, &str); 13] = [
     (
         "route_sample",
         "sampling that route at a tick (`RoutePlan::sample`)",
+    ),
+    (
+        "mavlink_tick",
+        "MAVLink endpoint's part of a tick (`MavlinkRun::before_tick` + `after_tick`; telemetry at 10 Hz, a ground station's heartbeat at 1 Hz; mean over 2 s of 10 ms ticks)",
     ),
     (
         ROUTE_TICK,

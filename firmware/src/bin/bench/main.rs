@@ -53,7 +53,11 @@
 //!    the whole tick of item 3 on a route through the figure-eight
 //!    (`Pilot::step_route`: `robot_tick_route`, in a build with the
 //!    feature `bench-route-tick` of its own);
-//! 6. paints a window below the stack pointer, runs one call (a tick, a
+//! 6. runs the MAVLink endpoint's part of a tick (`wmr_link::mavlink_run`,
+//!    as both boards run it) with telemetry at 10 Hz and a ground
+//!    station's heartbeat arriving at 1 Hz, averaged over 2 s of ticks
+//!    (`mavlink_tick`, `on_target/mavlink.rs`);
+//! 7. paints a window below the stack pointer, runs one call (a tick, a
 //!    filter step) and reports the bytes it used below its caller's stack
 //!    pointer.
 //!
@@ -80,7 +84,8 @@
 //! The entry (below) runs, in this order, the modules of `on_target/`:
 //! `tick.rs` (paper 001's robot, stage by stage and whole, on `world.rs`),
 //! `fusion_tick.rs` (the fusion estimator's whole tick), `math_backend.rs`,
-//! `route.rs` (planning and sampling a 64-waypoint route), `paper_004.rs`
+//! `route.rs` (planning and sampling a 64-waypoint route), `mavlink.rs`
+//! (the MAVLink endpoint's tick), `paper_004.rs`
 //! and `fusion_filters.rs` (the filters, on the arc of `filters.rs`). `timing.rs` counts instructions and calibrates,
 //! `stage.rs` reports a stage's samples and `stack.rs` measures stack.
 #![cfg_attr(target_os = "none", no_std, no_main)]
@@ -93,6 +98,10 @@ mod on_target {
     mod fusion_filters;
     mod fusion_tick;
     mod math_backend;
+    // Not in the Cortex-M0 bench (`wmr-bench-m0` has no `wmr-mavlink`;
+    // its 16 KiB of RAM hold no route store beside the bench).
+    #[cfg(target_abi = "eabihf")]
+    mod mavlink;
     mod paper_004;
     mod route;
     #[cfg(feature = "bench-route-tick")]
@@ -117,6 +126,8 @@ mod on_target {
     #[cfg(feature = "fusion-ekf")]
     use fusion_tick::{FUSION_EKF_TICK, bench_fusion_tick};
     use math_backend::bench_math;
+    #[cfg(target_abi = "eabihf")]
+    use mavlink::bench_mavlink;
     use paper_004::bench_paper_004;
     use route::bench_route;
     #[cfg(feature = "bench-route-tick")]
@@ -172,6 +183,7 @@ mod on_target {
         #[cfg(target_abi = "eabihf")]
         {
             bench_route(cal);
+            bench_mavlink(cal);
             // A build of its own (feature `bench-route-tick`), so that
             // the other rows measure a firmware without routes.
             #[cfg(feature = "bench-route-tick")]

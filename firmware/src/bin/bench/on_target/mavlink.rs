@@ -1,0 +1,139 @@
+//! The MAVLink endpoint's part of a control tick, as both boards run it
+//! (`wmr_link::mavlink_run::MavlinkRun`: `before_tick`, the endpoint's
+//! parse, answers, periodic frames and events, then `after_tick`, the
+//! runner reading the route follower): `mavlink_tick`, instructions per
+//! tick on average over 2 s of 10 ms ticks with telemetry at 10 Hz
+//! (`LOCAL_POSITION_NED` and `ATTITUDE` every 10th tick; no geodetic
+//! origin, so no `GLOBAL_POSITION_INT`), the endpoint's `HEARTBEAT` and
+//! `SYS_STATUS` at 1 Hz, and a ground station's `HEARTBEAT` arriving once
+//! a second. The robot's own tick is not in it (the whole-tick rows are).
+//!
+//! The run is `robots/route_loop.toml`'s route (5 waypoints, one
+//! station), loaded into a `RouteStore` and a `MavlinkRun` in statics (24
+//! and 9 KB) as the Black Pill keeps them. The bench checks what it
+//! measured: every ground-station heartbeat parsed, no frame dropped, no
+//! link loss, and frames written.
+
+use wmr_core::pilot::route::{RouteOptionsSpec, RouteStart};
+use wmr_core::reference::route::{RouteLimitsSpec, Waypoint};
+use wmr_link::RouteSpec;
+use wmr_link::mavlink_run::{MavlinkRun, estimate};
+use wmr_link::session::RouteStore;
+use wmr_mavlink::{EndpointConfig, EndpointSpec, TxBuffer};
+
+use super::fail;
+use super::stage::Stage;
+use super::timing::{Calibration, SAMPLES, timed};
+use super::world::PERIOD_S;
+
+/// `robots/route_loop.toml`'s route limits.
+const LIMITS: RouteLimitsSpec = RouteLimitsSpec {
+    max_speed_m_s: 0.2,
+    max_tangential_accel_m_s2: 0.3,
+    max_lateral_accel_m_s2: 0.3,
+    blend_deviation_m: 0.05,
+    ..super::route::LIMITS
+};
+
+/// Ticks run before the timed ones (the first tick sends every periodic
+/// frame at once).
+const WARM_UP_TICKS: u32 = 100;
+
+/// A ground station's heartbeat arrives at ticks `k` with `k % 100 == 50`
+/// (1 Hz at 10 ms).
+const GCS_HEARTBEAT_EVERY: u32 = 100;
+
+/// Runs the ticks and reports `mavlink_tick`.
+pub(super) fn bench_mavlink(cal: Calibration) {
+    let spec = EndpointSpec {
+        telemetry_period_ms: 100,
+        ..EndpointSpec::default()
+    };
+    let Ok(config) = EndpointConfig::new(&spec) else {
+        fail("endpoint configuration refused");
+    };
+    let route = RouteSpec {
+        waypoints: 5,
+        limits: LIMITS,
+        options: RouteOptionsSpec::default(),
+        start: RouteStart::AsGiven,
+    };
+    let Some(store) = cortex_m::singleton!(: RouteStore = RouteStore::new()) else {
+        fail("route store already taken");
+    };
+    let Ok(limits) = store.begin(&route) else {
+        fail("bench route's limits refused");
+    };
+    let waypoints = [
+        Waypoint::pass(0.0, 0.0),
+        Waypoint::stop(1.0, 0.0, 2.0),
+        Waypoint::pass(1.0, 0.5),
+        Waypoint::pass(0.0, 0.5),
+        Waypoint::pass(0.0, 0.0),
+    ];
+    for w in waypoints {
+        if store.push(w).is_err() {
+            fail("bench route too long");
+        }
+    }
+    if store.finish(&limits, route.start, PERIOD_S).is_err() {
+        fail("bench route refused");
+    }
+    let Some(run) = cortex_m::singleton!(: MavlinkRun = MavlinkRun::new(config, limits)) else {
+        fail("MAVLink run already taken");
+    };
+    run.activate(store.waypoints(), route.start, limits, PERIOD_S);
+
+    // A ground station's HEARTBEAT (MAV_TYPE_GCS), framed by the
+    // endpoint's own encoder.
+    let mut heartbeat = [0_u8; 32];
+    let mut tx = TxBuffer::new(&mut heartbeat);
+    if !tx.frame([0, 255, 190], 0, 50, &[0, 0, 0, 0, 6, 8, 0, 4, 3]) {
+        fail("heartbeat frame");
+    }
+    let heartbeat_len = tx.len();
+    let heartbeat = heartbeat.get(..heartbeat_len).unwrap_or(&[]);
+    let mut room = [0_u8; 1024];
+    let mut stage = Stage::new("mavlink_tick");
+    let mut written = 0_usize;
+    let mut dropped = 0_u32;
+    let mut heartbeats = 0_u32;
+    for k in 0..WARM_UP_TICKS + SAMPLES as u32 {
+        let rx = if k % GCS_HEARTBEAT_EVERY == GCS_HEARTBEAT_EVERY / 2 {
+            heartbeats += 1;
+            heartbeat
+        } else {
+            &[]
+        };
+        let (counts, (n, d)) = timed(&k, |&k| mavlink_tick(run, store, k, rx, &mut room));
+        if k >= WARM_UP_TICKS {
+            stage.record(counts);
+        }
+        written += n;
+        dropped += d;
+    }
+    let c = run.endpoint().counters();
+    if c.rx.frames != heartbeats || dropped != 0 || c.tx_dropped != 0 {
+        fail("MAVLink bench: a heartbeat not parsed, or a frame dropped");
+    }
+    if run.endpoint().link_lost() || written == 0 {
+        fail("MAVLink bench: link lost, or nothing sent");
+    }
+    stage.report(cal);
+}
+
+/// One tick's MAVLink handling: the endpoint before the robot's tick (a
+/// robot at rest 1 m along x, facing +y), the runner after it.
+#[inline(never)]
+fn mavlink_tick(
+    run: &mut MavlinkRun,
+    store: &mut RouteStore,
+    tick: u32,
+    rx: &[u8],
+    room: &mut [u8],
+) -> (usize, u32) {
+    let at = estimate([1.0, 0.0], [0.0, 1.0], [0.0, 0.0]);
+    let out = run.before_tick(store, tick, Some(at), rx, room);
+    run.after_tick(store, wmr_core::geometry::Vec2::new(1.0, 0.0));
+    out
+}
