@@ -96,6 +96,10 @@
 //!    │ ── Mavlink{seq, next output chunk, pending, counters} ─► │  configured
 //! ```
 //!
+//! Between those queues and the robot, the endpoint, the mission runner
+//! and the follower actions are [`mavlink_run`]'s, which the Black Pill
+//! runs on its MAVLink UART too.
+//!
 //! # Faults
 //! A frame that arrives corrupt is dropped and counted, and the firmware
 //! answers it with [`TargetMessage::Nack`], so that the host resends its
