@@ -23,6 +23,11 @@ pub struct LinkCounters {
     /// Frames not sent: the socket refused them (nobody listening yet),
     /// or `udpin:` before any ground station spoke.
     pub frames_unsent: u64,
+    /// Datagrams the operating system dropped before the socket read
+    /// them (its receive buffer full, e.g. under a flood): Linux's count
+    /// for this socket (`drops` in /proc/net/udp); `None` where it cannot
+    /// be read.
+    pub kernel_dropped_datagrams: Option<u64>,
 }
 
 /// The UDP link to the ground station.
@@ -72,10 +77,35 @@ impl UdpLink {
         self.peer
     }
 
-    /// The counters.
+    /// The counters, with the operating system's drops read now.
     #[must_use]
     pub fn counters(&self) -> LinkCounters {
-        self.counters
+        LinkCounters {
+            kernel_dropped_datagrams: self.kernel_dropped_datagrams(),
+            ..self.counters
+        }
+    }
+
+    /// The `drops` column of this socket's line (found by its inode) in
+    /// /proc/net/udp or /proc/net/udp6.
+    fn kernel_dropped_datagrams(&self) -> Option<u64> {
+        let inode = rustix::fs::fstat(&self.socket).ok()?.st_ino;
+        ["/proc/net/udp", "/proc/net/udp6"]
+            .iter()
+            .find_map(|table| {
+                let table = std::fs::read_to_string(table).ok()?;
+                table.lines().skip(1).find_map(|line| {
+                    // sl local rem st queues tr:when retrnsmt uid timeout inode
+                    // ref pointer drops
+                    let fields: Vec<&str> = line.split_whitespace().collect();
+                    let this = fields.get(9)?.parse::<u64>().ok()? == inode;
+                    if this {
+                        fields.last()?.parse().ok()
+                    } else {
+                        None
+                    }
+                })
+            })
     }
 
     /// Appends every byte received since the last call to `into`.
@@ -153,5 +183,29 @@ mod tests {
         assert_eq!(frame_len(&two), 14);
         assert_eq!(frame_len(&two[14..]), 9);
         assert_eq!(frame_len(&[1, 2, 3]), 3);
+    }
+
+    /// A flood past the socket's receive buffer: every datagram sent is
+    /// either read or counted as dropped by the operating system
+    /// (loopback delivers to the buffer as it sends, so none is lost
+    /// elsewhere).
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn datagrams_the_kernel_drops_are_counted() {
+        let mut link =
+            UdpLink::open(MavlinkAddress::Listen("127.0.0.1:0".parse().unwrap())).unwrap();
+        assert_eq!(link.counters().kernel_dropped_datagrams, Some(0));
+        let to = link.local_addr().unwrap();
+        let sender = UdpSocket::bind("127.0.0.1:0").unwrap();
+        // Far more than a receive buffer (at most a few MB) holds.
+        let sent = 10_000_u64;
+        for _ in 0..sent {
+            sender.send_to(&[0x55; 1000], to).unwrap();
+        }
+        link.receive_datagrams(|_| {}).unwrap();
+        let counters = link.counters();
+        let dropped = counters.kernel_dropped_datagrams.unwrap();
+        assert!(dropped > 0, "{counters:?}");
+        assert_eq!(counters.datagrams_in + dropped, sent, "{counters:?}");
     }
 }
