@@ -85,15 +85,11 @@ impl SitlArgs {
         };
         let stop = AtomicBool::new(false);
         let report = sitl::run(&setup, &options, &stop, |link| {
-            let local = link
-                .local_addr()
-                .map_or_else(|e| e.to_string(), |a| a.to_string());
-            let peer = link
-                .peer()
-                .map_or_else(|| "the last sender".to_string(), |a| a.to_string());
             eprintln!(
-                "sitl: {} on MAVLink, udp {local} -> {peer}, {}x real time",
-                scenario.name, options.speedup
+                "sitl: {} on MAVLink, {}, {}x real time",
+                scenario.name,
+                link.describe(),
+                options.speedup
             );
         })?;
         for line in &report.log {

@@ -103,14 +103,9 @@ impl Bridge {
         );
         let link = UdpLink::open(spec.address)?;
         if let Some(announce) = spec.announce {
-            let local = link
-                .local_addr()
-                .map_or_else(|e| e.to_string(), |a| a.to_string());
-            let peer = link
-                .peer()
-                .map_or_else(|| "the last sender".to_string(), |a| a.to_string());
             announce(&format!(
-                "MAVLink on udp {local} -> {peer}, {}x real time",
+                "MAVLink on {}, {}x real time",
+                link.describe(),
                 spec.speedup
             ));
         }

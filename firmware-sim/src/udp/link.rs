@@ -77,6 +77,20 @@ impl UdpLink {
         self.peer
     }
 
+    /// `udp LOCAL -> PEER`, the line a run announces its link with (the
+    /// peer "the last sender" for `udpin:` before any ground station
+    /// spoke).
+    #[must_use]
+    pub fn describe(&self) -> String {
+        let local = self
+            .local_addr()
+            .map_or_else(|e| e.to_string(), |a| a.to_string());
+        let peer = self
+            .peer
+            .map_or_else(|| "the last sender".to_string(), |a| a.to_string());
+        format!("udp {local} -> {peer}")
+    }
+
     /// The counters, with the operating system's drops read now.
     #[must_use]
     pub fn counters(&self) -> LinkCounters {
