@@ -134,6 +134,7 @@ impl Bridge {
                 copy_mismatches: 0,
                 first_mismatch_tick: None,
                 interrupted: false,
+                link_silences: 0,
             },
             ticks: 0,
         })
@@ -203,8 +204,9 @@ impl Bridge {
         )
     }
 
-    /// The bridge's figures at the end of the run.
-    pub(super) fn report(&self) -> MavlinkBridgeReport {
+    /// The bridge's figures at the end of the run, with the firmware's
+    /// `link_silences` reports.
+    pub(super) fn report(&self, link_silences: u32) -> MavlinkBridgeReport {
         let wall_s = self.pace.as_ref().map_or(0.0, Pace::elapsed_s);
         let sim_s = f64::from(self.ticks) * self.period_s;
         MavlinkBridgeReport {
@@ -215,6 +217,7 @@ impl Bridge {
             copy_mismatches: self.log.mismatches,
             first_mismatch_tick: self.log.first_mismatch_tick,
             interrupted: self.stop_requested(),
+            link_silences,
             ..self.report
         }
     }

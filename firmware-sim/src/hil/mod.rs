@@ -169,7 +169,10 @@ pub fn run_hil(
         stale_ticks: finished.counters.stale_ticks,
         route_done: finished.route_done,
         link_faults: target.fault_report(),
-        mavlink: target.bridge.as_ref().map(mavlink::Bridge::report),
+        mavlink: target
+            .bridge
+            .as_ref()
+            .map(|bridge| bridge.report(target.link_silences)),
     };
     if report.mavlink.is_some() {
         // The route report measures the run against the scenario's

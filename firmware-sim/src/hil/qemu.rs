@@ -115,6 +115,9 @@ pub struct QemuTarget {
     inbox: VecDeque<u8>,
     /// Faults, when the options ask for them; active during ticks only.
     faulty: Option<FaultyLink>,
+    /// `LinkSilent` reports received: the firmware stopped its motors
+    /// because the host was silent past its timeout.
+    pub(super) link_silences: u32,
     /// The firmware's end-of-run report, once received.
     pub(super) finished: Option<Finished>,
     /// The ground station's bridge, when the run has one.
@@ -211,6 +214,7 @@ impl QemuTarget {
             timeout: options.answer_timeout,
             inbox: VecDeque::with_capacity(4096),
             faulty: None,
+            link_silences: 0,
             finished: None,
             bridge: None,
             _dir: dir,
@@ -326,6 +330,7 @@ impl QemuTarget {
             "the firmware stopped the motors after {silent_ms} ms of silence, before its {} ms timeout",
             wmr_link::LINK_TIMEOUT_MS
         );
+        self.link_silences = self.link_silences.saturating_add(1);
         self.count(|r| {
             r.silence_reports += 1;
             r.longest_silence_before_stop_ms = r.longest_silence_before_stop_ms.max(silent_ms);

@@ -41,4 +41,10 @@ pub struct MavlinkBridgeReport {
     pub first_mismatch_tick: Option<u32>,
     /// The run was ended by Ctrl-C before its duration.
     pub interrupted: bool,
+    /// Times the firmware reported the link silent past its 50 ms
+    /// timeout and stopped its motors (the host late with a tick, e.g. a
+    /// loaded machine; the paced run waits up to 25 ms between ticks:
+    /// stops the simulated plant does not see, as it moves by the ticks'
+    /// outputs).
+    pub link_silences: u32,
 }
