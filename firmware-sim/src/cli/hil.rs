@@ -10,7 +10,7 @@ use firmware_sim::hil::{HilOptions, LinkFaultSpec, MavlinkBridgeSpec, run_hil};
 use firmware_sim::output::{format_summary, write_all};
 use firmware_sim::scenario::Scenario;
 use firmware_sim::udp::MavlinkAddress;
-use signal_hook::consts::{SIGINT, SIGTERM};
+use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 
 /// The arguments of `hil`.
 #[derive(Debug, clap::Args)]
@@ -106,8 +106,10 @@ impl HilArgs {
         );
         let mavlink = match mavlink {
             Some(address) => {
+                // SIGHUP too: QEMU, in a process group of its own, would
+                // outlive a closed terminal's hang-up otherwise.
                 let stop = Arc::new(AtomicBool::new(false));
-                for signal in [SIGINT, SIGTERM] {
+                for signal in [SIGINT, SIGTERM, SIGHUP] {
                     signal_hook::flag::register(signal, Arc::clone(&stop))?;
                 }
                 Some(MavlinkBridgeSpec {
