@@ -22,7 +22,7 @@ use std::time::{Duration, Instant};
 
 use firmware_sim::Scenario;
 use firmware_sim::hil::{
-    BACKLOG_BYTES, HilOptions, MavlinkBridgeSpec, build_firmware, run_hil, workspace_root,
+    BACKLOG_BYTES, HilOptions, HilRun, MavlinkBridgeSpec, build_firmware, run_hil, workspace_root,
 };
 use firmware_sim::udp::MavlinkAddress;
 use mavlink::dialects::common::*;
@@ -42,12 +42,13 @@ fn firmware() -> PathBuf {
 }
 
 /// The in-process ground station: a socket, the robot's address once it
-/// has spoken, the robot's time from its telemetry.
+/// has spoken, the robot's time from its telemetry, the datagrams sent.
 struct Gcs {
     socket: UdpSocket,
     robot: Option<SocketAddr>,
     seq: u8,
     sim_ms: u32,
+    sent: u64,
 }
 
 impl Gcs {
@@ -61,6 +62,7 @@ impl Gcs {
             robot: None,
             seq: 0,
             sim_ms: 0,
+            sent: 0,
         }
     }
 
@@ -73,8 +75,13 @@ impl Gcs {
         };
         self.seq = self.seq.wrapping_add(1);
         let n = mavlink::write_v2_msg(&mut &mut buf[..], header, msg).unwrap();
+        self.send_raw(&buf[..n]);
+    }
+
+    fn send_raw(&mut self, datagram: &[u8]) {
         let to = self.robot.expect("the robot spoke first");
-        self.socket.send_to(&buf[..n], to).unwrap();
+        self.socket.send_to(datagram, to).unwrap();
+        self.sent += 1;
     }
 
     fn heartbeat(&mut self) {
@@ -88,20 +95,24 @@ impl Gcs {
     }
 
     /// Receives (a heartbeat every 20 ms of wall time once the robot has
-    /// spoken) until `until` holds for a message, within `sim_timeout_ms`
-    /// of the robot's time.
-    fn wait(
+    /// spoken, while `heartbeats`) until `until` holds for a message,
+    /// within `sim_timeout_ms` of the robot's time (`None` past it).
+    fn receive_until(
         &mut self,
         what: &str,
         sim_timeout_ms: u32,
+        heartbeats: bool,
         mut until: impl FnMut(&MavMessage) -> bool,
-    ) -> MavMessage {
+    ) -> Option<MavMessage> {
         let start_sim = self.sim_ms;
         let wall = Instant::now();
         let mut last_heartbeat = Instant::now();
         let mut buf = [0u8; 2048];
         loop {
-            if self.robot.is_some() && last_heartbeat.elapsed() >= Duration::from_millis(20) {
+            if heartbeats
+                && self.robot.is_some()
+                && last_heartbeat.elapsed() >= Duration::from_millis(20)
+            {
                 last_heartbeat = Instant::now();
                 self.heartbeat();
             }
@@ -113,30 +124,90 @@ impl Gcs {
                         self.sim_ms = self.sim_ms.max(p.time_boot_ms);
                     }
                     if until(&msg) {
-                        return msg;
+                        return Some(msg);
                     }
                 }
             }
-            assert!(
-                self.sim_ms.saturating_sub(start_sim) <= sim_timeout_ms,
-                "{what}: not within {sim_timeout_ms} ms of the robot's time"
-            );
+            if self.sim_ms.saturating_sub(start_sim) > sim_timeout_ms {
+                return None;
+            }
             assert!(wall.elapsed() < WALL_CAP, "{what}: the HIL run hung");
         }
     }
 
-    fn read_max_speed(&mut self) -> f32 {
+    /// [`Self::receive_until`] with heartbeats, which must succeed.
+    fn wait(
+        &mut self,
+        what: &str,
+        sim_timeout_ms: u32,
+        until: impl FnMut(&MavMessage) -> bool,
+    ) -> MavMessage {
+        self.receive_until(what, sim_timeout_ms, true, until)
+            .unwrap_or_else(|| panic!("{what}: not within {sim_timeout_ms} ms of the robot's time"))
+    }
+
+    fn request_param(&mut self, name: &str) {
         self.send(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
             param_index: -1,
             target_system: 1,
             target_component: 1,
-            param_id: "RT_MAX_SPEED".into(),
+            param_id: name.into(),
         }));
-        match self.wait("PARAM_VALUE", 5000, |m| {
-            matches!(m, MavMessage::PARAM_VALUE(p) if p.param_id.to_str() == Ok("RT_MAX_SPEED"))
-        }) {
-            MavMessage::PARAM_VALUE(p) => p.param_value,
-            _ => unreachable!(),
+    }
+
+    /// `RT_MAX_SPEED`, asked again after each second of the robot's time
+    /// without an answer, as a ground station does: a request sent into
+    /// a flood may be dropped (by the kernel or the bridge's backlog,
+    /// counted).
+    fn read_max_speed(&mut self) -> f32 {
+        for _ in 0..5 {
+            self.request_param("RT_MAX_SPEED");
+            let answer = self.receive_until("PARAM_VALUE", 1000, true, |m| {
+                matches!(m, MavMessage::PARAM_VALUE(p) if p.param_id.to_str() == Ok("RT_MAX_SPEED"))
+            });
+            if let Some(MavMessage::PARAM_VALUE(p)) = answer {
+                return p.param_value;
+            }
+        }
+        panic!("RT_MAX_SPEED: no PARAM_VALUE to 5 requests, 1 s of the robot's time each")
+    }
+
+    /// The last datagram: a parameter request answered with nothing sent
+    /// after it, so that the bridge has read (or the kernel dropped)
+    /// every datagram sent before it. A parameter no earlier request
+    /// asked for, so that no late answer to one is taken for its answer.
+    fn last_datagram(&mut self) {
+        self.request_param("LINK_TIMEOUT_MS");
+        let answer = self.receive_until("the last PARAM_VALUE", 5000, false, |m| {
+            matches!(m, MavMessage::PARAM_VALUE(p) if p.param_id.to_str() == Ok("LINK_TIMEOUT_MS"))
+        });
+        assert!(answer.is_some(), "no PARAM_VALUE to the last request");
+    }
+}
+
+/// `run_hil` in its thread. Ended through the stop flag, as Ctrl-C ends
+/// it, also when an assertion fails first: the firmware is then finished
+/// and QEMU exits, instead of running on (in a process group of its own,
+/// out of reach of the test harness) after this process is gone.
+struct Run {
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<anyhow::Result<HilRun>>>,
+}
+
+impl Run {
+    /// Sets the stop flag and waits for the run's end.
+    fn end(mut self) -> anyhow::Result<HilRun> {
+        self.stop.store(true, Ordering::Relaxed);
+        let thread = self.thread.take().expect("not ended yet");
+        thread.join().expect("the run's thread panicked")
+    }
+}
+
+impl Drop for Run {
+    fn drop(&mut self) {
+        if let Some(thread) = self.thread.take() {
+            self.stop.store(true, Ordering::Relaxed);
+            let _ = thread.join();
         }
     }
 }
@@ -145,9 +216,10 @@ impl Gcs {
 /// `run_hil` with a bridge: its heartbeat says it runs the scenario's
 /// route (mode 1) armed; a parameter read gives the route's speed limit;
 /// a pause is acknowledged accepted and the heartbeat says paused. A
-/// flood of garbage past the host's backlog is counted, every byte
-/// accounted for (sent to the firmware, dropped whole by datagram, or
-/// left at the end), none dropped by the firmware's queues (the host
+/// flood of garbage past the host's backlog is counted, every datagram
+/// sent read by the bridge or counted as dropped by the kernel, every
+/// byte read accounted for (sent to the firmware, dropped whole by
+/// datagram, or left at the end), none dropped by the firmware's queues (the host
 /// never sends more than they hold between two ticks), and the endpoint
 /// still answers after it. The stop flag (Ctrl-C) ends the run cleanly:
 /// the firmware finished, the host's copy of the session gave every
@@ -178,7 +250,12 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
         }),
         ..HilOptions::default()
     };
-    let run = std::thread::spawn(move || run_hil(&scenario, &options, |_, _| {}));
+    let run = Run {
+        stop: Arc::clone(&stop),
+        thread: Some(std::thread::spawn(move || {
+            run_hil(&scenario, &options, |_, _| {})
+        })),
+    };
 
     let heartbeat = gcs.wait("the robot's heartbeat", 5000, |m| {
         matches!(m, MavMessage::HEARTBEAT(_))
@@ -216,15 +293,14 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
 
     // A flood: three times the backlog in datagrams of 1,000 garbage
     // bytes, sent as fast as the socket takes them.
-    let robot = gcs.robot.unwrap();
     let garbage = [0x55_u8; 1000];
     for _ in 0..3 * BACKLOG_BYTES / garbage.len() {
-        gcs.socket.send_to(&garbage, robot).unwrap();
+        gcs.send_raw(&garbage);
     }
     assert_eq!(gcs.read_max_speed(), limit, "answering after it");
+    gcs.last_datagram();
 
-    stop.store(true, Ordering::Relaxed);
-    let run = run.join().unwrap().expect("the HIL run");
+    let run = run.end().expect("the HIL run");
     let report = run.report.mavlink.expect("the bridge's report");
     println!("{report:#?}");
     assert!(report.interrupted);
@@ -239,6 +315,11 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
         "the flood overflowed the backlog"
     );
     assert_eq!(report.dropped_bytes, 1000 * report.dropped_datagrams);
+    assert_eq!(
+        report.udp.datagrams_in + report.udp.kernel_dropped_datagrams.unwrap(),
+        gcs.sent,
+        "every datagram sent read by the bridge or dropped by the kernel, counted"
+    );
     assert_eq!(
         report.udp.bytes_in,
         report.bytes_to_firmware + report.dropped_bytes + report.left_in_backlog_bytes,
