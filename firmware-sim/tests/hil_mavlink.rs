@@ -187,8 +187,7 @@ impl Gcs {
 
 /// `run_hil` in its thread. Ended through the stop flag, as Ctrl-C ends
 /// it, also when an assertion fails first: the firmware is then finished
-/// and QEMU exits, instead of running on (in a process group of its own,
-/// out of reach of the test harness) after this process is gone.
+/// and QEMU exits, instead of running on after this process is gone.
 struct Run {
     stop: Arc<AtomicBool>,
     thread: Option<std::thread::JoinHandle<anyhow::Result<HilRun>>>,
@@ -246,6 +245,9 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
             address: MavlinkAddress::parse(&format!("udp:127.0.0.1:{port}"), false).unwrap(),
             speedup: 5.0,
             stop: Some(Arc::clone(&stop)),
+            // No signal handler here: Ctrl-C on `cargo test` ends QEMU
+            // with the test.
+            stops_on_signals: false,
             announce: None,
         }),
         ..HilOptions::default()

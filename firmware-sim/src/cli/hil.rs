@@ -116,6 +116,7 @@ impl HilArgs {
                     address: MavlinkAddress::parse(&address, allow_non_loopback)?,
                     speedup,
                     stop: Some(stop),
+                    stops_on_signals: true,
                     announce: Some(announce),
                 })
             }

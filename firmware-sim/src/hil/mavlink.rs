@@ -60,6 +60,12 @@ pub struct MavlinkBridgeSpec {
     /// Set (by Ctrl-C): the run ends before its next tick, the firmware
     /// is finished and the run reported up to there.
     pub stop: Option<Arc<AtomicBool>>,
+    /// The caller sets `stop` on SIGINT, SIGTERM and SIGHUP (the command
+    /// line): QEMU then runs in a process group of its own, so that a
+    /// terminal's Ctrl-C reaches the caller only and the run ends
+    /// cleanly. `false` (a caller that handles no signal, such as a
+    /// test): QEMU stays in the caller's group and dies with it.
+    pub stops_on_signals: bool,
     /// Called once the socket is open, with a line naming its address
     /// and the ground station's (the command line prints it).
     pub announce: Option<fn(&str)>,

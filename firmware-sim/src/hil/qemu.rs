@@ -170,7 +170,7 @@ impl QemuTarget {
             None => Stdio::null(),
         };
         let mut command = Command::new(QEMU);
-        if options.mavlink.as_ref().is_some_and(|m| m.stop.is_some()) {
+        if options.mavlink.as_ref().is_some_and(|m| m.stops_on_signals) {
             // Its own process group: Ctrl-C in a terminal reaches this
             // process only, which ends the run and then QEMU through
             // `Finish` (QEMU would otherwise die with it, mid-run).
