@@ -18,10 +18,12 @@ pub struct LinkCounters {
     pub datagrams_in: u64,
     /// Bytes received.
     pub bytes_in: u64,
-    /// Frames sent.
+    /// Frames the socket took. Not known to arrive: a frame sent to a
+    /// port nobody listens on counts here, since the unconnected socket
+    /// gets no error for it.
     pub frames_out: u64,
-    /// Frames not sent: the socket refused them (nobody listening yet),
-    /// or `udpin:` before any ground station spoke.
+    /// Frames not sent: the socket refused them (no route, no buffer), or
+    /// `udpin:` before any ground station spoke.
     pub frames_unsent: u64,
     /// Datagrams the operating system dropped before the socket read
     /// them (its receive buffer full, e.g. under a flood): Linux's count
