@@ -620,7 +620,7 @@ fn error_panel(
 fn format_mavlink_bridge(o: &mut String, m: &crate::report::mavlink_bridge::MavlinkBridgeReport) {
     let _ = writeln!(
         o,
-        "mavlink       {:.1}x real time (asked {}x){}; udp in {} datagrams {} B, out {} frames ({} unsent); backlog dropped {} datagrams {} B (largest {} B, {} B left at the end)",
+        "mavlink       {:.1}x real time (asked {}x){}; udp in {} datagrams {} B ({} dropped by the kernel), out {} frames ({} unsent); backlog dropped {} datagrams {} B (largest {} B, {} B left at the end); firmware reported the link silent {} times",
         m.speedup_achieved,
         m.speedup,
         if m.interrupted {
@@ -630,12 +630,16 @@ fn format_mavlink_bridge(o: &mut String, m: &crate::report::mavlink_bridge::Mavl
         },
         m.udp.datagrams_in,
         m.udp.bytes_in,
+        m.udp
+            .kernel_dropped_datagrams
+            .map_or_else(|| "unknown".to_owned(), |n| n.to_string()),
         m.udp.frames_out,
         m.udp.frames_unsent,
         m.dropped_datagrams,
         m.dropped_bytes,
         m.largest_backlog_bytes,
-        m.left_in_backlog_bytes
+        m.left_in_backlog_bytes,
+        m.link_silences
     );
     let _ = writeln!(
         o,
