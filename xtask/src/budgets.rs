@@ -98,6 +98,7 @@ impl Budgets {
                     | "hil_peak_stack_bytes"
                     | "hil_peak_stack_limit_bytes"
                     | "robot_flash_bytes"
+                    | "robot_flash_limit_bytes"
             ) {
                 return Err(format!("{FILE}: unknown key `{key}`"));
             }

@@ -246,8 +246,8 @@ fn check_mission(route: &Waypoints) -> Result<(), RouteError> {
 mod tests {
     use super::tick_ms;
 
-    /// The `u32` clock agrees with the `u64` computation it replaces,
-    /// wrapping included.
+    /// The `u32` clock agrees with the exact `u64` product over 1000,
+    /// wrapped to 32 bits.
     #[test]
     fn the_tick_clock_is_the_u64_product_over_1000_wrapped() {
         let exact =

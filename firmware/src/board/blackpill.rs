@@ -50,7 +50,7 @@
 //! MAVLink port transmits by interrupt"); after the robot's tick the
 //! mission runner reads the route follower. The runner starts armed and
 //! running the image's route, so without a ground station the robot
-//! drives it from power-on as before; a ground station heard and then
+//! drives it from power-on; a ground station heard and then
 //! silent for the link timeout (3 s) stops the robot where it is
 //! (`LinkLost`, a `STATUSTEXT` says so). Without a route (the
 //! compiled-in [`PILOT`], or an image without one) the port's bytes are

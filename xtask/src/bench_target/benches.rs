@@ -59,7 +59,7 @@ pub(super) const STAGES: [(&str, &str); 14] = [
     ),
     (
         "mavlink_tick",
-        "MAVLink endpoint's part of a tick (`MavlinkRun::before_tick` + `after_tick`; telemetry at 10 Hz, a ground station's heartbeat at 1 Hz; mean over 2 s of 10 ms ticks)",
+        "MAVLink's part of a tick (`MavlinkRun::before_tick` + `after_tick`, the frames through the Black Pill's transmit ring byte by byte; telemetry at 10 Hz, a ground station's heartbeat at 1 Hz; mean over 2 s of 10 ms ticks)",
     ),
     (
         ROUTE_TICK,

@@ -55,7 +55,8 @@
 //!    feature `bench-route-tick` of its own);
 //! 6. runs the MAVLink endpoint's part of a tick (`wmr_link::mavlink_run`,
 //!    as both boards run it) with telemetry at 10 Hz and a ground
-//!    station's heartbeat arriving at 1 Hz, averaged over 2 s of ticks
+//!    station's heartbeat arriving at 1 Hz, its frames through the Black
+//!    Pill's transmit ring byte by byte, averaged over 2 s of ticks
 //!    (`mavlink_tick`, `on_target/mavlink.rs`);
 //! 7. paints a window below the stack pointer, runs one call (a tick, a
 //!    filter step) and reports the bytes it used below its caller's stack
