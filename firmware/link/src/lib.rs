@@ -140,6 +140,7 @@
 
 pub mod image;
 pub mod mavlink_run;
+pub mod period_clock;
 pub mod proxy;
 pub mod rx_ring;
 pub mod session;

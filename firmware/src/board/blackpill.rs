@@ -647,6 +647,11 @@ pub fn run() -> ! {
             match image_route.load_into(store, period_s) {
                 Ok(limits) => {
                     mav = mavlink_port(limits);
+                    if mav.is_none() {
+                        defmt::error!(
+                            "no MAVLink endpoint: the route runs without a ground station link (its bytes counted and dropped)"
+                        );
+                    }
                     if let Some(mav) = mav.as_deref_mut() {
                         mav.run.activate(
                             store.waypoints(),
@@ -685,6 +690,14 @@ pub fn run() -> ! {
 
     let cycles_per_us = (sysclk_hz / 1_000_000).max(1);
     let mut stats = LoopStats::default();
+    // The MAVLink endpoint's clock: control periods by the cycle counter,
+    // so that its link-loss timeout and telemetry rates follow wall time
+    // while ticks overrun (a loop pass may fold several periods).
+    #[cfg(wmr_robot_image)]
+    let mut mavlink_clock = wmr_link::period_clock::PeriodClock::new(
+        cycles_per_us.saturating_mul(tick_us),
+        DWT::cycle_count(),
+    );
     if telemetry_every != 0 {
         crate::telemetry::start(Start {
             every_ticks: telemetry_every,
@@ -694,13 +707,17 @@ pub fn run() -> ! {
     loop {
         let overrun = wait_for_tick(&mut tick_timer);
         let started = DWT::cycle_count();
+        #[cfg(wmr_robot_image)]
+        let periods = mavlink_clock
+            .as_mut()
+            .map_or(stats.ticks, |clock| clock.advance(started));
         // A route run talks MAVLink around the robot's tick (`MavlinkPort`);
         // otherwise the MAVLink port's bytes are counted and dropped.
         // (One call of the robot's tick: a call in each arm of a match
         // doubled its code, 1.7 KB.)
         #[cfg(wmr_robot_image)]
         let read = match (route.as_deref_mut(), mav.as_deref_mut()) {
-            (Some(store), Some(mav)) => mav.before_tick(store, &mut mavlink, stats.ticks),
+            (Some(store), Some(mav)) => mav.before_tick(store, &mut mavlink, periods),
             _ => drain(&mut mavlink),
         };
         #[cfg(wmr_robot_image)]
@@ -813,7 +830,8 @@ struct MavlinkPort {
 
 #[cfg(wmr_robot_image)]
 impl MavlinkPort {
-    /// Before the robot's tick `tick` (counted from 0): the receive ring
+    /// Before the robot's tick, `tick` control periods after the loop
+    /// started (by the cycle counter: `wmr_link::period_clock`): the receive ring
     /// emptied into the endpoint, its output queued on the transmit ring
     /// (the endpoint gets the ring's free room as its buffer: a frame
     /// that does not fit is dropped whole and counted by it), its events
