@@ -244,7 +244,77 @@ fn check_mission(route: &Waypoints) -> Result<(), RouteError> {
 
 #[cfg(test)]
 mod tests {
-    use super::tick_ms;
+    use super::{MavlinkRun, tick_ms};
+    use crate::RouteSpec;
+    use crate::session::RouteStore;
+    use wmr_core::pilot::route::{RouteOptionsSpec, RouteStart};
+    use wmr_core::reference::route::Waypoint;
+    use wmr_mavlink::{EndpointConfig, EndpointSpec};
+
+    /// A run on a 3-waypoint route, as a board sets it up: the store
+    /// loaded and planned, the run activated on it.
+    fn a_run() -> (Box<RouteStore>, Box<MavlinkRun>) {
+        let spec = RouteSpec {
+            waypoints: 3,
+            limits: MavlinkRun::IDLE_LIMITS,
+            options: RouteOptionsSpec::default(),
+            start: RouteStart::AsGiven,
+        };
+        let mut store = Box::new(RouteStore::new());
+        let limits = store.begin(&spec).unwrap();
+        for w in [
+            Waypoint::pass(0.0, 0.0),
+            Waypoint::stop(1.0, 0.0, 2.0),
+            Waypoint::pass(1.0, 1.0),
+        ] {
+            store.push(w).unwrap();
+        }
+        store.finish(&limits, spec.start, 0.01).unwrap();
+        let config = EndpointConfig::new(&EndpointSpec::default()).unwrap();
+        let mut run = Box::new(MavlinkRun::new(config, limits));
+        run.activate(store.waypoints(), spec.start, limits, 0.01);
+        (store, run)
+    }
+
+    /// The lengths of the MAVLink 2 frames (unsigned: 12 bytes around the
+    /// payload) that `bytes` is made of, `None` if it does not split into
+    /// whole frames.
+    fn whole_frames(mut bytes: &[u8]) -> Option<Vec<usize>> {
+        let mut lengths = Vec::new();
+        while !bytes.is_empty() {
+            let (&magic, rest) = bytes.split_first()?;
+            let len = 12 + usize::from(*rest.first()?);
+            if magic != 0xFD || bytes.len() < len {
+                return None;
+            }
+            lengths.push(len);
+            bytes = &bytes[len..];
+        }
+        Some(lengths)
+    }
+
+    /// A transmit ring with less room than the tick's frames: the frames
+    /// that do not fit are dropped whole, counted by the endpoint and
+    /// returned, and what is written is whole frames only.
+    #[test]
+    fn frames_past_the_room_are_dropped_whole_and_counted() {
+        let (mut store, mut run) = a_run();
+        // The first tick sends every periodic frame at once (HEARTBEAT,
+        // SYS_STATUS, the position telemetry): more than 30 bytes.
+        let mut room = [0_u8; 30];
+        let (written, dropped) = run.before_tick(&mut store, 0, None, &[], &mut room);
+        assert!(dropped > 0, "nothing dropped into 30 bytes");
+        assert_eq!(run.endpoint().counters().tx_dropped, dropped);
+        let frames = whole_frames(&room[..written]).expect("whole frames only");
+        assert_eq!(frames.iter().sum::<usize>(), written);
+        // With room, the next periodic frames go out and nothing more is
+        // dropped.
+        let mut room = [0_u8; 1024];
+        let (written, more) = run.before_tick(&mut store, 100, None, &[], &mut room);
+        assert_eq!(more, 0);
+        assert!(whole_frames(&room[..written]).is_some_and(|f| !f.is_empty()));
+        assert_eq!(run.endpoint().counters().tx_dropped, dropped);
+    }
 
     /// The `u32` clock agrees with the exact `u64` product over 1000,
     /// wrapped to 32 bits.
