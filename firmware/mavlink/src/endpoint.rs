@@ -391,8 +391,14 @@ impl MavlinkEndpoint {
     }
 
     fn on_heartbeat(&mut self, now_ms: u32, frame: &RxFrame, tx: &mut TxBuffer<'_>) {
-        // HEARTBEAT payload: custom_mode u32, type u8 at 4.
-        if frame.byte(4) != c::MavType::MAV_TYPE_GCS as u8 {
+        // HEARTBEAT payload: custom_mode u32, type u8 at 4. A controlling
+        // peer is a ground station or a companion computer (mavros and
+        // MAVSDK's companion mode send `MAV_TYPE_ONBOARD_CONTROLLER`);
+        // another vehicle's heartbeat is not.
+        let peer = frame.byte(4);
+        if peer != c::MavType::MAV_TYPE_GCS as u8
+            && peer != c::MavType::MAV_TYPE_ONBOARD_CONTROLLER as u8
+        {
             return;
         }
         self.gcs_heartbeat_ms = Some(now_ms);

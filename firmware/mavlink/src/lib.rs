@@ -18,7 +18,8 @@
 //! * `HEARTBEAT` at 1 Hz (and on a mode change): `MAV_TYPE_GROUND_ROVER`,
 //!   `MAV_AUTOPILOT_GENERIC`, `custom_mode` = [`RobotMode`] number,
 //!   `SAFETY_ARMED` when armed, `AUTO_ENABLED` while running or paused.
-//!   A ground station's heartbeat (`MAV_TYPE_GCS`) starts the link watch:
+//!   A ground station's or companion computer's heartbeat (`MAV_TYPE_GCS`,
+//!   `MAV_TYPE_ONBOARD_CONTROLLER`) starts the link watch:
 //!   none for the link timeout → [`Event::LinkLost`] once and a
 //!   `STATUSTEXT`; a heartbeat again → "link regained".
 //! * The mission microservice ([`upload`] module), items as in

@@ -28,6 +28,28 @@ fn texts(out: &[MavMessage]) -> Vec<String> {
         .collect()
 }
 
+/// A companion computer (mavros's default heartbeat type) keeps the link
+/// as a ground station does: its silence stops the robot too.
+#[test]
+fn a_companion_computers_heartbeat_starts_the_link_watch() {
+    let mut rig = Rig::new(EndpointSpec {
+        link_timeout_ms: 1_000,
+        telemetry_period_ms: 0,
+        ..EndpointSpec::default()
+    });
+    rig.send(MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        mavlink_version: 3,
+        ..Default::default()
+    }));
+    let lost = (0..15)
+        .map(|_| rig.tick(100).0)
+        .position(|events| events.contains(&Event::LinkLost));
+    assert_eq!(lost, Some(9), "lost 1 s after the heartbeat");
+    assert!(rig.ep.link_lost());
+}
+
 #[test]
 fn link_loss_once_after_the_timeout_then_regained() {
     let mut rig = Rig::new(EndpointSpec {
