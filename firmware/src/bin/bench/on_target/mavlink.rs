@@ -19,7 +19,9 @@
 //! station), loaded into a `RouteStore` and a `MavlinkRun` in statics (24
 //! and 9 KB) as the Black Pill keeps them. The bench checks what it
 //! measured: every ground-station heartbeat parsed, no frame dropped, no
-//! link loss, frames written, and every byte written queued and sent.
+//! link loss, every byte written queued and sent, and the frames of the
+//! timed ticks at their rates (20 `LOCAL_POSITION_NED` and `ATTITUDE`, 2
+//! `HEARTBEAT` and `SYS_STATUS` in 2 s, each within one).
 
 use wmr_core::pilot::route::{RouteOptionsSpec, RouteStart};
 use wmr_core::reference::route::{RouteLimitsSpec, Waypoint};
@@ -56,10 +58,34 @@ const GCS_HEARTBEAT_EVERY: u32 = 100;
 const TX_RING_BYTES: usize = 1024;
 const TX_CHUNK: usize = 16;
 
+/// The telemetry period, ms (10 Hz), and the tick's, ms.
+const TELEMETRY_PERIOD_MS: u32 = 100;
+const PERIOD_MS: u32 = (PERIOD_S * 1000.0 + 0.5) as u32;
+
+/// Counts the MAVLink 2 frames of `bytes` (whole frames, unsigned) by
+/// message: `LOCAL_POSITION_NED` (32), `ATTITUDE` (30), `HEARTBEAT` (0),
+/// `SYS_STATUS` (1), in that order in `counts`.
+fn count_frames(mut bytes: &[u8], counts: &mut [u32; 4]) {
+    while let (Some(&len), Some(id)) = (bytes.get(1), bytes.get(7..10)) {
+        let id = id.iter().rev().fold(0_u32, |a, &b| (a << 8) | u32::from(b));
+        let slot = match id {
+            32 => counts.get_mut(0),
+            30 => counts.get_mut(1),
+            0 => counts.get_mut(2),
+            1 => counts.get_mut(3),
+            _ => None,
+        };
+        if let Some(c) = slot {
+            *c += 1;
+        }
+        bytes = bytes.get(12 + usize::from(len)..).unwrap_or(&[]);
+    }
+}
+
 /// Runs the ticks and reports `mavlink_tick`.
 pub(super) fn bench_mavlink(cal: Calibration) {
     let spec = EndpointSpec {
-        telemetry_period_ms: 100,
+        telemetry_period_ms: TELEMETRY_PERIOD_MS,
         ..EndpointSpec::default()
     };
     let Ok(config) = EndpointConfig::new(&spec) else {
@@ -111,6 +137,9 @@ pub(super) fn bench_mavlink(cal: Calibration) {
         fail("transmit ring already taken");
     };
     let mut sent = 0_usize;
+    // Frames of the timed ticks: LOCAL_POSITION_NED, ATTITUDE, HEARTBEAT,
+    // SYS_STATUS.
+    let mut frames = [0_u32; 4];
     let mut stage = Stage::new("mavlink_tick");
     let mut written = 0_usize;
     let mut dropped = 0_u32;
@@ -125,6 +154,7 @@ pub(super) fn bench_mavlink(cal: Calibration) {
         let (counts, (n, d, s)) = timed(&k, |&k| mavlink_tick(run, store, k, rx, &mut room, ring));
         if k >= WARM_UP_TICKS {
             stage.record(counts);
+            count_frames(room.get(..n).unwrap_or(&[]), &mut frames);
         }
         written += n;
         dropped += d;
@@ -139,6 +169,16 @@ pub(super) fn bench_mavlink(cal: Calibration) {
     }
     if sent != written || ring.counters().ring_full != 0 {
         fail("MAVLink bench: a byte written not queued and sent");
+    }
+    let telemetry = SAMPLES as u32 * PERIOD_MS / TELEMETRY_PERIOD_MS;
+    let status = SAMPLES as u32 * PERIOD_MS / 1_000;
+    let near = |n: u32, expected: u32| n.abs_diff(expected) <= 1;
+    if !(near(frames[0], telemetry)
+        && near(frames[1], telemetry)
+        && near(frames[2], status)
+        && near(frames[3], status))
+    {
+        fail("MAVLink bench: the timed ticks' frames are not at their rates");
     }
     stage.report(cal);
 }
