@@ -380,8 +380,9 @@ const MAVLINK_BAUD: u32 = 115_200;
 /// Bytes of the MAVLink receive ring: 44 ms of line at 115 200 Bd.
 const MAVLINK_RING_BYTES: usize = 512;
 /// Bytes of the MAVLink transmit ring: 89 ms of line at 115 200 Bd, the
-/// endpoint's room for a tick's frames (a full `PARAM_VALUE` burst or a
-/// mission download's items; 10 Hz telemetry is about 12 B a tick).
+/// endpoint's room for a tick's frames (a full `PARAM_VALUE` burst at a
+/// `PARAM_REQUEST_LIST`; the default 5 Hz telemetry without a geodetic
+/// origin is about 4 B a tick, 10 Hz about 8.6 B).
 const MAVLINK_TX_RING_BYTES: usize = 1_024;
 /// The longest time between two reads of a ring that loses no byte, at
 /// each line's full rate: 40 ms, four control periods of 10 ms (a tick
