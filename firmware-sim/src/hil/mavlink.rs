@@ -31,10 +31,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{bail, ensure};
 use wmr_link::{
     MAVLINK_CHUNK_BYTES, MAVLINK_RX_QUEUE_BYTES, MAVLINK_TX_QUEUE_BYTES, MavlinkChunk,
-    MavlinkCounters, MavlinkIn,
+    MavlinkCounters, MavlinkIn, MavlinkOut,
 };
 
-use super::qemu::QemuTarget;
 use crate::report::mavlink_bridge::MavlinkBridgeReport;
 use crate::simulation::MavlinkLog;
 use crate::udp::{LinkCounters, MavlinkAddress, Pace, UdpLink};
@@ -153,12 +152,18 @@ impl Bridge {
             .is_some_and(|stop| stop.load(Ordering::Relaxed))
     }
 
-    /// The exchange before tick `tick` (module documentation).
+    /// The exchange before tick `tick` (module documentation), each
+    /// message sent to the firmware by `exchange` (the target's
+    /// `mavlink_exchange`), which returns its answer.
     ///
     /// # Errors
-    /// A socket error, or the firmware answering anything but the
-    /// channel's answer to the message sent.
-    pub(super) fn before_tick(&mut self, target: &mut QemuTarget, tick: u32) -> anyhow::Result<()> {
+    /// A socket error, `exchange`'s error, or the firmware answering a
+    /// message other than the one sent.
+    pub(super) fn before_tick(
+        &mut self,
+        mut exchange: impl FnMut(&MavlinkIn) -> anyhow::Result<MavlinkOut>,
+        tick: u32,
+    ) -> anyhow::Result<()> {
         let pace = self.pace.get_or_insert_with(|| Pace::new(self.speedup));
         pace.wait_for(f64::from(tick) * self.period_s);
         self.ticks = tick.saturating_add(1);
@@ -187,7 +192,7 @@ impl Bridge {
                 bytes: MavlinkChunk::from_slice(&bytes),
             };
             self.seq = self.seq.wrapping_add(1);
-            let answer = target.mavlink_exchange(&message)?;
+            let answer = exchange(&message)?;
             ensure!(
                 answer.seq == message.seq,
                 "the firmware answered MAVLink message {} to message {}",

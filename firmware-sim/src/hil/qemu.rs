@@ -700,7 +700,7 @@ impl TargetLink for QemuTarget {
             return self.faulty_tick(input);
         }
         if let Some(mut bridge) = self.bridge.take() {
-            let bridged = bridge.before_tick(self, input.tick);
+            let bridged = bridge.before_tick(|m| self.mavlink_exchange(m), input.tick);
             self.bridge = Some(bridge);
             bridged?;
         }

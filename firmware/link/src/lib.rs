@@ -142,6 +142,7 @@ pub mod image;
 pub mod mavlink_run;
 pub mod period_clock;
 pub mod proxy;
+pub mod route_store;
 pub mod rx_ring;
 pub mod session;
 pub mod telemetry;

@@ -27,7 +27,7 @@ use wmr_mavlink::{
     EndpointConfig, Estimate, Events, FollowerAction, MavlinkEndpoint, MissionRunner, TxBuffer,
 };
 
-use crate::session::RouteStore;
+use crate::route_store::RouteStore;
 
 /// A route run's MAVLink side (module documentation): the endpoint, the
 /// mission runner and where an uploaded mission is written for its check,
@@ -246,7 +246,7 @@ fn check_mission(route: &Waypoints) -> Result<(), RouteError> {
 mod tests {
     use super::{MavlinkRun, tick_ms};
     use crate::RouteSpec;
-    use crate::session::RouteStore;
+    use crate::route_store::RouteStore;
     use wmr_core::pilot::route::{RouteOptionsSpec, RouteStart};
     use wmr_core::reference::route::Waypoint;
     use wmr_mavlink::{EndpointConfig, EndpointSpec};

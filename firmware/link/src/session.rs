@@ -30,16 +30,14 @@ use wmr_core::devices::{MotorDriver, MotorWiring, TagGrid, TagId, TagLocator, Ta
 use wmr_core::geometry::Vec2;
 use wmr_core::pilot::Pilot;
 use wmr_core::pilot::robot::Robot;
-use wmr_core::pilot::route::{RouteFollower, RouteOptions, RouteStart, RouteStatus};
+use wmr_core::pilot::route::{RouteFollower, RouteStart, RouteStatus};
 use wmr_core::pilot::spec::SpecError;
-use wmr_core::reference::route::{
-    ROUTE_CAPACITY, RouteLimits, RouteLimitsSpec, RoutePlan, Waypoint, Waypoints,
-};
+use wmr_core::reference::route::{RouteLimits, RouteLimitsSpec};
 use wmr_mavlink::EndpointConfig;
 
 use crate::mavlink_run::{self, MavlinkRun};
 use crate::proxy::{ProxyBus, ProxyEncoder, ProxyPin, ProxyPwm, ProxyUart, Side};
-use crate::route::CAPACITY_U8;
+pub use crate::route_store::RouteStore;
 use crate::{
     Configure, Diagnostics, Finished, FloorSpec, HostMessage, LinkCounters, MAP_CAPACITY, MapChunk,
     MapRefusal, MavlinkCounters, MavlinkOut, MavlinkQueues, MotorOutput, PROTOCOL_VERSION, Refusal,
@@ -91,145 +89,6 @@ impl MapLoad {
         } else {
             TargetMessage::MapLoaded { tags: self.loaded }
         }
-    }
-}
-
-/// Where a session's route lives (24.3 KB: keep it in a `static`): the
-/// waypoints as they arrive, and one slot that holds either a scratch plan
-/// (while a route is checked) or the follower the robot follows it with.
-/// The check needs the plan only until the follower exists, so both share
-/// the slot: the store is a plan smaller than a plan and a follower side
-/// by side.
-#[derive(Debug, Clone)]
-pub struct RouteStore {
-    /// The route's waypoints, loaded in place chunk by chunk.
-    waypoints: Waypoints,
-    /// The options of the route being loaded (its follower's).
-    options: RouteOptions,
-    /// The scratch plan or the follower.
-    slot: Slot,
-}
-
-/// A [`RouteStore`]'s shared storage.
-#[derive(Debug, Clone)]
-// Both variants are about 20 KB, on purpose: one holds the other's place.
-#[allow(clippy::large_enum_variant)]
-enum Slot {
-    /// Where a loaded route is planned once, to check it whole before the
-    /// follower takes it (the follower plans it again, in its own plan,
-    /// when it starts).
-    Plan(RoutePlan),
-    /// The follower of the last route checked.
-    Follower(RouteFollower),
-}
-
-impl Default for RouteStore {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl RouteStore {
-    /// Empty: no waypoints, an empty plan, no follower.
-    #[must_use]
-    pub fn new() -> Self {
-        Self {
-            waypoints: Waypoints::new(),
-            options: RouteOptions::default(),
-            slot: Slot::Plan(RoutePlan::empty()),
-        }
-    }
-
-    /// The follower of the last route loaded (`None` before one, or while
-    /// one is checked).
-    #[must_use]
-    pub fn follower(&self) -> Option<&RouteFollower> {
-        match &self.slot {
-            Slot::Follower(f) => Some(f),
-            Slot::Plan(_) => None,
-        }
-    }
-
-    /// The follower, to lend the robot's tick ([`Robot::tick_on`]).
-    pub fn follower_mut(&mut self) -> Option<&mut RouteFollower> {
-        match &mut self.slot {
-            Slot::Follower(f) => Some(f),
-            Slot::Plan(_) => None,
-        }
-    }
-
-    /// Starts loading the route `spec` announces: checks its count (2 to
-    /// [`ROUTE_CAPACITY`]), its limits (`RouteLimits::new`) and its
-    /// options (`RouteOptions::new`) and empties the waypoints. Returns
-    /// the validated limits, for [`Self::finish`].
-    ///
-    /// # Errors
-    /// [`RouteRefusal::Size`], [`RouteRefusal::Limits`],
-    /// [`RouteRefusal::Options`]; nothing is changed then.
-    pub fn begin(&mut self, spec: &RouteSpec) -> Result<RouteLimits, RouteRefusal> {
-        if spec.waypoints < 2 || usize::from(spec.waypoints) > ROUTE_CAPACITY {
-            return Err(RouteRefusal::Size {
-                waypoints: spec.waypoints,
-                capacity: CAPACITY_U8,
-            });
-        }
-        let limits = RouteLimits::new(&spec.limits).map_err(RouteRefusal::Limits)?;
-        self.options = spec.options.build().map_err(RouteRefusal::Options)?;
-        self.waypoints = Waypoints::new();
-        Ok(limits)
-    }
-
-    /// Appends a waypoint of the route being loaded, in place.
-    ///
-    /// # Errors
-    /// [`RouteRefusal::Route`] with `TooManyWaypoints` past
-    /// [`ROUTE_CAPACITY`].
-    pub fn push(&mut self, waypoint: Waypoint) -> Result<(), RouteRefusal> {
-        self.waypoints.push(waypoint).map_err(RouteRefusal::Route)
-    }
-
-    /// Makes the follower a fresh one with no route, in place (the robot
-    /// holds where it is); nothing before a follower exists.
-    pub fn reset_follower(&mut self) {
-        let options = self.options;
-        if let Slot::Follower(f) = &mut self.slot {
-            *f = RouteFollower::new(options);
-        }
-    }
-
-    /// The waypoints loaded so far.
-    #[must_use]
-    pub fn waypoints(&self) -> &Waypoints {
-        &self.waypoints
-    }
-
-    /// Ends loading: plans the waypoints once under `limits` at the
-    /// control period `period_s` (`RoutePlan::replan`, in the slot) to
-    /// check them whole, then makes the slot a new follower (with the
-    /// options [`Self::begin`] checked) and loads them into it, to start
-    /// as `start` says.
-    ///
-    /// # Errors
-    /// [`RouteRefusal::Route`]: the planner's refusal, naming the waypoint
-    /// and its key; there is then no follower.
-    pub fn finish(
-        &mut self,
-        limits: &RouteLimits,
-        start: RouteStart,
-        period_s: f32,
-    ) -> Result<(), RouteRefusal> {
-        if let Slot::Follower(_) = self.slot {
-            self.slot = Slot::Plan(RoutePlan::empty());
-        }
-        if let Slot::Plan(plan) = &mut self.slot {
-            plan.replan(self.waypoints.as_slice(), limits, period_s)
-                .map_err(RouteRefusal::Route)?;
-        }
-        self.slot = Slot::Follower(RouteFollower::new(self.options));
-        if let Slot::Follower(follower) = &mut self.slot {
-            follower.load(&self.waypoints, limits, start);
-        }
-        Ok(())
     }
 }
 
@@ -847,12 +706,13 @@ mod tests {
     use wmr_core::devices::TagMapError;
     use wmr_core::devices::encode_frame;
     use wmr_core::devices::tag_grid::TagGridSpec;
-    use wmr_core::pilot::route::{RouteCounters, RouteOptionsError};
+    use wmr_core::pilot::route::{RouteCounters, RouteOptions, RouteOptionsError};
     use wmr_core::pilot::spec::{PilotSpec, TrackerSpec};
     use wmr_core::pilot::tracker::TrackerMode;
     use wmr_core::reference::TrajectorySpec;
     use wmr_core::reference::route::{
-        LimitKey, RouteError, RouteLimitsError, RouteLimitsSpec, Waypoint, WaypointKey,
+        LimitKey, ROUTE_CAPACITY, RouteError, RouteLimitsError, RouteLimitsSpec, Waypoint,
+        WaypointKey, Waypoints,
     };
 
     /// The grid of [`configure`]: 21 × 21 tags 0.1 m apart around the
@@ -1404,12 +1264,12 @@ mod tests {
             answer(&mut s, &first),
             TargetMessage::RouteLoaded { waypoints: k }
         );
-        assert_eq!(s.route.waypoints.len(), ROUTE_CHUNK_WAYPOINTS);
+        assert_eq!(s.route.waypoints().len(), ROUTE_CHUNK_WAYPOINTS);
         let last = route_chunk(k, &ws[ROUTE_CHUNK_WAYPOINTS..]);
         assert_eq!(answer(&mut s, &last), TargetMessage::Configured);
         assert_eq!(answer(&mut s, &last), TargetMessage::Configured);
         assert!(s.is_configured());
-        assert_eq!(s.route.waypoints.as_slice(), &ws[..]);
+        assert_eq!(s.route.waypoints().as_slice(), &ws[..]);
         assert_eq!(s.route_status().map(|r| r.pending), Some(true));
 
         // The fix at (0, 0), the first waypoint, every tick.
@@ -1802,7 +1662,7 @@ mod tests {
             let n = u8::try_from(i * ROUTE_CHUNK_WAYPOINTS).unwrap();
             assert_eq!(*a, TargetMessage::RouteLoaded { waypoints: n });
         }
-        assert_eq!(s.route.waypoints, ws);
+        assert_eq!(*s.route.waypoints(), ws);
         assert!(s.is_configured());
     }
 }
