@@ -481,7 +481,13 @@ impl MavlinkEndpoint {
                 };
                 let last = r.min(count.saturating_sub(1));
                 for seq in first..=last {
-                    self.send(tx, &c::MISSION_ITEM_REACHED_DATA { seq });
+                    // MISSION_ITEM_REACHED: seq u16.
+                    self.send_raw(
+                        tx,
+                        c::MISSION_ITEM_REACHED_DATA::ID,
+                        c::MISSION_ITEM_REACHED_DATA::EXTRA_CRC,
+                        &seq.to_le_bytes(),
+                    );
                 }
                 self.last_reached = Some(r);
             }
@@ -520,8 +526,17 @@ impl MavlinkEndpoint {
     #[inline(never)]
     pub(crate) fn send<D: MessageData>(&mut self, tx: &mut TxBuffer<'_>, msg: &D) {
         let mut payload = [0u8; MAX_PAYLOAD];
-        let n = msg.ser(mavlink::MavlinkVersion::V2, &mut payload);
-        self.send_raw(tx, D::ID, D::EXTRA_CRC, payload.get(..n).unwrap_or(&[]));
+        // The whole payload goes to `send_raw`, which cuts its trailing
+        // zeros: the length `ser` returns is that same cut, unrolled a
+        // byte at a time in each message's copy of this function (about
+        // 200 bytes of flash each), so it is not used.
+        let _ = msg.ser(mavlink::MavlinkVersion::V2, &mut payload);
+        self.send_raw(
+            tx,
+            D::ID,
+            D::EXTRA_CRC,
+            payload.get(..D::ENCODED_LEN).unwrap_or(&payload),
+        );
     }
 
     /// Sends a payload already serialised (its trailing zeros cut, as

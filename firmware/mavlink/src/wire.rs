@@ -78,6 +78,32 @@ pub fn crc_extra(msg_id: u32) -> Option<u8> {
         .map(|(_, extra)| *extra)
 }
 
+/// The MAVLink checksum (CRC-16/MCRF4XX, the X.25 CRC) of `data`
+/// followed by the message's `extra` byte ([`crc_extra`]).
+///
+/// Computed a byte at a time without a table, as MAVLink's C library
+/// (`crc_accumulate`) does: the library's table-driven CRC links a
+/// 512-byte table for the few dozen bytes of a frame.
+// Out of line: the parser's and the writer's copies of its loop cost
+// flash.
+#[must_use]
+#[inline(never)]
+pub fn crc(data: &[u8], extra: u8) -> u16 {
+    let mut crc = 0xFFFF;
+    for &byte in data {
+        crc = crc_accumulate(crc, byte);
+    }
+    crc_accumulate(crc, extra)
+}
+
+/// One byte into the X.25 CRC (MAVLink's `crc_accumulate`).
+fn crc_accumulate(crc: u16, byte: u8) -> u16 {
+    let tmp = byte ^ (crc as u8);
+    let tmp = tmp ^ (tmp << 4);
+    let tmp = u16::from(tmp);
+    (crc >> 8) ^ (tmp << 8) ^ (tmp << 3) ^ (tmp >> 4)
+}
+
 /// Counts of what the parser dropped.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct RxCounters {
@@ -233,7 +259,7 @@ impl Parser {
             };
             let body_end = header + payload_len;
             let body = self.buf.get(1..body_end).unwrap_or(&[]);
-            let crc = mavlink::calculate_crc(body, extra);
+            let crc = crc(body, extra);
             let got = u16::from_le_bytes([self.at(body_end), self.at(body_end + 1)]);
             if crc != got {
                 counters.crc_errors = counters.crc_errors.wrapping_add(1);
@@ -349,7 +375,7 @@ impl<'a> TxBuffer<'a> {
         ) {
             d.copy_from_slice(s);
         }
-        let crc = mavlink::calculate_crc(frame.get(1..V2_HEADER + n).unwrap_or(&[]), extra);
+        let crc = crc(frame.get(1..V2_HEADER + n).unwrap_or(&[]), extra);
         if let Some(c) = frame.get_mut(V2_HEADER + n..total) {
             c.copy_from_slice(&crc.to_le_bytes());
         }
@@ -358,5 +384,34 @@ impl<'a> TxBuffer<'a> {
         }
         self.len += total;
         true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{RECEIVED, crc};
+
+    /// The table-free CRC is the library's (`mavlink::calculate_crc`) on
+    /// every length up to a full frame and every received message's
+    /// extra byte.
+    #[test]
+    fn the_crc_is_the_librarys() {
+        let mut data = [0u8; 300];
+        for (i, b) in (0_u32..).zip(data.iter_mut()) {
+            *b = (i.wrapping_mul(2_654_435_761) >> 13) as u8;
+        }
+        for len in 0..data.len() {
+            for &(_, extra) in &RECEIVED {
+                assert_eq!(
+                    crc(&data[..len], extra),
+                    mavlink::calculate_crc(&data[..len], extra),
+                    "{len} bytes, extra {extra}"
+                );
+            }
+        }
+        assert_eq!(
+            crc(b"123456789", 0),
+            mavlink::calculate_crc(b"123456789", 0)
+        );
     }
 }
