@@ -26,8 +26,9 @@ const IFLAG_SIGNED: u8 = 0x01;
 /// Largest frame: a signed MAVLink 2 frame with a full payload.
 const MAX_FRAME: usize = V2_HEADER + MAX_PAYLOAD + 2 + SIGNATURE;
 
-/// Messages received, with their `CRC_EXTRA`.
-const RECEIVED: [(u32, u8); 15] = [
+/// Messages received, with their `CRC_EXTRA`: ids and extras as bytes
+/// ([`pack`]: every id is below 256), 30 bytes of flash rather than 120.
+const RECEIVED: [(u8, u8); 15] = pack([
     (c::HEARTBEAT_DATA::ID, c::HEARTBEAT_DATA::EXTRA_CRC),
     (c::MISSION_COUNT_DATA::ID, c::MISSION_COUNT_DATA::EXTRA_CRC),
     (
@@ -67,11 +68,26 @@ const RECEIVED: [(u32, u8); 15] = [
         c::PARAM_REQUEST_READ_DATA::EXTRA_CRC,
     ),
     (c::PARAM_SET_DATA::ID, c::PARAM_SET_DATA::EXTRA_CRC),
-];
+]);
+
+/// The received messages' table with each id as a byte; a message id
+/// past 255 fails the build.
+const fn pack<const N: usize>(full: [(u32, u8); N]) -> [(u8, u8); N] {
+    let mut out = [(0, 0); N];
+    let mut i = 0;
+    while i < N {
+        let (id, extra) = full[i];
+        assert!(id <= 0xFF, "a received message id past 255: widen RECEIVED");
+        out[i] = (id as u8, extra);
+        i += 1;
+    }
+    out
+}
 
 /// The `CRC_EXTRA` of a message the endpoint handles, `None` for others.
 #[must_use]
 pub fn crc_extra(msg_id: u32) -> Option<u8> {
+    let msg_id = u8::try_from(msg_id).ok()?;
     RECEIVED
         .iter()
         .find(|(id, _)| *id == msg_id)
@@ -360,27 +376,28 @@ impl<'a> TxBuffer<'a> {
             self.dropped = self.dropped.wrapping_add(1);
             return false;
         };
-        let mut frame = [0u8; V2_HEADER + MAX_PAYLOAD + 2];
+        // Written in place: header, payload (a payload cut to nothing is
+        // one zero byte), CRC.
         let id = msg_id.to_le_bytes();
         let head = [
             V2_STX, n as u8, 0, 0, header[0], header[1], header[2], id[0], id[1], id[2],
         ];
-        if let Some(h) = frame.get_mut(..V2_HEADER) {
+        if let Some(h) = out.get_mut(..V2_HEADER) {
             h.copy_from_slice(&head);
         }
         let copy = payload.len().min(n);
         if let (Some(d), Some(s)) = (
-            frame.get_mut(V2_HEADER..V2_HEADER + copy),
+            out.get_mut(V2_HEADER..V2_HEADER + copy),
             payload.get(..copy),
         ) {
             d.copy_from_slice(s);
         }
-        let crc = crc(frame.get(1..V2_HEADER + n).unwrap_or(&[]), extra);
-        if let Some(c) = frame.get_mut(V2_HEADER + n..total) {
-            c.copy_from_slice(&crc.to_le_bytes());
+        if let Some(z) = out.get_mut(V2_HEADER + copy..V2_HEADER + n) {
+            z.fill(0);
         }
-        if let Some(f) = frame.get(..total) {
-            out.copy_from_slice(f);
+        let crc = crc(out.get(1..V2_HEADER + n).unwrap_or(&[]), extra);
+        if let Some(c) = out.get_mut(V2_HEADER + n..total) {
+            c.copy_from_slice(&crc.to_le_bytes());
         }
         self.len += total;
         true
