@@ -194,6 +194,18 @@ pub(crate) struct RouteCheck<'r, F> {
 /// Heartbeat period, ms (MAVLink's 1 Hz).
 const HEARTBEAT_PERIOD_MS: u32 = 1_000;
 
+/// The `STATUSTEXT` of a mode change, by [`RobotMode`] value: NUL-padded
+/// to one width, as `STATUSTEXT` pads its text on the wire (one table
+/// of 65 bytes rather than five strings and two tables of their
+/// addresses and lengths).
+const MODE_TEXT: [[u8; 13]; 5] = [
+    *b"mode: idle\0\0\0",
+    *b"mode: running",
+    *b"mode: paused\0",
+    *b"mode: done\0\0\0",
+    *b"mode: stopped",
+];
+
 /// Whether `period_ms` has passed since `last` (or it never happened).
 pub(crate) fn due(now_ms: u32, last: Option<u32>, period_ms: u32) -> bool {
     last.is_none_or(|t| now_ms.wrapping_sub(t) >= period_ms)
@@ -436,13 +448,9 @@ impl MavlinkEndpoint {
         self.upload_timeout(now_ms, tx);
         let mode = (view.armed, view.mode);
         if self.last_mode.is_some_and(|m| m != mode) {
-            let text: &[u8] = match view.mode {
-                RobotMode::Idle => b"mode: idle",
-                RobotMode::Running => b"mode: running",
-                RobotMode::Paused => b"mode: paused",
-                RobotMode::Done => b"mode: done",
-                RobotMode::Stopped => b"mode: stopped",
-            };
+            let text = MODE_TEXT
+                .get(view.mode as usize)
+                .map_or(&[][..], |t| &t[..]);
             self.status_text(tx, c::MavSeverity::MAV_SEVERITY_NOTICE, text);
         }
         let heartbeat_due = due(now_ms, self.last_heartbeat_ms, HEARTBEAT_PERIOD_MS);
@@ -481,7 +489,13 @@ impl MavlinkEndpoint {
                 };
                 let last = r.min(count.saturating_sub(1));
                 for seq in first..=last {
-                    self.send(tx, &c::MISSION_ITEM_REACHED_DATA { seq });
+                    // MISSION_ITEM_REACHED: seq u16.
+                    self.send_raw(
+                        tx,
+                        c::MISSION_ITEM_REACHED_DATA::ID,
+                        c::MISSION_ITEM_REACHED_DATA::EXTRA_CRC,
+                        &seq.to_le_bytes(),
+                    );
                 }
                 self.last_reached = Some(r);
             }
@@ -520,8 +534,17 @@ impl MavlinkEndpoint {
     #[inline(never)]
     pub(crate) fn send<D: MessageData>(&mut self, tx: &mut TxBuffer<'_>, msg: &D) {
         let mut payload = [0u8; MAX_PAYLOAD];
-        let n = msg.ser(mavlink::MavlinkVersion::V2, &mut payload);
-        self.send_raw(tx, D::ID, D::EXTRA_CRC, payload.get(..n).unwrap_or(&[]));
+        // The whole payload goes to `send_raw`, which cuts its trailing
+        // zeros: the length `ser` returns is that same cut, unrolled a
+        // byte at a time in each message's copy of this function (about
+        // 200 bytes of flash each), so it is not used.
+        let _ = msg.ser(mavlink::MavlinkVersion::V2, &mut payload);
+        self.send_raw(
+            tx,
+            D::ID,
+            D::EXTRA_CRC,
+            payload.get(..D::ENCODED_LEN).unwrap_or(&payload),
+        );
     }
 
     /// Sends a payload already serialised (its trailing zeros cut, as

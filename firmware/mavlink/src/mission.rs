@@ -46,10 +46,14 @@ pub struct Item {
 }
 
 impl Item {
+    /// A slot past the mission's length (never read). All zero bits, so
+    /// that a mission is built by clearing its memory: a slot with a NaN
+    /// yaw made the compiler keep a 1.5 KB copy of the 64 empty slots in
+    /// flash to build a mission from.
     const EMPTY: Self = Self {
-        frame: FRAME_LOCAL_NED,
+        frame: 0,
         hold_s: 0.0,
-        yaw_deg: f32::NAN,
+        yaw_deg: 0.0,
         x: 0,
         y: 0,
         z: 0.0,

@@ -17,7 +17,7 @@ use mavlink::dialects::common as c;
 use wmr_core::reference::route::{ROUTE_CAPACITY, RouteError, Waypoints};
 
 use crate::endpoint::{Event, Events, MavlinkEndpoint, RobotView, RouteCheck, Upload};
-use crate::mission::{Coord, RawItem, check_item, route_refusal};
+use crate::mission::{Coord, Item, RawItem, check_item, route_refusal};
 use crate::wire::{RxFrame, TxBuffer};
 
 use c::MavMissionResult as R;
@@ -47,6 +47,55 @@ fn frame_enum(value: u8) -> c::MavFrame {
 }
 
 const MISSION: u8 = 0;
+
+/// The payload of a downloaded item: `MISSION_ITEM_INT` (`int`) or
+/// `MISSION_ITEM`, which share their wire layout: param1..4 f32 at 0..16,
+/// x and y at 16 and 20 (i32 in 1e-4 m or 1e-7 degree, or f32 in m or
+/// degrees), z f32 at 24, seq u16 at 28, command u16 at 30, then target
+/// system, target component, frame, current and autocontinue at 32..37
+/// (`mission_type`, an extension, is 0, cut as a trailing zero). Written
+/// by that layout: the library's two encoders took twice the flash.
+fn item_payload(item: &Item, seq: u16, to: (u8, u8), current: bool, int: bool) -> [u8; 37] {
+    let (x, y) = if int {
+        (item.x.to_le_bytes(), item.y.to_le_bytes())
+    } else {
+        let scale = if item.is_global() { 1e-7 } else { 1e-4 };
+        (
+            (item.x as f32 * scale).to_le_bytes(),
+            (item.y as f32 * scale).to_le_bytes(),
+        )
+    };
+    let mut payload = [0u8; 37];
+    let fields: [(usize, [u8; 4]); 5] = [
+        (0, item.hold_s.to_le_bytes()),
+        (12, item.yaw_deg.to_le_bytes()),
+        (16, x),
+        (20, y),
+        (24, item.z.to_le_bytes()),
+    ];
+    for (at, bytes) in fields {
+        if let Some(d) = payload.get_mut(at..at + 4) {
+            d.copy_from_slice(&bytes);
+        }
+    }
+    let [s0, s1] = seq.to_le_bytes();
+    let [c0, c1] = (c::MavCmd::MAV_CMD_NAV_WAYPOINT as u16).to_le_bytes();
+    let tail = [
+        s0,
+        s1,
+        c0,
+        c1,
+        to.0,
+        to.1,
+        frame_enum(item.frame) as u8,
+        u8::from(current),
+        1,
+    ];
+    if let Some(d) = payload.get_mut(28..37) {
+        d.copy_from_slice(&tail);
+    }
+    payload
+}
 
 impl MavlinkEndpoint {
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
@@ -185,13 +234,14 @@ impl MavlinkEndpoint {
     // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]
     fn request_item(&mut self, tx: &mut TxBuffer<'_>, up: &Upload) {
-        self.send(
+        // MISSION_REQUEST_INT: seq u16, target system, target component
+        // (mission_type, an extension, 0: cut as a trailing zero).
+        let [s0, s1] = up.next.to_le_bytes();
+        self.send_raw(
             tx,
-            &c::MISSION_REQUEST_INT_DATA {
-                seq: up.next,
-                target_system: up.partner.0,
-                target_component: up.partner.1,
-            },
+            c::MISSION_REQUEST_INT_DATA::ID,
+            c::MISSION_REQUEST_INT_DATA::EXTRA_CRC,
+            &[s0, s1, up.partner.0, up.partner.1],
         );
     }
 
@@ -377,48 +427,101 @@ impl MavlinkEndpoint {
             self.refused();
             return self.mission_ack(tx, to, R::MAV_MISSION_INVALID_SEQUENCE, kind);
         };
-        let current = u8::from(seq == view.current);
-        let command = c::MavCmd::MAV_CMD_NAV_WAYPOINT;
-        let frame = frame_enum(item.frame);
-        if int {
-            self.send(
-                tx,
-                &c::MISSION_ITEM_INT_DATA {
-                    param1: item.hold_s,
-                    param4: item.yaw_deg,
-                    x: item.x,
-                    y: item.y,
-                    z: item.z,
-                    seq,
-                    command,
-                    target_system: to.0,
-                    target_component: to.1,
-                    frame,
-                    current,
-                    autocontinue: 1,
-                    ..Default::default()
-                },
-            );
+        let current = seq == view.current;
+        let (id, extra) = if int {
+            (
+                c::MISSION_ITEM_INT_DATA::ID,
+                c::MISSION_ITEM_INT_DATA::EXTRA_CRC,
+            )
         } else {
+            (c::MISSION_ITEM_DATA::ID, c::MISSION_ITEM_DATA::EXTRA_CRC)
+        };
+        self.send_raw(tx, id, extra, &item_payload(&item, seq, to, current, int));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{c, item_payload};
+    use crate::mission::Item;
+    use mavlink::MessageData;
+
+    /// The hand-written item payloads are the library's encodings of the
+    /// same items, byte for byte (the library's as long as its
+    /// `ENCODED_LEN`; the extension byte past it is 0).
+    #[test]
+    fn item_payloads_are_the_librarys_encoding() {
+        let items = [
+            Item {
+                frame: 1,
+                hold_s: 2.5,
+                yaw_deg: f32::NAN,
+                x: 12_345,
+                y: -67_890,
+                z: 0.0,
+            },
+            Item {
+                frame: 6,
+                hold_s: 0.0,
+                yaw_deg: -90.0,
+                x: 473_977_420,
+                y: 85_455_940,
+                z: 1.5,
+            },
+            Item {
+                frame: 0,
+                hold_s: 1.0,
+                yaw_deg: 10.0,
+                x: -1,
+                y: i32::MAX,
+                z: -3.0,
+            },
+        ];
+        for (k, item) in items.iter().enumerate() {
+            let seq = 7 * k as u16;
+            let (to, current) = ((255, 190), k == 1);
+            let frame = super::frame_enum(item.frame);
+            let int = c::MISSION_ITEM_INT_DATA {
+                param1: item.hold_s,
+                param4: item.yaw_deg,
+                x: item.x,
+                y: item.y,
+                z: item.z,
+                seq,
+                command: c::MavCmd::MAV_CMD_NAV_WAYPOINT,
+                target_system: to.0,
+                target_component: to.1,
+                frame,
+                current: u8::from(current),
+                autocontinue: 1,
+                ..Default::default()
+            };
             let scale = if item.is_global() { 1e-7 } else { 1e-4 };
-            self.send(
-                tx,
-                &c::MISSION_ITEM_DATA {
-                    param1: item.hold_s,
-                    param4: item.yaw_deg,
-                    x: item.x as f32 * scale,
-                    y: item.y as f32 * scale,
-                    z: item.z,
-                    seq,
-                    command,
-                    target_system: to.0,
-                    target_component: to.1,
-                    frame,
-                    current,
-                    autocontinue: 1,
-                    ..Default::default()
-                },
-            );
+            let float = c::MISSION_ITEM_DATA {
+                param1: item.hold_s,
+                param4: item.yaw_deg,
+                x: item.x as f32 * scale,
+                y: item.y as f32 * scale,
+                z: item.z,
+                seq,
+                command: c::MavCmd::MAV_CMD_NAV_WAYPOINT,
+                target_system: to.0,
+                target_component: to.1,
+                frame,
+                current: u8::from(current),
+                autocontinue: 1,
+                ..Default::default()
+            };
+            let mut lib = [0u8; 255];
+            let n = int.ser(mavlink::MavlinkVersion::V2, &mut lib);
+            let ours = item_payload(item, seq, to, current, true);
+            assert_eq!(ours[..n], lib[..n], "MISSION_ITEM_INT {k}");
+            assert!(ours[n..].iter().all(|&b| b == 0), "MISSION_ITEM_INT {k}");
+            let mut lib = [0u8; 255];
+            let n = float.ser(mavlink::MavlinkVersion::V2, &mut lib);
+            let ours = item_payload(item, seq, to, current, false);
+            assert_eq!(ours[..n], lib[..n], "MISSION_ITEM {k}");
+            assert!(ours[n..].iter().all(|&b| b == 0), "MISSION_ITEM {k}");
         }
     }
 }

@@ -26,8 +26,9 @@ const IFLAG_SIGNED: u8 = 0x01;
 /// Largest frame: a signed MAVLink 2 frame with a full payload.
 const MAX_FRAME: usize = V2_HEADER + MAX_PAYLOAD + 2 + SIGNATURE;
 
-/// Messages received, with their `CRC_EXTRA`.
-const RECEIVED: [(u32, u8); 15] = [
+/// Messages received, with their `CRC_EXTRA`: ids and extras as bytes
+/// ([`pack`]: every id is below 256), 30 bytes of flash rather than 120.
+const RECEIVED: [(u8, u8); 15] = pack([
     (c::HEARTBEAT_DATA::ID, c::HEARTBEAT_DATA::EXTRA_CRC),
     (c::MISSION_COUNT_DATA::ID, c::MISSION_COUNT_DATA::EXTRA_CRC),
     (
@@ -67,15 +68,56 @@ const RECEIVED: [(u32, u8); 15] = [
         c::PARAM_REQUEST_READ_DATA::EXTRA_CRC,
     ),
     (c::PARAM_SET_DATA::ID, c::PARAM_SET_DATA::EXTRA_CRC),
-];
+]);
+
+/// The received messages' table with each id as a byte; a message id
+/// past 255 fails the build.
+const fn pack<const N: usize>(full: [(u32, u8); N]) -> [(u8, u8); N] {
+    let mut out = [(0, 0); N];
+    let mut i = 0;
+    while i < N {
+        let (id, extra) = full[i];
+        assert!(id <= 0xFF, "a received message id past 255: widen RECEIVED");
+        out[i] = (id as u8, extra);
+        i += 1;
+    }
+    out
+}
 
 /// The `CRC_EXTRA` of a message the endpoint handles, `None` for others.
 #[must_use]
 pub fn crc_extra(msg_id: u32) -> Option<u8> {
+    let msg_id = u8::try_from(msg_id).ok()?;
     RECEIVED
         .iter()
         .find(|(id, _)| *id == msg_id)
         .map(|(_, extra)| *extra)
+}
+
+/// The MAVLink checksum (CRC-16/MCRF4XX, the X.25 CRC) of `data`
+/// followed by the message's `extra` byte ([`crc_extra`]).
+///
+/// Computed a byte at a time without a table, as MAVLink's C library
+/// (`crc_accumulate`) does: the library's table-driven CRC links a
+/// 512-byte table for the few dozen bytes of a frame.
+// Out of line: the parser's and the writer's copies of its loop cost
+// flash.
+#[must_use]
+#[inline(never)]
+pub fn crc(data: &[u8], extra: u8) -> u16 {
+    let mut crc = 0xFFFF;
+    for &byte in data {
+        crc = crc_accumulate(crc, byte);
+    }
+    crc_accumulate(crc, extra)
+}
+
+/// One byte into the X.25 CRC (MAVLink's `crc_accumulate`).
+fn crc_accumulate(crc: u16, byte: u8) -> u16 {
+    let tmp = byte ^ (crc as u8);
+    let tmp = tmp ^ (tmp << 4);
+    let tmp = u16::from(tmp);
+    (crc >> 8) ^ (tmp << 8) ^ (tmp << 3) ^ (tmp >> 4)
 }
 
 /// Counts of what the parser dropped.
@@ -233,7 +275,7 @@ impl Parser {
             };
             let body_end = header + payload_len;
             let body = self.buf.get(1..body_end).unwrap_or(&[]);
-            let crc = mavlink::calculate_crc(body, extra);
+            let crc = crc(body, extra);
             let got = u16::from_le_bytes([self.at(body_end), self.at(body_end + 1)]);
             if crc != got {
                 counters.crc_errors = counters.crc_errors.wrapping_add(1);
@@ -334,29 +376,59 @@ impl<'a> TxBuffer<'a> {
             self.dropped = self.dropped.wrapping_add(1);
             return false;
         };
-        let mut frame = [0u8; V2_HEADER + MAX_PAYLOAD + 2];
+        // Written in place: header, payload (a payload cut to nothing is
+        // one zero byte), CRC.
         let id = msg_id.to_le_bytes();
         let head = [
             V2_STX, n as u8, 0, 0, header[0], header[1], header[2], id[0], id[1], id[2],
         ];
-        if let Some(h) = frame.get_mut(..V2_HEADER) {
+        if let Some(h) = out.get_mut(..V2_HEADER) {
             h.copy_from_slice(&head);
         }
         let copy = payload.len().min(n);
         if let (Some(d), Some(s)) = (
-            frame.get_mut(V2_HEADER..V2_HEADER + copy),
+            out.get_mut(V2_HEADER..V2_HEADER + copy),
             payload.get(..copy),
         ) {
             d.copy_from_slice(s);
         }
-        let crc = mavlink::calculate_crc(frame.get(1..V2_HEADER + n).unwrap_or(&[]), extra);
-        if let Some(c) = frame.get_mut(V2_HEADER + n..total) {
-            c.copy_from_slice(&crc.to_le_bytes());
+        if let Some(z) = out.get_mut(V2_HEADER + copy..V2_HEADER + n) {
+            z.fill(0);
         }
-        if let Some(f) = frame.get(..total) {
-            out.copy_from_slice(f);
+        let crc = crc(out.get(1..V2_HEADER + n).unwrap_or(&[]), extra);
+        if let Some(c) = out.get_mut(V2_HEADER + n..total) {
+            c.copy_from_slice(&crc.to_le_bytes());
         }
         self.len += total;
         true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{RECEIVED, crc};
+
+    /// The table-free CRC is the library's (`mavlink::calculate_crc`) on
+    /// every length up to a full frame and every received message's
+    /// extra byte.
+    #[test]
+    fn the_crc_is_the_librarys() {
+        let mut data = [0u8; 300];
+        for (i, b) in (0_u32..).zip(data.iter_mut()) {
+            *b = (i.wrapping_mul(2_654_435_761) >> 13) as u8;
+        }
+        for len in 0..data.len() {
+            for &(_, extra) in &RECEIVED {
+                assert_eq!(
+                    crc(&data[..len], extra),
+                    mavlink::calculate_crc(&data[..len], extra),
+                    "{len} bytes, extra {extra}"
+                );
+            }
+        }
+        assert_eq!(
+            crc(b"123456789", 0),
+            mavlink::calculate_crc(b"123456789", 0)
+        );
     }
 }
