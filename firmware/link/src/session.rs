@@ -103,6 +103,8 @@ struct RouteLoad {
     limits: RouteLimits,
     /// Where it starts.
     start: RouteStart,
+    /// Its MAVLink endpoint and power-on (checked at the announcement).
+    mavlink: crate::MavlinkSettings,
 }
 
 impl RouteLoad {
@@ -569,6 +571,7 @@ impl<'a> Session<'a> {
             loaded: 0,
             limits,
             start: spec.start,
+            mavlink: spec.mavlink,
         });
         TargetMessage::RouteLoaded { waypoints: 0 }
     }
@@ -644,8 +647,10 @@ impl<'a> Session<'a> {
         self.route.finish(&load.limits, load.start, period_s)?;
         let load = *load;
         if let Some(mav) = self.mav.as_deref_mut() {
-            mav.run
-                .activate(self.route.waypoints(), load.start, load.limits, period_s);
+            // The settings were checked at the announcement: activated.
+            let _ = mav
+                .run
+                .activate(self.route, load.start, load.limits, period_s, &load.mavlink);
         }
         Ok(TargetMessage::Configured)
     }
@@ -1200,6 +1205,7 @@ mod tests {
             limits: LIMITS,
             options: RouteOptions::default().spec(),
             start: RouteStart::AsGiven,
+            mavlink: crate::MavlinkSettings::default(),
         })
     }
 
@@ -1648,6 +1654,7 @@ mod tests {
             LIMITS,
             &RouteOptions::default(),
             RouteStart::FromFirstFix,
+            crate::MavlinkSettings::default(),
         )
         .collect();
         assert_eq!(
