@@ -647,18 +647,20 @@ pub fn run() -> ! {
             let period_s = pilot.tracker().config().clock().period_s();
             match image_route.load_into(store, period_s) {
                 Ok(limits) => {
-                    mav = mavlink_port(limits);
+                    mav = mavlink_port(limits, &image_route.spec.mavlink);
                     if mav.is_none() {
                         defmt::error!(
                             "no MAVLink endpoint: the route runs without a ground station link (its bytes counted and dropped)"
                         );
                     }
                     if let Some(mav) = mav.as_deref_mut() {
-                        mav.run.activate(
-                            store.waypoints(),
+                        // The settings passed the image route's load: on.
+                        let _ = mav.run.activate(
+                            store,
                             image_route.spec.start,
                             limits,
                             period_s,
+                            &image_route.spec.mavlink,
                         );
                     }
                     Some(store)
@@ -901,19 +903,19 @@ impl MavlinkPort {
 }
 
 /// The MAVLink side of a route run, in a static, its parameters starting
-/// from the route's `limits` (`None`: the endpoint's configuration
-/// refused, impossible for the default one, or the static already taken).
-/// The endpoint's settings are `EndpointSpec::default()`, as on the QEMU
-/// board (the robot image carries none yet). Not inlined: what building
+/// from the route's `limits`, its endpoint configured by the robot
+/// image's route (`settings`: the robot file's `[mavlink]`, checked when
+/// the route was loaded). `None`: the settings refused (the load refuses
+/// them first) or the static already taken. Not inlined: what building
 /// it puts on the stack is gone before the loop runs.
 #[cfg(wmr_robot_image)]
 #[inline(never)]
 fn mavlink_port(
     limits: wmr_core::reference::route::RouteLimits,
+    settings: &wmr_link::MavlinkSettings,
 ) -> Option<&'static mut MavlinkPort> {
     use wmr_link::mavlink_run::MavlinkRun;
-    use wmr_mavlink::{EndpointConfig, EndpointSpec};
-    let Ok(config) = EndpointConfig::new(&EndpointSpec::default()) else {
+    let Ok(config) = settings.config() else {
         return None;
     };
     cortex_m::singleton!(: MavlinkPort = MavlinkPort {
