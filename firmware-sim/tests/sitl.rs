@@ -450,7 +450,7 @@ fn a_pause_holds_mid_leg_and_a_continue_finishes_the_mission() {
 #[test]
 fn pymavlink_ground_station_against_the_sitl() {
     let (passed, skipped) = gcs::gcs_check(&["--speedup", "50"]);
-    assert!(passed >= 29, "only {passed} checks ran");
+    assert!(passed >= 31, "only {passed} checks ran");
     assert_eq!(skipped, 0, "the SITL has every feature the script checks");
 }
 

@@ -183,7 +183,7 @@ impl MavlinkSpec {
             if deg.is_finite() && v.abs() <= f64::from(i32::MAX) {
                 Ok(v as i32)
             } else {
-                Err(refused(key, deg.to_string()))
+                Err(refused(key, format!("{deg:?}")))
             }
         };
         let origin_e7 = match self.origin {
@@ -206,8 +206,8 @@ impl MavlinkSpec {
         settings.config().map_err(|e| {
             let key = e_key(&e);
             let value = match (key, self.origin) {
-                (ConfigKey::OriginLatitude, Some(o)) => o.latitude_deg.to_string(),
-                (ConfigKey::OriginLongitude, Some(o)) => o.longitude_deg.to_string(),
+                (ConfigKey::OriginLatitude, Some(o)) => format!("{:?}", o.latitude_deg),
+                (ConfigKey::OriginLongitude, Some(o)) => format!("{:?}", o.longitude_deg),
                 _ => match e {
                     wmr_link::RouteRefusal::Endpoint(r) => r.value.to_string(),
                     _ => String::new(),
@@ -224,5 +224,167 @@ fn e_key(e: &wmr_link::RouteRefusal) -> ConfigKey {
     match e {
         wmr_link::RouteRefusal::Endpoint(r) => r.key(),
         _ => ConfigKey::SystemId,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::scenario::robot::Robot;
+    use crate::scenario::{ReferenceSpec, Scenario, ScenarioError};
+    use wmr_link::PowerOn;
+
+    /// The robot file `robots/route_loop.toml` with its own `[mavlink]`
+    /// table replaced by `table`.
+    fn robot_with(table: &str) -> Result<Robot, ScenarioError> {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots");
+        let file = std::fs::read_to_string(dir.join("route_loop.toml")).unwrap();
+        let own = file.find("\n[mavlink]").unwrap_or(file.len());
+        let text = format!("{}\n{table}", &file[..own]);
+        let file = tempfile::Builder::new()
+            .suffix(".toml")
+            .tempfile_in(&dir)
+            .unwrap();
+        std::fs::write(file.path(), text).unwrap();
+        Robot::from_file(file.path())
+    }
+
+    /// The robot's route as a scenario validates it (what the SITL and
+    /// the HIL link use, and the flash image holds).
+    fn settings_of(robot: &Robot) -> Result<wmr_link::MavlinkSettings, ScenarioError> {
+        let Some(reference @ ReferenceSpec::Route(_)) = robot.file.reference.clone() else {
+            panic!("a route robot")
+        };
+        let setup = robot
+            .scenario(reference, 10.0)
+            .validate()
+            .map_err(|e| robot.name_in(e))?;
+        Ok(setup.route.unwrap().mavlink)
+    }
+
+    #[test]
+    fn a_robot_files_mavlink_table_is_read_and_defaults_when_absent() {
+        let plain = robot_with("").unwrap();
+        assert_eq!(
+            settings_of(&plain).unwrap(),
+            wmr_link::MavlinkSettings::default()
+        );
+        let robot = robot_with(
+            "\n[mavlink]\nsystem_id = 7\ncomponent_id = 2\nlink_timeout_ms = 5000\n\
+             item_timeout_ms = 500\nitem_retries = 3\ntelemetry_period_ms = 100\n\
+             power_on = \"wait\"\n[mavlink.origin]\nlatitude_deg = 47.397742\n\
+             longitude_deg = -8.545594\n",
+        )
+        .unwrap();
+        let s = settings_of(&robot).unwrap();
+        assert_eq!(
+            (
+                s.system_id,
+                s.component_id,
+                s.link_timeout_ms,
+                s.item_timeout_ms
+            ),
+            (7, 2, 5000, 500)
+        );
+        assert_eq!((s.item_retries, s.telemetry_period_ms), (3, 100));
+        assert_eq!(s.origin_e7, Some([473_977_420, -85_455_940]));
+        assert_eq!(s.power_on, PowerOn::Wait);
+        // The flash image carries them with the route.
+        let image = robot.flash_image().unwrap();
+        let decoded = wmr_link::image::decode(&image.bytes).unwrap();
+        assert_eq!(decoded.route.unwrap().spec.mavlink, s);
+    }
+
+    #[test]
+    fn bad_mavlink_keys_and_values_are_refused_by_name() {
+        // An unknown key: refused by the parser, named.
+        let e = robot_with("\n[mavlink]\nsystem = 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("system"), "{e}");
+        let e = robot_with(
+            "\n[mavlink.origin]\nlatitude_deg = 1.0\nlongitude_deg = 2.0\naltitude_m = 3.0\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("altitude_m"), "{e}");
+        let e = robot_with("\n[mavlink]\npower_on = \"later\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("later"), "{e}");
+        // Values out of range: named with the value, in the robot file.
+        for (table, key, value) in [
+            ("system_id = 0", "mavlink.system_id", "got 0"),
+            ("system_id = 256", "mavlink.system_id", "got 256"),
+            ("component_id = 0", "mavlink.component_id", "got 0"),
+            ("link_timeout_ms = 99", "mavlink.link_timeout_ms", "got 99"),
+            (
+                "item_timeout_ms = 70000",
+                "mavlink.item_timeout_ms",
+                "got 70000",
+            ),
+            ("item_retries = 21", "mavlink.item_retries", "got 21"),
+            (
+                "telemetry_period_ms = 10",
+                "mavlink.telemetry_period_ms",
+                "got 10",
+            ),
+            (
+                "telemetry_period_ms = 5000000000",
+                "mavlink.telemetry_period_ms",
+                "got 5000000000",
+            ),
+            (
+                "origin = { latitude_deg = 86.0, longitude_deg = 0.0 }",
+                "mavlink.origin.latitude_deg",
+                "got 86",
+            ),
+            (
+                "origin = { latitude_deg = 0.0, longitude_deg = -181.5 }",
+                "mavlink.origin.longitude_deg",
+                "got -181.5",
+            ),
+            (
+                "origin = { latitude_deg = 1e300, longitude_deg = 0.0 }",
+                "mavlink.origin.latitude_deg",
+                "got 1e300",
+            ),
+        ] {
+            let robot = robot_with(&format!("\n[mavlink]\n{table}\n")).unwrap();
+            let e = settings_of(&robot).unwrap_err();
+            let text = e.to_string();
+            assert!(
+                matches!(&e, ScenarioError::Robot { field, .. } if field == key),
+                "{table}: {text}"
+            );
+            assert!(text.contains(value), "{table}: {text}");
+            assert!(robot.flash_image().is_err(), "{table}: imaged");
+        }
+    }
+
+    /// A scenario naming a robot cannot give `[mavlink]` (the robot's);
+    /// a table where no route runs is a warning, naming it.
+    #[test]
+    fn a_scenario_naming_a_robot_takes_its_mavlink_table() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots");
+        let e = Scenario::from_toml_str_in(
+            "name = \"x\"\nduration_s = 1.0\nrobot = \"route_loop.toml\"\n\
+             [reference]\nkind = \"circle\"\nradius_m = 1.0\nrate_rad_s = 0.05\n[mavlink]\nsystem_id = 2\n",
+            Some(&dir),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("`mavlink`"), "{e}");
+        let s = Scenario::from_toml_str(
+            "name = \"x\"\nduration_s = 1.0\n[reference]\nkind = \"circle\"\nradius_m = 1.0\nrate_rad_s = 0.05\n\
+             [mavlink]\nsystem_id = 2\n",
+        )
+        .unwrap();
+        let warnings = s.warnings();
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.starts_with("mavlink: ignored without a route")),
+            "{warnings:?}"
+        );
     }
 }

@@ -16,9 +16,11 @@
 //! robot's tick is lent ([`Robot::tick_on`]).
 //!
 //! A run with a route has a MAVLink endpoint and the mission runner of
-//! `wmr-mavlink` (the crate docs, "MAVLink"): the runner starts armed and
+//! `wmr-mavlink` (the crate docs, "MAVLink"), configured by the route's
+//! announcement (`RouteSpec::mavlink`): the runner starts armed and
 //! running the loaded route (the robot drives it from its first tick, as
-//! without a ground station). At each tick, before the robot's, the
+//! without a ground station), or disarmed and idle with the route as the
+//! mission (`PowerOn::Wait`). At each tick, before the robot's, the
 //! endpoint takes the bytes the host brought since the last tick
 //! ([`MavlinkStore`]'s queues) and answers into the send queue; the glue
 //! between endpoint, runner and follower is [`crate::mavlink_run`]'s,

@@ -50,8 +50,10 @@
 //! MAVLink port transmits by interrupt"); after the robot's tick the
 //! mission runner reads the route follower. The runner starts armed and
 //! running the image's route, so without a ground station the robot
-//! drives it from power-on; a ground station heard and then
-//! silent for the link timeout (3 s) stops the robot where it is
+//! drives it from power-on (or waits disarmed: the robot file's
+//! `[mavlink] power_on = "wait"`, which the image's route carries with the
+//! endpoint's settings); a ground station heard and then
+//! silent for the link timeout (3 s by default) stops the robot where it is
 //! (`LinkLost`, a `STATUSTEXT` says so). Without a route (the
 //! compiled-in [`PILOT`], or an image without one) the port's bytes are
 //! counted and dropped.
