@@ -27,7 +27,7 @@ use wmr_mavlink::{
     EndpointConfig, Estimate, Events, FollowerAction, MavlinkEndpoint, MissionRunner, TxBuffer,
 };
 
-use crate::route::{MavlinkSettings, PowerOn};
+use crate::route::PowerOn;
 use crate::route_store::RouteStore;
 
 /// A route run's MAVLink side (module documentation): the endpoint, the
@@ -80,31 +80,25 @@ impl MavlinkRun {
     }
 
     /// A new route run on `route` (the route just loaded into the
-    /// store), in place: the endpoint reset with `settings`' configuration
-    /// and the route as its mission
+    /// store), in place: the endpoint reset with `config` (the route's
+    /// `MavlinkSettings::config`) and the route as its mission
     /// ([`MavlinkEndpoint::load_route_mission`]); the runner running the
     /// route as `start` says under `limits` ([`PowerOn::Run`]), or
     /// disarmed and idle with the route loaded, the follower holding
     /// ([`PowerOn::Wait`]); the endpoint's clock ticks `period_s` a tick.
-    /// Returns `false`, and the run stays off, if the settings are
-    /// refused (`EndpointConfig::new`; a route's are checked when it is
-    /// announced, [`RouteStore::begin`]).
     pub fn activate(
         &mut self,
         route: &mut RouteStore,
         start: RouteStart,
         limits: RouteLimits,
         period_s: f32,
-        settings: &MavlinkSettings,
-    ) -> bool {
-        let Ok(config) = settings.config() else {
-            self.active = false;
-            return false;
-        };
+        config: EndpointConfig,
+        power_on: PowerOn,
+    ) {
         self.config = config;
         self.endpoint.reset(config, limits);
         self.endpoint.load_route_mission(route.waypoints());
-        match settings.power_on {
+        match power_on {
             PowerOn::Run => self.runner.reset_running(route.waypoints(), start, limits),
             PowerOn::Wait => {
                 self.runner.reset_waiting(route.waypoints(), start, limits);
@@ -114,7 +108,6 @@ impl MavlinkRun {
         // A period of at most hours (the pilot's check): fits.
         self.period_us = (period_s * 1.0e6 + 0.5) as u32;
         self.active = true;
-        true
     }
 
     /// Ends the run's MAVLink side (no route any more).
@@ -295,7 +288,14 @@ mod tests {
         store.finish(&limits, spec.start, 0.01).unwrap();
         let config = EndpointConfig::new(&EndpointSpec::default()).unwrap();
         let mut run = Box::new(MavlinkRun::new(config, limits));
-        assert!(run.activate(&mut store, spec.start, limits, 0.01, &spec.mavlink));
+        run.activate(
+            &mut store,
+            spec.start,
+            limits,
+            0.01,
+            spec.mavlink.config().unwrap(),
+            spec.mavlink.power_on,
+        );
         (store, run)
     }
 
@@ -343,7 +343,7 @@ mod tests {
     /// disarmed and idle with the route as its mission (the endpoint's
     /// too, so a ground station reads it back and starts it), the
     /// follower holding; an arm and a start run it from item 0 as the
-    /// route's own start says. Refused settings leave the run off.
+    /// route's own start says.
     #[test]
     fn a_waiting_run_holds_until_armed_and_started() {
         use crate::{MavlinkSettings, PowerOn};
@@ -358,7 +358,14 @@ mod tests {
             power_on: PowerOn::Wait,
             ..MavlinkSettings::default()
         };
-        assert!(run.activate(&mut store, RouteStart::AsGiven, limits, 0.01, &wait));
+        run.activate(
+            &mut store,
+            RouteStart::AsGiven,
+            limits,
+            0.01,
+            wait.config().unwrap(),
+            wait.power_on,
+        );
         assert_eq!(run.runner().mode(), RobotMode::Idle);
         assert!(!run.runner().armed());
         assert_eq!(run.runner().mission(), store.waypoints());
@@ -390,13 +397,6 @@ mod tests {
         assert_eq!(run.runner().mode(), RobotMode::Running);
         assert!(run.runner().armed());
         assert!(store.follower().unwrap().status().pending);
-        // Settings the endpoint refuses: the run is off.
-        let bad = MavlinkSettings {
-            system_id: 0,
-            ..MavlinkSettings::default()
-        };
-        assert!(!run.activate(&mut store, RouteStart::AsGiven, limits, 0.01, &bad));
-        assert!(!run.is_active());
     }
 
     /// The `u32` clock agrees with the exact `u64` product over 1000,

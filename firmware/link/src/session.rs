@@ -648,11 +648,16 @@ impl<'a> Session<'a> {
             .map_or(0.0, |r| r.pilot().tracker().config().clock().period_s());
         self.route.finish(&load.limits, load.start, period_s)?;
         let load = *load;
-        if let Some(mav) = self.mav.as_deref_mut() {
-            // The settings were checked at the announcement: activated.
-            let _ = mav
-                .run
-                .activate(self.route, load.start, load.limits, period_s, &load.mavlink);
+        // The settings were checked at the announcement: configured.
+        if let (Some(mav), Ok(config)) = (self.mav.as_deref_mut(), load.mavlink.config()) {
+            mav.run.activate(
+                self.route,
+                load.start,
+                load.limits,
+                period_s,
+                config,
+                load.mavlink.power_on,
+            );
         }
         Ok(TargetMessage::Configured)
     }

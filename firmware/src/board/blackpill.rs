@@ -649,20 +649,22 @@ pub fn run() -> ! {
             let period_s = pilot.tracker().config().clock().period_s();
             match image_route.load_into(store, period_s) {
                 Ok(limits) => {
-                    mav = mavlink_port(limits, &image_route.spec.mavlink);
+                    // Checked by the load: configured.
+                    let config = image_route.spec.mavlink.config().ok();
+                    mav = config.and_then(|config| mavlink_port(limits, config));
                     if mav.is_none() {
                         defmt::error!(
                             "no MAVLink endpoint: the route runs without a ground station link (its bytes counted and dropped)"
                         );
                     }
-                    if let Some(mav) = mav.as_deref_mut() {
-                        // The settings passed the image route's load: on.
-                        let _ = mav.run.activate(
+                    if let (Some(mav), Some(config)) = (mav.as_deref_mut(), config) {
+                        mav.run.activate(
                             store,
                             image_route.spec.start,
                             limits,
                             period_s,
-                            &image_route.spec.mavlink,
+                            config,
+                            image_route.spec.mavlink.power_on,
                         );
                     }
                     Some(store)
@@ -905,21 +907,17 @@ impl MavlinkPort {
 }
 
 /// The MAVLink side of a route run, in a static, its parameters starting
-/// from the route's `limits`, its endpoint configured by the robot
-/// image's route (`settings`: the robot file's `[mavlink]`, checked when
-/// the route was loaded). `None`: the settings refused (the load refuses
-/// them first) or the static already taken. Not inlined: what building
-/// it puts on the stack is gone before the loop runs.
+/// from the route's `limits`, its endpoint configured by `config` (the
+/// robot image's route's: the robot file's `[mavlink]`). `None`: the
+/// static already taken. Not inlined: what building it puts on the stack
+/// is gone before the loop runs.
 #[cfg(wmr_robot_image)]
 #[inline(never)]
 fn mavlink_port(
     limits: wmr_core::reference::route::RouteLimits,
-    settings: &wmr_link::MavlinkSettings,
+    config: wmr_mavlink::EndpointConfig,
 ) -> Option<&'static mut MavlinkPort> {
     use wmr_link::mavlink_run::MavlinkRun;
-    let Ok(config) = settings.config() else {
-        return None;
-    };
     cortex_m::singleton!(: MavlinkPort = MavlinkPort {
         run: MavlinkRun::new(config, limits),
         rx: [0; MAVLINK_RING_BYTES],

@@ -122,9 +122,14 @@ pub(super) fn bench_mavlink(cal: Calibration) {
     let Some(run) = cortex_m::singleton!(: MavlinkRun = MavlinkRun::new(config, limits)) else {
         fail("MAVLink run already taken");
     };
-    if !run.activate(store, route.start, limits, PERIOD_S, &route.mavlink) {
-        fail("endpoint configuration refused");
-    }
+    run.activate(
+        store,
+        route.start,
+        limits,
+        PERIOD_S,
+        config,
+        route.mavlink.power_on,
+    );
 
     // A ground station's HEARTBEAT (MAV_TYPE_GCS), framed by the
     // endpoint's own encoder.
