@@ -335,8 +335,8 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
 
 /// The pymavlink ground station (`tools/gcs/gcs_check.py --hil`) against
 /// this build's `firmware-sim hil route --mavlink`, at 20x real time:
-/// every check of the SITL's list passes or is skipped by name (the
-/// global-frame mission: the QEMU firmware's endpoint has no origin).
+/// every check of the SITL's list passes, the global-frame mission too
+/// (the origin reaches the firmware with the route's announcement).
 #[test]
 fn pymavlink_ground_station_against_the_firmware_under_qemu() {
     let elf = firmware();
@@ -347,6 +347,105 @@ fn pymavlink_ground_station_against_the_firmware_under_qemu() {
         "--speedup",
         "20",
     ]);
-    assert!(passed >= 30, "only {passed} checks ran");
-    assert_eq!(skipped, 5, "the global-frame mission's five checks");
+    assert!(passed >= 34, "only {passed} checks ran");
+    assert_eq!(
+        skipped, 0,
+        "the firmware has every feature the script checks"
+    );
+}
+
+/// The ground station's address is bound before QEMU boots: an address
+/// in use is the run's first error (a file that is no firmware would
+/// otherwise fail first, after QEMU's start).
+#[test]
+fn the_ground_stations_port_is_bound_before_qemu_boots() {
+    let taken = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let port = taken.local_addr().unwrap().port();
+    let options = HilOptions {
+        firmware: Some(workspace_root().join("Cargo.toml")),
+        answer_timeout: Duration::from_secs(20),
+        telemetry_every_ticks: 0,
+        mavlink: Some(MavlinkBridgeSpec {
+            address: MavlinkAddress::parse(&format!("udpin:127.0.0.1:{port}"), false).unwrap(),
+            speedup: 5.0,
+            stop: None,
+            stops_on_signals: false,
+            announce: None,
+        }),
+        ..HilOptions::default()
+    };
+    let started = Instant::now();
+    let Err(e) = run_hil(&Scenario::embedded("route").unwrap(), &options, |_, _| {}) else {
+        panic!("a run on a port in use")
+    };
+    assert!(format!("{e:#}").contains("binding"), "{e:#}");
+    assert!(
+        started.elapsed() < Duration::from_secs(5),
+        "QEMU was waited on"
+    );
+}
+
+/// QEMU does not outlive a `firmware-sim hil` killed with SIGKILL (no
+/// clean-up runs): started through `setpriv --pdeathsig KILL` where
+/// util-linux has it, the kernel kills it with its parent.
+#[cfg(target_os = "linux")]
+#[test]
+fn qemu_dies_with_a_killed_firmware_sim() {
+    if std::process::Command::new("setpriv")
+        .arg("--version")
+        .output()
+        .is_err()
+    {
+        eprintln!("skipped: no setpriv (util-linux) on this machine");
+        return;
+    }
+    let elf = firmware();
+    let out = tempfile::tempdir().unwrap();
+    let mut sim = std::process::Command::new(env!("CARGO_BIN_EXE_firmware-sim"))
+        .args(["hil", "route", "--duration-s", "600", "--no-plot"])
+        .args(["--telemetry-every", "0", "--mavlink", "udpin:127.0.0.1:0"])
+        .arg("--firmware")
+        .arg(&elf)
+        .arg("--out")
+        .arg(out.path())
+        .stdin(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // QEMU: the child of firmware-sim (`/proc/PID/stat`: pid (comm) state ppid).
+    let stat = |pid: &str| std::fs::read_to_string(format!("/proc/{pid}/stat")).ok();
+    let parent_and_state = |text: &str| {
+        let rest = text.rsplit_once(") ")?.1;
+        let mut fields = rest.split_whitespace();
+        let state = fields.next()?.to_owned();
+        Some((fields.next()?.parse::<u32>().ok()?, state))
+    };
+    let started = Instant::now();
+    let qemu = loop {
+        let found = std::fs::read_dir("/proc").unwrap().find_map(|entry| {
+            let name = entry.ok()?.file_name().into_string().ok()?;
+            let text = stat(&name)?;
+            let (ppid, _) = parent_and_state(&text)?;
+            (ppid == sim.id() && text.contains("(qemu-system-arm)")).then_some(name)
+        });
+        if let Some(pid) = found {
+            break pid;
+        }
+        assert!(started.elapsed() < WALL_CAP, "no QEMU under firmware-sim");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    sim.kill().unwrap();
+    sim.wait().unwrap();
+    let killed = Instant::now();
+    // Gone, or a zombie not yet reaped by its new parent.
+    while let Some((_, state)) = stat(&qemu).as_deref().and_then(parent_and_state) {
+        if state == "Z" || state == "X" {
+            break;
+        }
+        assert!(
+            killed.elapsed() < Duration::from_secs(10),
+            "QEMU {qemu} still running 10 s after firmware-sim was killed"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
 }

@@ -17,10 +17,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use firmware_sim::Scenario;
+use firmware_sim::scenario::Setup;
+use firmware_sim::scenario::mavlink::{MavlinkSpec, PowerOnSpec};
 use firmware_sim::sitl::{self, MavlinkAddress, SitlOptions, SitlReport};
 use mavlink::dialects::common::*;
 use mavlink::{MavHeader, MavlinkReader, MavlinkVersion};
-use wmr_mavlink::EndpointSpec;
 
 /// A wall-clock cap on a wait: only a hung SITL reaches it (the waits
 /// themselves are in the robot's simulated time).
@@ -188,19 +189,28 @@ impl Gcs {
     }
 }
 
-/// Runs the SITL on the `route` scenario's robot in a thread; the ground
-/// station, the stop flag and the thread.
+/// The `route` scenario with `power_on` and a telemetry period of
+/// `telemetry_period_ms`.
+fn route_setup(power_on: PowerOnSpec, telemetry_period_ms: u64) -> Setup {
+    let mut scenario = Scenario::embedded("route").unwrap();
+    scenario.mavlink = Some(MavlinkSpec {
+        power_on,
+        telemetry_period_ms,
+        ..MavlinkSpec::default()
+    });
+    scenario.validate().unwrap()
+}
+
+/// Runs the SITL on the `route` scenario's robot in a thread, waiting
+/// disarmed at power-on; the ground station, the stop flag and the
+/// thread.
 fn start(speedup: f64) -> (Gcs, Arc<AtomicBool>, std::thread::JoinHandle<SitlReport>) {
     let gcs = Gcs::new();
-    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let setup = route_setup(PowerOnSpec::Wait, 100);
     let options = SitlOptions {
         address: MavlinkAddress::parse(&format!("udp:127.0.0.1:{}", gcs.port()), false).unwrap(),
         speedup,
         duration_s: Some(600.0),
-        endpoint: EndpointSpec {
-            telemetry_period_ms: 100,
-            ..EndpointSpec::default()
-        },
         keep_records: true,
     };
     let stop = Arc::new(AtomicBool::new(false));
@@ -371,7 +381,7 @@ fn a_pause_holds_mid_leg_and_a_continue_finishes_the_mission() {
     use wmr_core::reference::route::{Waypoint, Waypoints};
     use wmr_mavlink::{Event, RobotMode};
 
-    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let setup = route_setup(PowerOnSpec::Wait, 200);
     let limits = setup.route.as_ref().unwrap().limits;
     let mut robot = SitlRobot::new(&setup).unwrap();
     let mission = Waypoints::from_slice(&[
@@ -440,7 +450,7 @@ fn a_pause_holds_mid_leg_and_a_continue_finishes_the_mission() {
 #[test]
 fn pymavlink_ground_station_against_the_sitl() {
     let (passed, skipped) = gcs::gcs_check(&["--speedup", "50"]);
-    assert!(passed >= 29, "only {passed} checks ran");
+    assert!(passed >= 31, "only {passed} checks ran");
     assert_eq!(skipped, 0, "the SITL has every feature the script checks");
 }
 
@@ -452,7 +462,7 @@ fn a_mission_uploaded_while_driving_replaces_the_route_at_its_next_rest() {
     use wmr_core::reference::route::{Waypoint, Waypoints};
     use wmr_mavlink::{Event, RobotMode};
 
-    let setup = Scenario::embedded("route").unwrap().validate().unwrap();
+    let setup = route_setup(PowerOnSpec::Wait, 200);
     let limits = setup.route.as_ref().unwrap().limits;
     let mut robot = SitlRobot::new(&setup).unwrap();
     let first = Waypoints::from_slice(&[
@@ -500,5 +510,65 @@ fn a_mission_uploaded_while_driving_replaces_the_route_at_its_next_rest() {
         "ended at ({:.4}, {:.4})",
         last.x_m,
         last.y_m
+    );
+}
+
+/// Without a ground station the SITL's robot is the robot file's: with
+/// `power_on = "run"` (the default, as the firmware starts) it drives the
+/// scenario's route from power-on, tick for tick as `firmware-sim run`
+/// does; with `"wait"` it holds, disarmed and idle, the route loaded as
+/// the mission, until armed and started, then drives that route to its
+/// end.
+#[test]
+fn at_power_on_the_sitl_runs_or_waits_as_the_robot_file_says() {
+    use firmware_sim::sitl::SitlRobot;
+    use wmr_core::reference::route::Waypoints;
+    use wmr_mavlink::{Event, RobotMode};
+
+    let scenario = Scenario::embedded("route").unwrap();
+    let run = firmware_sim::run(&scenario, |_, _| {}).unwrap();
+    let setup = route_setup(PowerOnSpec::Run, 200);
+    let mut robot = SitlRobot::new(&setup).unwrap();
+    assert_eq!(
+        (robot.mode(), robot.view().armed),
+        (RobotMode::Running, true)
+    );
+    assert!(run.records.len() > 1000, "{} ticks", run.records.len());
+    for (k, expected) in run.records.iter().enumerate() {
+        let got = robot.step().unwrap();
+        assert_eq!(got, expected, "tick {k}");
+    }
+    assert_eq!(robot.mode(), RobotMode::Done, "the route's end reached");
+
+    let setup = route_setup(PowerOnSpec::Wait, 200);
+    let route = setup.route.as_ref().unwrap();
+    let mut robot = SitlRobot::new(&setup).unwrap();
+    assert_eq!((robot.mode(), robot.view().armed), (RobotMode::Idle, false));
+    let start = *robot.step().unwrap();
+    for _ in 0..500 {
+        let r = robot.step().unwrap();
+        assert_eq!((r.v_cmd_m_s, r.omega_cmd_rad_s), (0.0, 0.0));
+        assert!((r.x_m - start.x_m).hypot(r.y_m - start.y_m) < 1e-6);
+    }
+    // Arm and start: the route loaded at power-on (no upload).
+    let none = Waypoints::new();
+    for event in [Event::Arm, Event::Start] {
+        robot.apply(event, &none, route.limits);
+    }
+    assert_eq!(robot.mode(), RobotMode::Running);
+    for _ in 0..run.records.len() * 2 {
+        robot.step().unwrap();
+        if robot.mode() == RobotMode::Done {
+            break;
+        }
+    }
+    assert_eq!(robot.mode(), RobotMode::Done);
+    let last = route.waypoints.as_slice().last().unwrap().position_m;
+    let end = robot.last().unwrap();
+    assert!(
+        (end.x_m - f64::from(last.x)).hypot(end.y_m - f64::from(last.y)) < 0.02,
+        "ended at ({:.4}, {:.4})",
+        end.x_m,
+        end.y_m
     );
 }

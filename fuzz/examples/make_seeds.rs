@@ -119,6 +119,7 @@ fn main() {
         limits,
         &RouteOptions::default(),
         RouteStart::AsGiven,
+        wmr_link::MavlinkSettings::default(),
     );
     let (Some(announce), Some(chunk)) = (route.next(), route.next()) else {
         unreachable!("an announcement and a chunk")

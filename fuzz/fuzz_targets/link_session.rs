@@ -332,6 +332,28 @@ impl Harness<'_> {
                 1 => RouteStart::FromFirstFix,
                 _ => RouteStart::AsGivenHeadingKnown,
             },
+            mavlink: if plausible {
+                wmr_link::MavlinkSettings::default()
+            } else {
+                wmr_link::MavlinkSettings {
+                    system_id: u.arbitrary()?,
+                    component_id: u.arbitrary()?,
+                    link_timeout_ms: u.arbitrary()?,
+                    item_timeout_ms: u.arbitrary()?,
+                    item_retries: u.arbitrary()?,
+                    telemetry_period_ms: u.arbitrary()?,
+                    origin_e7: if u.arbitrary()? {
+                        Some([u.arbitrary()?, u.arbitrary()?])
+                    } else {
+                        None
+                    },
+                    power_on: if u.arbitrary()? {
+                        wmr_link::PowerOn::Wait
+                    } else {
+                        wmr_link::PowerOn::Run
+                    },
+                }
+            },
         }))
     }
 

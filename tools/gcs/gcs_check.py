@@ -3,7 +3,7 @@
 --hil against the firmware under QEMU (`firmware-sim hil --mavlink`).
 
 Starts the SITL (or the HIL run) on the embedded `route` scenario's robot
-at --speedup N, talks to it over UDP on loopback and checks
+at --speedup N, with the floor's origin (--origin), talks to it over UDP on loopback and checks
 (docs/mavlink.md, "The SITL" and "The firmware under QEMU"):
 
 * a route mission (MISSION_ITEM_INT, MAV_FRAME_LOCAL_NED) uploaded, read
@@ -20,14 +20,16 @@ at --speedup N, talks to it over UDP on loopback and checks
 * heartbeats stopped mid-leg: the robot reports the link lost and stops
   within the link timeout.
 
-Against the firmware under QEMU (--hil) the robot starts armed and
-driving the scenario's own route (the firmware runs its route from
-power-on), so it is paused first; the checks the firmware cannot pass for
-want of a feature are skipped by name with the reason (HIL_SKIPS), and
-three more are made: the scenario's route runs from power-on, a global
-mission is refused for want of an origin, and Ctrl-C ends the run cleanly
-with the host's copy of the firmware's session agreeing on every MAVLink
-answer and no byte dropped (the run's summary.json).
+The SITL is started with --power-on wait: it checks that the robot waits
+disarmed and idle with the scenario's route as its mission. Against the
+firmware under QEMU (--hil) the robot starts as the robot file says by
+default, armed and driving the scenario's own route, so it is paused
+first; two more checks are made: the scenario's route runs from
+power-on, and Ctrl-C ends the run cleanly with the host's copy of the
+firmware's session agreeing on every MAVLink answer and no byte dropped
+(the run's summary.json). The origin reaches the firmware with the route
+(the HIL link's route announcement), so the global-frame mission runs
+there too.
 
 Every wait is in simulated time (the robot's time_boot_ms), so the script
 does not depend on how fast the machine is; a wall-clock cap only catches a
@@ -81,19 +83,10 @@ GLOBAL_ROUTE = [
     (0.6, 0.5, 0.0, None),
 ]
 
-# The checks skipped against the firmware under QEMU, each with its reason.
-NO_ORIGIN = (
-    "the QEMU firmware's MAVLink endpoint has no geodetic origin (its "
-    "EndpointSpec is the default one: the HIL link carries no origin), so "
-    "it refuses global-frame missions (checked instead)"
-)
-HIL_SKIPS = {
-    "GLOBAL_RELATIVE_ALT_INT mission accepted": NO_ORIGIN,
-    "global mission read back equal": NO_ORIGIN,
-    "global mission: start accepted": NO_ORIGIN,
-    "global mission: every MISSION_ITEM_REACHED, in order": NO_ORIGIN,
-    "global mission: final LOCAL_POSITION_NED within 2 cm of the last waypoint": NO_ORIGIN,
-}
+# The checks skipped against the firmware under QEMU for want of a
+# feature, each with its reason: none (the origin reaches it with the
+# route).
+HIL_SKIPS = {}
 
 
 class Failed(Exception):
@@ -420,6 +413,7 @@ def main():
             # Far longer than the checks take; they end the run by Ctrl-C.
             "--duration-s", "600",
             "--out", out_dir, "--no-plot", "--telemetry-every", "0",
+            "--origin", f"{ORIGIN[0]},{ORIGIN[1]}",
         ] + (["--firmware", args.firmware] if args.firmware else [])
     else:
         command = [
@@ -428,6 +422,8 @@ def main():
             "--speedup", str(args.speedup),
             "--duration-s", "3600",
             "--origin", f"{ORIGIN[0]},{ORIGIN[1]}",
+            # Disarmed and idle at power-on, the route as the mission.
+            "--power-on", "wait",
         ]
     sitl = subprocess.Popen(command, stdin=subprocess.DEVNULL)
     c = Checks()
@@ -448,6 +444,12 @@ def main():
             hb = gcs.wait("running", lambda m: m.get_type() == "HEARTBEAT" and gcs.mode == 1, 5)
             c.check("the scenario's route runs from power-on, armed (no ground station needed)",
                     hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED != 0)
+        else:
+            hb = gcs.wait("a heartbeat", lambda m: m.get_type() == "HEARTBEAT", 5)
+            c.check("power_on = wait: disarmed and idle at power-on",
+                    hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED == 0 and gcs.mode == 0)
+            c.check("power_on = wait: the scenario's route is the mission (read back)",
+                    len(gcs.download()) >= 2)
         # Before any GCS heartbeat (the link watch starts with the first):
         # a link timeout long enough for a loaded machine (60 s simulated),
         # 3 s again for the link-loss check at the end.
@@ -508,22 +510,12 @@ def main():
 
         # The global mission, from where the loop ended.
         gitems = global_items(GLOBAL_ROUTE)
-        if args.hil:
-            got = gcs.upload(gitems)
-            c.check("global mission refused without an origin: MAV_MISSION_UNSUPPORTED_FRAME",
-                    got == M.MAV_MISSION_UNSUPPORTED_FRAME, f"got {got}")
-            for name in HIL_SKIPS:
-                check(name, False)
-            # Link loss mid-leg: the global mission's path, in the local
-            # frame, from where the loop ended.
-            back = GLOBAL_ROUTE
-        else:
-            check("GLOBAL_RELATIVE_ALT_INT mission accepted",
-                  gcs.upload(gitems) == M.MAV_MISSION_ACCEPTED)
-            check("global mission read back equal", gcs.download() == expected(gitems))
-            run_mission(gcs, c, GLOBAL_ROUTE, "global mission")
-            # Link loss mid-leg: back along the global mission's first leg.
-            back = [(0.6, 0.5, 0.0, None), (0.6, 0.0, 0.0, None), (0.0, 0.0, 0.0, None)]
+        check("GLOBAL_RELATIVE_ALT_INT mission accepted",
+              gcs.upload(gitems) == M.MAV_MISSION_ACCEPTED)
+        check("global mission read back equal", gcs.download() == expected(gitems))
+        run_mission(gcs, c, GLOBAL_ROUTE, "global mission")
+        # Link loss mid-leg: back along the global mission's first leg.
+        back = [(0.6, 0.5, 0.0, None), (0.6, 0.0, 0.0, None), (0.0, 0.0, 0.0, None)]
         c.check("return mission accepted", gcs.upload(local_items(back)) == M.MAV_MISSION_ACCEPTED)
         c.check("return: start accepted", gcs.command(M.MAV_CMD_MISSION_START, 0) == 0)
         gcs.wait_type("LOCAL_POSITION_NED", 60, lambda m: speed(m) > 0.1)

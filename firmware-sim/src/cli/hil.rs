@@ -66,6 +66,10 @@ pub struct HilArgs {
     /// wall time); a machine that cannot keep up runs flat out.
     #[arg(long, requires = "mavlink", default_value_t = 1.0)]
     speedup: f64,
+    /// The robot's `[mavlink]` settings, overridden (as `firmware-sim
+    /// sitl`'s): they reach the firmware with the route.
+    #[command(flatten)]
+    endpoint: super::sitl::MavlinkOverrides,
 }
 
 /// Prints the bridge's address line.
@@ -89,11 +93,20 @@ impl HilArgs {
             mavlink,
             allow_non_loopback,
             speedup,
+            endpoint,
         } = self;
         let mut scenario = match scenario {
             None => Scenario::embedded("figure_eight_rfid_full_stack_fusion_ekf")?,
             Some(arg) => load(&arg)?,
         };
+        // Only for a route (a trajectory run has no endpoint: the table
+        // would be a warning there).
+        if matches!(
+            scenario.reference,
+            firmware_sim::scenario::ReferenceSpec::Route(_)
+        ) {
+            endpoint.apply(&mut scenario);
+        }
         if let Some(d) = duration_s {
             scenario.duration_s = d;
             if scenario.transient_s >= d {

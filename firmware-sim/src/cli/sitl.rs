@@ -4,8 +4,9 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
 use firmware_sim::output::write_csv;
+use firmware_sim::scenario::Scenario;
+use firmware_sim::scenario::mavlink::{MavlinkSpec, OriginSpec, PowerOnSpec};
 use firmware_sim::sitl::{self, MavlinkAddress, SitlOptions};
-use wmr_mavlink::EndpointSpec;
 
 use super::load;
 
@@ -30,66 +31,105 @@ pub struct SitlArgs {
     /// Simulated seconds to run (default: until interrupted).
     #[arg(long)]
     duration_s: Option<f64>,
-    /// The floor's geodetic origin `LAT,LON` (degrees, WGS-84): global
-    /// frame missions and GLOBAL_POSITION_INT.
-    #[arg(long, value_parser = parse_origin, allow_hyphen_values = true)]
-    origin: Option<(i32, i32)>,
-    /// MAVLink system id.
-    #[arg(long, default_value_t = 1)]
-    system_id: u8,
-    /// Position and attitude telemetry period, simulated ms (0: off).
-    #[arg(long, default_value_t = 200)]
-    telemetry_period_ms: u32,
-    /// No ground-station heartbeat for this long (simulated ms): link lost.
-    #[arg(long, default_value_t = 3000)]
-    link_timeout_ms: u32,
+    /// The robot's `[mavlink]` settings, overridden.
+    #[command(flatten)]
+    endpoint: MavlinkOverrides,
     /// Write run.csv (every tick) and sitl.json (the report) here at
     /// the end of the run.
     #[arg(long)]
     out: Option<PathBuf>,
 }
 
-/// `LAT,LON` in degrees to 1e-7 degrees.
-fn parse_origin(text: &str) -> Result<(i32, i32), String> {
+/// Command-line overrides of a scenario's or robot file's `[mavlink]`
+/// table (`firmware-sim sitl`, `firmware-sim hil`): checked with the
+/// table, by the same code, naming the table's key.
+#[derive(Debug, clap::Args)]
+pub struct MavlinkOverrides {
+    /// The floor's geodetic origin `LAT,LON` (degrees, WGS-84): global
+    /// frame missions and GLOBAL_POSITION_INT (`mavlink.origin`).
+    #[arg(long, value_parser = parse_origin, allow_hyphen_values = true)]
+    origin: Option<(f64, f64)>,
+    /// MAVLink system id (`mavlink.system_id`, default 1).
+    #[arg(long)]
+    system_id: Option<u64>,
+    /// Position and attitude telemetry period, ms of the robot's time, 0:
+    /// off (`mavlink.telemetry_period_ms`, default 200).
+    #[arg(long)]
+    telemetry_period_ms: Option<u64>,
+    /// No ground-station heartbeat for this long (ms of the robot's
+    /// time): link lost (`mavlink.link_timeout_ms`, default 3000).
+    #[arg(long)]
+    link_timeout_ms: Option<u64>,
+    /// At power-on: `run` the route armed, or `wait` disarmed and idle
+    /// with the route as the mission (`mavlink.power_on`, default `run`).
+    #[arg(long, value_parser = ["run", "wait"])]
+    power_on: Option<String>,
+}
+
+impl MavlinkOverrides {
+    /// Writes the overrides into `scenario`'s `[mavlink]` table (its
+    /// robot file's, once resolved), which validation checks.
+    pub fn apply(&self, scenario: &mut Scenario) {
+        let table = scenario.mavlink.get_or_insert_with(MavlinkSpec::default);
+        if let Some((latitude_deg, longitude_deg)) = self.origin {
+            table.origin = Some(OriginSpec {
+                latitude_deg,
+                longitude_deg,
+            });
+        }
+        if let Some(v) = self.system_id {
+            table.system_id = v;
+        }
+        if let Some(v) = self.telemetry_period_ms {
+            table.telemetry_period_ms = v;
+        }
+        if let Some(v) = self.link_timeout_ms {
+            table.link_timeout_ms = v;
+        }
+        match self.power_on.as_deref() {
+            Some("wait") => table.power_on = PowerOnSpec::Wait,
+            Some("run") => table.power_on = PowerOnSpec::Run,
+            _ => {}
+        }
+    }
+}
+
+/// `LAT,LON` in degrees (their range is the `[mavlink.origin]` table's
+/// check).
+fn parse_origin(text: &str) -> Result<(f64, f64), String> {
     let (lat, lon) = text
         .split_once(',')
         .ok_or_else(|| format!("{text}: expected LAT,LON"))?;
-    let e7 = |s: &str, name: &str, max: f64| -> Result<i32, String> {
-        let v: f64 = s.trim().parse().map_err(|e| format!("{name} {s}: {e}"))?;
-        if !(v.is_finite() && v.abs() <= max) {
-            return Err(format!("{name} {s}: must be within ±{max}°"));
-        }
-        Ok((v * 1e7).round() as i32)
+    let deg = |s: &str, name: &str| -> Result<f64, String> {
+        s.trim().parse().map_err(|e| format!("{name} {s}: {e}"))
     };
-    Ok((e7(lat, "latitude", 90.0)?, e7(lon, "longitude", 180.0)?))
+    Ok((deg(lat, "latitude")?, deg(lon, "longitude")?))
 }
 
 impl SitlArgs {
     /// Runs the subcommand.
     pub fn run(self) -> anyhow::Result<()> {
-        let scenario = load(&self.scenario)?;
+        let mut scenario = load(&self.scenario)?;
+        self.endpoint.apply(&mut scenario);
         let setup = scenario.validate()?;
         let address = MavlinkAddress::parse(&self.mavlink, self.allow_non_loopback)?;
         let options = SitlOptions {
             address,
             speedup: self.speedup,
             duration_s: self.duration_s,
-            endpoint: EndpointSpec {
-                system_id: self.system_id,
-                telemetry_period_ms: self.telemetry_period_ms,
-                link_timeout_ms: self.link_timeout_ms,
-                origin_e7: self.origin,
-                ..EndpointSpec::default()
-            },
             keep_records: self.out.is_some(),
         };
         let stop = AtomicBool::new(false);
         let report = sitl::run(&setup, &options, &stop, |link| {
             eprintln!(
-                "sitl: {} on MAVLink, {}, {}x real time",
+                "sitl: {} on MAVLink, {}, {}x real time, {}",
                 scenario.name,
                 link.describe(),
-                options.speedup
+                options.speedup,
+                match setup.route.as_ref().map(|r| r.mavlink.power_on) {
+                    Some(wmr_link::PowerOn::Wait) => "waiting disarmed (power_on = \"wait\")",
+                    _ => "running its route (power_on = \"run\")",
+                }
             );
         })?;
         for line in &report.log {

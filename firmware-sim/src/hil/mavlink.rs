@@ -215,6 +215,45 @@ impl Bridge {
         )
     }
 
+    /// At the end of the run, after its last tick: fetches what the
+    /// firmware's endpoint wrote at that tick (messages with no bytes,
+    /// while it says output is pending) and sends it to the ground
+    /// station. Not logged for the host's copy of the session, which
+    /// compares exchanges before a tick.
+    ///
+    /// # Errors
+    /// As [`Self::before_tick`].
+    pub(super) fn flush(
+        &mut self,
+        mut exchange: impl FnMut(&MavlinkIn) -> anyhow::Result<MavlinkOut>,
+    ) -> anyhow::Result<()> {
+        let most = MAVLINK_TX_QUEUE_BYTES / MAVLINK_CHUNK_BYTES + 4;
+        let mut out = Vec::new();
+        for _ in 0..most {
+            let message = MavlinkIn {
+                seq: self.seq,
+                bytes: MavlinkChunk::from_slice(&[]),
+            };
+            self.seq = self.seq.wrapping_add(1);
+            let answer = exchange(&message)?;
+            ensure!(
+                answer.seq == message.seq,
+                "the firmware answered MAVLink message {} to message {}",
+                answer.seq,
+                message.seq
+            );
+            out.extend_from_slice(answer.bytes.as_slice());
+            self.report.messages += 1;
+            self.report.bytes_from_firmware += answer.bytes.len() as u64;
+            self.report.firmware = answer.counters;
+            if answer.pending == 0 {
+                self.link.send_frames(&out);
+                return Ok(());
+            }
+        }
+        bail!("the firmware still had MAVLink output pending after {most} exchanges at the end")
+    }
+
     /// The bridge's figures at the end of the run, with the firmware's
     /// `link_silences` reports.
     pub(super) fn report(&self, link_silences: u32) -> MavlinkBridgeReport {

@@ -150,10 +150,17 @@ pub fn run_hil(
              (no RAM left for it beside the filter): a ground station's bytes would be dropped"
         );
     }
+    // The ground station's socket first: an address in use is reported
+    // before QEMU boots, not after the configuration.
+    let bridge = options
+        .mavlink
+        .as_ref()
+        .map(|spec| mavlink::Bridge::open(spec, setup.period_s))
+        .transpose()?;
     let mut target = QemuTarget::start(&firmware, options)?;
     target.configure(configure, &map, &route)?;
-    if let Some(spec) = &options.mavlink {
-        target.attach_bridge(spec, setup.period_s)?;
+    if let Some(bridge) = bridge {
+        target.attach_bridge(bridge);
     }
     let mut result = run_with_target(scenario, &mut target, progress)?;
     let finished = target

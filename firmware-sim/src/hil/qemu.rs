@@ -37,6 +37,24 @@ pub const RESEND_AFTER: Duration = Duration::from_millis(20);
 /// The QEMU binary looked for on `PATH`.
 pub const QEMU: &str = "qemu-system-arm";
 
+/// util-linux's `setpriv`, which QEMU is started through where it is on
+/// `PATH` (Linux): `--pdeathsig KILL` has the kernel kill QEMU when the
+/// thread that started it ends, so that QEMU does not outlive a
+/// `firmware-sim` killed with SIGKILL (which runs no clean-up). The
+/// workspace has no `unsafe` code, which setting the signal in the child
+/// between fork and exec needs (`CommandExt::pre_exec`); `setpriv` sets
+/// it and then executes QEMU. Without it, QEMU is started directly and a
+/// SIGKILL leaves it running (every other ending stops it: `Finish`, or
+/// the kill in `Drop`).
+pub const SETPRIV: &str = "setpriv";
+
+/// The first `name` on `PATH` that is a file.
+fn on_path(name: &str) -> Option<PathBuf> {
+    std::env::split_paths(&std::env::var_os("PATH")?)
+        .map(|dir| dir.join(name))
+        .find(|path| path.is_file())
+}
+
 /// How to run the firmware.
 #[derive(Debug, Clone)]
 pub struct HilOptions {
@@ -169,7 +187,20 @@ impl QemuTarget {
             ),
             None => Stdio::null(),
         };
-        let mut command = Command::new(QEMU);
+        let qemu = on_path(QEMU).ok_or_else(|| {
+            anyhow::anyhow!(
+                "`{QEMU}` not found: install it (Debian/Ubuntu: \
+                 `apt-get install qemu-system-arm`), or run `cargo xtask ci`, which does"
+            )
+        })?;
+        let mut command = match on_path(SETPRIV) {
+            Some(setpriv) if cfg!(target_os = "linux") => {
+                let mut command = Command::new(setpriv);
+                command.args(["--pdeathsig", "KILL", "--"]).arg(&qemu);
+                command
+            }
+            _ => Command::new(&qemu),
+        };
         if options.mavlink.as_ref().is_some_and(|m| m.stops_on_signals) {
             // Its own process group: Ctrl-C in a terminal reaches this
             // process only, which ends the run and then QEMU through
@@ -624,17 +655,9 @@ impl QemuTarget {
     }
 
     /// Bridges a ground station to the run from its next tick on
-    /// (`super::mavlink`), ticking every `period_s`.
-    ///
-    /// # Errors
-    /// As `Bridge::open`.
-    pub(super) fn attach_bridge(
-        &mut self,
-        spec: &MavlinkBridgeSpec,
-        period_s: f64,
-    ) -> anyhow::Result<()> {
-        self.bridge = Some(Bridge::open(spec, period_s)?);
-        Ok(())
+    /// (`super::mavlink`; the bridge opened before QEMU started).
+    pub(super) fn attach_bridge(&mut self, bridge: Bridge) {
+        self.bridge = Some(bridge);
     }
 
     /// Ends the run: `Finish`, the firmware's report, QEMU's exit.
@@ -723,6 +746,14 @@ impl TargetLink for QemuTarget {
     }
 
     fn finish(&mut self) -> anyhow::Result<Diagnostics> {
+        // The last tick's MAVLink output is still in the firmware's
+        // queue (a bridge sends a tick's frames before the next tick):
+        // fetched and sent before the firmware is finished.
+        if let Some(mut bridge) = self.bridge.take() {
+            let flushed = bridge.flush(|m| self.mavlink_exchange(m));
+            self.bridge = Some(bridge);
+            flushed?;
+        }
         Ok(self.end()?.counters)
     }
 

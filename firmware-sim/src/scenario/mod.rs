@@ -28,6 +28,8 @@
 //!   (`[plant]`, `[drive]`, `[controller]`, ...); the estimator and the law
 //!   are the core's own spec types ([`EstimatorSpec`], [`LawSpec`]), so the
 //!   list of both is written once, in the core;
+//! * `mavlink`: the `[mavlink]` table ([`mavlink::MavlinkSpec`]), the
+//!   robot's MAVLink endpoint and power-on;
 //! * `robot_file`: the robot file's schema ([`robot::RobotFile`]) and how a
 //!   scenario names its robot ([`robot::RobotSource`]);
 //! * `schema`: the scenario's top level ([`Scenario`]);
@@ -43,6 +45,7 @@ mod defaults;
 mod error;
 pub mod keys;
 mod legacy;
+pub mod mavlink;
 pub mod robot;
 mod robot_file;
 pub mod route;

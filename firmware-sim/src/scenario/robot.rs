@@ -374,6 +374,7 @@ impl Robot {
             floor_tags: Vec::new(),
             failsafe: FailsafeSpec::default(),
             telemetry: None,
+            mavlink: None,
             measurement: super::MeasurementSpec::default(),
             sweep: None,
             robot: None,
@@ -394,6 +395,7 @@ impl Robot {
         scenario.estimator = r.estimator;
         scenario.failsafe = r.failsafe;
         scenario.telemetry = Some(r.telemetry);
+        scenario.mavlink = r.mavlink;
         let (spacing_m, offset_m, margin_m, extent_m) = match r.floor {
             FloorSpec::Grid {
                 spacing_m,
@@ -437,7 +439,7 @@ impl Robot {
         let (head, rest) = field.split_once('.').unwrap_or((field, ""));
         let robot_key = match head {
             "period_s" | "plant" | "drive" | "controller" | "observer" | "estimator"
-            | "failsafe" | "telemetry" => return Some(field.to_owned()),
+            | "failsafe" | "telemetry" | "mavlink" => return Some(field.to_owned()),
             "position" => match rest {
                 "spacing_m" | "offset_m" | "margin_m" | "extent_m" => format!("floor.{rest}"),
                 "" => "reader".to_owned(),
@@ -464,7 +466,8 @@ impl Robot {
 /// The scenario's top-level keys a robot file sets: a scenario that names
 /// a robot may give none of them, even at its default value (`position` is
 /// the robot's too, but for the reader's fault keys: [`ReaderFaults`]).
-pub const ROBOT_KEYS: [&str; 9] = [
+pub const ROBOT_KEYS: [&str; 10] = [
+    "mavlink",
     "period_s",
     "plant",
     "drive",

@@ -8,6 +8,7 @@ use wmr_core::devices::TagId;
 use wmr_core::estimation::spec::EstimatorSpec;
 
 use super::defaults;
+use super::mavlink::MavlinkSpec;
 use super::route::ReferenceSpec;
 use super::tables::{
     ControllerSpec, DriveSpec, FailsafeSpec, ObserverSpec, PlantSpec, ReaderModeSpec, TelemetrySpec,
@@ -59,6 +60,14 @@ pub struct RobotFile {
     /// `--telemetry-every`.
     #[serde(default)]
     pub telemetry: TelemetrySpec,
+    /// The robot's MAVLink endpoint (system id, timeouts, telemetry
+    /// period), the floor's geodetic origin and what the robot does at
+    /// power-on (`run` or `wait`): its route runs' on the SITL, under QEMU
+    /// and on the Black Pill (the flash image carries it with the route).
+    /// Default: `EndpointSpec::default()`, no origin, running from
+    /// power-on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mavlink: Option<MavlinkSpec>,
 }
 
 /// The robot's RFID reader (the keys of a scenario's `position.kind =

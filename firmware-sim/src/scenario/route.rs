@@ -308,6 +308,9 @@ pub struct RouteSetup {
     pub start: RouteStart,
     /// Time the run goes on after the route is done, s.
     pub settle_s: f64,
+    /// The route run's MAVLink endpoint and power-on (the scenario's or
+    /// robot file's `[mavlink]`, checked).
+    pub mavlink: wmr_link::MavlinkSettings,
     /// The plan of the waypoints as given (with `from_first_fix` the run's
     /// own plan starts at the first fix instead).
     pub plan: Box<RoutePlan>,
@@ -324,6 +327,7 @@ impl RouteSetup {
             limits: self.limits_spec,
             options: self.options.spec(),
             start: self.start,
+            mavlink: self.mavlink,
         }
     }
 
@@ -634,6 +638,7 @@ impl RouteSpec {
             options,
             start: self.start.into(),
             settle_s,
+            mavlink: wmr_link::MavlinkSettings::default(),
             plan: Box::new(plan),
         })
     }

@@ -8,6 +8,7 @@ use wmr_core::estimation::spec::EstimatorSpec;
 use wmr_core::plausible;
 
 use super::defaults;
+use super::mavlink::MavlinkSpec;
 use super::robot_file::RobotSource;
 use super::route::ReferenceSpec;
 use super::sweep_spec::SweepSpec;
@@ -78,6 +79,13 @@ pub struct Scenario {
     /// file's `[telemetry]` when the scenario names a robot.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub telemetry: Option<TelemetrySpec>,
+    /// The robot's MAVLink endpoint, the floor's geodetic origin and what
+    /// the robot does at power-on, for a route run (`firmware-sim sitl`,
+    /// `firmware-sim hil --mavlink`); default: `EndpointSpec::default()`,
+    /// running from power-on. Filled in from the robot file's `[mavlink]`
+    /// when the scenario names a robot.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mavlink: Option<MavlinkSpec>,
     /// Noise and misses on the position fix (`exact` and `nearest_tag`
     /// sources).
     #[serde(default, skip_serializing_if = "MeasurementSpec::is_default")]

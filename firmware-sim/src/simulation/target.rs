@@ -164,8 +164,14 @@ pub fn hil_map_chunks(setup: &Setup) -> anyhow::Result<Vec<MapChunk>> {
 pub fn hil_route_messages(setup: &Setup) -> Vec<HostMessage> {
     setup.route.as_ref().map_or_else(Vec::new, |route| {
         let spec = route.spec();
-        wmr_link::route_messages(&route.waypoints, spec.limits, &route.options, spec.start)
-            .collect()
+        wmr_link::route_messages(
+            &route.waypoints,
+            spec.limits,
+            &route.options,
+            spec.start,
+            spec.mavlink,
+        )
+        .collect()
     })
 }
 

@@ -31,7 +31,7 @@ pub mod robot;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use wmr_core::reference::route::RoutePlan;
-use wmr_mavlink::{Counters, EndpointConfig, EndpointSpec, MavlinkEndpoint, RobotMode, TxBuffer};
+use wmr_mavlink::{Counters, MavlinkEndpoint, RobotMode, TxBuffer};
 
 use crate::report::Record;
 use crate::scenario::Setup;
@@ -53,8 +53,6 @@ pub struct SitlOptions {
     pub speedup: f64,
     /// Simulated seconds to run; `None`: until stopped.
     pub duration_s: Option<f64>,
-    /// The endpoint's configuration.
-    pub endpoint: EndpointSpec,
     /// Keep every tick's record (for `--out`).
     pub keep_records: bool,
 }
@@ -102,16 +100,24 @@ pub struct SitlReport {
     pub records: Vec<Record>,
 }
 
-/// Builds the endpoint for `setup`'s robot.
+/// Builds the endpoint for `setup`'s robot: configured by its
+/// `[mavlink]` table (checked by the scenario's validation), the route
+/// as its mission (`MavlinkEndpoint::load_route_mission`), as the
+/// firmware builds it.
 ///
 /// # Errors
-/// The endpoint configuration's error, by name and value.
-pub fn endpoint(setup: &Setup, spec: &EndpointSpec) -> anyhow::Result<MavlinkEndpoint> {
+/// No route; the endpoint configuration's error, by name and value.
+pub fn endpoint(setup: &Setup) -> anyhow::Result<MavlinkEndpoint> {
     let route = setup.route.as_ref().ok_or_else(|| {
         anyhow::anyhow!("sitl needs a route scenario or a robot file with a route")
     })?;
-    let config = EndpointConfig::new(spec).map_err(|e| anyhow::anyhow!("MAVLink endpoint: {e}"))?;
-    Ok(MavlinkEndpoint::new(config, route.limits))
+    let config = route
+        .mavlink
+        .config()
+        .map_err(|e| anyhow::anyhow!("MAVLink endpoint: {e}"))?;
+    let mut endpoint = MavlinkEndpoint::new(config, route.limits);
+    endpoint.load_route_mission(&route.waypoints);
+    Ok(endpoint)
 }
 
 /// Runs the robot of `setup` behind MAVLink on `link` until the duration
@@ -133,7 +139,7 @@ pub fn run(
         options.speedup
     );
     let mut robot = SitlRobot::new(setup)?;
-    let mut endpoint = endpoint(setup, &options.endpoint)?;
+    let mut endpoint = endpoint(setup)?;
     let mut link = UdpLink::open(options.address)?;
     ready(&link);
     let period_s = robot.period_s();

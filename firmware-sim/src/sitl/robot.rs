@@ -14,6 +14,8 @@ use wmr_mavlink::{
     Estimate, Event, FollowerAction, MissionRunner, Note, Progress, RobotMode, RobotView,
 };
 
+use wmr_link::PowerOn;
+
 use crate::report::Record;
 use crate::scenario::Setup;
 use crate::simulation::Stepper;
@@ -29,8 +31,11 @@ pub struct SitlRobot {
 }
 
 impl SitlRobot {
-    /// The scenario's robot, disarmed, idle, with no mission, holding
-    /// where it stands.
+    /// The scenario's robot at power-on, as its `mavlink.power_on` says
+    /// and as the firmware starts: `run` (the default), armed and running
+    /// the scenario's route exactly as `firmware-sim run` does (its route
+    /// follower, start and limits); `wait`, disarmed and idle with the
+    /// route loaded as the mission, holding where it stands.
     ///
     /// # Errors
     /// A scenario without a route, or whose tick does not run on a route
@@ -40,18 +45,31 @@ impl SitlRobot {
             anyhow::anyhow!("sitl needs a route scenario or a robot file with a route ([reference] kind = \"route\")")
         })?;
         let mut rig = Stepper::new(setup);
-        rig.swap_route(Box::new(RouteFollower::new(route.options)))
-            .map_err(|_| {
-                anyhow::anyhow!(
-                    "sitl runs the core's tracker, Pilot or Robot; this scenario's tick is not one"
-                )
-            })?;
+        let not_a_route_tick = || {
+            anyhow::anyhow!(
+                "sitl runs the core's tracker, Pilot or Robot; this scenario's tick is not one"
+            )
+        };
+        let mut runner = MissionRunner::new(route.start, route.limits);
+        match route.mavlink.power_on {
+            PowerOn::Run => {
+                if rig.route().is_none() {
+                    return Err(not_a_route_tick());
+                }
+                runner.reset_running(&route.waypoints, route.start, route.limits);
+            }
+            PowerOn::Wait => {
+                rig.swap_route(Box::new(RouteFollower::new(route.options)))
+                    .map_err(|_| not_a_route_tick())?;
+                runner.reset_waiting(&route.waypoints, route.start, route.limits);
+            }
+        }
         Ok(Self {
             rig,
             period_s: setup.period_s,
             tick: 0,
             options: route.options,
-            runner: MissionRunner::new(route.start, route.limits),
+            runner,
             last: None,
         })
     }

@@ -11,7 +11,8 @@
 //! MAGIC (8 bytes) | IMAGE_VERSION u16 | pilot length u16 | pilot (postcard PilotSpec)
 //! | telemetry decimation u16 (a record every N ticks; 0: none)
 //! | route kind u8: 0 none, 1 a route
-//! | route: postcard RouteSpec (length u16 first),
+//! | route: postcard RouteSpec (length u16 first; with the route run's
+//!          MAVLink endpoint settings and power-on, `MavlinkSettings`),
 //!          then RouteSpec::waypoints × postcard Waypoint (each length u16 first)
 //! | floor kind u8: 0 grid, 1 tag map
 //! | grid: postcard TagGridSpec (length u16 first)
@@ -38,7 +39,7 @@ use crate::{RouteRefusal, RouteSpec};
 pub const MAGIC: [u8; 8] = *b"WMRROBOT";
 /// Bump when the layout (or [`PilotSpec`]'s shape) changes (what each
 /// version changed: `CHANGELOG.md`, "Robot image versions").
-pub const IMAGE_VERSION: u16 = 5;
+pub const IMAGE_VERSION: u16 = 6;
 /// Bytes of one tag record: id `u64`, `x`, `y` `f32`.
 pub const TAG_RECORD_BYTES: usize = 16;
 
@@ -527,6 +528,14 @@ mod tests {
             },
             options: RouteOptions::default().spec(),
             start: RouteStart::FromFirstFix,
+            mavlink: crate::MavlinkSettings {
+                system_id: 7,
+                telemetry_period_ms: 100,
+                link_timeout_ms: 5_000,
+                origin_e7: Some([473_977_420, 85_455_940]),
+                power_on: crate::PowerOn::Wait,
+                ..crate::MavlinkSettings::default()
+            },
         };
         let waypoints = [
             Waypoint::stop(0.0, 0.0, 0.0),
@@ -553,6 +562,13 @@ mod tests {
         let read = image.route.unwrap();
         assert_eq!(read.spec.waypoints, 3);
         assert_eq!(read.spec.start, RouteStart::FromFirstFix);
+        // The MAVLink endpoint's settings and power-on travel with it.
+        assert_eq!(read.spec.mavlink, route.mavlink);
+        assert_eq!(read.spec.mavlink.power_on, crate::PowerOn::Wait);
+        assert_eq!(
+            read.spec.mavlink.endpoint_spec().origin_e7,
+            Some((473_977_420, 85_455_940))
+        );
         assert!(read.waypoints().eq(waypoints.iter().copied()));
         let mut store = std::boxed::Box::new(RouteStore::new());
         read.load_into(&mut store, 0.01).unwrap();

@@ -174,5 +174,7 @@ pub use protocol::{
     MAVLINK_CHUNK_BYTES, MAX_FRAME_BYTES, MAX_UART_BYTES_PER_TICK, PROTOCOL_VERSION,
     ROUTE_CHUNK_WAYPOINTS, STALE_WINDOW,
 };
-pub use route::{RouteChunk, RouteRefusal, RouteSpec, route_messages};
+pub use route::{
+    EndpointRefusal, MavlinkSettings, PowerOn, RouteChunk, RouteRefusal, RouteSpec, route_messages,
+};
 pub use wmr_core::pilot::route::RouteOptionsSpec;

@@ -27,6 +27,7 @@ use wmr_mavlink::{
     EndpointConfig, Estimate, Events, FollowerAction, MavlinkEndpoint, MissionRunner, TxBuffer,
 };
 
+use crate::route::PowerOn;
 use crate::route_store::RouteStore;
 
 /// A route run's MAVLink side (module documentation): the endpoint, the
@@ -78,18 +79,32 @@ impl MavlinkRun {
         }
     }
 
-    /// A new route run: the endpoint reset, the runner running
-    /// `waypoints` (the route just loaded) as `start` says under
-    /// `limits`, in place; the endpoint's clock ticks `period_s` a tick.
+    /// A new route run on `route` (the route just loaded into the
+    /// store), in place: the endpoint reset with `config` (the route's
+    /// `MavlinkSettings::config`) and the route as its mission
+    /// ([`MavlinkEndpoint::load_route_mission`]); the runner running the
+    /// route as `start` says under `limits` ([`PowerOn::Run`]), or
+    /// disarmed and idle with the route loaded, the follower holding
+    /// ([`PowerOn::Wait`]); the endpoint's clock ticks `period_s` a tick.
     pub fn activate(
         &mut self,
-        waypoints: &Waypoints,
+        route: &mut RouteStore,
         start: RouteStart,
         limits: RouteLimits,
         period_s: f32,
+        config: EndpointConfig,
+        power_on: PowerOn,
     ) {
-        self.endpoint.reset(self.config, limits);
-        self.runner.reset_running(waypoints, start, limits);
+        self.config = config;
+        self.endpoint.reset(config, limits);
+        self.endpoint.load_route_mission(route.waypoints());
+        match power_on {
+            PowerOn::Run => self.runner.reset_running(route.waypoints(), start, limits),
+            PowerOn::Wait => {
+                self.runner.reset_waiting(route.waypoints(), start, limits);
+                route.reset_follower();
+            }
+        }
         // A period of at most hours (the pilot's check): fits.
         self.period_us = (period_s * 1.0e6 + 0.5) as u32;
         self.active = true;
@@ -259,6 +274,7 @@ mod tests {
             limits: MavlinkRun::IDLE_LIMITS,
             options: RouteOptionsSpec::default(),
             start: RouteStart::AsGiven,
+            mavlink: crate::MavlinkSettings::default(),
         };
         let mut store = Box::new(RouteStore::new());
         let limits = store.begin(&spec).unwrap();
@@ -272,7 +288,14 @@ mod tests {
         store.finish(&limits, spec.start, 0.01).unwrap();
         let config = EndpointConfig::new(&EndpointSpec::default()).unwrap();
         let mut run = Box::new(MavlinkRun::new(config, limits));
-        run.activate(store.waypoints(), spec.start, limits, 0.01);
+        run.activate(
+            &mut store,
+            spec.start,
+            limits,
+            0.01,
+            spec.mavlink.config().unwrap(),
+            spec.mavlink.power_on,
+        );
         (store, run)
     }
 
@@ -314,6 +337,66 @@ mod tests {
         assert_eq!(more, 0);
         assert!(whole_frames(&room[..written]).is_some_and(|f| !f.is_empty()));
         assert_eq!(run.endpoint().counters().tx_dropped, dropped);
+    }
+
+    /// A route whose robot file says `power_on = "wait"`: the run starts
+    /// disarmed and idle with the route as its mission (the endpoint's
+    /// too, so a ground station reads it back and starts it), the
+    /// follower holding; an arm and a start run it from item 0 as the
+    /// route's own start says.
+    #[test]
+    fn a_waiting_run_holds_until_armed_and_started() {
+        use crate::{MavlinkSettings, PowerOn};
+        use wmr_mavlink::RobotMode;
+        let (mut store, mut run) = a_run();
+        assert_eq!(run.runner().mode(), RobotMode::Running);
+        assert!(run.runner().armed());
+        assert_eq!(run.endpoint().mission().len(), 3);
+        let limits =
+            wmr_core::reference::route::RouteLimits::new(&MavlinkRun::IDLE_LIMITS).unwrap();
+        let wait = MavlinkSettings {
+            power_on: PowerOn::Wait,
+            ..MavlinkSettings::default()
+        };
+        run.activate(
+            &mut store,
+            RouteStart::AsGiven,
+            limits,
+            0.01,
+            wait.config().unwrap(),
+            wait.power_on,
+        );
+        assert_eq!(run.runner().mode(), RobotMode::Idle);
+        assert!(!run.runner().armed());
+        assert_eq!(run.runner().mission(), store.waypoints());
+        assert!(!store.follower().unwrap().status().pending);
+        // The endpoint's mission is the route in the local frame: item 1
+        // is the stop at (1, 0) with its 2 s dwell, north 0, east 1 m.
+        let item = *run.endpoint().mission().get(1).unwrap();
+        assert_eq!((item.x, item.y, item.hold_s), (0, 10_000, 2.0));
+        assert_eq!(
+            run.endpoint().route().as_slice()[1],
+            Waypoint::stop(1.0, 0.0, 2.0)
+        );
+        // A ground station's arm, then start (COMMAND_LONG 400 and 300,
+        // a tick each: a start is checked against the robot's view),
+        // framed by the endpoint's own encoder.
+        for (tick, command, p1) in [(0_u32, 400_u16, 1.0_f32), (1, 300, 0.0)] {
+            let mut bytes = [0_u8; 64];
+            let mut tx = wmr_mavlink::TxBuffer::new(&mut bytes);
+            let mut payload = [0_u8; 33];
+            payload[..4].copy_from_slice(&p1.to_le_bytes());
+            payload[28..30].copy_from_slice(&command.to_le_bytes());
+            payload[30] = 1;
+            payload[31] = 1;
+            assert!(tx.frame([tick as u8, 255, 190], 76, 152, &payload));
+            let len = tx.len();
+            let mut room = [0_u8; 1024];
+            run.before_tick(&mut store, tick, None, &bytes[..len], &mut room);
+        }
+        assert_eq!(run.runner().mode(), RobotMode::Running);
+        assert!(run.runner().armed());
+        assert!(store.follower().unwrap().status().pending);
     }
 
     /// The `u32` clock agrees with the exact `u64` product over 1000,

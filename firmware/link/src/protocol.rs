@@ -4,7 +4,7 @@
 /// The link's version: the shape of every message, as this crate defines
 /// it (bumped when one changes); both sides refuse a mismatch. What each
 /// version changed: `CHANGELOG.md`, "HIL link protocol versions".
-pub const PROTOCOL_VERSION: u16 = 17;
+pub const PROTOCOL_VERSION: u16 = 18;
 
 /// Most tags the firmware's tag map holds under HIL (the QEMU board's
 /// static table: 16 B a tag, 64 KiB of its 128 KiB of RAM): the robot

@@ -8,6 +8,8 @@ use wmr_core::reference::route::{
     ROUTE_CAPACITY, RouteError, RouteLimitsError, RouteLimitsSpec, Waypoint, Waypoints,
 };
 
+use wmr_mavlink::{ConfigError, ConfigKey, EndpointConfig, EndpointSpec};
+
 use crate::{HostMessage, ROUTE_CHUNK_WAYPOINTS};
 
 /// A route announced after the configuration ([`HostMessage::Route`]): its
@@ -24,6 +26,141 @@ pub struct RouteSpec {
     pub options: RouteOptionsSpec,
     /// Where the route starts.
     pub start: RouteStart,
+    /// The MAVLink endpoint of the route run and what the robot does at
+    /// power-on (a robot file's `[mavlink]`).
+    pub mavlink: MavlinkSettings,
+}
+
+/// What a robot does when its route run begins (power-on on the Black
+/// Pill, the run's first tick under QEMU and in the SITL), with or
+/// without a ground station.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum PowerOn {
+    /// Armed, running the route from its start.
+    #[default]
+    Run,
+    /// Disarmed, idle, holding where it stands, the route loaded as the
+    /// mission: a ground station arms it and starts it (or uploads
+    /// another mission).
+    Wait,
+}
+
+/// A route run's MAVLink endpoint settings, as plain numbers
+/// ([`EndpointSpec`]'s, checked by [`EndpointConfig::new`] when the route
+/// is announced: [`RouteRefusal::Endpoint`]), and its [`PowerOn`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MavlinkSettings {
+    /// MAVLink system id, 1 to 255.
+    pub system_id: u8,
+    /// MAVLink component id, 1 to 255.
+    pub component_id: u8,
+    /// No ground-station heartbeat for this long is a link loss, ms.
+    pub link_timeout_ms: u32,
+    /// Upload: re-request an item after this long, ms.
+    pub item_timeout_ms: u32,
+    /// Upload: re-requests of one item before it is cancelled.
+    pub item_retries: u8,
+    /// Position and attitude telemetry period, ms (0: off).
+    pub telemetry_period_ms: u32,
+    /// The floor's geodetic origin, latitude and longitude in 1e-7
+    /// degrees (`None`: global-frame missions are refused).
+    pub origin_e7: Option<[i32; 2]>,
+    /// What the robot does when the run begins.
+    pub power_on: PowerOn,
+}
+
+impl Default for MavlinkSettings {
+    /// `EndpointSpec::default()`'s settings, running from power-on.
+    fn default() -> Self {
+        Self::of(&EndpointSpec::default(), PowerOn::Run)
+    }
+}
+
+impl MavlinkSettings {
+    /// The settings of `spec`, with `power_on`.
+    #[must_use]
+    pub fn of(spec: &EndpointSpec, power_on: PowerOn) -> Self {
+        Self {
+            system_id: spec.system_id,
+            component_id: spec.component_id,
+            link_timeout_ms: spec.link_timeout_ms,
+            item_timeout_ms: spec.item_timeout_ms,
+            item_retries: spec.item_retries,
+            telemetry_period_ms: spec.telemetry_period_ms,
+            origin_e7: spec.origin_e7.map(|(lat, lon)| [lat, lon]),
+            power_on,
+        }
+    }
+
+    /// The endpoint's settings.
+    #[must_use]
+    pub fn endpoint_spec(&self) -> EndpointSpec {
+        EndpointSpec {
+            system_id: self.system_id,
+            component_id: self.component_id,
+            link_timeout_ms: self.link_timeout_ms,
+            item_timeout_ms: self.item_timeout_ms,
+            item_retries: self.item_retries,
+            telemetry_period_ms: self.telemetry_period_ms,
+            origin_e7: self.origin_e7.map(|[lat, lon]| (lat, lon)),
+        }
+    }
+
+    /// The endpoint's configuration, checked.
+    ///
+    /// # Errors
+    /// [`RouteRefusal::Endpoint`] naming the field and its value.
+    pub fn config(&self) -> Result<EndpointConfig, RouteRefusal> {
+        EndpointConfig::new(&self.endpoint_spec()).map_err(|e| RouteRefusal::Endpoint(e.into()))
+    }
+}
+
+/// A MAVLink endpoint setting the firmware refused: which
+/// ([`ConfigKey`]'s order) and its value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct EndpointRefusal {
+    /// The field: 0 system id, 1 component id, 2 link timeout, 3 item
+    /// timeout, 4 item retries, 5 telemetry period, 6 origin latitude,
+    /// 7 origin longitude.
+    pub field: u8,
+    /// The value given.
+    pub value: i64,
+}
+
+const CONFIG_KEYS: [ConfigKey; 8] = [
+    ConfigKey::SystemId,
+    ConfigKey::ComponentId,
+    ConfigKey::LinkTimeout,
+    ConfigKey::ItemTimeout,
+    ConfigKey::ItemRetries,
+    ConfigKey::TelemetryPeriod,
+    ConfigKey::OriginLatitude,
+    ConfigKey::OriginLongitude,
+];
+
+impl From<ConfigError> for EndpointRefusal {
+    fn from(e: ConfigError) -> Self {
+        let field = CONFIG_KEYS.iter().position(|k| *k == e.key).unwrap_or(0);
+        Self {
+            // Eight keys: fits.
+            field: u8::try_from(field).unwrap_or(0),
+            value: e.value,
+        }
+    }
+}
+
+impl EndpointRefusal {
+    /// The refused field.
+    #[must_use]
+    pub fn key(&self) -> ConfigKey {
+        CONFIG_KEYS
+            .get(usize::from(self.field))
+            .copied()
+            .unwrap_or(ConfigKey::SystemId)
+    }
 }
 
 /// Consecutive waypoints of the announced route, in route order.
@@ -73,6 +210,10 @@ pub enum RouteRefusal {
     /// The core's planner refused the route (`RoutePlan::replan`), naming
     /// the waypoint and its key where it is one waypoint's fault.
     Route(RouteError),
+    /// The MAVLink endpoint's settings (`EndpointConfig::new`), naming
+    /// the field and its value. Appended last: the other variants keep
+    /// their encoding.
+    Endpoint(EndpointRefusal),
 }
 
 impl core::fmt::Display for RouteRefusal {
@@ -104,6 +245,14 @@ impl core::fmt::Display for RouteRefusal {
                 )
             }
             Self::Route(e) => write!(f, "{e}"),
+            Self::Endpoint(e) => write!(
+                f,
+                "mavlink: {}",
+                ConfigError {
+                    key: e.key(),
+                    value: e.value,
+                }
+            ),
         }
     }
 }
@@ -128,6 +277,7 @@ pub fn route_messages<'w>(
     limits: RouteLimitsSpec,
     options: &RouteOptions,
     start: RouteStart,
+    mavlink: MavlinkSettings,
 ) -> impl Iterator<Item = HostMessage> + 'w {
     let all = waypoints.as_slice();
     let announce = HostMessage::Route(RouteSpec {
@@ -135,6 +285,7 @@ pub fn route_messages<'w>(
         limits,
         options: options.spec(),
         start,
+        mavlink,
     });
     let chunks = all
         .chunks(ROUTE_CHUNK_WAYPOINTS)

@@ -77,12 +77,14 @@ impl RouteStore {
 
     /// Starts loading the route `spec` announces: checks its count (2 to
     /// [`ROUTE_CAPACITY`]), its limits (`RouteLimits::new`) and its
-    /// options (`RouteOptions::new`) and empties the waypoints. Returns
-    /// the validated limits, for [`Self::finish`].
+    /// options (`RouteOptions::new`), its MAVLink endpoint settings
+    /// (`EndpointConfig::new`) and empties the waypoints. Returns the
+    /// validated limits, for [`Self::finish`].
     ///
     /// # Errors
     /// [`RouteRefusal::Size`], [`RouteRefusal::Limits`],
-    /// [`RouteRefusal::Options`]; nothing is changed then.
+    /// [`RouteRefusal::Options`], [`RouteRefusal::Endpoint`]; nothing is
+    /// changed then.
     pub fn begin(&mut self, spec: &RouteSpec) -> Result<RouteLimits, RouteRefusal> {
         if spec.waypoints < 2 || usize::from(spec.waypoints) > ROUTE_CAPACITY {
             return Err(RouteRefusal::Size {
@@ -91,7 +93,9 @@ impl RouteStore {
             });
         }
         let limits = RouteLimits::new(&spec.limits).map_err(RouteRefusal::Limits)?;
-        self.options = spec.options.build().map_err(RouteRefusal::Options)?;
+        let options = spec.options.build().map_err(RouteRefusal::Options)?;
+        spec.mavlink.config()?;
+        self.options = options;
         self.waypoints = Waypoints::new();
         Ok(limits)
     }

@@ -16,9 +16,11 @@
 //! robot's tick is lent ([`Robot::tick_on`]).
 //!
 //! A run with a route has a MAVLink endpoint and the mission runner of
-//! `wmr-mavlink` (the crate docs, "MAVLink"): the runner starts armed and
+//! `wmr-mavlink` (the crate docs, "MAVLink"), configured by the route's
+//! announcement (`RouteSpec::mavlink`): the runner starts armed and
 //! running the loaded route (the robot drives it from its first tick, as
-//! without a ground station). At each tick, before the robot's, the
+//! without a ground station), or disarmed and idle with the route as the
+//! mission (`PowerOn::Wait`). At each tick, before the robot's, the
 //! endpoint takes the bytes the host brought since the last tick
 //! ([`MavlinkStore`]'s queues) and answers into the send queue; the glue
 //! between endpoint, runner and follower is [`crate::mavlink_run`]'s,
@@ -103,6 +105,8 @@ struct RouteLoad {
     limits: RouteLimits,
     /// Where it starts.
     start: RouteStart,
+    /// Its MAVLink endpoint and power-on (checked at the announcement).
+    mavlink: crate::MavlinkSettings,
 }
 
 impl RouteLoad {
@@ -569,6 +573,7 @@ impl<'a> Session<'a> {
             loaded: 0,
             limits,
             start: spec.start,
+            mavlink: spec.mavlink,
         });
         TargetMessage::RouteLoaded { waypoints: 0 }
     }
@@ -643,9 +648,16 @@ impl<'a> Session<'a> {
             .map_or(0.0, |r| r.pilot().tracker().config().clock().period_s());
         self.route.finish(&load.limits, load.start, period_s)?;
         let load = *load;
-        if let Some(mav) = self.mav.as_deref_mut() {
-            mav.run
-                .activate(self.route.waypoints(), load.start, load.limits, period_s);
+        // The settings were checked at the announcement: configured.
+        if let (Some(mav), Ok(config)) = (self.mav.as_deref_mut(), load.mavlink.config()) {
+            mav.run.activate(
+                self.route,
+                load.start,
+                load.limits,
+                period_s,
+                config,
+                load.mavlink.power_on,
+            );
         }
         Ok(TargetMessage::Configured)
     }
@@ -1200,6 +1212,7 @@ mod tests {
             limits: LIMITS,
             options: RouteOptions::default().spec(),
             start: RouteStart::AsGiven,
+            mavlink: crate::MavlinkSettings::default(),
         })
     }
 
@@ -1648,6 +1661,7 @@ mod tests {
             LIMITS,
             &RouteOptions::default(),
             RouteStart::FromFirstFix,
+            crate::MavlinkSettings::default(),
         )
         .collect();
         assert_eq!(

@@ -299,6 +299,16 @@ fn a_full_route_chunk_fits_a_frame() {
             approach_timeout_s: f32::MAX,
         },
         start: wmr_core::pilot::route::RouteStart::FromFirstFix,
+        mavlink: crate::MavlinkSettings {
+            system_id: u8::MAX,
+            component_id: u8::MAX,
+            link_timeout_ms: u32::MAX,
+            item_timeout_ms: u32::MAX,
+            item_retries: u8::MAX,
+            telemetry_period_ms: u32::MAX,
+            origin_e7: Some([i32::MIN, i32::MIN]),
+            power_on: crate::PowerOn::Wait,
+        },
     });
     let bytes = tx.frame(announce.clone(), &mut out).unwrap().to_vec();
     assert_eq!(feed::<HostMessage>(&mut rx, &bytes), vec![Ok(announce)]);
@@ -345,6 +355,20 @@ fn route_refusals_name_the_waypoint_and_why() {
         ))
         .contains("pivot_gain_per_s")
     );
+    // The MAVLink settings: the field by name, with its value.
+    let bad = crate::MavlinkSettings {
+        telemetry_period_ms: 5,
+        ..crate::MavlinkSettings::default()
+    };
+    assert_eq!(
+        said(bad.config().unwrap_err()),
+        "the route was refused: mavlink: telemetry_period_ms = 5 must be in 0 or 20..=60000"
+    );
+    let bad = crate::MavlinkSettings {
+        origin_e7: Some([900_000_000, 0]),
+        ..crate::MavlinkSettings::default()
+    };
+    assert!(said(bad.config().unwrap_err()).contains("origin_e7.latitude = 900000000"));
 }
 
 /// Every refusal of a map says which tag and why, in words.

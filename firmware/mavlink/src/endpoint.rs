@@ -271,6 +271,45 @@ impl MavlinkEndpoint {
             .write_waypoints(self.config.origin.as_ref(), out);
     }
 
+    /// Makes `route` the running mission (a robot's own route, from its
+    /// robot file), as `MAV_FRAME_LOCAL_NED` items: north and east at
+    /// 1e-4 m, a stop's dwell as its hold time and its heading as its
+    /// yaw, so that a ground station reads back what the robot runs and
+    /// can start it. An item has no field for a waypoint's speed limit,
+    /// and a stop with no dwell and no heading reads back as a pass: the
+    /// robot runs the route itself, not these items, until a mission is
+    /// uploaded. Waypoints past the mission's capacity (none: both hold
+    /// `ROUTE_CAPACITY`) are left out.
+    // Out of line: called once a run, off the tick's path.
+    #[inline(never)]
+    pub fn load_route_mission(&mut self, route: &Waypoints) {
+        let Some(mission) = self.missions.get_mut(self.active) else {
+            return;
+        };
+        mission.clear();
+        for w in route.as_slice() {
+            let (north_m, east_m) = crate::geo::floor_to_ned(w.position_m.x, w.position_m.y);
+            let (hold_s, yaw_deg) = match w.stop {
+                Some(stop) => (
+                    stop.dwell_s,
+                    stop.face_heading_rad.map_or(f32::NAN, |h| {
+                        crate::geo::heading_to_yaw(h) * (180.0 / wmr_core::math::PI)
+                    }),
+                ),
+                None => (0.0, f32::NAN),
+            };
+            // Floor coordinates within the core's ±1e4 m: 1e8 at most.
+            let _ = mission.push(crate::mission::Item {
+                frame: c::MavFrame::MAV_FRAME_LOCAL_NED as u8,
+                hold_s,
+                yaw_deg,
+                x: libm::roundf(north_m * 1e4) as i32,
+                y: libm::roundf(east_m * 1e4) as i32,
+                z: 0.0,
+            });
+        }
+    }
+
     /// As [`Self::new`], in place: no mission, nothing heard, counters
     /// zero (a new run of a robot whose endpoint lives in a `static`; no
     /// endpoint is built on the stack).

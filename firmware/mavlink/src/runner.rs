@@ -171,6 +171,23 @@ impl MissionRunner {
         self.route.clear();
     }
 
+    /// Disarmed, idle, with `mission` loaded (not running), in place: a
+    /// robot that waits at power-on for a ground station to arm and start
+    /// it. Its first start from item 0 starts as `start` says. The
+    /// owner's follower must hold (no route).
+    pub fn reset_waiting(&mut self, mission: &Waypoints, start: RouteStart, limits: RouteLimits) {
+        self.first_start = start;
+        self.started_once = false;
+        self.armed = false;
+        self.mode = RobotMode::Idle;
+        self.mission.clone_from(mission);
+        self.limits = limits;
+        self.deviation_m = limits.blend_deviation_m();
+        self.progress = Progress::default();
+        self.current_set = false;
+        self.route.clear();
+    }
+
     /// The mode.
     #[must_use]
     pub fn mode(&self) -> RobotMode {

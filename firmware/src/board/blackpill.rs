@@ -50,8 +50,10 @@
 //! MAVLink port transmits by interrupt"); after the robot's tick the
 //! mission runner reads the route follower. The runner starts armed and
 //! running the image's route, so without a ground station the robot
-//! drives it from power-on; a ground station heard and then
-//! silent for the link timeout (3 s) stops the robot where it is
+//! drives it from power-on (or waits disarmed: the robot file's
+//! `[mavlink] power_on = "wait"`, which the image's route carries with the
+//! endpoint's settings); a ground station heard and then
+//! silent for the link timeout (3 s by default) stops the robot where it is
 //! (`LinkLost`, a `STATUSTEXT` says so). Without a route (the
 //! compiled-in [`PILOT`], or an image without one) the port's bytes are
 //! counted and dropped.
@@ -647,18 +649,22 @@ pub fn run() -> ! {
             let period_s = pilot.tracker().config().clock().period_s();
             match image_route.load_into(store, period_s) {
                 Ok(limits) => {
-                    mav = mavlink_port(limits);
+                    // Checked by the load: configured.
+                    let config = image_route.spec.mavlink.config().ok();
+                    mav = config.and_then(|config| mavlink_port(limits, config));
                     if mav.is_none() {
                         defmt::error!(
                             "no MAVLink endpoint: the route runs without a ground station link (its bytes counted and dropped)"
                         );
                     }
-                    if let Some(mav) = mav.as_deref_mut() {
+                    if let (Some(mav), Some(config)) = (mav.as_deref_mut(), config) {
                         mav.run.activate(
-                            store.waypoints(),
+                            store,
                             image_route.spec.start,
                             limits,
                             period_s,
+                            config,
+                            image_route.spec.mavlink.power_on,
                         );
                     }
                     Some(store)
@@ -901,21 +907,17 @@ impl MavlinkPort {
 }
 
 /// The MAVLink side of a route run, in a static, its parameters starting
-/// from the route's `limits` (`None`: the endpoint's configuration
-/// refused, impossible for the default one, or the static already taken).
-/// The endpoint's settings are `EndpointSpec::default()`, as on the QEMU
-/// board (the robot image carries none yet). Not inlined: what building
-/// it puts on the stack is gone before the loop runs.
+/// from the route's `limits`, its endpoint configured by `config` (the
+/// robot image's route's: the robot file's `[mavlink]`). `None`: the
+/// static already taken. Not inlined: what building it puts on the stack
+/// is gone before the loop runs.
 #[cfg(wmr_robot_image)]
 #[inline(never)]
 fn mavlink_port(
     limits: wmr_core::reference::route::RouteLimits,
+    config: wmr_mavlink::EndpointConfig,
 ) -> Option<&'static mut MavlinkPort> {
     use wmr_link::mavlink_run::MavlinkRun;
-    use wmr_mavlink::{EndpointConfig, EndpointSpec};
-    let Ok(config) = EndpointConfig::new(&EndpointSpec::default()) else {
-        return None;
-    };
     cortex_m::singleton!(: MavlinkPort = MavlinkPort {
         run: MavlinkRun::new(config, limits),
         rx: [0; MAVLINK_RING_BYTES],

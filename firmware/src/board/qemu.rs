@@ -195,7 +195,10 @@ fn fail() -> ! {
 }
 
 /// The MAVLink endpoint and mission runner of route runs (about 11 KB
-/// with the channel's queues and the upload check's route), in a static. Not inlined: what building it
+/// with the channel's queues and the upload check's route), in a static,
+/// idle with `EndpointSpec::default()`: each route run configures it with
+/// the settings its route announcement carries (`RouteSpec::mavlink`, the
+/// robot file's `[mavlink]`). Not inlined: what building it
 /// puts on the stack (the endpoint, 3 KB) is in this frame, gone before
 /// the run loop's ([`run`]).
 #[cfg(not(feature = "fusion-particle-filter"))]

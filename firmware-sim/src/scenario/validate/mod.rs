@@ -152,6 +152,13 @@ impl Scenario {
                 ("position.repeat_interval_s", "ignored with position.mode = \"paper\"; it applies to mode = \"range\""),
             ]);
         }
+        if !matches!(self.reference, ReferenceSpec::Route(_)) {
+            keys.push((
+                "mavlink",
+                "ignored without a route (reference.kind = \"route\"): the MAVLink endpoint \
+                 runs on route runs only",
+            ));
+        }
         keys
     }
 
@@ -211,10 +218,14 @@ impl Scenario {
             telemetry.every_ticks()?;
         }
 
+        // Checked whether a route uses it or not (a robot file's table is
+        // refused where it is wrong, not only where it runs).
+        let mavlink = self.mavlink.map(|m| m.settings()).transpose()?;
         let (trajectory_spec, route) = match &self.reference {
             ReferenceSpec::Trajectory(t) => (reference::checked(t)?, None),
             ReferenceSpec::Route(r) => {
-                let route = r.validate(period_s)?;
+                let mut route = r.validate(period_s)?;
+                route.mavlink = mavlink.unwrap_or_default();
                 (route.stand_in(), Some(route))
             }
         };

@@ -96,6 +96,7 @@ pub(super) fn bench_mavlink(cal: Calibration) {
         limits: LIMITS,
         options: RouteOptionsSpec::default(),
         start: RouteStart::AsGiven,
+        mavlink: wmr_link::MavlinkSettings::of(&spec, wmr_link::PowerOn::Run),
     };
     let Some(store) = cortex_m::singleton!(: RouteStore = RouteStore::new()) else {
         fail("route store already taken");
@@ -121,7 +122,14 @@ pub(super) fn bench_mavlink(cal: Calibration) {
     let Some(run) = cortex_m::singleton!(: MavlinkRun = MavlinkRun::new(config, limits)) else {
         fail("MAVLink run already taken");
     };
-    run.activate(store.waypoints(), route.start, limits, PERIOD_S);
+    run.activate(
+        store,
+        route.start,
+        limits,
+        PERIOD_S,
+        config,
+        route.mavlink.power_on,
+    );
 
     // A ground station's HEARTBEAT (MAV_TYPE_GCS), framed by the
     // endpoint's own encoder.
