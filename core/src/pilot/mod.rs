@@ -28,6 +28,7 @@ pub mod robot;
 pub mod route;
 pub mod spec;
 pub mod tracker;
+pub mod tuning;
 
 use crate::devices::MotorCommand;
 use crate::drive::{Drive, DriveConfig, DriveOutput};
@@ -35,6 +36,7 @@ use crate::geometry::WheelSpeeds;
 use crate::odometry::{CounterError, OdometryStep, WrappingCounter};
 use crate::pilot::route::RouteFollower;
 use crate::pilot::tracker::{OutputFeedbackTracker, TagFix, TrackerConfig, TrackerOutput};
+use crate::pilot::tuning::{Tuning, TuningSpec};
 
 /// Why a [`PilotConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -106,6 +108,25 @@ impl PilotConfig {
     #[must_use]
     pub fn with_max_encoder_fault_ticks(mut self, ticks: u32) -> Self {
         self.max_encoder_fault_ticks = ticks;
+        self
+    }
+
+    /// What may change at run time: law (27)–(28)'s gains and the
+    /// failsafe times ([`crate::pilot::tuning`]).
+    #[must_use]
+    pub fn tuning(&self) -> TuningSpec {
+        TuningSpec {
+            max_encoder_fault_ticks: self.max_encoder_fault_ticks,
+            ..self.tracker.tuning()
+        }
+    }
+
+    /// This configuration with `tuning` ([`TrackerConfig::with_tuning`],
+    /// and the encoder fault ticks).
+    #[must_use]
+    pub fn with_tuning(mut self, tuning: &Tuning) -> Self {
+        self.tracker = self.tracker.with_tuning(tuning);
+        self.max_encoder_fault_ticks = tuning.max_encoder_fault_ticks();
         self
     }
 
@@ -218,6 +239,15 @@ impl Pilot {
     #[must_use]
     pub fn drive(&self) -> &Drive {
         &self.drive
+    }
+
+    /// Takes `tuning` from the next tick on ([`crate::pilot::tuning`]):
+    /// the tracker's ([`OutputFeedbackTracker::retune`]) and the encoder
+    /// fault ticks (a run of faults already counted is judged by the new
+    /// figure at the next tick).
+    pub fn retune(&mut self, tuning: &Tuning) {
+        self.config = self.config.with_tuning(tuning);
+        self.tracker.retune(tuning);
     }
 
     /// The pilot's own counters.

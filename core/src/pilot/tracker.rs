@@ -91,6 +91,7 @@ use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::odometry::OdometryStep;
 use crate::pilot::route::{RouteFollower, Steer};
+use crate::pilot::tuning::{Tuning, TuningSpec};
 use crate::plausible::{DECEL_M_S2, PERIOD_S};
 use crate::reference::{
     ReferenceClock, ReferenceError, ReferenceSample, ReferenceTime, TickClock, Trajectory,
@@ -205,9 +206,7 @@ impl TrackerConfig {
         trajectory: Trajectory,
         fix_timeout_ticks: u32,
     ) -> Result<Self, TrackerConfigError> {
-        if fix_timeout_ticks == 0 {
-            return Err(TrackerConfigError::FixTimeout);
-        }
+        let fix_timeout_ticks = Self::check_fix_timeout(fix_timeout_ticks)?;
         let clock = TickClock::new(estimator.period_s())?;
         if law
             .period_s()
@@ -269,11 +268,83 @@ impl TrackerConfig {
     /// # Errors
     /// [`TrackerConfigError::FailsafeDecel`] outside [`DECEL_M_S2`].
     pub fn with_failsafe_decel(mut self, decel_m_s2: f32) -> Result<Self, TrackerConfigError> {
-        if !DECEL_M_S2.contains(decel_m_s2) {
-            return Err(TrackerConfigError::FailsafeDecel);
-        }
-        self.failsafe_decel_m_s2 = decel_m_s2;
+        self.failsafe_decel_m_s2 = Self::check_failsafe_decel(decel_m_s2)?;
         Ok(self)
+    }
+
+    /// The fix timeout's check ([`Self::new`]'s, and a run-time
+    /// [`crate::pilot::tuning::TuningSpec`]'s): at least one tick.
+    ///
+    /// # Errors
+    /// [`TrackerConfigError::FixTimeout`] for zero.
+    #[inline(always)]
+    pub fn check_fix_timeout(ticks: u32) -> Result<u32, TrackerConfigError> {
+        if ticks == 0 {
+            Err(TrackerConfigError::FixTimeout)
+        } else {
+            Ok(ticks)
+        }
+    }
+
+    /// The failsafe deceleration's check ([`Self::with_failsafe_decel`]'s,
+    /// and a run-time [`crate::pilot::tuning::TuningSpec`]'s), m/s².
+    ///
+    /// # Errors
+    /// [`TrackerConfigError::FailsafeDecel`] outside [`DECEL_M_S2`].
+    #[inline(always)]
+    pub fn check_failsafe_decel(decel_m_s2: f32) -> Result<f32, TrackerConfigError> {
+        if DECEL_M_S2.contains(decel_m_s2) {
+            Ok(decel_m_s2)
+        } else {
+            Err(TrackerConfigError::FailsafeDecel)
+        }
+    }
+
+    /// This configuration with `tuning`'s gains (law (27)–(28) only: with
+    /// another law they are not used, and [`Self::tuning`] reports none),
+    /// fix timeout, fix age and failsafe deceleration; the gain bound (15)
+    /// is evaluated again for the new gains. Infallible: a [`Tuning`] is
+    /// checked already.
+    #[must_use]
+    pub fn with_tuning(mut self, tuning: &Tuning) -> Self {
+        if let (LawChoice::Saturated(_), Some(gains)) = (self.law, tuning.gains()) {
+            self.law = LawChoice::Saturated(gains);
+            self.gain_bound = self.law.gain_bound(self.trajectory.speed_bounds());
+        }
+        self.fix_timeout_ticks = tuning.fix_timeout_ticks();
+        self.max_fix_age_ticks = tuning.max_fix_age_ticks();
+        self.failsafe_decel_m_s2 = tuning.failsafe_decel_m_s2();
+        self
+    }
+
+    /// The tracker's part of a [`TuningSpec`] (its
+    /// `max_encoder_fault_ticks` is the pilot's: 0 here): law
+    /// (27)–(28)'s gains (`None` with another law), the fix timeout and
+    /// age, the failsafe deceleration.
+    #[must_use]
+    pub fn tuning(&self) -> TuningSpec {
+        TuningSpec {
+            gains: match self.law {
+                LawChoice::Saturated(g) => Some([g.k1(), g.k2(), g.k3()]),
+                _ => None,
+            },
+            fix_timeout_ticks: self.fix_timeout_ticks,
+            max_fix_age_ticks: self.max_fix_age_ticks,
+            failsafe_decel_m_s2: self.failsafe_decel_m_s2,
+            max_encoder_fault_ticks: 0,
+        }
+    }
+
+    /// The failsafe deceleration, m/s².
+    #[must_use]
+    pub fn failsafe_decel_m_s2(&self) -> f32 {
+        self.failsafe_decel_m_s2
+    }
+
+    /// The age (ticks) beyond which a fix is stale.
+    #[must_use]
+    pub fn max_fix_age_ticks(&self) -> u32 {
+        self.max_fix_age_ticks
     }
 
     /// Sets the age (ticks) beyond which a fix is stale and rejected.
@@ -460,6 +531,19 @@ impl OutputFeedbackTracker {
     #[must_use]
     pub fn config(&self) -> &TrackerConfig {
         &self.config
+    }
+
+    /// Takes `tuning` from the next step on ([`TrackerConfig::with_tuning`]):
+    /// law (27)–(28)'s new gains bumplessly (its held heading kept,
+    /// [`crate::control::saturated::TrackingController::set_gains`]), the
+    /// fix timeout, fix age and failsafe deceleration for the next fix
+    /// check and ramp. The mode, estimate and counters are kept.
+    pub fn retune(&mut self, tuning: &Tuning) {
+        self.config = self.config.with_tuning(tuning);
+        if let (Law::Saturated(law), LawChoice::Saturated(gains)) = (&mut self.law, self.config.law)
+        {
+            law.set_gains(gains);
+        }
     }
 
     /// Counters since start.
