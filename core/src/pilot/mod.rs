@@ -121,13 +121,11 @@ impl PilotConfig {
         }
     }
 
-    /// This configuration with `tuning` ([`TrackerConfig::with_tuning`],
-    /// and the encoder fault ticks).
-    #[must_use]
-    pub fn with_tuning(mut self, tuning: &Tuning) -> Self {
-        self.tracker = self.tracker.with_tuning(tuning);
+    /// Takes `tuning` in place ([`TrackerConfig::retune`], and the encoder
+    /// fault ticks).
+    pub fn retune(&mut self, tuning: &Tuning) {
+        self.tracker.retune(tuning);
         self.max_encoder_fault_ticks = tuning.max_encoder_fault_ticks();
-        self
     }
 
     /// The tracker's configuration.
@@ -246,7 +244,7 @@ impl Pilot {
     /// fault ticks (a run of faults already counted is judged by the new
     /// figure at the next tick).
     pub fn retune(&mut self, tuning: &Tuning) {
-        self.config = self.config.with_tuning(tuning);
+        self.config.retune(tuning);
         self.tracker.retune(tuning);
     }
 

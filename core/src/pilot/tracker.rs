@@ -165,7 +165,6 @@ pub struct TrackerConfig {
     fix_timeout_ticks: u32,
     max_fix_age_ticks: u32,
     failsafe_decel_m_s2: f32,
-    gain_bound: Option<GainBound>,
     estimator: EstimatorChoice,
     law: LawChoice,
     antenna_offset: Vec2,
@@ -186,9 +185,8 @@ impl TrackerConfig {
     /// `fix_timeout_ticks`: ticks without a valid fix before the failsafe.
     /// The control period is the estimator's step
     /// ([`EstimatorChoice::period_s`]). For paper 001's law the gain bound
-    /// (15) is evaluated here and available from [`Self::gain_bound`]; a
-    /// violated bound is reported, not refused (the paper's own gains
-    /// violate it).
+    /// (15) is evaluated by [`Self::gain_bound`]; a violated bound is
+    /// reported, not refused (the paper's own gains violate it).
     ///
     /// # Errors
     /// [`TrackerConfigError::FixTimeout`] for a zero timeout,
@@ -214,7 +212,6 @@ impl TrackerConfig {
         {
             return Err(TrackerConfigError::AlgorithmPeriod);
         }
-        let gain_bound = law.gain_bound(trajectory.speed_bounds());
         Ok(Self {
             clock,
             trajectory,
@@ -222,7 +219,6 @@ impl TrackerConfig {
             fix_timeout_ticks,
             max_fix_age_ticks: Self::DEFAULT_MAX_FIX_AGE_TICKS,
             failsafe_decel_m_s2: Self::DEFAULT_FAILSAFE_DECEL_M_S2,
-            gain_bound,
             estimator,
             law,
             antenna_offset: Vec2::ZERO,
@@ -300,21 +296,19 @@ impl TrackerConfig {
         }
     }
 
-    /// This configuration with `tuning`'s gains (law (27)–(28) only: with
-    /// another law they are not used, and [`Self::tuning`] reports none),
-    /// fix timeout, fix age and failsafe deceleration; the gain bound (15)
-    /// is evaluated again for the new gains. Infallible: a [`Tuning`] is
-    /// checked already.
-    #[must_use]
-    pub fn with_tuning(mut self, tuning: &Tuning) -> Self {
+    /// Takes `tuning`'s gains (law (27)–(28) only: with another law they
+    /// are not used, and [`Self::tuning`] reports none), fix timeout, fix
+    /// age and failsafe deceleration, in place (no copy of the whole
+    /// configuration: flash and stack on the firmware); [`Self::gain_bound`]
+    /// then judges the new gains. Infallible: a [`Tuning`] is checked
+    /// already.
+    pub fn retune(&mut self, tuning: &Tuning) {
         if let (LawChoice::Saturated(_), Some(gains)) = (self.law, tuning.gains()) {
             self.law = LawChoice::Saturated(gains);
-            self.gain_bound = self.law.gain_bound(self.trajectory.speed_bounds());
         }
         self.fix_timeout_ticks = tuning.fix_timeout_ticks();
         self.max_fix_age_ticks = tuning.max_fix_age_ticks();
         self.failsafe_decel_m_s2 = tuning.failsafe_decel_m_s2();
-        self
     }
 
     /// The tracker's part of a [`TuningSpec`] (its
@@ -356,9 +350,11 @@ impl TrackerConfig {
 
     /// What the gain bound (15) says for paper 001's law's gains and this
     /// reference (`None` for the other laws, which it does not concern).
+    /// Evaluated when asked (not kept: a firmware that never asks links
+    /// none of it).
     #[must_use]
     pub fn gain_bound(&self) -> Option<GainBound> {
-        self.gain_bound
+        self.law.gain_bound(self.trajectory.speed_bounds())
     }
 
     /// The tick clock (control period).
@@ -533,13 +529,13 @@ impl OutputFeedbackTracker {
         &self.config
     }
 
-    /// Takes `tuning` from the next step on ([`TrackerConfig::with_tuning`]):
+    /// Takes `tuning` from the next step on ([`TrackerConfig::retune`]):
     /// law (27)–(28)'s new gains bumplessly (its held heading kept,
     /// [`crate::control::saturated::TrackingController::set_gains`]), the
     /// fix timeout, fix age and failsafe deceleration for the next fix
     /// check and ramp. The mode, estimate and counters are kept.
     pub fn retune(&mut self, tuning: &Tuning) {
-        self.config = self.config.with_tuning(tuning);
+        self.config.retune(tuning);
         if let (Law::Saturated(law), LawChoice::Saturated(gains)) = (&mut self.law, self.config.law)
         {
             law.set_gains(gains);

@@ -134,7 +134,9 @@ mod tests {
         assert_eq!(tuning.max_fix_age_ticks, spec.tracker.max_fix_age_ticks);
         assert_eq!(tuning.failsafe_decel_m_s2, spec.tracker.failsafe_decel_m_s2);
         assert_eq!(tuning.max_encoder_fault_ticks, spec.max_encoder_fault_ticks);
-        assert_eq!(config.with_tuning(&tuning.build().unwrap()), config);
+        let mut retuned = config;
+        retuned.retune(&tuning.build().unwrap());
+        assert_eq!(retuned, config);
     }
 
     /// Each value is refused as the robot file's would be, with the same

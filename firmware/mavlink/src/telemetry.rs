@@ -89,13 +89,10 @@ impl MavlinkEndpoint {
             return;
         };
         let mut payload = [0u8; 18];
-        for (slot, b) in payload.iter_mut().zip(
-            now_ms
-                .to_le_bytes()
-                .into_iter()
-                .chain(value.to_le_bytes())
-                .chain(name.bytes()),
-        ) {
+        let [t0, t1, t2, t3] = now_ms.to_le_bytes();
+        let [v0, v1, v2, v3] = value.to_le_bytes();
+        payload[..8].copy_from_slice(&[t0, t1, t2, t3, v0, v1, v2, v3]);
+        for (slot, b) in payload[8..].iter_mut().zip(name.bytes()) {
             *slot = b;
         }
         self.send_raw(
