@@ -144,7 +144,9 @@ mod tests {
     #[test]
     fn refusals_are_the_robot_files() {
         let (_, tuning) = example();
-        let cases: [(fn(&mut TuningSpec), fn(&mut PilotSpec)); 4] = [
+        type Tune = fn(&mut TuningSpec);
+        type File = fn(&mut PilotSpec);
+        let cases: [(Tune, File); 4] = [
             (
                 |t| t.gains = Some([0.5, f32::NAN, 1.0]),
                 |s| s.tracker.gains[1] = f32::NAN,

@@ -167,7 +167,8 @@ fn texts(out: &[MavMessage]) -> Vec<String> {
 fn gains_and_failsafe_times_are_set_through_the_core() {
     let mut rig = Rig::default_rig();
     rig.ep.set_tuning(&example_tuning()).unwrap();
-    let cases: [(&str, f32, f32, fn(&TuningSpec) -> f32); 7] = [
+    type Field = fn(&TuningSpec) -> f32;
+    let cases: [(&str, f32, f32, Field); 7] = [
         ("TRK_K1", 0.5, 0.25, |t| t.gains.unwrap()[0]),
         ("TRK_K2", 0.5, 0.75, |t| t.gains.unwrap()[1]),
         ("TRK_K3", 1.0, 2.0, |t| t.gains.unwrap()[2]),
