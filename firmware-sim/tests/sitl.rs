@@ -391,7 +391,7 @@ fn a_pause_holds_mid_leg_and_a_continue_finishes_the_mission() {
     ])
     .unwrap();
     for event in [Event::LoadRoute, Event::Arm, Event::Start] {
-        robot.apply(event, &mission, limits);
+        robot.apply(event, &mission, limits, None);
     }
     assert_eq!(robot.mode(), RobotMode::Running);
     // Mid-leg: past 0.6 m, moving.
@@ -404,7 +404,7 @@ fn a_pause_holds_mid_leg_and_a_continue_finishes_the_mission() {
         }
     }
     assert!(moving_at.is_some(), "never mid-leg");
-    robot.apply(Event::Pause, &mission, limits);
+    robot.apply(Event::Pause, &mission, limits, None);
     assert_eq!(robot.mode(), RobotMode::Paused);
     let mut settled = None;
     for k in 0..300 {
@@ -425,7 +425,7 @@ fn a_pause_holds_mid_leg_and_a_continue_finishes_the_mission() {
         assert!((r.x_m - x).hypot(r.y_m - y) < 1e-3, "moved while paused");
     }
     assert_eq!(robot.view().current, 1, "still driving to item 1");
-    robot.apply(Event::Continue, &mission, limits);
+    robot.apply(Event::Continue, &mission, limits, None);
     assert_eq!(robot.mode(), RobotMode::Running);
     for _ in 0..6000 {
         robot.step().unwrap();
@@ -443,7 +443,7 @@ fn a_pause_holds_mid_leg_and_a_continue_finishes_the_mission() {
         last.y_m
     );
     // A disarm holds and idles.
-    robot.apply(Event::Disarm, &mission, limits);
+    robot.apply(Event::Disarm, &mission, limits, None);
     assert_eq!((robot.mode(), robot.view().armed), (RobotMode::Idle, false));
 }
 
@@ -472,7 +472,7 @@ fn a_mission_uploaded_while_driving_replaces_the_route_at_its_next_rest() {
     ])
     .unwrap();
     for event in [Event::LoadRoute, Event::Arm, Event::Start] {
-        robot.apply(event, &first, limits);
+        robot.apply(event, &first, limits, None);
     }
     for _ in 0..3000 {
         let r = robot.step().unwrap();
@@ -488,7 +488,7 @@ fn a_mission_uploaded_while_driving_replaces_the_route_at_its_next_rest() {
         Waypoint::stop(0.4, 0.6, 0.0),
     ])
     .unwrap();
-    robot.apply(Event::LoadRoute, &second, limits);
+    robot.apply(Event::LoadRoute, &second, limits, None);
     assert_eq!(robot.mode(), RobotMode::Running);
     let mut max_x: f64 = 0.0;
     for _ in 0..6000 {
@@ -553,7 +553,7 @@ fn at_power_on_the_sitl_runs_or_waits_as_the_robot_file_says() {
     // Arm and start: the route loaded at power-on (no upload).
     let none = Waypoints::new();
     for event in [Event::Arm, Event::Start] {
-        robot.apply(event, &none, route.limits);
+        robot.apply(event, &none, route.limits, None);
     }
     assert_eq!(robot.mode(), RobotMode::Running);
     for _ in 0..run.records.len() * 2 {
@@ -571,4 +571,126 @@ fn at_power_on_the_sitl_runs_or_waits_as_the_robot_file_says() {
         end.x_m,
         end.y_m
     );
+}
+
+/// Sets a PARAM (REAL32) and returns the PARAM_VALUE answered for it and
+/// whether a STATUSTEXT naming it came before that answer's next
+/// heartbeat.
+fn set_param(gcs: &mut Gcs, name: &str, value: f32) -> (f32, Option<String>) {
+    let mut id = [0u8; 16];
+    id[..name.len()].copy_from_slice(name.as_bytes());
+    gcs.send(&MavMessage::PARAM_SET(PARAM_SET_DATA {
+        param_value: value,
+        target_system: 1,
+        target_component: 1,
+        param_id: id.into(),
+        param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+    }));
+    let answer = match gcs.wait(
+        name,
+        5000,
+        |m| matches!(m, MavMessage::PARAM_VALUE(p) if p.param_id[..] == id[..]),
+    ) {
+        MavMessage::PARAM_VALUE(p) => p.param_value,
+        _ => unreachable!(),
+    };
+    let mut text = None;
+    gcs.wait("the next heartbeat", 5000, |m| match m {
+        MavMessage::STATUSTEXT(t) => {
+            text = Some(
+                String::from_utf8_lossy(&t.text[..])
+                    .trim_end_matches('\0')
+                    .to_string(),
+            );
+            false
+        }
+        m => matches!(m, MavMessage::HEARTBEAT(_)),
+    });
+    (answer, text)
+}
+
+/// A ground station tunes the SITL's robot: a gain and a failsafe time
+/// set are the robot's own after (its pilot's configuration), a bad gain
+/// is refused by name with the old value, and the tracker's and RFID
+/// reader's counters arrive as NAMED_VALUE_INT.
+#[test]
+fn gains_set_over_mavlink_are_the_robots_and_its_counters_arrive() {
+    let (mut gcs, stop, thread) = start(100.0);
+    gcs.wait("the robot's heartbeat", 5000, |m| {
+        matches!(m, MavMessage::HEARTBEAT(_))
+    });
+    // The route scenario's k1 = 2, its fix timeout 0.5 s / 10 ms.
+    assert_eq!(set_param(&mut gcs, "TRK_K1", 1.5), (1.5, None));
+    assert_eq!(set_param(&mut gcs, "FS_DECEL", 0.8), (0.8, None));
+    assert_eq!(
+        set_param(&mut gcs, "TRK_K2", -2.0),
+        (2.0, Some("refused: TRK_K2".to_string()))
+    );
+    // The counters: each of the default 5 s period's names, the RFID
+    // reader's frames counted (the route scenario reads tags).
+    let mut seen = std::collections::BTreeMap::new();
+    gcs.wait("every counter", 20_000, |m| {
+        if let MavMessage::NAMED_VALUE_INT(v) = m {
+            let name = String::from_utf8_lossy(&v.name[..])
+                .trim_end_matches('\0')
+                .to_string();
+            seen.insert(name, v.value);
+        }
+        seen.len() == wmr_mavlink::COUNTERS
+    });
+    stop.store(true, Ordering::Relaxed);
+    let report = thread.join().unwrap();
+    for name in wmr_mavlink::COUNTER_NAMES {
+        assert!(seen.contains_key(name), "{name}: {seen:?}");
+    }
+    assert!(seen["RF_FRAMES"] > 0, "{seen:?}");
+    let tuning = report.tuning.unwrap();
+    assert_eq!(tuning.gains, Some([1.5, 2.0, 1.0]));
+    assert_eq!(tuning.failsafe_decel_m_s2, 0.8);
+    assert_eq!(tuning.fix_timeout_ticks, 50);
+    assert_eq!(report.param_refusals, 1);
+}
+
+/// A gain set mid-leg changes the robot's command from the next tick
+/// on, and only from then: the same mission run twice, one retuned.
+#[test]
+fn a_gain_set_mid_leg_changes_the_command_from_the_next_tick() {
+    use firmware_sim::sitl::SitlRobot;
+    use wmr_core::reference::route::{Waypoint, Waypoints};
+    use wmr_mavlink::Event;
+
+    // Waiting at power-on, so that the mission below is the only route.
+    let setup = route_setup(PowerOnSpec::Wait, 100);
+    let limits = setup.route.as_ref().unwrap().limits;
+    let mission = Waypoints::from_slice(&[
+        Waypoint::pass(0.0, 0.0),
+        Waypoint::pass(1.5, 0.0),
+        Waypoint::stop(1.5, 0.5, 0.5),
+    ])
+    .unwrap();
+    let run = |retune_at: Option<u32>| {
+        let mut robot = SitlRobot::new(&setup).unwrap();
+        for event in [Event::LoadRoute, Event::Arm, Event::Start] {
+            robot.apply(event, &mission, limits, None);
+        }
+        let mut tuning = robot.tuning().unwrap();
+        tuning.gains = Some([0.3, 0.3, 0.2]);
+        let tuning = tuning.build().unwrap();
+        let mut commands = Vec::new();
+        for k in 0..600 {
+            if Some(k) == retune_at {
+                robot.apply(Event::Tuning, &mission, limits, Some(tuning));
+            }
+            let r = robot.step().unwrap();
+            commands.push((r.v_cmd_m_s, r.omega_cmd_rad_s));
+        }
+        (commands, robot.tuning().unwrap())
+    };
+    let (plain, before) = run(None);
+    let (tuned, after) = run(Some(300));
+    assert_eq!(before.gains, Some([2.0, 2.0, 1.0]));
+    assert_eq!(after.gains, Some([0.3, 0.3, 0.2]));
+    assert_eq!(plain[..300], tuned[..300], "the same before the set");
+    assert!(plain[300].0 > 0.05, "mid-leg, moving");
+    assert_ne!(plain[300], tuned[300], "the new gains from the next tick");
 }

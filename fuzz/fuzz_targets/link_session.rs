@@ -342,6 +342,7 @@ impl Harness<'_> {
                     item_timeout_ms: u.arbitrary()?,
                     item_retries: u.arbitrary()?,
                     telemetry_period_ms: u.arbitrary()?,
+                    counters_period_ms: u.arbitrary()?,
                     origin_e7: if u.arbitrary()? {
                         Some([u.arbitrary()?, u.arbitrary()?])
                     } else {

@@ -14,7 +14,10 @@ at --speedup N, with the floor's origin (--origin), talks to it over UDP on loop
   kept (read back) and finished; every MISSION_ITEM_REACHED in order; the
   final LOCAL_POSITION_NED within 2 cm of the last waypoint;
 * a parameter set and read back; an invalid one refused (the old value
-  answered, a STATUSTEXT saying so);
+  answered, a STATUSTEXT saying so); the same for a gain of the tracking
+  law (TRK_K1), restored after;
+* the tracker's and RFID reader's counters arrive as NAMED_VALUE_INT, every
+  one of them, the fixes and reader frames counted;
 * a mission in MAV_FRAME_GLOBAL_INT through the floor's origin (--origin),
   uploaded, read back, run to its end, within 2 cm;
 * heartbeats stopped mid-leg: the robot reports the link lost and stops
@@ -83,6 +86,15 @@ GLOBAL_ROUTE = [
     (0.6, 0.5, 0.0, None),
 ]
 
+# The robot's counters, sent as NAMED_VALUE_INT (docs/mavlink.md, Messages).
+COUNTER_NAMES = [
+    "TRK_FIXES", "TRK_INVAL", "TRK_STALE", "TRK_GATED", "TRK_RELOC", "TRK_HDGRST",
+    "TRK_FSAFE", "TRK_DEADRK", "RF_FRAMES", "RF_CRC", "RF_MALFORM", "RF_UNKNOWN",
+    "RF_BACKLOG", "RF_RDERR", "RF_SUPERSD",
+]
+# The route scenario's k1 (its [controller]).
+ROUTE_K1 = 2.0
+
 # The checks skipped against the firmware under QEMU for want of a
 # feature, each with its reason: none (the origin reaches it with the
 # route).
@@ -111,6 +123,8 @@ class Gcs:
         self.thread = None
         self.statustexts = []
         self.reached = []
+        # The last value of each NAMED_VALUE_INT counter.
+        self.counters = {}
         self.mode = None
         self.system_status = None
         self.position = None
@@ -152,6 +166,8 @@ class Gcs:
             self.statustexts.append((self.sim_ms, msg.text))
         elif kind == "MISSION_ITEM_REACHED":
             self.reached.append(msg.seq)
+        elif kind == "NAMED_VALUE_INT":
+            self.counters[msg.name] = msg.value
         elif kind == "HEARTBEAT":
             self.mode = msg.custom_mode
             self.system_status = msg.system_status
@@ -466,6 +482,19 @@ def main():
         c.check("RT_MAX_SPEED = -1 refused (old value kept)",
                 abs(refused - 0.25) < 1e-6 and abs(gcs.param_read("RT_MAX_SPEED") - 0.25) < 1e-6)
         c.check("RT_MAX_SPEED back to 0.3", abs(gcs.param_set("RT_MAX_SPEED", 0.3) - 0.3) < 1e-6)
+        # A gain of the tracking law: checked by the core as a robot
+        # file's, taken by the robot from its next tick; restored.
+        c.check(f"TRK_K1 read as the robot's ({ROUTE_K1})",
+                abs(gcs.param_read("TRK_K1") - ROUTE_K1) < 1e-6)
+        c.check("TRK_K1 set to 1.5 and read back",
+                abs(gcs.param_set("TRK_K1", 1.5) - 1.5) < 1e-6
+                and abs(gcs.param_read("TRK_K1") - 1.5) < 1e-6)
+        refused = gcs.param_set("TRK_K1", -1.0)
+        gcs.wait("refusal text", lambda m: m.get_type() == "STATUSTEXT" and "TRK_K1" in m.text, 5)
+        c.check("TRK_K1 = -1 refused (old value kept)",
+                abs(refused - 1.5) < 1e-6 and abs(gcs.param_read("TRK_K1") - 1.5) < 1e-6)
+        c.check(f"TRK_K1 back to {ROUTE_K1}",
+                abs(gcs.param_set("TRK_K1", ROUTE_K1) - ROUTE_K1) < 1e-6)
 
         if args.hil:
             # Held where it is, so that the missions below start as on
@@ -507,6 +536,15 @@ def main():
 
         run_mission(gcs, c, ROUTE, "LOCAL_NED mission",
                     pause_leg=((0.0, 0.0), (1.0, 0.0)), bad_missions=bad_missions)
+
+        # The counters (one every 333 ms at the default 5 s period): after
+        # the loop's ~40 s, each has come, the fixes and frames counted.
+        missing = [n for n in COUNTER_NAMES if n not in gcs.counters]
+        c.check("every tracker and RFID counter arrived as NAMED_VALUE_INT",
+                not missing, f"missing {missing}")
+        c.check("fixes used and RFID frames counted (TRK_FIXES, RF_FRAMES > 0)",
+                gcs.counters.get("TRK_FIXES", 0) > 0 and gcs.counters.get("RF_FRAMES", 0) > 0,
+                str(gcs.counters))
 
         # The global mission, from where the loop ended.
         gitems = global_items(GLOBAL_ROUTE)

@@ -28,6 +28,7 @@ pub mod robot;
 pub mod route;
 pub mod spec;
 pub mod tracker;
+pub mod tuning;
 
 use crate::devices::MotorCommand;
 use crate::drive::{Drive, DriveConfig, DriveOutput};
@@ -35,6 +36,7 @@ use crate::geometry::WheelSpeeds;
 use crate::odometry::{CounterError, OdometryStep, WrappingCounter};
 use crate::pilot::route::RouteFollower;
 use crate::pilot::tracker::{OutputFeedbackTracker, TagFix, TrackerConfig, TrackerOutput};
+use crate::pilot::tuning::{Tuning, TuningSpec};
 
 /// Why a [`PilotConfig`] was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -107,6 +109,23 @@ impl PilotConfig {
     pub fn with_max_encoder_fault_ticks(mut self, ticks: u32) -> Self {
         self.max_encoder_fault_ticks = ticks;
         self
+    }
+
+    /// What may change at run time: law (27)–(28)'s gains and the
+    /// failsafe times ([`crate::pilot::tuning`]).
+    #[must_use]
+    pub fn tuning(&self) -> TuningSpec {
+        TuningSpec {
+            max_encoder_fault_ticks: self.max_encoder_fault_ticks,
+            ..self.tracker.tuning()
+        }
+    }
+
+    /// Takes `tuning` in place ([`TrackerConfig::retune`], and the encoder
+    /// fault ticks).
+    pub fn retune(&mut self, tuning: &Tuning) {
+        self.tracker.retune(tuning);
+        self.max_encoder_fault_ticks = tuning.max_encoder_fault_ticks();
     }
 
     /// The tracker's configuration.
@@ -218,6 +237,15 @@ impl Pilot {
     #[must_use]
     pub fn drive(&self) -> &Drive {
         &self.drive
+    }
+
+    /// Takes `tuning` from the next tick on ([`crate::pilot::tuning`]):
+    /// the tracker's ([`OutputFeedbackTracker::retune`]) and the encoder
+    /// fault ticks (a run of faults already counted is judged by the new
+    /// figure at the next tick).
+    pub fn retune(&mut self, tuning: &Tuning) {
+        self.config.retune(tuning);
+        self.tracker.retune(tuning);
     }
 
     /// The pilot's own counters.

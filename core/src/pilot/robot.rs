@@ -117,6 +117,11 @@ where
         &self.pilot
     }
 
+    /// Takes `tuning` from the next tick on ([`Pilot::retune`]).
+    pub fn retune(&mut self, tuning: &crate::pilot::tuning::Tuning) {
+        self.pilot.retune(tuning);
+    }
+
     /// Device fault counters.
     #[must_use]
     pub fn counters(&self) -> RobotCounters {

@@ -91,6 +91,7 @@ use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::odometry::OdometryStep;
 use crate::pilot::route::{RouteFollower, Steer};
+use crate::pilot::tuning::{Tuning, TuningSpec};
 use crate::plausible::{DECEL_M_S2, PERIOD_S};
 use crate::reference::{
     ReferenceClock, ReferenceError, ReferenceSample, ReferenceTime, TickClock, Trajectory,
@@ -164,7 +165,6 @@ pub struct TrackerConfig {
     fix_timeout_ticks: u32,
     max_fix_age_ticks: u32,
     failsafe_decel_m_s2: f32,
-    gain_bound: Option<GainBound>,
     estimator: EstimatorChoice,
     law: LawChoice,
     antenna_offset: Vec2,
@@ -185,9 +185,8 @@ impl TrackerConfig {
     /// `fix_timeout_ticks`: ticks without a valid fix before the failsafe.
     /// The control period is the estimator's step
     /// ([`EstimatorChoice::period_s`]). For paper 001's law the gain bound
-    /// (15) is evaluated here and available from [`Self::gain_bound`]; a
-    /// violated bound is reported, not refused (the paper's own gains
-    /// violate it).
+    /// (15) is evaluated by [`Self::gain_bound`]; a violated bound is
+    /// reported, not refused (the paper's own gains violate it).
     ///
     /// # Errors
     /// [`TrackerConfigError::FixTimeout`] for a zero timeout,
@@ -205,9 +204,7 @@ impl TrackerConfig {
         trajectory: Trajectory,
         fix_timeout_ticks: u32,
     ) -> Result<Self, TrackerConfigError> {
-        if fix_timeout_ticks == 0 {
-            return Err(TrackerConfigError::FixTimeout);
-        }
+        let fix_timeout_ticks = Self::check_fix_timeout(fix_timeout_ticks)?;
         let clock = TickClock::new(estimator.period_s())?;
         if law
             .period_s()
@@ -215,7 +212,6 @@ impl TrackerConfig {
         {
             return Err(TrackerConfigError::AlgorithmPeriod);
         }
-        let gain_bound = law.gain_bound(trajectory.speed_bounds());
         Ok(Self {
             clock,
             trajectory,
@@ -223,7 +219,6 @@ impl TrackerConfig {
             fix_timeout_ticks,
             max_fix_age_ticks: Self::DEFAULT_MAX_FIX_AGE_TICKS,
             failsafe_decel_m_s2: Self::DEFAULT_FAILSAFE_DECEL_M_S2,
-            gain_bound,
             estimator,
             law,
             antenna_offset: Vec2::ZERO,
@@ -269,11 +264,81 @@ impl TrackerConfig {
     /// # Errors
     /// [`TrackerConfigError::FailsafeDecel`] outside [`DECEL_M_S2`].
     pub fn with_failsafe_decel(mut self, decel_m_s2: f32) -> Result<Self, TrackerConfigError> {
-        if !DECEL_M_S2.contains(decel_m_s2) {
-            return Err(TrackerConfigError::FailsafeDecel);
-        }
-        self.failsafe_decel_m_s2 = decel_m_s2;
+        self.failsafe_decel_m_s2 = Self::check_failsafe_decel(decel_m_s2)?;
         Ok(self)
+    }
+
+    /// The fix timeout's check ([`Self::new`]'s, and a run-time
+    /// [`crate::pilot::tuning::TuningSpec`]'s): at least one tick.
+    ///
+    /// # Errors
+    /// [`TrackerConfigError::FixTimeout`] for zero.
+    #[inline(always)]
+    pub fn check_fix_timeout(ticks: u32) -> Result<u32, TrackerConfigError> {
+        if ticks == 0 {
+            Err(TrackerConfigError::FixTimeout)
+        } else {
+            Ok(ticks)
+        }
+    }
+
+    /// The failsafe deceleration's check ([`Self::with_failsafe_decel`]'s,
+    /// and a run-time [`crate::pilot::tuning::TuningSpec`]'s), m/s².
+    ///
+    /// # Errors
+    /// [`TrackerConfigError::FailsafeDecel`] outside [`DECEL_M_S2`].
+    #[inline(always)]
+    pub fn check_failsafe_decel(decel_m_s2: f32) -> Result<f32, TrackerConfigError> {
+        if DECEL_M_S2.contains(decel_m_s2) {
+            Ok(decel_m_s2)
+        } else {
+            Err(TrackerConfigError::FailsafeDecel)
+        }
+    }
+
+    /// Takes `tuning`'s gains (law (27)–(28) only: with another law they
+    /// are not used, and [`Self::tuning`] reports none), fix timeout, fix
+    /// age and failsafe deceleration, in place (no copy of the whole
+    /// configuration: flash and stack on the firmware); [`Self::gain_bound`]
+    /// then judges the new gains. Infallible: a [`Tuning`] is checked
+    /// already.
+    pub fn retune(&mut self, tuning: &Tuning) {
+        if let (LawChoice::Saturated(_), Some(gains)) = (self.law, tuning.gains()) {
+            self.law = LawChoice::Saturated(gains);
+        }
+        self.fix_timeout_ticks = tuning.fix_timeout_ticks();
+        self.max_fix_age_ticks = tuning.max_fix_age_ticks();
+        self.failsafe_decel_m_s2 = tuning.failsafe_decel_m_s2();
+    }
+
+    /// The tracker's part of a [`TuningSpec`] (its
+    /// `max_encoder_fault_ticks` is the pilot's: 0 here): law
+    /// (27)–(28)'s gains (`None` with another law), the fix timeout and
+    /// age, the failsafe deceleration.
+    #[must_use]
+    pub fn tuning(&self) -> TuningSpec {
+        TuningSpec {
+            gains: match self.law {
+                LawChoice::Saturated(g) => Some([g.k1(), g.k2(), g.k3()]),
+                _ => None,
+            },
+            fix_timeout_ticks: self.fix_timeout_ticks,
+            max_fix_age_ticks: self.max_fix_age_ticks,
+            failsafe_decel_m_s2: self.failsafe_decel_m_s2,
+            max_encoder_fault_ticks: 0,
+        }
+    }
+
+    /// The failsafe deceleration, m/s².
+    #[must_use]
+    pub fn failsafe_decel_m_s2(&self) -> f32 {
+        self.failsafe_decel_m_s2
+    }
+
+    /// The age (ticks) beyond which a fix is stale.
+    #[must_use]
+    pub fn max_fix_age_ticks(&self) -> u32 {
+        self.max_fix_age_ticks
     }
 
     /// Sets the age (ticks) beyond which a fix is stale and rejected.
@@ -285,9 +350,11 @@ impl TrackerConfig {
 
     /// What the gain bound (15) says for paper 001's law's gains and this
     /// reference (`None` for the other laws, which it does not concern).
+    /// Evaluated when asked (not kept: a firmware that never asks links
+    /// none of it).
     #[must_use]
     pub fn gain_bound(&self) -> Option<GainBound> {
-        self.gain_bound
+        self.law.gain_bound(self.trajectory.speed_bounds())
     }
 
     /// The tick clock (control period).
@@ -460,6 +527,19 @@ impl OutputFeedbackTracker {
     #[must_use]
     pub fn config(&self) -> &TrackerConfig {
         &self.config
+    }
+
+    /// Takes `tuning` from the next step on ([`TrackerConfig::retune`]):
+    /// law (27)–(28)'s new gains bumplessly (its held heading kept,
+    /// [`crate::control::saturated::TrackingController::set_gains`]), the
+    /// fix timeout, fix age and failsafe deceleration for the next fix
+    /// check and ramp. The mode, estimate and counters are kept.
+    pub fn retune(&mut self, tuning: &Tuning) {
+        self.config.retune(tuning);
+        if let (Law::Saturated(law), LawChoice::Saturated(gains)) = (&mut self.law, self.config.law)
+        {
+            law.set_gains(gains);
+        }
     }
 
     /// Counters since start.

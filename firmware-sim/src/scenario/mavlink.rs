@@ -42,6 +42,9 @@ fn item_retries() -> u64 {
 fn telemetry_period_ms() -> u64 {
     u64::from(EndpointSpec::default().telemetry_period_ms)
 }
+fn counters_period_ms() -> u64 {
+    u64::from(EndpointSpec::default().counters_period_ms)
+}
 
 /// The robot's MAVLink endpoint (`[mavlink]`): used by route runs (a
 /// route reference), on the SITL, under QEMU and on the Black Pill.
@@ -75,6 +78,12 @@ pub struct MavlinkSpec {
     #[serde(default = "telemetry_period_ms")]
     #[schemars(range(min = 0, max = 60_000))]
     pub telemetry_period_ms: u64,
+    /// Period in which the tracker's and RFID reader's counters are all
+    /// sent once (`NAMED_VALUE_INT`, one counter at a time), ms: 0 (off)
+    /// or 20 to 60000.
+    #[serde(default = "counters_period_ms")]
+    #[schemars(range(min = 0, max = 60_000))]
+    pub counters_period_ms: u64,
     /// The floor's (0, 0) on the globe (WGS-84), for global-frame
     /// missions and `GLOBAL_POSITION_INT`; without it a global-frame
     /// mission is refused (`MAV_MISSION_UNSUPPORTED_FRAME`).
@@ -97,6 +106,7 @@ impl Default for MavlinkSpec {
             item_timeout_ms: item_timeout_ms(),
             item_retries: item_retries(),
             telemetry_period_ms: telemetry_period_ms(),
+            counters_period_ms: counters_period_ms(),
             origin: None,
             power_on: PowerOnSpec::default(),
         }
@@ -146,6 +156,7 @@ fn key_of(key: ConfigKey) -> &'static str {
         ConfigKey::ItemTimeout => "mavlink.item_timeout_ms",
         ConfigKey::ItemRetries => "mavlink.item_retries",
         ConfigKey::TelemetryPeriod => "mavlink.telemetry_period_ms",
+        ConfigKey::CountersPeriod => "mavlink.counters_period_ms",
         ConfigKey::OriginLatitude => "mavlink.origin.latitude_deg",
         ConfigKey::OriginLongitude => "mavlink.origin.longitude_deg",
     }
@@ -200,6 +211,7 @@ impl MavlinkSpec {
             item_timeout_ms: narrow_u32(ConfigKey::ItemTimeout, self.item_timeout_ms)?,
             item_retries: narrow_u8(ConfigKey::ItemRetries, self.item_retries)?,
             telemetry_period_ms: narrow_u32(ConfigKey::TelemetryPeriod, self.telemetry_period_ms)?,
+            counters_period_ms: narrow_u32(ConfigKey::CountersPeriod, self.counters_period_ms)?,
             origin_e7,
         };
         let settings = MavlinkSettings::of(&spec, self.power_on.into());

@@ -3,13 +3,14 @@
 //! tick over a [`super::TargetLink`], and the record of a tick.
 
 use wmr_core::control::saturated::TrackingController;
-use wmr_core::devices::{QuadratureCounter, RfidReader};
+use wmr_core::devices::{QuadratureCounter, RfidCounters, RfidReader};
 use wmr_core::geometry::HeadingEstimate;
 use wmr_core::geometry::{BodyVelocity, Pose, Vec2};
 use wmr_core::odometry::OdometryStep;
 use wmr_core::pilot::robot::{Motor, Robot};
 use wmr_core::pilot::route::RouteFollower;
-use wmr_core::pilot::tracker::{OutputFeedbackTracker, TrackerMode};
+use wmr_core::pilot::tracker::{OutputFeedbackTracker, TrackerCounters, TrackerMode};
+use wmr_core::pilot::tuning::{Tuning, TuningSpec};
 use wmr_core::pilot::{Measurement, Pilot, PilotConfig};
 use wmr_core::reference::{TickClock, Trajectory};
 use wmr_link::{Diagnostics, MAX_UART_BYTES_PER_TICK, MotorOutput, TickInput};
@@ -498,6 +499,49 @@ impl<'t> Rig<'t> {
                 Ok(route.replace(follower))
             }
             Self::Remote { .. } | Self::Controller { .. } => Err(follower),
+        }
+    }
+
+    /// The gains and failsafe times the core's tracker runs with now
+    /// (`PilotConfig::tuning`; the tracker alone has no encoder fault
+    /// ticks: 0); `None` where the tick is not the core's tracker.
+    pub(super) fn tuning(&self) -> Option<TuningSpec> {
+        match self {
+            Self::Tracker { tracker, .. } => Some(tracker.config().tuning()),
+            Self::Pilot { pilot, .. } => Some(pilot.config().tuning()),
+            Self::Robot { robot, .. } => Some(robot.pilot().config().tuning()),
+            Self::Remote { .. } | Self::Controller { .. } => None,
+        }
+    }
+
+    /// Takes `tuning` from the next tick on (`Pilot::retune`); `false`
+    /// where the tick is not the core's tracker.
+    pub(super) fn retune(&mut self, tuning: &Tuning) -> bool {
+        match self {
+            Self::Tracker { tracker, .. } => tracker.retune(tuning),
+            Self::Pilot { pilot, .. } => pilot.retune(tuning),
+            Self::Robot { robot, .. } => robot.retune(tuning),
+            Self::Remote { .. } | Self::Controller { .. } => return false,
+        }
+        true
+    }
+
+    /// The tracker's counters, and the RFID reader's with the count of
+    /// tags not on the floor where there is a reader; `None` where the
+    /// tick is not the core's tracker.
+    pub(super) fn counters(&self) -> Option<(TrackerCounters, Option<(RfidCounters, u32)>)> {
+        match self {
+            Self::Tracker {
+                tracker, source, ..
+            } => Some((tracker.counters(), source.rfid_counters())),
+            Self::Pilot { pilot, source, .. } => {
+                Some((pilot.tracker().counters(), source.rfid_counters()))
+            }
+            Self::Robot { robot, .. } => Some((
+                robot.pilot().tracker().counters(),
+                Some((robot.rfid_counters(), robot.counters().unknown_tags)),
+            )),
+            Self::Remote { .. } | Self::Controller { .. } => None,
         }
     }
 

@@ -4,7 +4,7 @@
 
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt as _, SeedableRng as _};
-use wmr_core::devices::{RfidReader, TagLocator};
+use wmr_core::devices::{RfidCounters, RfidReader, TagLocator};
 use wmr_core::geometry::Vec2;
 use wmr_core::pilot::tracker::TagFix;
 
@@ -81,6 +81,15 @@ impl Source {
         }
     }
 
+    fn rfid_counters(&self) -> Option<(RfidCounters, u32)> {
+        match self {
+            Self::Reader {
+                rfid, unknown_tags, ..
+            } => Some((rfid.counters(), *unknown_tags)),
+            _ => None,
+        }
+    }
+
     fn report(&self) -> Option<RfidReport> {
         match self {
             Self::Reader {
@@ -152,6 +161,12 @@ impl FixSource {
 
     pub(super) fn floor_tags(&self) -> Option<usize> {
         self.source.floor_tags()
+    }
+
+    /// The core reader's counters and the tags not on the floor, with a
+    /// reader.
+    pub(super) fn rfid_counters(&self) -> Option<(RfidCounters, u32)> {
+        self.source.rfid_counters()
     }
 
     pub(super) fn report(&self) -> Option<RfidReport> {

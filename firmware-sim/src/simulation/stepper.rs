@@ -1,7 +1,10 @@
 //! A local rig ticked one tick at a time by another module of this crate
 //! (the SITL), its route's follower swappable between ticks.
 
+use wmr_core::devices::RfidCounters;
 use wmr_core::pilot::route::RouteFollower;
+use wmr_core::pilot::tracker::TrackerCounters;
+use wmr_core::pilot::tuning::{Tuning, TuningSpec};
 
 use crate::report::Record;
 use crate::scenario::Setup;
@@ -47,5 +50,20 @@ impl Stepper {
         follower: Box<RouteFollower>,
     ) -> Result<Option<Box<RouteFollower>>, Box<RouteFollower>> {
         self.0.swap_route(follower)
+    }
+
+    /// The gains and failsafe times the tracker runs with (module `rig`).
+    pub(crate) fn tuning(&self) -> Option<TuningSpec> {
+        self.0.tuning()
+    }
+
+    /// Takes `tuning` from the next tick on (module `rig`).
+    pub(crate) fn retune(&mut self, tuning: &Tuning) -> bool {
+        self.0.retune(tuning)
+    }
+
+    /// The tracker's and the reader's counters (module `rig`).
+    pub(crate) fn counters(&self) -> Option<(TrackerCounters, Option<(RfidCounters, u32)>)> {
+        self.0.counters()
     }
 }

@@ -93,11 +93,30 @@ pub struct SitlReport {
     pub crc_errors: u32,
     /// The UDP link's counters.
     pub link: LinkCounters,
+    /// The gains and failsafe times the robot ran with at the end (as set
+    /// by `PARAM_SET`, or the scenario's).
+    pub tuning: Option<SitlTuning>,
     /// What the robot did, a line each, with its simulated time.
     pub log: Vec<String>,
     /// Every tick's record, with `keep_records`.
     #[serde(skip)]
     pub records: Vec<Record>,
+}
+
+/// The gains and failsafe times of a [`SitlReport`]
+/// (`wmr_core::pilot::tuning::TuningSpec`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SitlTuning {
+    /// Law (27)–(28)'s `[k1, k2, k3]` (`None` on another law).
+    pub gains: Option<[f32; 3]>,
+    /// Ticks without a valid fix before the failsafe engages.
+    pub fix_timeout_ticks: u32,
+    /// Age beyond which a fix is stale, ticks.
+    pub max_fix_age_ticks: u32,
+    /// Failsafe deceleration, m/s².
+    pub failsafe_decel_m_s2: f32,
+    /// Encoder fault ticks bridged before the motors stop.
+    pub max_encoder_fault_ticks: u32,
 }
 
 /// Builds the endpoint for `setup`'s robot: configured by its
@@ -140,6 +159,11 @@ pub fn run(
     );
     let mut robot = SitlRobot::new(setup)?;
     let mut endpoint = endpoint(setup)?;
+    if let Some(tuning) = robot.tuning() {
+        endpoint
+            .set_tuning(&tuning)
+            .map_err(|e| anyhow::anyhow!("the robot's tuning: {e}"))?;
+    }
     let mut link = UdpLink::open(options.address)?;
     ready(&link);
     let period_s = robot.period_s();
@@ -171,12 +195,15 @@ pub fn run(
         let mission = endpoint.route();
         let limits = endpoint.route_limits();
         for &event in events.as_slice() {
-            if let Some(line) = robot.apply(event, &mission, limits) {
+            if let Some(line) = robot.apply(event, &mission, limits, endpoint.tuning()) {
                 log.push(format!("{t_s:.2} s: {line}"));
             }
         }
         let mode_before = robot.mode();
         let record = *robot.step()?;
+        if let Some(counts) = robot.counts() {
+            endpoint.set_counts(counts);
+        }
         if mode_before != RobotMode::Done && robot.mode() == RobotMode::Done {
             routes_done += 1;
             log.push(format!("{t_s:.2} s: mission done"));
@@ -208,6 +235,13 @@ pub fn run(
         param_refusals: counters.param_refusals,
         crc_errors: counters.rx.crc_errors,
         link: link.counters(),
+        tuning: robot.tuning().map(|t| SitlTuning {
+            gains: t.gains,
+            fix_timeout_ticks: t.fix_timeout_ticks,
+            max_fix_age_ticks: t.max_fix_age_ticks,
+            failsafe_decel_m_s2: t.failsafe_decel_m_s2,
+            max_encoder_fault_ticks: t.max_encoder_fault_ticks,
+        }),
         log,
         records,
     })

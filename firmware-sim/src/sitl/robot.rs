@@ -5,13 +5,16 @@
 //! and its progress), applying the endpoint's [`Event`]s at a tick
 //! boundary. This file owns the route follower (in a `Box`) and does to it
 //! what the runner asks ([`FollowerAction`]), and writes the runner's
-//! [`Note`]s as log lines.
+//! [`Note`]s as log lines. A tuning set by a ground station
+//! ([`Event::Tuning`]) goes into the rig's pilot (`Pilot::retune`) at
+//! that boundary, as on the firmware: it holds from the next tick on.
 
 use wmr_core::geometry::Vec2;
 use wmr_core::pilot::route::{RouteFollower, RouteOptions};
+use wmr_core::pilot::tuning::{Tuning, TuningSpec};
 use wmr_core::reference::route::{RouteLimits, Waypoints};
 use wmr_mavlink::{
-    Estimate, Event, FollowerAction, MissionRunner, Note, Progress, RobotMode, RobotView,
+    Counts, Estimate, Event, FollowerAction, MissionRunner, Note, Progress, RobotMode, RobotView,
 };
 
 use wmr_link::PowerOn;
@@ -98,6 +101,21 @@ impl SitlRobot {
         self.runner.limits()
     }
 
+    /// The gains and failsafe times the robot runs with now.
+    #[must_use]
+    pub fn tuning(&self) -> Option<TuningSpec> {
+        self.rig.tuning()
+    }
+
+    /// The tracker's and RFID reader's counters now (the reader's zero
+    /// on a robot without one).
+    #[must_use]
+    pub fn counts(&self) -> Option<Counts> {
+        let (tracker, rfid) = self.rig.counters()?;
+        let (rfid, unknown) = rfid.unwrap_or_default();
+        Some(Counts::of(&tracker, &rfid, unknown))
+    }
+
     /// The last tick's record.
     #[must_use]
     pub fn last(&self) -> Option<&Record> {
@@ -133,14 +151,20 @@ impl SitlRobot {
     }
 
     /// Applies one of the endpoint's events. `mission` is the endpoint's
-    /// running mission as a route, `limits` its route limits now. Returns
-    /// a line for the log where the robot did something.
+    /// running mission as a route, `limits` its route limits now,
+    /// `tuning` its gains and failsafe times now (taken on
+    /// [`Event::Tuning`]). Returns a line for the log where the robot did
+    /// something.
     pub fn apply(
         &mut self,
         event: Event,
         mission: &Waypoints,
         limits: RouteLimits,
+        tuning: Option<Tuning>,
     ) -> Option<String> {
+        if let (Event::Tuning, Some(tuning)) = (event, tuning) {
+            self.rig.retune(&tuning);
+        }
         let counters = self
             .rig
             .route()
@@ -204,5 +228,6 @@ fn line(note: Note) -> String {
         Note::LinkLostStopped => "link lost: stopped (disarm, re-arm to restart)".into(),
         Note::LinkLost => "link lost".into(),
         Note::RouteLimits => "route limits set: the next route is planned with them".into(),
+        Note::Tuning => "gains / failsafe times set: from the next tick".into(),
     }
 }

@@ -19,12 +19,22 @@
 //! only for its size here (no second 20 KB plan to plan it into): one the
 //! planner refuses is refused by the follower when it starts, counted
 //! (`RouteCounters::routes_refused`), and the robot holds where it is.
+//!
+//! The robot's gains and failsafe times are parameters too: its owner
+//! tells the run the pilot's ([`MavlinkRun::set_tuning`], after each
+//! [`MavlinkRun::activate`]), and after [`MavlinkRun::before_tick`] takes
+//! a tuning the ground station set ([`MavlinkRun::take_tuning`]) into the
+//! pilot (`Robot::retune`) before the robot's tick: it holds from that
+//! tick on. Its counters go to the endpoint after each tick
+//! ([`MavlinkRun::set_counts`]).
 
 use wmr_core::geometry::Vec2;
 use wmr_core::pilot::route::{RouteFollower, RouteStart};
+use wmr_core::pilot::tuning::{Tuning, TuningSpec};
 use wmr_core::reference::route::{RouteError, RouteLimits, RouteLimitsSpec, Waypoints};
 use wmr_mavlink::{
-    EndpointConfig, Estimate, Events, FollowerAction, MavlinkEndpoint, MissionRunner, TxBuffer,
+    Counts, EndpointConfig, Estimate, Event, Events, FollowerAction, MavlinkEndpoint,
+    MissionRunner, TxBuffer,
 };
 
 use crate::route::PowerOn;
@@ -46,6 +56,9 @@ pub struct MavlinkRun {
     /// Where the endpoint writes an uploaded mission as a route to check
     /// it (`MavlinkEndpoint::handle_in`): here, not on the stack.
     route_check: Waypoints,
+    /// A ground station set the gains or failsafe times since the owner
+    /// last took them ([`Self::take_tuning`]).
+    retune: bool,
 }
 
 impl MavlinkRun {
@@ -76,6 +89,7 @@ impl MavlinkRun {
             period_us: 0,
             active: false,
             route_check: Waypoints::new(),
+            retune: false,
         }
     }
 
@@ -108,6 +122,37 @@ impl MavlinkRun {
         // A period of at most hours (the pilot's check): fits.
         self.period_us = (period_s * 1.0e6 + 0.5) as u32;
         self.active = true;
+        self.retune = false;
+    }
+
+    /// The robot's gains and failsafe times (`PilotConfig::tuning`), which
+    /// the parameters start from; after each [`Self::activate`] (until
+    /// told they read NaN and are refused).
+    ///
+    /// # Errors
+    /// The core's refusal (not for a running pilot's own).
+    pub fn set_tuning(
+        &mut self,
+        spec: &TuningSpec,
+    ) -> Result<(), wmr_core::pilot::spec::SpecError> {
+        self.endpoint.set_tuning(spec)
+    }
+
+    /// The gains and failsafe times a ground station set since the last
+    /// call, for the robot to take before its tick (`Robot::retune`);
+    /// `None` if none were set.
+    pub fn take_tuning(&mut self) -> Option<Tuning> {
+        if core::mem::take(&mut self.retune) {
+            self.endpoint.tuning()
+        } else {
+            None
+        }
+    }
+
+    /// The robot's counters after its tick, for the endpoint to send
+    /// (`NAMED_VALUE_INT` at its counters period).
+    pub fn set_counts(&mut self, counts: Counts) {
+        self.endpoint.set_counts(counts);
     }
 
     /// Ends the run's MAVLink side (no route any more).
@@ -167,6 +212,7 @@ impl MavlinkRun {
         let written = (tx.len().min(room_len), tx.dropped());
         if !events.as_slice().is_empty() {
             apply_events(endpoint, runner, route, &events);
+            self.retune |= events.as_slice().contains(&Event::Tuning);
         }
         written
     }

@@ -64,6 +64,9 @@ pub struct MavlinkSettings {
     pub item_retries: u8,
     /// Position and attitude telemetry period, ms (0: off).
     pub telemetry_period_ms: u32,
+    /// Tracker and RFID counter telemetry period (all counters once),
+    /// ms (0: off).
+    pub counters_period_ms: u32,
     /// The floor's geodetic origin, latitude and longitude in 1e-7
     /// degrees (`None`: global-frame missions are refused).
     pub origin_e7: Option<[i32; 2]>,
@@ -89,6 +92,7 @@ impl MavlinkSettings {
             item_timeout_ms: spec.item_timeout_ms,
             item_retries: spec.item_retries,
             telemetry_period_ms: spec.telemetry_period_ms,
+            counters_period_ms: spec.counters_period_ms,
             origin_e7: spec.origin_e7.map(|(lat, lon)| [lat, lon]),
             power_on,
         }
@@ -104,6 +108,7 @@ impl MavlinkSettings {
             item_timeout_ms: self.item_timeout_ms,
             item_retries: self.item_retries,
             telemetry_period_ms: self.telemetry_period_ms,
+            counters_period_ms: self.counters_period_ms,
             origin_e7: self.origin_e7.map(|[lat, lon]| (lat, lon)),
         }
     }

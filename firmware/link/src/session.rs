@@ -304,12 +304,16 @@ impl<'a> Session<'a> {
                         self.bus.load(input);
                         if let Some(mav) = self.mav.as_deref_mut().filter(|m| m.run.is_active()) {
                             mavlink_tick(mav, self.route, input.tick, self.last_answer.as_ref());
+                            if let Some(tuning) = mav.run.take_tuning() {
+                                robot.retune(&tuning);
+                            }
                         }
                         let route = self.route_load.and_then(|_| self.route.follower_mut());
                         let out = robot.tick_on(route);
                         if let Some(mav) = self.mav.as_deref_mut() {
                             let r = out.pilot.tracker.reference.position;
                             mav.run.after_tick(self.route, r);
+                            note_counts(mav, robot);
                         }
                         // A few scalars, not `&out`: taking the tick's address
                         // kept all of it in this (inlined, deepest) frame.
@@ -658,6 +662,10 @@ impl<'a> Session<'a> {
                 config,
                 load.mavlink.power_on,
             );
+            if let Some(robot) = &self.robot {
+                // The pilot's own: built by the same checks.
+                let _ = mav.run.set_tuning(&robot.pilot().config().tuning());
+            }
         }
         Ok(TargetMessage::Configured)
     }
@@ -676,6 +684,20 @@ fn mavlink_tick(
     let estimate = last.map(|a| mavlink_run::estimate(a.position_m, a.heading, a.command));
     let MavlinkStore { run, queues } = mav;
     queues.tick(|rx, room| run.before_tick(route, tick, estimate, rx, room));
+}
+
+/// The robot's counters to the endpoint after its tick, on a route run.
+/// Not inlined: the counters are gathered in this frame, not in that of
+/// [`Session::handle`], which is on the stack's deepest path.
+#[inline(never)]
+fn note_counts(mav: &mut MavlinkStore, robot: &ProxyRobot<'_>) {
+    if mav.run.is_active() {
+        mav.run.set_counts(wmr_mavlink::Counts::of(
+            &robot.pilot().tracker().counters(),
+            &robot.rfid_counters(),
+            robot.counters().unknown_tags,
+        ));
+    }
 }
 
 /// Whether `chunk` is the last one loaded, sent again: it ends where the

@@ -306,6 +306,7 @@ fn a_full_route_chunk_fits_a_frame() {
             item_timeout_ms: u32::MAX,
             item_retries: u8::MAX,
             telemetry_period_ms: u32::MAX,
+            counters_period_ms: u32::MAX,
             origin_e7: Some([i32::MIN, i32::MIN]),
             power_on: crate::PowerOn::Wait,
         },

@@ -20,6 +20,10 @@ pub struct EndpointSpec {
     /// Period of the position and attitude telemetry, ms: 0 = off, else
     /// `20..=60_000`.
     pub telemetry_period_ms: u32,
+    /// Period of the robot's counters (tracker and RFID reader), ms: each
+    /// counter is sent once a period as a `NAMED_VALUE_INT`, the counters
+    /// one after another, spread over it; 0 = off, else `20..=60_000`.
+    pub counters_period_ms: u32,
     /// The floor's (0, 0) as latitude, longitude in 1e-7 degrees, for the
     /// global frames; `None`: global-frame items are refused
     /// (`MAV_MISSION_UNSUPPORTED_FRAME`).
@@ -35,6 +39,7 @@ impl Default for EndpointSpec {
             item_timeout_ms: 1_000,
             item_retries: 5,
             telemetry_period_ms: 200,
+            counters_period_ms: 5_000,
             origin_e7: None,
         }
     }
@@ -55,6 +60,8 @@ pub enum ConfigKey {
     ItemRetries,
     /// `telemetry_period_ms`.
     TelemetryPeriod,
+    /// `counters_period_ms`.
+    CountersPeriod,
     /// `origin_e7.0` (latitude).
     OriginLatitude,
     /// `origin_e7.1` (longitude).
@@ -72,6 +79,7 @@ impl ConfigKey {
             Self::ItemTimeout => "item_timeout_ms",
             Self::ItemRetries => "item_retries",
             Self::TelemetryPeriod => "telemetry_period_ms",
+            Self::CountersPeriod => "counters_period_ms",
             Self::OriginLatitude => "origin_e7.latitude",
             Self::OriginLongitude => "origin_e7.longitude",
         }
@@ -85,7 +93,7 @@ impl ConfigKey {
             Self::LinkTimeout => "100..=600000",
             Self::ItemTimeout => "50..=60000",
             Self::ItemRetries => "0..=20",
-            Self::TelemetryPeriod => "0 or 20..=60000",
+            Self::TelemetryPeriod | Self::CountersPeriod => "0 or 20..=60000",
             Self::OriginLatitude => "-850000000..=850000000 (±85°)",
             Self::OriginLongitude => "-1800000000..=1800000000 (±180°)",
         }
@@ -124,6 +132,7 @@ pub struct EndpointConfig {
     pub(crate) item_timeout_ms: u32,
     pub(crate) item_retries: u8,
     pub(crate) telemetry_period_ms: u32,
+    pub(crate) counters_period_ms: u32,
     pub(crate) origin: Option<Origin>,
 }
 
@@ -157,10 +166,16 @@ impl EndpointConfig {
             ConfigKey::ItemRetries,
             i64::from(spec.item_retries),
         )?;
+        let period = |ms: u32| ms == 0 || (20..=60_000).contains(&ms);
         check(
-            spec.telemetry_period_ms == 0 || (20..=60_000).contains(&spec.telemetry_period_ms),
+            period(spec.telemetry_period_ms),
             ConfigKey::TelemetryPeriod,
             i64::from(spec.telemetry_period_ms),
+        )?;
+        check(
+            period(spec.counters_period_ms),
+            ConfigKey::CountersPeriod,
+            i64::from(spec.counters_period_ms),
         )?;
         let origin = match spec.origin_e7 {
             None => None,
@@ -185,6 +200,7 @@ impl EndpointConfig {
             item_timeout_ms: spec.item_timeout_ms,
             item_retries: spec.item_retries,
             telemetry_period_ms: spec.telemetry_period_ms,
+            counters_period_ms: spec.counters_period_ms,
             origin,
         })
     }
@@ -200,6 +216,7 @@ impl EndpointConfig {
             item_timeout_ms: self.item_timeout_ms,
             item_retries: self.item_retries,
             telemetry_period_ms: self.telemetry_period_ms,
+            counters_period_ms: self.counters_period_ms,
             origin_e7: self.origin.map(|o| (o.lat_e7(), o.lon_e7())),
         }
     }

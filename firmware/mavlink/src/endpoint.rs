@@ -2,10 +2,12 @@
 
 use mavlink::MessageData;
 use mavlink::dialects::common as c;
+use wmr_core::pilot::tuning::{Tuning, TuningSpec};
 use wmr_core::reference::route::{RouteError, RouteLimits, Waypoints};
 
 use crate::config::EndpointConfig;
 use crate::mission::Mission;
+use crate::telemetry::Counts;
 use crate::wire::{MAX_PAYLOAD, Parser, RxCounters, RxFrame, TxBuffer};
 
 /// Events one [`MavlinkEndpoint::handle`] call can return; a command past
@@ -88,6 +90,9 @@ pub enum Event {
     /// A route limit was set (`PARAM_SET`): plan the next route with
     /// [`MavlinkEndpoint::route_limits`].
     RouteLimits,
+    /// A gain or failsafe time was set (`PARAM_SET`): take
+    /// [`MavlinkEndpoint::tuning`] (`Pilot::retune`, from the next tick).
+    Tuning,
 }
 
 /// The events of one call, in the order their frames came.
@@ -182,6 +187,14 @@ pub struct MavlinkEndpoint {
     pub(crate) last_current: Option<u16>,
     pub(crate) last_reached: Option<u16>,
     pub(crate) last_mode: Option<(bool, RobotMode)>,
+    /// The robot's gains and failsafe times, as last set
+    /// ([`Self::set_tuning`], `PARAM_SET`); `None`: not told.
+    pub(crate) tuning: Option<Tuning>,
+    /// The robot's counters, as last told ([`Self::set_counts`]).
+    pub(crate) counts: Option<Counts>,
+    /// The counter sent next, and when the last one went.
+    pub(crate) next_count: u8,
+    pub(crate) last_count_ms: Option<u32>,
 }
 
 /// An upload's route check and where the uploaded route is written for
@@ -244,6 +257,10 @@ impl MavlinkEndpoint {
             last_current: None,
             last_reached: None,
             last_mode: None,
+            tuning: None,
+            counts: None,
+            next_count: 0,
+            last_count_ms: None,
         }
     }
 
@@ -331,6 +348,38 @@ impl MavlinkEndpoint {
         self.last_current = None;
         self.last_reached = None;
         self.last_mode = None;
+        self.tuning = None;
+        self.counts = None;
+        self.next_count = 0;
+        self.last_count_ms = None;
+    }
+
+    /// The robot's gains and failsafe times the parameters start from
+    /// (its configuration's: `PilotConfig::tuning`); until told, they
+    /// read NaN and are refused. A spec its own checks refuse is not
+    /// taken (returned).
+    ///
+    /// # Errors
+    /// The core's refusal of `spec`.
+    pub fn set_tuning(
+        &mut self,
+        spec: &TuningSpec,
+    ) -> Result<(), wmr_core::pilot::spec::SpecError> {
+        self.tuning = Some(spec.build()?);
+        Ok(())
+    }
+
+    /// The gains and failsafe times as last set, for the robot to take on
+    /// [`Event::Tuning`] (`Pilot::retune`).
+    #[must_use]
+    pub fn tuning(&self) -> Option<Tuning> {
+        self.tuning
+    }
+
+    /// The robot's counters now, sent at `counters_period_ms`
+    /// (`NAMED_VALUE_INT`, [`crate::telemetry::COUNTER_NAMES`]).
+    pub fn set_counts(&mut self, counts: Counts) {
+        self.counts = Some(counts);
     }
 
     /// Whether the link is lost (a ground station was heard, then not for
@@ -508,6 +557,7 @@ impl MavlinkEndpoint {
         }
         self.reached(view, tx);
         self.telemetry(now_ms, view, tx);
+        self.send_count(now_ms, tx);
     }
 
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it

@@ -25,11 +25,13 @@
 //! * The mission microservice ([`upload`] module), items as in
 //!   [`mission`]; frames mapped as in [`geo`].
 //! * Commands ([`command`] module), answered with `COMMAND_ACK`.
-//! * Parameters ([`params`] module): the route limits, the link timeout
-//!   and the telemetry period, each checked by its constructor.
+//! * Parameters ([`params`] module): the route limits, the link timeout,
+//!   the telemetry and counters periods, law (27)–(28)'s gains and the
+//!   failsafe times, each checked by its constructor.
 //! * Telemetry ([`telemetry`] module) at the configured period: `LOCAL_POSITION_NED`,
 //!   `ATTITUDE`, and `GLOBAL_POSITION_INT` with a geodetic origin;
-//!   `SYS_STATUS` with the endpoint's counters at 1 Hz.
+//!   `SYS_STATUS` with the endpoint's counters at 1 Hz; the tracker's and
+//!   RFID reader's counters as `NAMED_VALUE_INT`, round-robin.
 //!
 //! The tables of messages, commands and results are in docs/mavlink.md.
 //!
@@ -85,4 +87,5 @@ pub use endpoint::{
 pub use mission::{Item, Mission};
 pub use progress::Progress;
 pub use runner::{Applied, FollowerAction, MissionRunner, Note};
+pub use telemetry::{COUNTER_NAMES, COUNTERS, Counts};
 pub use wire::{RxCounters, TxBuffer};

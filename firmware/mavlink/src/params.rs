@@ -4,13 +4,17 @@
 //!
 //! Every value is a `MAV_PARAM_TYPE_REAL32`. A set value is checked by the
 //! constructor that checks it in a robot file ([`RouteLimits::new`],
-//! [`EndpointConfig::new`]); a refusal is answered with the old value
-//! and a `STATUSTEXT` naming the parameter, and counted. A route limit
-//! accepted is [`Event::RouteLimits`]: the robot takes
-//! [`MavlinkEndpoint::route_limits`] for its next route.
+//! [`EndpointConfig::new`], [`TuningSpec::build`]: the spec as it stands
+//! with the one value changed, checked whole); a refusal is answered with
+//! the old value and a `STATUSTEXT` naming the parameter, and counted. A
+//! route limit accepted is [`Event::RouteLimits`]: the robot takes
+//! [`MavlinkEndpoint::route_limits`] for its next route; a gain or
+//! failsafe time accepted is [`Event::Tuning`]: the robot takes
+//! [`MavlinkEndpoint::tuning`] from its next tick.
 
 use mavlink::MessageData;
 use mavlink::dialects::common as c;
+use wmr_core::pilot::tuning::TuningSpec;
 use wmr_core::reference::route::{RouteLimits, RouteLimitsSpec};
 
 use crate::config::EndpointConfig;
@@ -27,7 +31,7 @@ pub struct Param {
 }
 
 /// The parameters, in index order.
-pub const PARAMS: [Param; 9] = [
+pub const PARAMS: [Param; 17] = [
     Param {
         name: "RT_MAX_SPEED",
         key: "route max_speed_m_s",
@@ -64,10 +68,45 @@ pub const PARAMS: [Param; 9] = [
         name: "TELEM_PERIOD_MS",
         key: "telemetry_period_ms",
     },
+    Param {
+        name: "CNT_PERIOD_MS",
+        key: "counters_period_ms",
+    },
+    Param {
+        name: "TRK_K1",
+        key: "tracker gains[0] (k1, m/s)",
+    },
+    Param {
+        name: "TRK_K2",
+        key: "tracker gains[1] (k2, m/s)",
+    },
+    Param {
+        name: "TRK_K3",
+        key: "tracker gains[2] (k3, 1/s)",
+    },
+    Param {
+        name: "FS_FIX_TICKS",
+        key: "tracker fix_timeout_ticks",
+    },
+    Param {
+        name: "FS_FIX_AGE_TICKS",
+        key: "tracker max_fix_age_ticks",
+    },
+    Param {
+        name: "FS_DECEL",
+        key: "tracker failsafe_decel_m_s2",
+    },
+    Param {
+        name: "FS_ENC_TICKS",
+        key: "max_encoder_fault_ticks",
+    },
 ];
 
 const LINK_TIMEOUT: usize = 7;
 const TELEMETRY_PERIOD: usize = 8;
+const COUNTERS_PERIOD: usize = 9;
+/// The first of the tuning's parameters ([`TuningSpec`]): `TRK_K1`.
+const TUNING: usize = 10;
 
 /// The index of the parameter whose 16-byte, NUL-padded id is `id`.
 fn find(id: &[u8]) -> Option<usize> {
@@ -113,7 +152,51 @@ pub(crate) fn spec_of(limits: &RouteLimits) -> RouteLimitsSpec {
     }
 }
 
-/// A whole number of milliseconds in `u32`, or `None`.
+/// Tuning parameter `i` (0 = `TRK_K1`) of `spec`; `None` for a gain of a
+/// robot without law (27)–(28)'s.
+fn tuning_value(spec: &TuningSpec, i: usize) -> Option<f32> {
+    Some(match i {
+        0..=2 => *spec.gains?.get(i)?,
+        3 => spec.fix_timeout_ticks as f32,
+        4 => spec.max_fix_age_ticks as f32,
+        5 => spec.failsafe_decel_m_s2,
+        _ => spec.max_encoder_fault_ticks as f32,
+    })
+}
+
+/// Sets tuning parameter `i` of `spec` to `value`; `false` for a gain of
+/// a robot without law (27)–(28)'s, or a tick count that is not a whole
+/// number in `u32` (the rest is [`TuningSpec::build`]'s to check).
+fn set_tuning(spec: &mut TuningSpec, i: usize, value: f32) -> bool {
+    let ticks = millis(value);
+    let slot = match i {
+        0..=2 => {
+            return match spec.gains.as_mut().and_then(|g| g.get_mut(i)) {
+                Some(k) => {
+                    *k = value;
+                    true
+                }
+                None => false,
+            };
+        }
+        5 => {
+            spec.failsafe_decel_m_s2 = value;
+            return true;
+        }
+        3 => &mut spec.fix_timeout_ticks,
+        4 => &mut spec.max_fix_age_ticks,
+        _ => &mut spec.max_encoder_fault_ticks,
+    };
+    match ticks {
+        Some(t) => {
+            *slot = t;
+            true
+        }
+        None => false,
+    }
+}
+
+/// A whole number (of milliseconds, or ticks) in `u32`, or `None`.
 fn millis(value: f32) -> Option<u32> {
     if value.is_finite() && value >= 0.0 && value <= u32::MAX as f32 && libm::truncf(value) == value
     {
@@ -134,6 +217,11 @@ impl MavlinkEndpoint {
         match index {
             LINK_TIMEOUT => self.config.link_timeout_ms as f32,
             TELEMETRY_PERIOD => self.config.telemetry_period_ms as f32,
+            COUNTERS_PERIOD => self.config.counters_period_ms as f32,
+            i if i >= TUNING => self
+                .tuning
+                .and_then(|t| tuning_value(t.spec(), i - TUNING))
+                .unwrap_or(f32::NAN),
             i => limit(&spec_of(&self.limits), i),
         }
     }
@@ -243,15 +331,30 @@ impl MavlinkEndpoint {
     /// Sets parameter `index` if its constructor accepts the value.
     fn set_param(&mut self, index: usize, value: f32, events: &mut Events) -> bool {
         match index {
-            LINK_TIMEOUT | TELEMETRY_PERIOD => {
+            i if i >= TUNING => {
+                let Some(mut spec) = self.tuning.map(|t| *t.spec()) else {
+                    return false;
+                };
+                if !set_tuning(&mut spec, i - TUNING, value) {
+                    return false;
+                }
+                match spec.build() {
+                    Ok(tuning) if events.push(Event::Tuning) => {
+                        self.tuning = Some(tuning);
+                        true
+                    }
+                    _ => false,
+                }
+            }
+            LINK_TIMEOUT | TELEMETRY_PERIOD | COUNTERS_PERIOD => {
                 let Some(ms) = millis(value) else {
                     return false;
                 };
                 let mut spec = self.config.spec();
-                if index == LINK_TIMEOUT {
-                    spec.link_timeout_ms = ms;
-                } else {
-                    spec.telemetry_period_ms = ms;
+                match index {
+                    LINK_TIMEOUT => spec.link_timeout_ms = ms,
+                    TELEMETRY_PERIOD => spec.telemetry_period_ms = ms,
+                    _ => spec.counters_period_ms = ms,
                 }
                 match EndpointConfig::new(&spec) {
                     Ok(config) => {

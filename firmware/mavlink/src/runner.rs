@@ -88,6 +88,9 @@ pub enum Note {
     LinkLost,
     /// The route limits changed: the next route is planned with them.
     RouteLimits,
+    /// Gains or failsafe times set: the robot takes them from its next
+    /// tick (its owner's `Pilot::retune`).
+    Tuning,
 }
 
 /// What one event did.
@@ -329,6 +332,8 @@ impl MissionRunner {
                 }
             }
             Event::RouteLimits => Applied::new(FollowerAction::Keep, Some(Note::RouteLimits)),
+            // The robot's, not the route's: its owner retunes the pilot.
+            Event::Tuning => Applied::new(FollowerAction::Keep, Some(Note::Tuning)),
         }
     }
 

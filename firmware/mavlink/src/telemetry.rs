@@ -1,13 +1,108 @@
-//! What the endpoint says unasked: the heartbeat, `SYS_STATUS`, and the
-//! position and attitude telemetry (frames mapped as in [`crate::geo`]).
+//! What the endpoint says unasked: the heartbeat, `SYS_STATUS`, the
+//! position and attitude telemetry (frames mapped as in [`crate::geo`]),
+//! and the robot's counters ([`Counts`], as `NAMED_VALUE_INT`).
 
+use mavlink::MessageData;
 use mavlink::dialects::common as c;
+use wmr_core::devices::RfidCounters;
+use wmr_core::pilot::tracker::TrackerCounters;
 
 use crate::endpoint::{MavlinkEndpoint, RobotMode, RobotView, due};
 use crate::geo;
 use crate::wire::TxBuffer;
 
+/// How many counters [`Counts`] holds.
+pub const COUNTERS: usize = 15;
+
+/// The counters' `NAMED_VALUE_INT` names (≤ 10 characters), in the order
+/// of [`Counts`] and of sending: the tracker's
+/// (`wmr_core::pilot::tracker::TrackerCounters`), then the RFID reader's
+/// (`wmr_core::devices::RfidCounters`, and the robot's unknown tags).
+pub const COUNTER_NAMES: [&str; COUNTERS] = [
+    "TRK_FIXES",  // fixes_used
+    "TRK_INVAL",  // invalid_fixes
+    "TRK_STALE",  // stale_fixes
+    "TRK_GATED",  // fixes_gated
+    "TRK_RELOC",  // relocalisations
+    "TRK_HDGRST", // heading_resets
+    "TRK_FSAFE",  // failsafe_entries
+    "TRK_DEADRK", // dead_reckoned_steps
+    "RF_FRAMES",  // frames_ok
+    "RF_CRC",     // bad_checksum
+    "RF_MALFORM", // malformed
+    "RF_UNKNOWN", // RobotCounters::unknown_tags
+    "RF_BACKLOG", // backlogged_polls
+    "RF_RDERR",   // read_errors
+    "RF_SUPERSD", // superseded
+];
+
+/// The robot's counters a ground station is sent, in the order of
+/// [`COUNTER_NAMES`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Counts(pub [u32; COUNTERS]);
+
+impl Counts {
+    /// The tracker's counters, the RFID reader's and the robot's count of
+    /// tags not in its map (zeros for a robot without a reader).
+    #[must_use]
+    pub fn of(tracker: &TrackerCounters, rfid: &RfidCounters, unknown_tags: u32) -> Self {
+        let t = tracker;
+        Self([
+            t.fixes_used,
+            t.invalid_fixes,
+            t.stale_fixes,
+            t.fixes_gated,
+            t.relocalisations,
+            t.heading_resets,
+            t.failsafe_entries,
+            t.dead_reckoned_steps,
+            rfid.frames_ok,
+            rfid.bad_checksum,
+            rfid.malformed,
+            unknown_tags,
+            rfid.backlogged_polls,
+            rfid.read_errors,
+            rfid.superseded,
+        ])
+    }
+}
+
 impl MavlinkEndpoint {
+    /// The next counter as a `NAMED_VALUE_INT` when one is due: the
+    /// counters one after another, one every `counters_period_ms /`
+    /// [`COUNTERS`] (so each once a period), none before the robot told
+    /// them. Written by layout: `time_boot_ms` u32, `value` i32 (the count
+    /// modulo 2³², as two's complement), `name` 10 bytes.
+    // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
+    // is unrolled and duplicated (docs/mavlink.md, Cost).
+    #[inline(never)]
+    pub(crate) fn send_count(&mut self, now_ms: u32, tx: &mut TxBuffer<'_>) {
+        let period = self.config.counters_period_ms;
+        let Some(counts) = self.counts else { return };
+        if period == 0 || !due(now_ms, self.last_count_ms, period / COUNTERS as u32) {
+            return;
+        }
+        self.last_count_ms = Some(now_ms);
+        let i = usize::from(self.next_count) % COUNTERS;
+        self.next_count = ((i + 1) % COUNTERS) as u8;
+        let (Some(&value), Some(name)) = (counts.0.get(i), COUNTER_NAMES.get(i)) else {
+            return;
+        };
+        let mut payload = [0u8; 18];
+        let [t0, t1, t2, t3] = now_ms.to_le_bytes();
+        let [v0, v1, v2, v3] = value.to_le_bytes();
+        payload[..8].copy_from_slice(&[t0, t1, t2, t3, v0, v1, v2, v3]);
+        for (slot, b) in payload[8..].iter_mut().zip(name.bytes()) {
+            *slot = b;
+        }
+        self.send_raw(
+            tx,
+            c::NAMED_VALUE_INT_DATA::ID,
+            c::NAMED_VALUE_INT_DATA::EXTRA_CRC,
+            &payload,
+        );
+    }
+
     // Out of line: at opt-level 3 with fat LTO, inlined into its caller it
     // is unrolled and duplicated (docs/mavlink.md, Cost).
     #[inline(never)]

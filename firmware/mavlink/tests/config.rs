@@ -6,7 +6,7 @@ use wmr_mavlink::{ConfigKey, EndpointConfig, EndpointSpec};
 fn each_field_is_checked_by_name() {
     let ok = EndpointSpec::default();
     assert!(EndpointConfig::new(&ok).is_ok());
-    let cases: [(EndpointSpec, ConfigKey, i64); 8] = [
+    let cases: [(EndpointSpec, ConfigKey, i64); 9] = [
         (EndpointSpec { system_id: 0, ..ok }, ConfigKey::SystemId, 0),
         (
             EndpointSpec {
@@ -50,6 +50,14 @@ fn each_field_is_checked_by_name() {
         ),
         (
             EndpointSpec {
+                counters_period_ms: 60_001,
+                ..ok
+            },
+            ConfigKey::CountersPeriod,
+            60_001,
+        ),
+        (
+            EndpointSpec {
                 origin_e7: Some((900_000_000, 0)),
                 ..ok
             },
@@ -70,10 +78,11 @@ fn each_field_is_checked_by_name() {
         assert_eq!((err.key, err.value), (key, value));
         assert!(err.to_string().starts_with(key.key()), "{err}");
     }
-    // Telemetry off is allowed.
+    // Telemetry and counters off are allowed.
     assert!(
         EndpointConfig::new(&EndpointSpec {
             telemetry_period_ms: 0,
+            counters_period_ms: 0,
             ..ok
         })
         .is_ok()

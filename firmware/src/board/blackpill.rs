@@ -666,6 +666,8 @@ pub fn run() -> ! {
                             config,
                             image_route.spec.mavlink.power_on,
                         );
+                        // The pilot's own tuning: built by the same checks.
+                        let _ = mav.run.set_tuning(&pilot.config().tuning());
                     }
                     Some(store)
                 }
@@ -727,6 +729,11 @@ pub fn run() -> ! {
             (Some(store), Some(mav)) => mav.before_tick(store, &mut mavlink, periods),
             _ => drain(&mut mavlink),
         };
+        // Gains or failsafe times a ground station set: from this tick on.
+        #[cfg(wmr_robot_image)]
+        if let Some(tuning) = mav.as_deref_mut().and_then(|m| m.run.take_tuning()) {
+            robot.retune(&tuning);
+        }
         #[cfg(wmr_robot_image)]
         let step = robot.tick_on(
             route
@@ -738,6 +745,11 @@ pub fn run() -> ! {
             stats.mavlink_bytes = stats.mavlink_bytes.wrapping_add(read);
             if let (Some(store), Some(mav)) = (route.as_deref(), mav.as_deref_mut()) {
                 mav.after_tick(store, &step);
+                mav.run.set_counts(wmr_mavlink::Counts::of(
+                    &robot.pilot().tracker().counters(),
+                    &robot.rfid_counters(),
+                    robot.counters().unknown_tags,
+                ));
             }
         }
         #[cfg(not(wmr_robot_image))]

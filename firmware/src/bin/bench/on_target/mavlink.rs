@@ -5,8 +5,11 @@
 //! tick on average over 2 s of 10 ms ticks with telemetry at 10 Hz
 //! (`LOCAL_POSITION_NED` and `ATTITUDE` every 10th tick; no geodetic
 //! origin, so no `GLOBAL_POSITION_INT`), the endpoint's `HEARTBEAT` and
-//! `SYS_STATUS` at 1 Hz, and a ground station's `HEARTBEAT` arriving once
-//! a second. The robot's own tick is not in it (the whole-tick rows are).
+//! `SYS_STATUS` at 1 Hz, the robot's counters (told after each tick, as
+//! the boards do, and sent as `NAMED_VALUE_INT` at the default counters
+//! period: one every 333 ms), and a ground station's `HEARTBEAT` arriving
+//! once a second. The robot's own tick is not in it (the whole-tick rows
+//! are).
 //! The Black Pill's byte path is: the frames written are queued on a
 //! 1 KiB `TxRing` in chunks of 16 bytes (`queue_tx`'s critical sections)
 //! and taken out one byte at a time (its transmit interrupt's `pop`). The
@@ -21,7 +24,8 @@
 //! measured: every ground-station heartbeat parsed, no frame dropped, no
 //! link loss, every byte written queued and sent, and the frames of the
 //! timed ticks at their rates (20 `LOCAL_POSITION_NED` and `ATTITUDE`, 2
-//! `HEARTBEAT` and `SYS_STATUS` in 2 s, each within one).
+//! `HEARTBEAT` and `SYS_STATUS`, 6 `NAMED_VALUE_INT` in 2 s, each within
+//! one).
 
 use wmr_core::pilot::route::{RouteOptionsSpec, RouteStart};
 use wmr_core::reference::route::{RouteLimitsSpec, Waypoint};
@@ -29,7 +33,7 @@ use wmr_link::RouteSpec;
 use wmr_link::mavlink_run::{MavlinkRun, estimate};
 use wmr_link::rx_ring::TxRing;
 use wmr_link::session::RouteStore;
-use wmr_mavlink::{EndpointConfig, EndpointSpec, TxBuffer};
+use wmr_mavlink::{COUNTERS, Counts, EndpointConfig, EndpointSpec, TxBuffer};
 
 use super::fail;
 use super::stage::Stage;
@@ -64,8 +68,8 @@ const PERIOD_MS: u32 = (PERIOD_S * 1000.0 + 0.5) as u32;
 
 /// Counts the MAVLink 2 frames of `bytes` (whole frames, unsigned) by
 /// message: `LOCAL_POSITION_NED` (32), `ATTITUDE` (30), `HEARTBEAT` (0),
-/// `SYS_STATUS` (1), in that order in `counts`.
-fn count_frames(mut bytes: &[u8], counts: &mut [u32; 4]) {
+/// `SYS_STATUS` (1), `NAMED_VALUE_INT` (252), in that order in `counts`.
+fn count_frames(mut bytes: &[u8], counts: &mut [u32; 5]) {
     while let (Some(&len), Some(id)) = (bytes.get(1), bytes.get(7..10)) {
         let id = id.iter().rev().fold(0_u32, |a, &b| (a << 8) | u32::from(b));
         let slot = match id {
@@ -73,6 +77,7 @@ fn count_frames(mut bytes: &[u8], counts: &mut [u32; 4]) {
             30 => counts.get_mut(1),
             0 => counts.get_mut(2),
             1 => counts.get_mut(3),
+            252 => counts.get_mut(4),
             _ => None,
         };
         if let Some(c) = slot {
@@ -146,8 +151,8 @@ pub(super) fn bench_mavlink(cal: Calibration) {
     };
     let mut sent = 0_usize;
     // Frames of the timed ticks: LOCAL_POSITION_NED, ATTITUDE, HEARTBEAT,
-    // SYS_STATUS.
-    let mut frames = [0_u32; 4];
+    // SYS_STATUS, NAMED_VALUE_INT.
+    let mut frames = [0_u32; 5];
     let mut stage = Stage::new("mavlink_tick");
     let mut written = 0_usize;
     let mut dropped = 0_u32;
@@ -180,11 +185,13 @@ pub(super) fn bench_mavlink(cal: Calibration) {
     }
     let telemetry = SAMPLES as u32 * PERIOD_MS / TELEMETRY_PERIOD_MS;
     let status = SAMPLES as u32 * PERIOD_MS / 1_000;
+    let counters = SAMPLES as u32 * PERIOD_MS / (spec.counters_period_ms / COUNTERS as u32);
     let near = |n: u32, expected: u32| n.abs_diff(expected) <= 1;
     if !(near(frames[0], telemetry)
         && near(frames[1], telemetry)
         && near(frames[2], status)
-        && near(frames[3], status))
+        && near(frames[3], status)
+        && near(frames[4], counters))
     {
         fail("MAVLink bench: the timed ticks' frames are not at their rates");
     }
@@ -221,5 +228,14 @@ fn mavlink_tick(
         sent += 1;
     }
     run.after_tick(store, wmr_core::geometry::Vec2::new(1.0, 0.0));
+    // The robot's counters, as a board tells them after its tick.
+    run.set_counts(Counts::of(
+        &wmr_core::pilot::tracker::TrackerCounters {
+            fixes_used: tick,
+            ..Default::default()
+        },
+        &wmr_core::devices::RfidCounters::default(),
+        0,
+    ));
     (written, dropped, sent)
 }
