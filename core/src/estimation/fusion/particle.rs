@@ -56,8 +56,8 @@
 //! stays on the effective sample size (below `P/2`).
 //!
 //! # Resets
-//! A heading reset or a re-localisation redraws every particle from the
-//! Gaussian of the new mean and covariance ([`ParticleFilter::reset`]).
+//! A heading reset redraws every particle from the Gaussian of the new
+//! mean and covariance ([`ParticleFilter::reset`]).
 //!
 //! # Randomness and cost
 //! The generator is seeded from the configuration
@@ -154,22 +154,49 @@ impl<const P: usize> ParticleCore<P> {
     }
 }
 
+/// The generic filter's settings for the pose filter (module docs): the
+/// noise comes from the model, so `σ_q` and `σ_r` here are unused.
+fn settings() -> Option<ParticleFilterConfig<5, 2>> {
+    ParticleFilterConfig::new(PoseState::zeros(), Vector2::repeat(1.0))
+        .and_then(|c| c.with_collapse_gate(f32::INFINITY))
+        .and_then(|c| c.with_roughening(ROUGHENING))
+        .ok()
+}
+
+/// The prior's standard deviations: the roots of `covariance`'s diagonal.
+fn prior_std(covariance: &PoseCovariance) -> PoseState {
+    covariance.diagonal().map(|v| math::sqrt(v.max(0.0)))
+}
+
 impl<const P: usize> PoseFilterCore for ParticleCore<P> {
     fn start(
         config: &PoseFilterConfig,
         mean: &PoseState,
         covariance: &PoseCovariance,
     ) -> Option<Self> {
-        // The noise comes from the model; σ_q and σ_r here are unused.
-        let settings = ParticleFilterConfig::new(PoseState::zeros(), Vector2::repeat(1.0))
-            .and_then(|c| c.with_collapse_gate(f32::INFINITY))
-            .and_then(|c| c.with_roughening(ROUGHENING))
-            .ok()?;
-        let prior_std = covariance.diagonal().map(|v| math::sqrt(v.max(0.0)));
         let model = NoisyOdometryModel { config: *config };
-        ParticleFilter::new(model, settings, *mean, prior_std, config.particle_seed())
+        let std = prior_std(covariance);
+        ParticleFilter::new(model, settings()?, *mean, std, config.particle_seed())
             .ok()
             .map(|filter| Self { filter })
+    }
+
+    /// In place ([`ParticleFilter::init`]): the 5 KB of particles are
+    /// drawn where they live.
+    fn start_in_place(
+        &mut self,
+        config: &PoseFilterConfig,
+        mean: &PoseState,
+        covariance: &PoseCovariance,
+    ) -> bool {
+        let Some(settings) = settings() else {
+            return false;
+        };
+        let model = NoisyOdometryModel { config: *config };
+        let std = prior_std(covariance);
+        self.filter
+            .init(model, settings, *mean, std, config.particle_seed())
+            .is_ok()
     }
 
     fn predict(&mut self, _config: &PoseFilterConfig, odometry: &OdometryStep) -> bool {
@@ -252,6 +279,38 @@ impl<const P: usize> ParticleCore<P> {
 }
 
 impl<const P: usize> PoseParticleFilter<P> {
+    /// A filter not yet started (every particle at the origin, zero
+    /// weights, a placeholder configuration): the slot that
+    /// [`PoseFilter::restart`] starts in place. Built from constants
+    /// alone, not inlined and without arguments, so that the compiler
+    /// builds it straight in the caller's destination (a call that could
+    /// read that destination, e.g. through a configuration passed by
+    /// reference from beside it, is returned into a 5 KB temporary on the
+    /// stack and copied).
+    #[inline(never)]
+    #[cfg_attr(not(feature = "fusion-particle-filter"), allow(dead_code))]
+    pub(crate) fn blank() -> Self {
+        const PLACEHOLDER: PoseFilterConfig = PoseFilterConfig {
+            track_width_m: 1.0,
+            variance_per_m: 0.0,
+            variance_floor_m2: 0.0,
+            gate_sigma: 0.0,
+            gate_one_dof: 0.0,
+            gate_two_dof: 0.0,
+            scale_walk_per_m: 0.0,
+            recover_after: 0,
+            particle_seed: 0,
+        };
+        PoseFilter::with_core(
+            PLACEHOLDER,
+            ParticleCore {
+                filter: ParticleFilter::blank(NoisyOdometryModel {
+                    config: PLACEHOLDER,
+                }),
+            },
+        )
+    }
+
     /// Corrects with a read of a tag as its cell (module docs, "Tag
     /// cells"): gated, counted and re-localised on the cell's moments
     /// ([`TagCell::moments`]), applied with the cell's likelihood.
@@ -317,6 +376,29 @@ mod tests {
         assert_ne!(first.pose(), other.pose());
         assert!(first.core().filter().resamplings() > 0);
         assert_eq!(first.core().filter().collapses(), 0);
+    }
+
+    /// Started in place (from the blank, as the estimator does) it is the
+    /// filter `new` builds, bit for bit, and it restarts in place (a
+    /// second start on a used filter) to the same again; a start it
+    /// cannot take leaves it as it was.
+    #[test]
+    fn a_filter_started_in_place_is_the_one_new_builds() {
+        let start = Pose::new(0.3, -0.2, 1.0);
+        let variances = [1e-3, 2e-3, 0.5, 1e-4];
+        let built = PoseParticleFilter::<100>::new(config(11), start, variances).unwrap();
+        let mut slot = PoseParticleFilter::<100>::blank();
+        slot.restart(config(11), start, variances).unwrap();
+        assert_eq!(slot, built);
+        let (_, mut used) = drive(5);
+        used.restart(config(11), start, variances).unwrap();
+        assert_eq!(used, built);
+        let bad = [f32::NAN, 1e-3, 0.5, 0.0];
+        assert_eq!(
+            used.restart(config(12), start, bad),
+            Err(crate::estimation::fusion::config::PoseFilterError::InitialVariance)
+        );
+        assert_eq!(used, built);
     }
 
     /// An axis fix pulls the estimate along its axis (that it weights by
