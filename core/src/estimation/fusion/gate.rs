@@ -87,7 +87,7 @@ impl PositionMeasurement {
     }
 
     /// Finite, with positive variances (and a positive definite ellipse).
-    fn is_finite(&self) -> bool {
+    pub(crate) fn is_finite(&self) -> bool {
         let (values, positive) = match *self {
             Self::Ellipse {
                 position,
@@ -180,6 +180,24 @@ pub trait PoseFilterCore: Sized {
     /// Restarts at `mean` with `covariance` (as for [`Self::start`]);
     /// `false` (and nothing changed) if it cannot.
     fn reset(&mut self, mean: &PoseState, covariance: &PoseCovariance) -> bool;
+
+    /// Re-localisation ([`PoseFilter`]'s, after consecutive gated
+    /// measurements, before the ungated correction with `measurement`):
+    /// `mean` and `covariance` are the belief the filter can still claim
+    /// (its position widened to the measurement, its heading to at least
+    /// `(π/2)²`, cross-covariances cleared); `false` (and nothing changed)
+    /// if the core cannot take it. By default a restart there
+    /// ([`Self::reset`]); the particle filter overrides it to keep what its
+    /// particles know.
+    fn relocalise(
+        &mut self,
+        mean: &PoseState,
+        covariance: &PoseCovariance,
+        measurement: &PositionMeasurement,
+    ) -> bool {
+        let _ = measurement;
+        self.reset(mean, covariance)
+    }
 
     /// [`Self::start`] in place: this core becomes the one `start` would
     /// return; `false` (and nothing changed) if it cannot start there.
@@ -428,7 +446,7 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
                 .copy_from(&SMatrix::<f32, 3, 3>::from_diagonal(&diagonal));
             // A core that cannot take it keeps its belief; the ungated
             // correction that follows still re-localises it.
-            let _ = self.core.reset(&mean, &covariance);
+            let _ = self.core.relocalise(&mean, &covariance, measurement);
         }
     }
 

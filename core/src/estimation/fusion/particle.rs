@@ -59,6 +59,30 @@
 //! A heading reset redraws every particle from the Gaussian of the new
 //! mean and covariance ([`ParticleFilter::reset`]).
 //!
+//! # Re-localisation
+//! After consecutive gated reads the filter takes itself to be lost
+//! ([`crate::estimation::fusion::gate`]): its position, which the reads
+//! contradict, is redrawn, and what else its particles know is kept.
+//! Every particle's position is drawn from the read's Gaussian (for a tag
+//! cell its moments, [`TagCell::moments`]; for a fix its own mean and
+//! covariance; an axis fix redraws that axis only), its heading and wheel
+//! scale errors stay as they were, the weights become equal
+//! ([`ParticleFilter::reposition`]); the ungated correction that follows
+//! then weights them by the read's likelihood (the cell's). This is sensor
+//! resetting (Lenser & Veloso 2000, *Sensor resetting localization for
+//! poorly modelled mobile robots*, ICRA, 1225–1232: when the measurements
+//! contradict the particles, replace particles by samples drawn from the
+//! measurement), the injection of augmented MCL (Thrun, Burgard & Fox
+//! 2005, *Probabilistic Robotics*, §8.3.5) in its extreme form (every
+//! particle, on the gate's decision rather than the likelihood's running
+//! averages), applied to the measured components only. The EKF and the
+//! UKF restart from a Gaussian whose heading variance is at least
+//! `(π/2)²` (a filter that lost its position may hold a mirrored
+//! heading); a particle filter's cloud that drew its headings from such a
+//! Gaussian would keep those that the position read happens to favour,
+//! and lose the heading it had (a heading jump of 0.66 rad at a route's
+//! start: docs/fusion.md).
+//!
 //! # Randomness and cost
 //! The generator is seeded from the configuration
 //! (`PoseFilterConfig::with_particle_seed`): a run repeats bit
@@ -79,6 +103,7 @@ use crate::estimation::fusion::tag_cells::TagCell;
 #[cfg(doc)]
 use crate::estimation::fusion::tag_cells::TagCellTracker;
 use crate::filters::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
+use crate::geometry::Vec2;
 use crate::math;
 use crate::odometry::OdometryStep;
 
@@ -254,6 +279,76 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
 
     fn reset(&mut self, mean: &PoseState, covariance: &PoseCovariance) -> bool {
         self.filter.reset(mean, covariance).is_ok()
+    }
+
+    /// Sensor resetting of the position only (module docs,
+    /// "Re-localisation"): every particle's position redrawn from
+    /// `measurement`'s Gaussian, its heading and wheel scale errors kept;
+    /// `mean` and `covariance` (the Gaussian restart of the other filters)
+    /// are not used. `false` (nothing changed) for a measurement that is
+    /// not finite with positive (definite) variances.
+    fn relocalise(
+        &mut self,
+        _mean: &PoseState,
+        _covariance: &PoseCovariance,
+        measurement: &PositionMeasurement,
+    ) -> bool {
+        if !measurement.is_finite() {
+            return false;
+        }
+        // `(centre, L)`: the measured axes' mean and the lower Cholesky
+        // factor of their covariance; an unmeasured axis keeps the
+        // particle's own coordinate (a zero row).
+        let (centre, [l00, l10, l11], keep) = match *measurement {
+            PositionMeasurement::Point {
+                position,
+                variance_m2: [vx, vy],
+            } => (
+                position,
+                [math::sqrt(vx), 0.0, math::sqrt(vy)],
+                [false, false],
+            ),
+            PositionMeasurement::Ellipse {
+                position,
+                covariance_m2: [xx, xy, yy],
+            } => {
+                let l00 = math::sqrt(xx);
+                let l10 = xy / l00;
+                // Positive definite (checked above): yy − l10² > 0 but for
+                // rounding.
+                (
+                    position,
+                    [l00, l10, math::sqrt((yy - l10 * l10).max(0.0))],
+                    [false, false],
+                )
+            }
+            PositionMeasurement::X {
+                value_m,
+                variance_m2,
+            } => (
+                Vec2::new(value_m, 0.0),
+                [math::sqrt(variance_m2), 0.0, 0.0],
+                [false, true],
+            ),
+            PositionMeasurement::Y {
+                value_m,
+                variance_m2,
+            } => (
+                Vec2::new(0.0, value_m),
+                [0.0, 0.0, math::sqrt(variance_m2)],
+                [true, false],
+            ),
+        };
+        self.filter.reposition(|x, gaussian| {
+            let (a, b) = (gaussian(), gaussian());
+            if !keep[0] {
+                x.x = centre.x + l00 * a;
+            }
+            if !keep[1] {
+                x.y = centre.y + l10 * a + l11 * b;
+            }
+        });
+        true
     }
 }
 
@@ -461,6 +556,66 @@ mod tests {
             ..cell
         };
         assert_eq!(pf.correct_cell(&broken), FixOutcome::Invalid);
+    }
+
+    /// Re-localisation keeps what the particles know: after three gated
+    /// fixes 40 cm away the filter re-localises on the third, every
+    /// particle's heading is the one it had (the Gaussian restart of the
+    /// EKF would have spread them over `(π/2)²`), and the estimate is at
+    /// the fix.
+    #[test]
+    fn relocalisation_keeps_each_particles_heading() {
+        let mut pf = PoseParticleFilter::<100>::new(
+            config(7),
+            Pose::new(0.0, 0.0, 0.8),
+            [1e-4, 1e-4, 1e-4, 1e-6],
+        )
+        .unwrap();
+        let headings: [f32; 100] = core::array::from_fn(|i| pf.core().filter().particles()[i].z);
+        let scales: [f32; 100] = core::array::from_fn(|i| pf.core().filter().particles()[i].w);
+        let fix = PositionMeasurement::Point {
+            position: Vec2::new(0.4, 0.1),
+            variance_m2: [1e-4, 1e-4],
+        };
+        assert_eq!(pf.correct(&fix), FixOutcome::Gated);
+        assert_eq!(pf.correct(&fix), FixOutcome::Gated);
+        assert_eq!(pf.correct(&fix), FixOutcome::Used);
+        assert_eq!(pf.counters().relocalisations, 1);
+        let particles = pf.core().filter().particles();
+        for (i, x) in particles.iter().enumerate() {
+            assert_eq!((x.z, x.w), (headings[i], scales[i]), "particle {i}");
+        }
+        let pose = pf.pose();
+        assert!((pose.heading_rad - 0.8).abs() < 0.01, "{pose:?}");
+        assert!(
+            (pose.position - Vec2::new(0.4, 0.1)).norm() < 0.01,
+            "{pose:?}"
+        );
+    }
+
+    /// An axis fix re-localises its axis only: every particle keeps its
+    /// `y` (and heading), its `x` is redrawn at the fix.
+    #[test]
+    fn an_axis_relocalisation_redraws_that_axis_only() {
+        let mut pf = PoseParticleFilter::<100>::new(
+            config(8),
+            Pose::new(0.0, 0.2, -1.0),
+            [1e-4, 1e-4, 1e-4, 0.0],
+        )
+        .unwrap();
+        let before = *pf.core().filter().particles();
+        let fix = PositionMeasurement::X {
+            value_m: -0.5,
+            variance_m2: 1e-4,
+        };
+        for _ in 0..2 {
+            assert_eq!(pf.correct(&fix), FixOutcome::Gated);
+        }
+        assert_eq!(pf.correct(&fix), FixOutcome::Used);
+        for (x, old) in pf.core().filter().particles().iter().zip(before.iter()) {
+            assert_eq!((x.y, x.z), (old.y, old.z));
+            assert!((x.x + 0.5).abs() < 0.06, "{x:?}");
+        }
     }
 
     proptest! {

@@ -493,6 +493,33 @@ where
         Ok(())
     }
 
+    /// Moves every particle by `reposition(x, gaussian)` (`gaussian`: the
+    /// filter's own standard normal draws), then gives them equal weights
+    /// and takes their mean as the estimate: e.g. sensor resetting (Lenser
+    /// & Veloso 2000), some components redrawn from a measurement while
+    /// the others keep what each particle knows. Angles are wrapped after
+    /// the move; a particle the move would leave non-finite keeps its old
+    /// state. Counters go on; a pending draw of the optimal proposal is
+    /// dropped (the move replaces it).
+    pub fn reposition(
+        &mut self,
+        mut reposition: impl FnMut(&mut SVector<f32, N>, &mut dyn FnMut() -> f32),
+    ) {
+        let noise = &mut self.noise;
+        let mut gaussian = || noise.gaussian();
+        for x in self.particles.iter_mut() {
+            let mut moved = *x;
+            reposition(&mut moved, &mut gaussian);
+            wrap_angles(&mut moved, &self.angles);
+            if finite(&moved) {
+                *x = moved;
+            }
+        }
+        self.weights.fill(1.0 / P as f32);
+        self.draw_pending = false;
+        self.refresh_estimate();
+    }
+
     /// Collapse recovery (module docs): redraw around the kept estimate.
     pub(super) fn collapse(&mut self) {
         let spread = self.recovery_std;
