@@ -454,7 +454,17 @@ impl FusionEstimator {
                     radius,
                     odometry.ds_m,
                 ) {
-                    filter.correct(&measurement);
+                    // The particle filter takes the read as its disc; the
+                    // others the entry point.
+                    let disc = filter.correct_disc(
+                        tag,
+                        radius,
+                        pose.heading_rad,
+                        odometry.ds_m * self.settings.fix_age_ticks,
+                    );
+                    if disc.is_none() {
+                        filter.correct(&measurement);
+                    }
                 }
             } else {
                 let (sin_theta, cos_theta) = math::sincos(pose.heading_rad);
@@ -755,6 +765,34 @@ impl RunningFilter {
             });
         }
         let _ = (cells, tag, last_step);
+        None
+    }
+
+    /// The particle filter: corrects with a range reader's read of `tag`
+    /// as its disc of radius `radius_m`, the robot having driven `lag_m`
+    /// along `heading_rad` since the read
+    /// ([`crate::estimation::fusion::particle::TagDisc`]), and returns what
+    /// happened to it; the other filters: `None`, nothing done (they take
+    /// the entry point, [`TagCellTracker::range_measurement`]).
+    pub fn correct_disc(
+        &mut self,
+        tag: Vec2,
+        radius_m: f32,
+        heading_rad: f32,
+        lag_m: f32,
+    ) -> Option<FixOutcome> {
+        #[cfg(feature = "fusion-particle-filter")]
+        if let Self::ParticleFilter(f) = self {
+            let (sin_theta, cos_theta) = math::sincos(heading_rad);
+            let disc = crate::estimation::fusion::particle::TagDisc {
+                centre: tag,
+                radius_m,
+                lag: Vec2::new(cos_theta, sin_theta).scaled(lag_m),
+                edge_std_m: crate::estimation::fusion::particle::DISC_EDGE_STD_M,
+            };
+            return Some(f.correct_disc(&disc));
+        }
+        let _ = (tag, radius_m, heading_rad, lag_m);
         None
     }
 

@@ -48,6 +48,21 @@
 //! take the cell's moments ([`TagCell::moments`]). The first read starts
 //! the particles in the cell (`s²/12` per axis) rather than a metre wide.
 //!
+//! # Read discs
+//! With a range reader (a read radius `r > 0`,
+//! [`crate::estimation::fusion::FusionSettings::with_read_radius`]) the
+//! EKF and the UKF take the first read of each pass as the point where
+//! the antenna entered the disc around the tag
+//! ([`TagCellTracker::range_measurement`]: a Gaussian along and across
+//! the heading). This filter takes the same read as its exact likelihood
+//! instead ([`TagDisc`], [`PoseParticleFilter::correct_disc`]): the robot
+//! was within `r` of the tag when it was read (the lag of the fix's age
+//! along the heading behind it, as for the entry point), the indicator of
+//! the disc softened at its edge by a Gaussian tail of 1 mm, as a cell's
+//! edges; one `sqrt` per particle. The gate and the re-localisation take
+//! the disc's moments (the tag, `r²/4` per axis). Repeated reads within a
+//! pass are skipped as for the other filters (counted as same-tag reads).
+//!
 //! After every resampling the particles are roughened (Gordon, Salmond &
 //! Smith 1993, *Novel approach to nonlinear/non-Gaussian Bayesian state
 //! estimation*, IEE Proc. F 140(2):107–113, §4:
@@ -112,6 +127,71 @@ pub const ROUGHENING: f32 = 0.05;
 
 /// Particles of the tracker's particle-filter estimator.
 pub const FUSION_PARTICLES: usize = 100;
+
+/// The softening of a read disc's edge, m: the reader's own position
+/// error, as for a tag cell's edges.
+pub const DISC_EDGE_STD_M: f32 = 1e-3;
+
+/// A range reader's read of a tag as the disc it was read in (module
+/// docs, "Read discs"): the antenna was within `radius_m` of the tag when
+/// it read it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TagDisc {
+    /// The read tag, m.
+    pub centre: Vec2,
+    /// The reader's range, m (> 0).
+    pub radius_m: f32,
+    /// How far the robot drove since the read, m (the fix's age times the
+    /// last tick's step, along the heading).
+    pub lag: Vec2,
+    /// The softening of the disc's edge, m (> 0).
+    pub edge_std_m: f32,
+}
+
+impl TagDisc {
+    /// Twice the disc's negative log-likelihood at the position `(x, y)`
+    /// now (nats, up to a constant): with `d` the distance from the tag
+    /// to where the robot was at the read (`(x, y) − lag`), 0 inside the
+    /// disc (`d ≤ r`), `((d − r)/σ_e)²` outside it (a Gaussian tail, as a
+    /// cell's edges). NaN for a non-finite position (the filter gives such
+    /// a particle no weight).
+    #[must_use]
+    pub fn distance_sq(&self, x: f32, y: f32) -> f32 {
+        let dx = x - self.lag.x - self.centre.x;
+        let dy = y - self.lag.y - self.centre.y;
+        let gap = math::sqrt(dx * dx + dy * dy) - self.radius_m;
+        if gap > 0.0 || gap.is_nan() {
+            let g = gap / self.edge_std_m;
+            g * g
+        } else {
+            0.0
+        }
+    }
+
+    /// The disc as a Gaussian of the same moments: centred on the tag
+    /// moved on by the lag, variance `r²/4 + σ_e²` per axis (a uniform
+    /// disc's): what the gate and the re-localisation of
+    /// [`crate::estimation::fusion::gate`] take.
+    #[must_use]
+    pub fn moments(&self) -> PositionMeasurement {
+        let v = 0.25 * self.radius_m * self.radius_m + self.edge_std_m * self.edge_std_m;
+        PositionMeasurement::Point {
+            position: Vec2::new(self.centre.x + self.lag.x, self.centre.y + self.lag.y),
+            variance_m2: [v, v],
+        }
+    }
+
+    /// Finite, with positive sizes.
+    fn is_valid(&self) -> bool {
+        self.centre.is_finite()
+            && self.lag.is_finite()
+            && self.radius_m.is_finite()
+            && self.radius_m > 0.0
+            && self.edge_std_m.is_finite()
+            && self.edge_std_m > 0.0
+    }
+}
 
 /// The pose on odometry with per-wheel noise, for the particle filter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -373,7 +453,29 @@ impl<const P: usize> ParticleCore<P> {
     }
 }
 
+impl<const P: usize> ParticleCore<P> {
+    /// Weights every particle by the likelihood of the read disc
+    /// ([`TagDisc::distance_sq`]; module docs, "Read discs"); `false` (and
+    /// nothing changed) for a disc that is not finite with positive sizes.
+    pub fn update_disc(&mut self, disc: &TagDisc) -> bool {
+        if !disc.is_valid() {
+            return false;
+        }
+        let rejected = self.filter.rejected_inputs();
+        self.filter
+            .update_with_likelihood(|x| disc.distance_sq(x.x, x.y));
+        self.filter.rejected_inputs() == rejected
+    }
+}
+
 impl<const P: usize> PoseParticleFilter<P> {
+    /// Corrects with a range reader's read of a tag as its disc (module
+    /// docs, "Read discs"): gated, counted and re-localised on the disc's
+    /// moments ([`TagDisc::moments`]), applied with the disc's likelihood.
+    pub fn correct_disc(&mut self, disc: &TagDisc) -> FixOutcome {
+        self.correct_with(&disc.moments(), |core| core.update_disc(disc))
+    }
+
     /// A filter not yet started (every particle at the origin, zero
     /// weights, a placeholder configuration): the slot that
     /// [`PoseFilter::restart`] starts in place. Built from constants
@@ -616,6 +718,88 @@ mod tests {
             assert_eq!((x.y, x.z), (old.y, old.z));
             assert!((x.x + 0.5).abs() < 0.06, "{x:?}");
         }
+    }
+
+    /// A read disc: the particles outside the disc lose their weight, those
+    /// inside keep equal ones; a disc far from every particle is gated, a
+    /// broken one refused.
+    #[test]
+    fn a_disc_read_keeps_the_particles_in_the_disc() {
+        let mut pf = PoseParticleFilter::<100>::new(
+            config(9),
+            Pose::new(0.0, 0.0, 0.0),
+            [4e-3, 4e-3, 0.01, 0.0],
+        )
+        .unwrap();
+        let disc = TagDisc {
+            centre: Vec2::new(0.03, 0.0),
+            radius_m: 0.05,
+            lag: Vec2::ZERO,
+            edge_std_m: DISC_EDGE_STD_M,
+        };
+        let inside_before = pf
+            .core()
+            .filter()
+            .particles()
+            .iter()
+            .filter(|x| disc.distance_sq(x.x, x.y) == 0.0)
+            .count();
+        assert!((20..90).contains(&inside_before), "{inside_before}");
+        assert_eq!(pf.correct_disc(&disc), FixOutcome::Used);
+        let filter = pf.core().filter();
+        // Within 3 σ of the softened edge (roughening after a resampling
+        // may jitter a copy just past it).
+        let inside: f32 = filter
+            .particles()
+            .iter()
+            .zip(filter.weights())
+            .filter(|(x, _)| disc.distance_sq(x.x, x.y) < 9.0)
+            .map(|(_, w)| w)
+            .sum();
+        assert!(inside > 0.99, "{inside}");
+        assert!(
+            (pf.pose().position - disc.centre).norm() < 0.05,
+            "{:?}",
+            pf.pose()
+        );
+        let far = TagDisc {
+            centre: Vec2::new(2.0, 0.0),
+            ..disc
+        };
+        assert_eq!(pf.correct_disc(&far), FixOutcome::Gated);
+        let broken = TagDisc {
+            radius_m: 0.0,
+            ..disc
+        };
+        assert_eq!(pf.correct_disc(&broken), FixOutcome::Invalid);
+    }
+
+    /// The disc's likelihood: 0 inside (the lag taken off the position),
+    /// a Gaussian tail of the edge's softening outside, NaN for NaN.
+    #[test]
+    fn the_disc_likelihood_is_the_disc_with_a_soft_edge() {
+        let disc = TagDisc {
+            centre: Vec2::new(1.0, 2.0),
+            radius_m: 0.1,
+            lag: Vec2::new(0.01, 0.0),
+            edge_std_m: 0.002,
+        };
+        assert_eq!(disc.distance_sq(1.01, 2.0), 0.0);
+        assert_eq!(disc.distance_sq(1.01, 2.099), 0.0);
+        assert_eq!(disc.distance_sq(1.109, 2.0), 0.0);
+        let past = disc.distance_sq(1.01, 2.104);
+        assert!((past - 4.0).abs() < 0.01, "{past}");
+        assert!(disc.distance_sq(f32::NAN, 2.0).is_nan());
+        let PositionMeasurement::Point {
+            position,
+            variance_m2: [vx, vy],
+        } = disc.moments()
+        else {
+            panic!("{:?}", disc.moments());
+        };
+        assert_eq!(position, Vec2::new(1.01, 2.0));
+        // r²/4 + σ_e².
+        assert!((vx - 0.002_504).abs() < 1e-9 && vx == vy, "{vx} {vy}");
     }
 
     proptest! {
