@@ -460,7 +460,9 @@ impl FusionEstimator {
                         tag,
                         radius,
                         pose.heading_rad,
-                        odometry.ds_m * self.settings.fix_age_ticks,
+                        odometry.ds_m,
+                        self.settings.fix_age_ticks,
+                        &measurement,
                     );
                     if disc.is_none() {
                         filter.correct(&measurement);
@@ -779,20 +781,24 @@ impl RunningFilter {
         tag: Vec2,
         radius_m: f32,
         heading_rad: f32,
-        lag_m: f32,
+        step_m: f32,
+        fix_age_ticks: f32,
+        entry: &PositionMeasurement,
     ) -> Option<FixOutcome> {
         #[cfg(feature = "fusion-particle-filter")]
         if let Self::ParticleFilter(f) = self {
             let (sin_theta, cos_theta) = math::sincos(heading_rad);
+            let sweep = Vec2::new(cos_theta, sin_theta).scaled(step_m);
             let disc = crate::estimation::fusion::particle::TagDisc {
                 centre: tag,
                 radius_m,
-                lag: Vec2::new(cos_theta, sin_theta).scaled(lag_m),
+                lag: sweep.scaled(fix_age_ticks),
+                sweep,
                 edge_std_m: crate::estimation::fusion::particle::DISC_EDGE_STD_M,
             };
-            return Some(f.correct_disc(&disc));
+            return Some(f.correct_disc(&disc, entry));
         }
-        let _ = (tag, radius_m, heading_rad, lag_m);
+        let _ = (tag, radius_m, heading_rad, step_m, fix_age_ticks, entry);
         None
     }
 

@@ -55,13 +55,20 @@
 //! the antenna entered the disc around the tag
 //! ([`TagCellTracker::range_measurement`]: a Gaussian along and across
 //! the heading). This filter takes the same read as its exact likelihood
-//! instead ([`TagDisc`], [`PoseParticleFilter::correct_disc`]): the robot
-//! was within `r` of the tag when it was read (the lag of the fix's age
-//! along the heading behind it, as for the entry point), the indicator of
-//! the disc softened at its edge by a Gaussian tail of 1 mm, as a cell's
-//! edges; one `sqrt` per particle. The gate and the re-localisation take
-//! the disc's moments (the tag, `r²/4` per axis). Repeated reads within a
-//! pass are skipped as for the other filters (counted as same-tag reads).
+//! instead ([`TagDisc`], [`PoseParticleFilter::correct_disc`]): the
+//! reader reads on entering its range, so at the read the robot was
+//! within `r` of the tag and a tick before it was not (the lag of the
+//! fix's age along the heading behind it, as for the entry point): the
+//! indicator of that crescent, its edges softened by Gaussian tails of
+//! 1 mm as a cell's; two `sqrt` per particle. Its plain disc (within `r`
+//! at the read, the entry forgotten) doubled the mean error on the full
+//! stack (docs/fusion.md, "The particle filter on the robot"). The gate
+//! and the re-localisation take the entry point's Gaussian (the
+//! crescent's moments, near enough). Repeated reads within a pass are
+//! skipped as for the other filters (counted as same-tag reads); a pass
+//! whose entry read was lost starts with a read inside the disc, which
+//! the crescent does not expect (its tails weight it, and the gate may
+//! refuse it).
 //!
 //! After every resampling the particles are roughened (Gordon, Salmond &
 //! Smith 1993, *Novel approach to nonlinear/non-Gaussian Bayesian state
@@ -145,47 +152,46 @@ pub struct TagDisc {
     /// How far the robot drove since the read, m (the fix's age times the
     /// last tick's step, along the heading).
     pub lag: Vec2,
+    /// The robot's displacement during the tick of the read, m: a tick
+    /// before the read it was outside the disc (the read is the first of
+    /// its pass, made on entering the range).
+    pub sweep: Vec2,
     /// The softening of the disc's edge, m (> 0).
     pub edge_std_m: f32,
 }
 
 impl TagDisc {
-    /// Twice the disc's negative log-likelihood at the position `(x, y)`
-    /// now (nats, up to a constant): with `d` the distance from the tag
-    /// to where the robot was at the read (`(x, y) − lag`), 0 inside the
-    /// disc (`d ≤ r`), `((d − r)/σ_e)²` outside it (a Gaussian tail, as a
-    /// cell's edges). NaN for a non-finite position (the filter gives such
-    /// a particle no weight).
+    /// Twice the entry's negative log-likelihood at the position `(x, y)`
+    /// now (nats, up to a constant): the robot entered the disc during the
+    /// tick of the read. With `d` the distance from the tag to where the
+    /// robot was at the read (`(x, y) − lag`) and `d₀` to where it was a
+    /// tick before (`(x, y) − lag − sweep`): `((d − r)/σ_e)²` if `d > r`
+    /// (not in the disc at the read) plus `((r − d₀)/σ_e)²` if `d₀ < r`
+    /// (already in it a tick before), each a Gaussian tail as a cell's
+    /// edges; 0 on the crescent between. NaN for a non-finite position (the
+    /// filter gives such a particle no weight).
     #[must_use]
     pub fn distance_sq(&self, x: f32, y: f32) -> f32 {
         let dx = x - self.lag.x - self.centre.x;
         let dy = y - self.lag.y - self.centre.y;
-        let gap = math::sqrt(dx * dx + dy * dy) - self.radius_m;
-        if gap > 0.0 || gap.is_nan() {
-            let g = gap / self.edge_std_m;
-            g * g
-        } else {
-            0.0
-        }
-    }
-
-    /// The disc as a Gaussian of the same moments: centred on the tag
-    /// moved on by the lag, variance `r²/4 + σ_e²` per axis (a uniform
-    /// disc's): what the gate and the re-localisation of
-    /// [`crate::estimation::fusion::gate`] take.
-    #[must_use]
-    pub fn moments(&self) -> PositionMeasurement {
-        let v = 0.25 * self.radius_m * self.radius_m + self.edge_std_m * self.edge_std_m;
-        PositionMeasurement::Point {
-            position: Vec2::new(self.centre.x + self.lag.x, self.centre.y + self.lag.y),
-            variance_m2: [v, v],
-        }
+        let tail = |gap: f32| {
+            if gap > 0.0 || gap.is_nan() {
+                let g = gap / self.edge_std_m;
+                g * g
+            } else {
+                0.0
+            }
+        };
+        let (bx, by) = (dx - self.sweep.x, dy - self.sweep.y);
+        tail(math::sqrt(dx * dx + dy * dy) - self.radius_m)
+            + tail(self.radius_m - math::sqrt(bx * bx + by * by))
     }
 
     /// Finite, with positive sizes.
     fn is_valid(&self) -> bool {
         self.centre.is_finite()
             && self.lag.is_finite()
+            && self.sweep.is_finite()
             && self.radius_m.is_finite()
             && self.radius_m > 0.0
             && self.edge_std_m.is_finite()
@@ -469,11 +475,13 @@ impl<const P: usize> ParticleCore<P> {
 }
 
 impl<const P: usize> PoseParticleFilter<P> {
-    /// Corrects with a range reader's read of a tag as its disc (module
-    /// docs, "Read discs"): gated, counted and re-localised on the disc's
-    /// moments ([`TagDisc::moments`]), applied with the disc's likelihood.
-    pub fn correct_disc(&mut self, disc: &TagDisc) -> FixOutcome {
-        self.correct_with(&disc.moments(), |core| core.update_disc(disc))
+    /// Corrects with a range reader's first read of a tag in a pass as
+    /// its entry into the disc (module docs, "Read discs"): gated, counted
+    /// and re-localised on `entry`, the entry point's Gaussian
+    /// ([`TagCellTracker::range_measurement`]: the crescent's moments, near
+    /// enough), applied with the disc's likelihood.
+    pub fn correct_disc(&mut self, disc: &TagDisc, entry: &PositionMeasurement) -> FixOutcome {
+        self.correct_with(entry, |core| core.update_disc(disc))
     }
 
     /// A filter not yet started (every particle at the origin, zero
@@ -720,86 +728,87 @@ mod tests {
         }
     }
 
-    /// A read disc: the particles outside the disc lose their weight, those
-    /// inside keep equal ones; a disc far from every particle is gated, a
-    /// broken one refused.
+    /// A read disc: the particles off the entry's crescent (inside the
+    /// disc at the read, outside it a tick before) lose their weight, so
+    /// the estimate moves to the side the robot entered from; an entry far
+    /// from every particle is gated, a broken disc refused.
     #[test]
-    fn a_disc_read_keeps_the_particles_in_the_disc() {
+    fn a_disc_read_keeps_the_particles_that_entered_the_disc() {
         let mut pf = PoseParticleFilter::<100>::new(
             config(9),
-            Pose::new(0.0, 0.0, 0.0),
-            [4e-3, 4e-3, 0.01, 0.0],
+            Pose::new(-0.02, 0.0, 0.0),
+            [1e-4, 1e-4, 0.01, 0.0],
         )
         .unwrap();
+        // Entered moving +x: the crescent is the disc's left edge, 1 cm
+        // deep.
         let disc = TagDisc {
             centre: Vec2::new(0.03, 0.0),
             radius_m: 0.05,
             lag: Vec2::ZERO,
+            sweep: Vec2::new(0.01, 0.0),
             edge_std_m: DISC_EDGE_STD_M,
         };
-        let inside_before = pf
+        let on_crescent = pf
             .core()
             .filter()
             .particles()
             .iter()
             .filter(|x| disc.distance_sq(x.x, x.y) == 0.0)
             .count();
-        assert!((20..90).contains(&inside_before), "{inside_before}");
-        assert_eq!(pf.correct_disc(&disc), FixOutcome::Used);
+        assert!((5..60).contains(&on_crescent), "{on_crescent}");
+        let entry = PositionMeasurement::Point {
+            position: Vec2::new(-0.015, 0.0),
+            variance_m2: [1e-4, 4e-4],
+        };
+        assert_eq!(pf.correct_disc(&disc, &entry), FixOutcome::Used);
         let filter = pf.core().filter();
-        // Within 3 σ of the softened edge (roughening after a resampling
-        // may jitter a copy just past it).
-        let inside: f32 = filter
+        // Within 3 σ of the softened edges (roughening after a resampling
+        // may jitter a copy just past one).
+        let kept: f32 = filter
             .particles()
             .iter()
             .zip(filter.weights())
             .filter(|(x, _)| disc.distance_sq(x.x, x.y) < 9.0)
             .map(|(_, w)| w)
             .sum();
-        assert!(inside > 0.99, "{inside}");
-        assert!(
-            (pf.pose().position - disc.centre).norm() < 0.05,
-            "{:?}",
-            pf.pose()
-        );
-        let far = TagDisc {
-            centre: Vec2::new(2.0, 0.0),
-            ..disc
+        assert!(kept > 0.99, "{kept}");
+        let x = pf.pose().position.x;
+        assert!((-0.025..-0.005).contains(&x), "{:?}", pf.pose());
+        let far = PositionMeasurement::Point {
+            position: Vec2::new(2.0, 0.0),
+            variance_m2: [1e-4, 1e-4],
         };
-        assert_eq!(pf.correct_disc(&far), FixOutcome::Gated);
+        assert_eq!(pf.correct_disc(&disc, &far), FixOutcome::Gated);
         let broken = TagDisc {
             radius_m: 0.0,
             ..disc
         };
-        assert_eq!(pf.correct_disc(&broken), FixOutcome::Invalid);
+        assert_eq!(pf.correct_disc(&broken, &entry), FixOutcome::Invalid);
     }
 
-    /// The disc's likelihood: 0 inside (the lag taken off the position),
-    /// a Gaussian tail of the edge's softening outside, NaN for NaN.
+    /// The entry's likelihood: 0 on the crescent (in the disc at the read,
+    /// the lag taken off; out of it a tick before), a Gaussian tail of the
+    /// edge's softening off it on either side, NaN for NaN.
     #[test]
-    fn the_disc_likelihood_is_the_disc_with_a_soft_edge() {
+    fn the_disc_likelihood_is_the_entry_crescent_with_soft_edges() {
         let disc = TagDisc {
             centre: Vec2::new(1.0, 2.0),
             radius_m: 0.1,
             lag: Vec2::new(0.01, 0.0),
+            sweep: Vec2::new(0.0, 0.005),
             edge_std_m: 0.002,
         };
-        assert_eq!(disc.distance_sq(1.01, 2.0), 0.0);
-        assert_eq!(disc.distance_sq(1.01, 2.099), 0.0);
-        assert_eq!(disc.distance_sq(1.109, 2.0), 0.0);
-        let past = disc.distance_sq(1.01, 2.104);
-        assert!((past - 4.0).abs() < 0.01, "{past}");
+        // Entered moving +y: the crescent is the disc's lower edge.
+        assert_eq!(disc.distance_sq(1.01, 1.903), 0.0);
+        // Beyond the disc at the read, by 2 mm (one σ_e, squared: 1).
+        let past = disc.distance_sq(1.01, 1.898);
+        assert!((past - 1.0).abs() < 0.01, "{past}");
+        // At the centre: in the disc a tick before too (5 mm behind the
+        // centre), 9.5 cm deep: (0.095 / 0.002)².
+        let deep = disc.distance_sq(1.01, 2.0);
+        assert!((deep - 2256.25).abs() < 0.5, "{deep}");
         assert!(disc.distance_sq(f32::NAN, 2.0).is_nan());
-        let PositionMeasurement::Point {
-            position,
-            variance_m2: [vx, vy],
-        } = disc.moments()
-        else {
-            panic!("{:?}", disc.moments());
-        };
-        assert_eq!(position, Vec2::new(1.01, 2.0));
-        // r²/4 + σ_e².
-        assert!((vx - 0.002_504).abs() < 1e-9 && vx == vy, "{vx} {vy}");
     }
 
     proptest! {
