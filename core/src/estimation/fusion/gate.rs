@@ -87,7 +87,7 @@ impl PositionMeasurement {
     }
 
     /// Finite, with positive variances (and a positive definite ellipse).
-    fn is_finite(&self) -> bool {
+    pub(crate) fn is_finite(&self) -> bool {
         let (values, positive) = match *self {
             Self::Ellipse {
                 position,
@@ -180,6 +180,44 @@ pub trait PoseFilterCore: Sized {
     /// Restarts at `mean` with `covariance` (as for [`Self::start`]);
     /// `false` (and nothing changed) if it cannot.
     fn reset(&mut self, mean: &PoseState, covariance: &PoseCovariance) -> bool;
+
+    /// Re-localisation ([`PoseFilter`]'s, after consecutive gated
+    /// measurements, before the ungated correction with `measurement`):
+    /// `mean` and `covariance` are the belief the filter can still claim
+    /// (its position widened to the measurement, its heading to at least
+    /// `(π/2)²`, cross-covariances cleared); `false` (and nothing changed)
+    /// if the core cannot take it. By default a restart there
+    /// ([`Self::reset`]); the particle filter overrides it to keep what its
+    /// particles know.
+    fn relocalise(
+        &mut self,
+        mean: &PoseState,
+        covariance: &PoseCovariance,
+        measurement: &PositionMeasurement,
+    ) -> bool {
+        let _ = measurement;
+        self.reset(mean, covariance)
+    }
+
+    /// [`Self::start`] in place: this core becomes the one `start` would
+    /// return; `false` (and nothing changed) if it cannot start there.
+    /// Built and moved in by default; a large core (the particle filter's
+    /// 5 KB) overrides it to start where it lives, without a second core
+    /// on the stack.
+    fn start_in_place(
+        &mut self,
+        config: &PoseFilterConfig,
+        mean: &PoseState,
+        covariance: &PoseCovariance,
+    ) -> bool {
+        match Self::start(config, mean, covariance) {
+            Some(core) => {
+                *self = core;
+                true
+            }
+            None => false,
+        }
+    }
 }
 
 /// A pose filter on odometry and position fixes (module docs): the filter
@@ -208,29 +246,43 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
         initial: Pose,
         variances: [f32; 4],
     ) -> Result<Self, PoseFilterError> {
-        if !(initial.position.is_finite()
-            && initial.heading_rad.is_finite()
-            && variances.iter().all(|v| v.is_finite() && *v >= 0.0))
-        {
-            return Err(PoseFilterError::InitialVariance);
-        }
-        let [vx, vy, vt, ve] = variances;
-        let mean = PoseState::from([
-            initial.position.x,
-            initial.position.y,
-            math::wrap_angle(initial.heading_rad),
-            0.0,
-            0.0,
-        ]);
-        let covariance = PoseCovariance::from_diagonal(&PoseState::from([vx, vy, vt, ve, ve]));
+        let (mean, covariance) = initial_belief(initial, variances)?;
         let core =
             Core::start(&config, &mean, &covariance).ok_or(PoseFilterError::InitialVariance)?;
-        Ok(Self {
+        Ok(Self::with_core(config, core))
+    }
+
+    /// [`Self::new`] in place: this filter becomes the one `new` would
+    /// return (counters zeroed), its core started where it lives
+    /// ([`PoseFilterCore::start_in_place`]).
+    ///
+    /// # Errors
+    /// As [`Self::new`]; the filter is then unchanged.
+    pub fn restart(
+        &mut self,
+        config: PoseFilterConfig,
+        initial: Pose,
+        variances: [f32; 4],
+    ) -> Result<(), PoseFilterError> {
+        let (mean, covariance) = initial_belief(initial, variances)?;
+        if !self.core.start_in_place(&config, &mean, &covariance) {
+            return Err(PoseFilterError::InitialVariance);
+        }
+        self.config = config;
+        self.counters = PoseFilterCounters::default();
+        self.consecutive_gated = [0; 2];
+        Ok(())
+    }
+
+    /// A filter around `core` as it is, counters zeroed.
+    #[inline(always)]
+    pub(crate) fn with_core(config: PoseFilterConfig, core: Core) -> Self {
+        Self {
             config,
             core,
             counters: PoseFilterCounters::default(),
             consecutive_gated: [0; 2],
-        })
+        }
     }
 
     /// Replaces the heading estimate (wrapped) with variance `variance_rad2`
@@ -394,7 +446,7 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
                 .copy_from(&SMatrix::<f32, 3, 3>::from_diagonal(&diagonal));
             // A core that cannot take it keeps its belief; the ungated
             // correction that follows still re-localises it.
-            let _ = self.core.reset(&mean, &covariance);
+            let _ = self.core.relocalise(&mean, &covariance, measurement);
         }
     }
 
@@ -429,6 +481,31 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
             FixOutcome::Invalid
         }
     }
+}
+
+/// The mean and covariance [`PoseFilter::new`] starts from (its docs);
+/// [`PoseFilterError::InitialVariance`] for a pose or variance that is not
+/// finite, or a negative variance.
+fn initial_belief(
+    initial: Pose,
+    variances: [f32; 4],
+) -> Result<(PoseState, PoseCovariance), PoseFilterError> {
+    if !(initial.position.is_finite()
+        && initial.heading_rad.is_finite()
+        && variances.iter().all(|v| v.is_finite() && *v >= 0.0))
+    {
+        return Err(PoseFilterError::InitialVariance);
+    }
+    let [vx, vy, vt, ve] = variances;
+    let mean = PoseState::from([
+        initial.position.x,
+        initial.position.y,
+        math::wrap_angle(initial.heading_rad),
+        0.0,
+        0.0,
+    ]);
+    let covariance = PoseCovariance::from_diagonal(&PoseState::from([vx, vy, vt, ve, ve]));
+    Ok((mean, covariance))
 }
 
 /// The squared Mahalanobis distance `yᵀ S⁻¹ y` of a finite measurement's

@@ -343,7 +343,11 @@ impl FusionSettings {
 #[derive(Debug, Clone, PartialEq)]
 pub struct FusionEstimator {
     settings: FusionSettings,
-    filter: Option<RunningFilter>,
+    /// The filter: [`RunningFilter::Waiting`], or the particle filter not
+    /// yet started, until the first fix (`started`).
+    filter: RunningFilter,
+    /// Whether `filter` started (at the first fix).
+    started: bool,
     cells: TagCellTracker,
     guide: HeadingObserver,
     guide_position: Option<Vec2>,
@@ -363,7 +367,8 @@ impl FusionEstimator {
     pub fn new(settings: FusionSettings, guide: HeadingObserver) -> Self {
         Self {
             settings,
-            filter: None,
+            filter: RunningFilter::Waiting,
+            started: false,
             guide,
             guide_position: None,
             distance_m: 0.0,
@@ -383,13 +388,18 @@ impl FusionEstimator {
     /// The filter, once started.
     #[must_use]
     pub fn filter(&self) -> Option<&RunningFilter> {
-        self.filter.as_ref()
+        self.started.then_some(&self.filter)
+    }
+
+    /// The filter, once started.
+    fn filter_mut(&mut self) -> Option<&mut RunningFilter> {
+        self.started.then_some(&mut self.filter)
     }
 
     /// The estimated pose, once started.
     #[must_use]
     pub fn pose(&self) -> Option<Pose> {
-        self.filter.as_ref().map(RunningFilter::pose)
+        self.filter().map(RunningFilter::pose)
     }
 
     /// One tick: predict with the odometry of the last period, then correct
@@ -404,7 +414,7 @@ impl FusionEstimator {
         fix: Option<Vec2>,
         after_gap: bool,
     ) -> Option<Pose> {
-        if let Some(filter) = self.filter.as_mut() {
+        if let Some(filter) = self.filter_mut() {
             filter.predict(odometry);
         }
         if odometry.ds_m.is_finite() {
@@ -417,25 +427,22 @@ impl FusionEstimator {
             if after_gap && self.settings.read_radius_m <= 0.0 {
                 self.cells.restart();
             }
-            let filter = match self.filter.as_mut() {
-                Some(filter) => filter,
-                None => {
-                    // Start at the first tag, heading unknown; the first
-                    // measurement (the uniform cell) sets the position.
-                    let (heading_rad, heading_variance) = self
-                        .start_heading_rad
-                        .map_or((0.0, PI_SQUARED), |h| (h, ASSUMED_HEADING_VARIANCE_RAD2));
-                    let variances = [
-                        self.settings.start_position_variance(),
-                        self.settings.start_position_variance(),
-                        heading_variance,
-                        self.settings.scale_prior,
-                    ];
-                    let start = Pose::new(tag.x, tag.y, heading_rad);
-                    let filter = RunningFilter::new(&self.settings, start, variances)?;
-                    self.filter.insert(filter)
-                }
-            };
+            if !self.started {
+                // Start at the first tag, heading unknown; the first
+                // measurement (the uniform cell) sets the position.
+                let (heading_rad, heading_variance) = self
+                    .start_heading_rad
+                    .map_or((0.0, PI_SQUARED), |h| (h, ASSUMED_HEADING_VARIANCE_RAD2));
+                let variances = [
+                    self.settings.start_position_variance(),
+                    self.settings.start_position_variance(),
+                    heading_variance,
+                    self.settings.scale_prior,
+                ];
+                let start = Pose::new(tag.x, tag.y, heading_rad);
+                self.started = self.filter.start(&self.settings, start, variances);
+            }
+            let filter = self.started.then_some(&mut self.filter)?;
             let pose = filter.pose();
             let relocalisations = filter.counters().relocalisations;
             let radius = self.settings.read_radius_m;
@@ -447,7 +454,19 @@ impl FusionEstimator {
                     radius,
                     odometry.ds_m,
                 ) {
-                    filter.correct(&measurement);
+                    // The particle filter takes the read as its disc; the
+                    // others the entry point.
+                    let disc = filter.correct_disc(
+                        tag,
+                        radius,
+                        pose.heading_rad,
+                        odometry.ds_m,
+                        self.settings.fix_age_ticks,
+                        &measurement,
+                    );
+                    if disc.is_none() {
+                        filter.correct(&measurement);
+                    }
                 }
             } else {
                 let (sin_theta, cos_theta) = math::sincos(pose.heading_rad);
@@ -502,7 +521,7 @@ impl FusionEstimator {
         self.guide_position = now;
         // |z̃| ≤ e^{−L s}: the guide's heading is within asin of that.
         let bound = math::exp(-self.distance_m * self.guide.config().gain_per_m());
-        let Some(filter) = self.filter.as_mut() else {
+        let Some(filter) = self.started.then_some(&mut self.filter) else {
             return;
         };
         if bound.is_nan() || bound >= GUIDE_TRUST_BOUND {
@@ -550,8 +569,7 @@ impl FusionEstimator {
     /// The filter's counters (zero before the first fix).
     #[must_use]
     pub fn counters(&self) -> PoseFilterCounters {
-        self.filter
-            .as_ref()
+        self.filter()
             .map(RunningFilter::counters)
             .unwrap_or_default()
     }
@@ -623,7 +641,7 @@ impl PoseEstimator for FusionEstimator {
         if !heading_rad.is_finite() {
             return;
         }
-        match self.filter.as_mut() {
+        match self.filter_mut() {
             Some(filter) => {
                 filter.reset_heading(heading_rad, ASSUMED_HEADING_VARIANCE_RAD2);
             }
@@ -638,6 +656,10 @@ impl PoseEstimator for FusionEstimator {
 // them into, and only one is built per robot.
 #[allow(clippy::large_enum_variant)]
 pub enum RunningFilter {
+    /// No filter yet (before the first fix); never returned by
+    /// [`FusionEstimator::filter`]. Its pose, covariance and
+    /// counters are zero, and it takes no step.
+    Waiting,
     /// The EKF.
     Ekf(PoseEkf),
     /// The UKF.
@@ -650,8 +672,9 @@ pub enum RunningFilter {
 
 /// `$body` with `$f` bound to the running [`PoseFilter`], whatever its core.
 macro_rules! with_filter {
-    ($running:expr, $f:ident => $body:expr) => {
+    ($running:expr, $f:ident => $body:expr, $waiting:expr) => {
         match $running {
+            RunningFilter::Waiting => $waiting,
             RunningFilter::Ekf($f) => $body,
             #[cfg(feature = "fusion-ukf")]
             RunningFilter::Ukf($f) => $body,
@@ -662,29 +685,67 @@ macro_rules! with_filter {
 }
 
 impl RunningFilter {
-    /// The filter `settings` choose, at `start` with `variances` (as
-    /// [`PoseFilter::new`]); `None` if it cannot start there.
-    pub fn new(settings: &FusionSettings, start: Pose, variances: [f32; 4]) -> Option<Self> {
+    /// Starts the filter `settings` choose at `start` with `variances`
+    /// (as [`PoseFilter::new`]) in this place: the EKF and the UKF built
+    /// and moved in (a few hundred bytes); the particle filter (5 KB)
+    /// entered as a blank ([`Self::enter_particle_filter`]) and started
+    /// where it lives ([`PoseFilter::restart`]). `false` if it cannot
+    /// start there (the EKF and the UKF then leave this unchanged).
+    fn start(&mut self, settings: &FusionSettings, start: Pose, variances: [f32; 4]) -> bool {
         let config = settings.filter;
-        Some(match settings.kind {
-            FusionFilter::Ekf => Self::Ekf(PoseFilter::new(config, start, variances).ok()?),
+        match settings.kind {
+            FusionFilter::Ekf => match PoseFilter::new(config, start, variances) {
+                Ok(filter) => *self = Self::Ekf(filter),
+                Err(_) => return false,
+            },
             #[cfg(feature = "fusion-ukf")]
-            FusionFilter::Ukf => Self::Ukf(PoseFilter::new(config, start, variances).ok()?),
+            FusionFilter::Ukf => match PoseFilter::new(config, start, variances) {
+                Ok(filter) => *self = Self::Ukf(filter),
+                Err(_) => return false,
+            },
             #[cfg(feature = "fusion-particle-filter")]
             FusionFilter::ParticleFilter => {
-                Self::ParticleFilter(PoseFilter::new(config, start, variances).ok()?)
+                if !matches!(self, Self::ParticleFilter(_)) {
+                    self.enter_particle_filter();
+                }
+                return match self {
+                    Self::ParticleFilter(filter) => {
+                        filter.restart(config, start, variances).is_ok()
+                    }
+                    _ => false,
+                };
             }
-        })
+        }
+        true
+    }
+
+    /// Becomes the particle filter not yet started (every particle at the
+    /// origin: [`PoseParticleFilter::blank`]). A function of its own, not
+    /// inlined: the blank passes through a 5 KB temporary on the stack
+    /// (the compiler builds a returned value in place only in a
+    /// destination it knows writable, a local or a return slot, not behind
+    /// a `&mut`), which this frame holds only while it runs, once per
+    /// estimator, rather than in [`FusionEstimator::step`]'s every tick.
+    /// The estimator is built with [`Self::Waiting`] rather than the blank
+    /// so that its moves through the robot's construction copy a few
+    /// bytes, not 5 KB each.
+    ///
+    /// [`PoseParticleFilter::blank`]: crate::estimation::fusion::particle::PoseParticleFilter
+    #[cfg(feature = "fusion-particle-filter")]
+    #[inline(never)]
+    fn enter_particle_filter(&mut self) {
+        *self =
+            Self::ParticleFilter(crate::estimation::fusion::particle::PoseParticleFilter::blank());
     }
 
     /// [`PoseFilter::predict`].
     pub fn predict(&mut self, odometry: &OdometryStep) {
-        with_filter!(self, f => f.predict(odometry));
+        with_filter!(self, f => f.predict(odometry), ());
     }
 
     /// [`PoseFilter::correct`].
     pub fn correct(&mut self, measurement: &PositionMeasurement) -> FixOutcome {
-        with_filter!(self, f => f.correct(measurement))
+        with_filter!(self, f => f.correct(measurement), FixOutcome::Invalid)
     }
 
     /// The particle filter: corrects with a read of `tag` as its cell
@@ -709,33 +770,65 @@ impl RunningFilter {
         None
     }
 
+    /// The particle filter: corrects with a range reader's read of `tag`
+    /// as its disc of radius `radius_m`, the robot having driven `lag_m`
+    /// along `heading_rad` since the read
+    /// ([`crate::estimation::fusion::particle::TagDisc`]), and returns what
+    /// happened to it; the other filters: `None`, nothing done (they take
+    /// the entry point, [`TagCellTracker::range_measurement`]).
+    pub fn correct_disc(
+        &mut self,
+        tag: Vec2,
+        radius_m: f32,
+        heading_rad: f32,
+        step_m: f32,
+        fix_age_ticks: f32,
+        entry: &PositionMeasurement,
+    ) -> Option<FixOutcome> {
+        #[cfg(feature = "fusion-particle-filter")]
+        if let Self::ParticleFilter(f) = self {
+            let (sin_theta, cos_theta) = math::sincos(heading_rad);
+            let sweep = Vec2::new(cos_theta, sin_theta).scaled(step_m);
+            let disc = crate::estimation::fusion::particle::TagDisc {
+                centre: tag,
+                radius_m,
+                lag: sweep.scaled(fix_age_ticks),
+                sweep,
+                edge_std_m: crate::estimation::fusion::particle::DISC_EDGE_STD_M,
+            };
+            return Some(f.correct_disc(&disc, entry));
+        }
+        let _ = (tag, radius_m, heading_rad, step_m, fix_age_ticks, entry);
+        None
+    }
+
     /// [`PoseFilter::pose`].
     #[must_use]
     pub fn pose(&self) -> Pose {
-        with_filter!(self, f => f.pose())
+        with_filter!(self, f => f.pose(), Pose::default())
     }
 
     /// [`PoseFilter::covariance`].
     #[must_use]
     pub fn covariance(&self) -> PoseCovariance {
-        with_filter!(self, f => f.covariance())
+        with_filter!(self, f => f.covariance(), PoseCovariance::zeros())
     }
 
     /// [`PoseFilter::wheel_scale_errors`].
     #[must_use]
     pub fn wheel_scale_errors(&self) -> [f32; 2] {
-        with_filter!(self, f => f.wheel_scale_errors())
+        with_filter!(self, f => f.wheel_scale_errors(), [0.0; 2])
     }
 
     /// [`PoseFilter::counters`].
     #[must_use]
     pub fn counters(&self) -> PoseFilterCounters {
-        with_filter!(self, f => f.counters())
+        with_filter!(self, f => f.counters(), PoseFilterCounters::default())
     }
 
     /// [`PoseFilter::reset_heading`].
     pub fn reset_heading(&mut self, heading_rad: f32, variance_rad2: f32) -> bool {
-        with_filter!(self, f => f.reset_heading(heading_rad, variance_rad2))
+        with_filter!(self, f => f.reset_heading(heading_rad, variance_rad2), false)
     }
 }
 

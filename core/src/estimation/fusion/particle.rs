@@ -48,6 +48,28 @@
 //! take the cell's moments ([`TagCell::moments`]). The first read starts
 //! the particles in the cell (`s²/12` per axis) rather than a metre wide.
 //!
+//! # Read discs
+//! With a range reader (a read radius `r > 0`,
+//! [`crate::estimation::fusion::FusionSettings::with_read_radius`]) the
+//! EKF and the UKF take the first read of each pass as the point where
+//! the antenna entered the disc around the tag
+//! ([`TagCellTracker::range_measurement`]: a Gaussian along and across
+//! the heading). This filter takes the same read as its exact likelihood
+//! instead ([`TagDisc`], [`PoseParticleFilter::correct_disc`]): the
+//! reader reads on entering its range, so at the read the robot was
+//! within `r` of the tag and a tick before it was not (the lag of the
+//! fix's age along the heading behind it, as for the entry point): the
+//! indicator of that crescent, its edges softened by Gaussian tails of
+//! 1 mm as a cell's; two `sqrt` per particle. Its plain disc (within `r`
+//! at the read, the entry forgotten) doubled the mean error on the full
+//! stack (docs/fusion.md, "The particle filter on the robot"). The gate
+//! and the re-localisation take the entry point's Gaussian (the
+//! crescent's moments, near enough). Repeated reads within a pass are
+//! skipped as for the other filters (counted as same-tag reads); a pass
+//! whose entry read was lost starts with a read inside the disc, which
+//! the crescent does not expect (its tails weight it, and the gate may
+//! refuse it).
+//!
 //! After every resampling the particles are roughened (Gordon, Salmond &
 //! Smith 1993, *Novel approach to nonlinear/non-Gaussian Bayesian state
 //! estimation*, IEE Proc. F 140(2):107–113, §4:
@@ -56,8 +78,32 @@
 //! stays on the effective sample size (below `P/2`).
 //!
 //! # Resets
-//! A heading reset or a re-localisation redraws every particle from the
-//! Gaussian of the new mean and covariance ([`ParticleFilter::reset`]).
+//! A heading reset redraws every particle from the Gaussian of the new
+//! mean and covariance ([`ParticleFilter::reset`]).
+//!
+//! # Re-localisation
+//! After consecutive gated reads the filter takes itself to be lost
+//! ([`crate::estimation::fusion::gate`]): its position, which the reads
+//! contradict, is redrawn, and what else its particles know is kept.
+//! Every particle's position is drawn from the read's Gaussian (for a tag
+//! cell its moments, [`TagCell::moments`]; for a fix its own mean and
+//! covariance; an axis fix redraws that axis only), its heading and wheel
+//! scale errors stay as they were, the weights become equal
+//! ([`ParticleFilter::reposition`]); the ungated correction that follows
+//! then weights them by the read's likelihood (the cell's). This is sensor
+//! resetting (Lenser & Veloso 2000, *Sensor resetting localization for
+//! poorly modelled mobile robots*, ICRA, 1225–1232: when the measurements
+//! contradict the particles, replace particles by samples drawn from the
+//! measurement), the injection of augmented MCL (Thrun, Burgard & Fox
+//! 2005, *Probabilistic Robotics*, §8.3.5) in its extreme form (every
+//! particle, on the gate's decision rather than the likelihood's running
+//! averages), applied to the measured components only. The EKF and the
+//! UKF restart from a Gaussian whose heading variance is at least
+//! `(π/2)²` (a filter that lost its position may hold a mirrored
+//! heading); a particle filter's cloud that drew its headings from such a
+//! Gaussian would keep those that the position read happens to favour,
+//! and lose the heading it had (a heading jump of 0.66 rad at a route's
+//! start: docs/fusion.md).
 //!
 //! # Randomness and cost
 //! The generator is seeded from the configuration
@@ -79,6 +125,7 @@ use crate::estimation::fusion::tag_cells::TagCell;
 #[cfg(doc)]
 use crate::estimation::fusion::tag_cells::TagCellTracker;
 use crate::filters::particle_filter::{ParticleFilter, ParticleFilterConfig, ParticleModel};
+use crate::geometry::Vec2;
 use crate::math;
 use crate::odometry::OdometryStep;
 
@@ -87,6 +134,70 @@ pub const ROUGHENING: f32 = 0.05;
 
 /// Particles of the tracker's particle-filter estimator.
 pub const FUSION_PARTICLES: usize = 100;
+
+/// The softening of a read disc's edge, m: the reader's own position
+/// error, as for a tag cell's edges.
+pub const DISC_EDGE_STD_M: f32 = 1e-3;
+
+/// A range reader's read of a tag as the disc it was read in (module
+/// docs, "Read discs"): the antenna was within `radius_m` of the tag when
+/// it read it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TagDisc {
+    /// The read tag, m.
+    pub centre: Vec2,
+    /// The reader's range, m (> 0).
+    pub radius_m: f32,
+    /// How far the robot drove since the read, m (the fix's age times the
+    /// last tick's step, along the heading).
+    pub lag: Vec2,
+    /// The robot's displacement during the tick of the read, m: a tick
+    /// before the read it was outside the disc (the read is the first of
+    /// its pass, made on entering the range).
+    pub sweep: Vec2,
+    /// The softening of the disc's edge, m (> 0).
+    pub edge_std_m: f32,
+}
+
+impl TagDisc {
+    /// Twice the entry's negative log-likelihood at the position `(x, y)`
+    /// now (nats, up to a constant): the robot entered the disc during the
+    /// tick of the read. With `d` the distance from the tag to where the
+    /// robot was at the read (`(x, y) − lag`) and `d₀` to where it was a
+    /// tick before (`(x, y) − lag − sweep`): `((d − r)/σ_e)²` if `d > r`
+    /// (not in the disc at the read) plus `((r − d₀)/σ_e)²` if `d₀ < r`
+    /// (already in it a tick before), each a Gaussian tail as a cell's
+    /// edges; 0 on the crescent between. NaN for a non-finite position (the
+    /// filter gives such a particle no weight).
+    #[must_use]
+    pub fn distance_sq(&self, x: f32, y: f32) -> f32 {
+        let dx = x - self.lag.x - self.centre.x;
+        let dy = y - self.lag.y - self.centre.y;
+        let tail = |gap: f32| {
+            if gap > 0.0 || gap.is_nan() {
+                let g = gap / self.edge_std_m;
+                g * g
+            } else {
+                0.0
+            }
+        };
+        let (bx, by) = (dx - self.sweep.x, dy - self.sweep.y);
+        tail(math::sqrt(dx * dx + dy * dy) - self.radius_m)
+            + tail(self.radius_m - math::sqrt(bx * bx + by * by))
+    }
+
+    /// Finite, with positive sizes.
+    fn is_valid(&self) -> bool {
+        self.centre.is_finite()
+            && self.lag.is_finite()
+            && self.sweep.is_finite()
+            && self.radius_m.is_finite()
+            && self.radius_m > 0.0
+            && self.edge_std_m.is_finite()
+            && self.edge_std_m > 0.0
+    }
+}
 
 /// The pose on odometry with per-wheel noise, for the particle filter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -154,22 +265,49 @@ impl<const P: usize> ParticleCore<P> {
     }
 }
 
+/// The generic filter's settings for the pose filter (module docs): the
+/// noise comes from the model, so `σ_q` and `σ_r` here are unused.
+fn settings() -> Option<ParticleFilterConfig<5, 2>> {
+    ParticleFilterConfig::new(PoseState::zeros(), Vector2::repeat(1.0))
+        .and_then(|c| c.with_collapse_gate(f32::INFINITY))
+        .and_then(|c| c.with_roughening(ROUGHENING))
+        .ok()
+}
+
+/// The prior's standard deviations: the roots of `covariance`'s diagonal.
+fn prior_std(covariance: &PoseCovariance) -> PoseState {
+    covariance.diagonal().map(|v| math::sqrt(v.max(0.0)))
+}
+
 impl<const P: usize> PoseFilterCore for ParticleCore<P> {
     fn start(
         config: &PoseFilterConfig,
         mean: &PoseState,
         covariance: &PoseCovariance,
     ) -> Option<Self> {
-        // The noise comes from the model; σ_q and σ_r here are unused.
-        let settings = ParticleFilterConfig::new(PoseState::zeros(), Vector2::repeat(1.0))
-            .and_then(|c| c.with_collapse_gate(f32::INFINITY))
-            .and_then(|c| c.with_roughening(ROUGHENING))
-            .ok()?;
-        let prior_std = covariance.diagonal().map(|v| math::sqrt(v.max(0.0)));
         let model = NoisyOdometryModel { config: *config };
-        ParticleFilter::new(model, settings, *mean, prior_std, config.particle_seed())
+        let std = prior_std(covariance);
+        ParticleFilter::new(model, settings()?, *mean, std, config.particle_seed())
             .ok()
             .map(|filter| Self { filter })
+    }
+
+    /// In place ([`ParticleFilter::init`]): the 5 KB of particles are
+    /// drawn where they live.
+    fn start_in_place(
+        &mut self,
+        config: &PoseFilterConfig,
+        mean: &PoseState,
+        covariance: &PoseCovariance,
+    ) -> bool {
+        let Some(settings) = settings() else {
+            return false;
+        };
+        let model = NoisyOdometryModel { config: *config };
+        let std = prior_std(covariance);
+        self.filter
+            .init(model, settings, *mean, std, config.particle_seed())
+            .is_ok()
     }
 
     fn predict(&mut self, _config: &PoseFilterConfig, odometry: &OdometryStep) -> bool {
@@ -228,6 +366,76 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
     fn reset(&mut self, mean: &PoseState, covariance: &PoseCovariance) -> bool {
         self.filter.reset(mean, covariance).is_ok()
     }
+
+    /// Sensor resetting of the position only (module docs,
+    /// "Re-localisation"): every particle's position redrawn from
+    /// `measurement`'s Gaussian, its heading and wheel scale errors kept;
+    /// `mean` and `covariance` (the Gaussian restart of the other filters)
+    /// are not used. `false` (nothing changed) for a measurement that is
+    /// not finite with positive (definite) variances.
+    fn relocalise(
+        &mut self,
+        _mean: &PoseState,
+        _covariance: &PoseCovariance,
+        measurement: &PositionMeasurement,
+    ) -> bool {
+        if !measurement.is_finite() {
+            return false;
+        }
+        // `(centre, L)`: the measured axes' mean and the lower Cholesky
+        // factor of their covariance; an unmeasured axis keeps the
+        // particle's own coordinate (a zero row).
+        let (centre, [l00, l10, l11], keep) = match *measurement {
+            PositionMeasurement::Point {
+                position,
+                variance_m2: [vx, vy],
+            } => (
+                position,
+                [math::sqrt(vx), 0.0, math::sqrt(vy)],
+                [false, false],
+            ),
+            PositionMeasurement::Ellipse {
+                position,
+                covariance_m2: [xx, xy, yy],
+            } => {
+                let l00 = math::sqrt(xx);
+                let l10 = xy / l00;
+                // Positive definite (checked above): yy − l10² > 0 but for
+                // rounding.
+                (
+                    position,
+                    [l00, l10, math::sqrt((yy - l10 * l10).max(0.0))],
+                    [false, false],
+                )
+            }
+            PositionMeasurement::X {
+                value_m,
+                variance_m2,
+            } => (
+                Vec2::new(value_m, 0.0),
+                [math::sqrt(variance_m2), 0.0, 0.0],
+                [false, true],
+            ),
+            PositionMeasurement::Y {
+                value_m,
+                variance_m2,
+            } => (
+                Vec2::new(0.0, value_m),
+                [0.0, 0.0, math::sqrt(variance_m2)],
+                [true, false],
+            ),
+        };
+        self.filter.reposition(|x, gaussian| {
+            let (a, b) = (gaussian(), gaussian());
+            if !keep[0] {
+                x.x = centre.x + l00 * a;
+            }
+            if !keep[1] {
+                x.y = centre.y + l10 * a + l11 * b;
+            }
+        });
+        true
+    }
 }
 
 impl<const P: usize> ParticleCore<P> {
@@ -251,7 +459,63 @@ impl<const P: usize> ParticleCore<P> {
     }
 }
 
+impl<const P: usize> ParticleCore<P> {
+    /// Weights every particle by the likelihood of the read disc
+    /// ([`TagDisc::distance_sq`]; module docs, "Read discs"); `false` (and
+    /// nothing changed) for a disc that is not finite with positive sizes.
+    pub fn update_disc(&mut self, disc: &TagDisc) -> bool {
+        if !disc.is_valid() {
+            return false;
+        }
+        let rejected = self.filter.rejected_inputs();
+        self.filter
+            .update_with_likelihood(|x| disc.distance_sq(x.x, x.y));
+        self.filter.rejected_inputs() == rejected
+    }
+}
+
 impl<const P: usize> PoseParticleFilter<P> {
+    /// Corrects with a range reader's first read of a tag in a pass as
+    /// its entry into the disc (module docs, "Read discs"): gated, counted
+    /// and re-localised on `entry`, the entry point's Gaussian
+    /// ([`TagCellTracker::range_measurement`]: the crescent's moments, near
+    /// enough), applied with the disc's likelihood.
+    pub fn correct_disc(&mut self, disc: &TagDisc, entry: &PositionMeasurement) -> FixOutcome {
+        self.correct_with(entry, |core| core.update_disc(disc))
+    }
+
+    /// A filter not yet started (every particle at the origin, zero
+    /// weights, a placeholder configuration): the slot that
+    /// [`PoseFilter::restart`] starts in place. Built from constants
+    /// alone, not inlined and without arguments, so that the compiler
+    /// builds it straight in the caller's destination (a call that could
+    /// read that destination, e.g. through a configuration passed by
+    /// reference from beside it, is returned into a 5 KB temporary on the
+    /// stack and copied).
+    #[inline(never)]
+    #[cfg_attr(not(feature = "fusion-particle-filter"), allow(dead_code))]
+    pub(crate) fn blank() -> Self {
+        const PLACEHOLDER: PoseFilterConfig = PoseFilterConfig {
+            track_width_m: 1.0,
+            variance_per_m: 0.0,
+            variance_floor_m2: 0.0,
+            gate_sigma: 0.0,
+            gate_one_dof: 0.0,
+            gate_two_dof: 0.0,
+            scale_walk_per_m: 0.0,
+            recover_after: 0,
+            particle_seed: 0,
+        };
+        PoseFilter::with_core(
+            PLACEHOLDER,
+            ParticleCore {
+                filter: ParticleFilter::blank(NoisyOdometryModel {
+                    config: PLACEHOLDER,
+                }),
+            },
+        )
+    }
+
     /// Corrects with a read of a tag as its cell (module docs, "Tag
     /// cells"): gated, counted and re-localised on the cell's moments
     /// ([`TagCell::moments`]), applied with the cell's likelihood.
@@ -319,6 +583,29 @@ mod tests {
         assert_eq!(first.core().filter().collapses(), 0);
     }
 
+    /// Started in place (from the blank, as the estimator does) it is the
+    /// filter `new` builds, bit for bit, and it restarts in place (a
+    /// second start on a used filter) to the same again; a start it
+    /// cannot take leaves it as it was.
+    #[test]
+    fn a_filter_started_in_place_is_the_one_new_builds() {
+        let start = Pose::new(0.3, -0.2, 1.0);
+        let variances = [1e-3, 2e-3, 0.5, 1e-4];
+        let built = PoseParticleFilter::<100>::new(config(11), start, variances).unwrap();
+        let mut slot = PoseParticleFilter::<100>::blank();
+        slot.restart(config(11), start, variances).unwrap();
+        assert_eq!(slot, built);
+        let (_, mut used) = drive(5);
+        used.restart(config(11), start, variances).unwrap();
+        assert_eq!(used, built);
+        let bad = [f32::NAN, 1e-3, 0.5, 0.0];
+        assert_eq!(
+            used.restart(config(12), start, bad),
+            Err(crate::estimation::fusion::config::PoseFilterError::InitialVariance)
+        );
+        assert_eq!(used, built);
+    }
+
     /// An axis fix pulls the estimate along its axis (that it weights by
     /// `x` alone is `ParticleFilter::update_with_std`'s test; `y` moves
     /// only by the sampling error of the reweighted particles).
@@ -379,6 +666,149 @@ mod tests {
             ..cell
         };
         assert_eq!(pf.correct_cell(&broken), FixOutcome::Invalid);
+    }
+
+    /// Re-localisation keeps what the particles know: after three gated
+    /// fixes 40 cm away the filter re-localises on the third, every
+    /// particle's heading is the one it had (the Gaussian restart of the
+    /// EKF would have spread them over `(π/2)²`), and the estimate is at
+    /// the fix.
+    #[test]
+    fn relocalisation_keeps_each_particles_heading() {
+        let mut pf = PoseParticleFilter::<100>::new(
+            config(7),
+            Pose::new(0.0, 0.0, 0.8),
+            [1e-4, 1e-4, 1e-4, 1e-6],
+        )
+        .unwrap();
+        let headings: [f32; 100] = core::array::from_fn(|i| pf.core().filter().particles()[i].z);
+        let scales: [f32; 100] = core::array::from_fn(|i| pf.core().filter().particles()[i].w);
+        let fix = PositionMeasurement::Point {
+            position: Vec2::new(0.4, 0.1),
+            variance_m2: [1e-4, 1e-4],
+        };
+        assert_eq!(pf.correct(&fix), FixOutcome::Gated);
+        assert_eq!(pf.correct(&fix), FixOutcome::Gated);
+        assert_eq!(pf.correct(&fix), FixOutcome::Used);
+        assert_eq!(pf.counters().relocalisations, 1);
+        let particles = pf.core().filter().particles();
+        for (i, x) in particles.iter().enumerate() {
+            assert_eq!((x.z, x.w), (headings[i], scales[i]), "particle {i}");
+        }
+        let pose = pf.pose();
+        assert!((pose.heading_rad - 0.8).abs() < 0.01, "{pose:?}");
+        assert!(
+            (pose.position - Vec2::new(0.4, 0.1)).norm() < 0.01,
+            "{pose:?}"
+        );
+    }
+
+    /// An axis fix re-localises its axis only: every particle keeps its
+    /// `y` (and heading), its `x` is redrawn at the fix.
+    #[test]
+    fn an_axis_relocalisation_redraws_that_axis_only() {
+        let mut pf = PoseParticleFilter::<100>::new(
+            config(8),
+            Pose::new(0.0, 0.2, -1.0),
+            [1e-4, 1e-4, 1e-4, 0.0],
+        )
+        .unwrap();
+        let before = *pf.core().filter().particles();
+        let fix = PositionMeasurement::X {
+            value_m: -0.5,
+            variance_m2: 1e-4,
+        };
+        for _ in 0..2 {
+            assert_eq!(pf.correct(&fix), FixOutcome::Gated);
+        }
+        assert_eq!(pf.correct(&fix), FixOutcome::Used);
+        for (x, old) in pf.core().filter().particles().iter().zip(before.iter()) {
+            assert_eq!((x.y, x.z), (old.y, old.z));
+            assert!((x.x + 0.5).abs() < 0.06, "{x:?}");
+        }
+    }
+
+    /// A read disc: the particles off the entry's crescent (inside the
+    /// disc at the read, outside it a tick before) lose their weight, so
+    /// the estimate moves to the side the robot entered from; an entry far
+    /// from every particle is gated, a broken disc refused.
+    #[test]
+    fn a_disc_read_keeps_the_particles_that_entered_the_disc() {
+        let mut pf = PoseParticleFilter::<100>::new(
+            config(9),
+            Pose::new(-0.02, 0.0, 0.0),
+            [1e-4, 1e-4, 0.01, 0.0],
+        )
+        .unwrap();
+        // Entered moving +x: the crescent is the disc's left edge, 1 cm
+        // deep.
+        let disc = TagDisc {
+            centre: Vec2::new(0.03, 0.0),
+            radius_m: 0.05,
+            lag: Vec2::ZERO,
+            sweep: Vec2::new(0.01, 0.0),
+            edge_std_m: DISC_EDGE_STD_M,
+        };
+        let on_crescent = pf
+            .core()
+            .filter()
+            .particles()
+            .iter()
+            .filter(|x| disc.distance_sq(x.x, x.y) == 0.0)
+            .count();
+        assert!((5..60).contains(&on_crescent), "{on_crescent}");
+        let entry = PositionMeasurement::Point {
+            position: Vec2::new(-0.015, 0.0),
+            variance_m2: [1e-4, 4e-4],
+        };
+        assert_eq!(pf.correct_disc(&disc, &entry), FixOutcome::Used);
+        let filter = pf.core().filter();
+        // Within 3 σ of the softened edges (roughening after a resampling
+        // may jitter a copy just past one).
+        let kept: f32 = filter
+            .particles()
+            .iter()
+            .zip(filter.weights())
+            .filter(|(x, _)| disc.distance_sq(x.x, x.y) < 9.0)
+            .map(|(_, w)| w)
+            .sum();
+        assert!(kept > 0.99, "{kept}");
+        let x = pf.pose().position.x;
+        assert!((-0.025..-0.005).contains(&x), "{:?}", pf.pose());
+        let far = PositionMeasurement::Point {
+            position: Vec2::new(2.0, 0.0),
+            variance_m2: [1e-4, 1e-4],
+        };
+        assert_eq!(pf.correct_disc(&disc, &far), FixOutcome::Gated);
+        let broken = TagDisc {
+            radius_m: 0.0,
+            ..disc
+        };
+        assert_eq!(pf.correct_disc(&broken, &entry), FixOutcome::Invalid);
+    }
+
+    /// The entry's likelihood: 0 on the crescent (in the disc at the read,
+    /// the lag taken off; out of it a tick before), a Gaussian tail of the
+    /// edge's softening off it on either side, NaN for NaN.
+    #[test]
+    fn the_disc_likelihood_is_the_entry_crescent_with_soft_edges() {
+        let disc = TagDisc {
+            centre: Vec2::new(1.0, 2.0),
+            radius_m: 0.1,
+            lag: Vec2::new(0.01, 0.0),
+            sweep: Vec2::new(0.0, 0.005),
+            edge_std_m: 0.002,
+        };
+        // Entered moving +y: the crescent is the disc's lower edge.
+        assert_eq!(disc.distance_sq(1.01, 1.903), 0.0);
+        // Beyond the disc at the read, by 2 mm (one σ_e, squared: 1).
+        let past = disc.distance_sq(1.01, 1.898);
+        assert!((past - 1.0).abs() < 0.01, "{past}");
+        // At the centre: in the disc a tick before too (5 mm behind the
+        // centre), 9.5 cm deep: (0.095 / 0.002)².
+        let deep = disc.distance_sq(1.01, 2.0);
+        assert!((deep - 2256.25).abs() < 0.5, "{deep}");
+        assert!(disc.distance_sq(f32::NAN, 2.0).is_nan());
     }
 
     proptest! {

@@ -114,54 +114,128 @@ where
         prior_std: SVector<f32, N>,
         seed: u64,
     ) -> Result<Self, ParticleFilterError> {
-        if P == 0 {
-            return Err(ParticleFilterError::NoParticles);
-        }
-        if !finite(&prior_mean) {
-            return Err(ParticleFilterError::PriorMean);
-        }
-        if !non_negative(&prior_std) {
-            return Err(ParticleFilterError::PriorStd);
-        }
-        if config.proposal == Proposal::Optimal && !(M == N && model.measures_state()) {
-            return Err(ParticleFilterError::Proposal);
-        }
-        let bandwidth = if config.regularization > 0.0 {
-            config.regularization * optimal_bandwidth(N, P)
-        } else {
-            0.0
-        };
-        if !(bandwidth.is_finite() && bandwidth <= 1.0) {
-            return Err(ParticleFilterError::Regularization);
-        }
-        let shrinkage = math::sqrt((1.0 - bandwidth * bandwidth).max(0.0));
-        let angles: [bool; N] = core::array::from_fn(|index| model.is_angle(index));
-        let mut mean = prior_mean;
-        wrap_angles(&mut mean, &angles);
+        let start = Start::of::<Model, M, P>(&model, &config, &prior_mean, &prior_std)?;
         let mut filter = Self {
             model,
             recovery_std: config.recovery_std.unwrap_or(prior_std),
             config,
-            angles,
-            bandwidth,
-            shrinkage,
-            particles: [mean; P],
-            buffer: [mean; P],
+            angles: start.angles,
+            bandwidth: start.bandwidth,
+            shrinkage: start.shrinkage,
+            particles: [start.mean; P],
+            buffer: [start.mean; P],
             weights: [1.0 / P as f32; P],
             log_likelihood: [0.0; P],
-            estimate: mean,
+            estimate: start.mean,
             noise: Noise::new(seed),
             counters: ParticleFilterCounters::default(),
             draw_pending: false,
             pending_std: prior_std,
         };
-        if filter.config.proposal == Proposal::Optimal {
-            // The first update draws from p(x_0 | y_0) (module docs).
-            filter.draw_pending = true;
-        } else {
-            filter.redraw(&prior_std);
-        }
+        filter.draw_prior(&prior_std);
         Ok(filter)
+    }
+
+    /// [`Self::new`] in place: the filter becomes, field by field, the one
+    /// `new` would return for the same arguments (counters zeroed, the
+    /// generator reseeded), without a second filter on the stack to move
+    /// from (a filter of 100 particles of 5 states is 5 KB: on a 4–8 KiB
+    /// microcontroller stack a move is a large part of it).
+    ///
+    /// # Errors
+    /// As [`Self::new`]; the filter is then unchanged.
+    pub fn init(
+        &mut self,
+        model: Model,
+        config: ParticleFilterConfig<N, M>,
+        prior_mean: SVector<f32, N>,
+        prior_std: SVector<f32, N>,
+        seed: u64,
+    ) -> Result<(), ParticleFilterError> {
+        let start = Start::of::<Model, M, P>(&model, &config, &prior_mean, &prior_std)?;
+        self.model = model;
+        self.recovery_std = config.recovery_std.unwrap_or(prior_std);
+        self.config = config;
+        self.angles = start.angles;
+        self.bandwidth = start.bandwidth;
+        self.shrinkage = start.shrinkage;
+        self.particles.fill(start.mean);
+        self.buffer.fill(start.mean);
+        self.weights.fill(1.0 / P as f32);
+        self.log_likelihood.fill(0.0);
+        self.estimate = start.mean;
+        self.noise = Noise::new(seed);
+        self.counters = ParticleFilterCounters::default();
+        self.draw_pending = false;
+        self.pending_std = prior_std;
+        self.draw_prior(&prior_std);
+        Ok(())
+    }
+
+    /// A particle at the origin, as a constant.
+    #[cfg_attr(not(feature = "fusion-particle-filter"), allow(dead_code))]
+    const ORIGIN: SVector<f32, N> =
+        SVector::from_array_storage(nalgebra::ArrayStorage([[0.0; N]; 1]));
+    /// Every particle at the origin, as a constant.
+    #[cfg_attr(not(feature = "fusion-particle-filter"), allow(dead_code))]
+    const ALL_AT_ORIGIN: [SVector<f32, N>; P] = [Self::ORIGIN; P];
+
+    /// A filter on `model` whose particles all sit at the origin with
+    /// zero weights and zero spreads (the plain prior proposal, no
+    /// regularization or roughening, seed 0): not a filter to run, but a
+    /// slot for [`Self::init`] to start in place. Its arrays are
+    /// constants, which the compiler writes straight into the place the
+    /// filter is returned to (no 5 KB temporary on the stack); not
+    /// inlined, so that the caller's place is that destination.
+    #[inline(never)]
+    #[cfg_attr(not(feature = "fusion-particle-filter"), allow(dead_code))]
+    pub(crate) fn blank(model: Model) -> Self {
+        Self {
+            model,
+            config: ParticleFilterConfig {
+                process_std: Self::ORIGIN,
+                measurement_std: SVector::from_array_storage(nalgebra::ArrayStorage([[1.0; M]; 1])),
+                inverse_measurement_std: SVector::from_array_storage(nalgebra::ArrayStorage(
+                    [[1.0; M]; 1],
+                )),
+                resample_fraction: super::DEFAULT_RESAMPLE_FRACTION,
+                recovery_std: None,
+                collapse_gate: super::DEFAULT_COLLAPSE_GATE,
+                regularization: 0.0,
+                roughening: 0.0,
+                proposal: Proposal::Prior,
+            },
+            recovery_std: Self::ORIGIN,
+            angles: [false; N],
+            bandwidth: 0.0,
+            shrinkage: 1.0,
+            particles: Self::ALL_AT_ORIGIN,
+            buffer: Self::ALL_AT_ORIGIN,
+            weights: [0.0; P],
+            log_likelihood: [0.0; P],
+            estimate: Self::ORIGIN,
+            noise: Noise::new(0),
+            counters: ParticleFilterCounters {
+                resamplings: 0,
+                collapses: 0,
+                rejected_inputs: 0,
+                dropped_particles: 0,
+                correction_stages: 0,
+            },
+            draw_pending: false,
+            pending_std: Self::ORIGIN,
+        }
+    }
+
+    /// The start's draw: with [`Proposal::Optimal`] the first update draws
+    /// from `p(x_0 | y_0)` (module docs); otherwise every particle from the
+    /// prior.
+    fn draw_prior(&mut self, prior_std: &SVector<f32, N>) {
+        if self.config.proposal == Proposal::Optimal {
+            self.draw_pending = true;
+        } else {
+            self.redraw(prior_std);
+        }
     }
 
     /// The model.
@@ -419,6 +493,33 @@ where
         Ok(())
     }
 
+    /// Moves every particle by `reposition(x, gaussian)` (`gaussian`: the
+    /// filter's own standard normal draws), then gives them equal weights
+    /// and takes their mean as the estimate: e.g. sensor resetting (Lenser
+    /// & Veloso 2000), some components redrawn from a measurement while
+    /// the others keep what each particle knows. Angles are wrapped after
+    /// the move; a particle the move would leave non-finite keeps its old
+    /// state. Counters go on; a pending draw of the optimal proposal is
+    /// dropped (the move replaces it).
+    pub fn reposition(
+        &mut self,
+        mut reposition: impl FnMut(&mut SVector<f32, N>, &mut dyn FnMut() -> f32),
+    ) {
+        let noise = &mut self.noise;
+        let mut gaussian = || noise.gaussian();
+        for x in self.particles.iter_mut() {
+            let mut moved = *x;
+            reposition(&mut moved, &mut gaussian);
+            wrap_angles(&mut moved, &self.angles);
+            if finite(&moved) {
+                *x = moved;
+            }
+        }
+        self.weights.fill(1.0 / P as f32);
+        self.draw_pending = false;
+        self.refresh_estimate();
+    }
+
     /// Collapse recovery (module docs): redraw around the kept estimate.
     pub(super) fn collapse(&mut self) {
         let spread = self.recovery_std;
@@ -497,5 +598,56 @@ where
         } else {
             false
         }
+    }
+}
+
+/// What [`ParticleFilter::new`] and [`ParticleFilter::init`] resolve from
+/// their arguments once they are valid.
+struct Start<const N: usize> {
+    angles: [bool; N],
+    bandwidth: f32,
+    shrinkage: f32,
+    /// The prior mean, angles wrapped.
+    mean: SVector<f32, N>,
+}
+
+impl<const N: usize> Start<N> {
+    /// The checks of [`ParticleFilter::new`], in its order.
+    fn of<Model: ParticleModel<N, M>, const M: usize, const P: usize>(
+        model: &Model,
+        config: &ParticleFilterConfig<N, M>,
+        prior_mean: &SVector<f32, N>,
+        prior_std: &SVector<f32, N>,
+    ) -> Result<Self, ParticleFilterError> {
+        if P == 0 {
+            return Err(ParticleFilterError::NoParticles);
+        }
+        if !finite(prior_mean) {
+            return Err(ParticleFilterError::PriorMean);
+        }
+        if !non_negative(prior_std) {
+            return Err(ParticleFilterError::PriorStd);
+        }
+        if config.proposal == Proposal::Optimal && !(M == N && model.measures_state()) {
+            return Err(ParticleFilterError::Proposal);
+        }
+        let bandwidth = if config.regularization > 0.0 {
+            config.regularization * optimal_bandwidth(N, P)
+        } else {
+            0.0
+        };
+        if !(bandwidth.is_finite() && bandwidth <= 1.0) {
+            return Err(ParticleFilterError::Regularization);
+        }
+        let shrinkage = math::sqrt((1.0 - bandwidth * bandwidth).max(0.0));
+        let angles: [bool; N] = core::array::from_fn(|index| model.is_angle(index));
+        let mut mean = *prior_mean;
+        wrap_angles(&mut mean, &angles);
+        Ok(Self {
+            angles,
+            bandwidth,
+            shrinkage,
+            mean,
+        })
     }
 }
