@@ -21,7 +21,8 @@ The goals of issue 32 are checked at the end and printed as counts.
 The sweeps' files go to target/fusion-table/. About two hours on 2
 cores at 32 runs (the particle filter's sweeps are most of it).
 
-    python3 tools/fusion_table.py starts [FILTER ...]   # default: particle_filter
+    python3 tools/fusion_table.py starts [FILTER ...] [--seed N] [--cases I,J,...]
+    # default: particle_filter, the filter's default particle_seed, every case
 
 3. The starts table of docs/fusion.md ("The particle filter at the
    template's defaults"): the template on the RFID figure-eight with
@@ -32,7 +33,9 @@ cores at 32 runs (the particle filter's sweeps are most of it).
    m²/m, measurement seed k + 1) with the filter matched and 10x off
    either way. Each row: the median and worst of the runs' max errors and
    the median of their mean errors after 100 s, m. About 2 minutes a
-   filter on 2 cores (single runs, two at a time).
+   filter on 2 cores (single runs, two at a time). `--seed N` sets
+   `particle_seed = N` (the other particle draws of the docs: N = (k << 32) + 1);
+   `--cases` runs only those rows of START_CASES (0-based).
 """
 
 import concurrent.futures
@@ -45,6 +48,19 @@ import subprocess
 import sys
 
 STARTS = len(sys.argv) > 1 and sys.argv[1] == "starts"
+ARGS = sys.argv[2:]
+PARTICLE_SEED = None
+CASES = None
+if STARTS:
+    for flag in ("--seed", "--cases"):
+        if flag in ARGS:
+            i = ARGS.index(flag)
+            value = ARGS[i + 1]
+            del ARGS[i:i + 2]
+            if flag == "--seed":
+                PARTICLE_SEED = int(value, 0)
+            else:
+                CASES = [int(c) for c in value.split(",")]
 RUNS = int(sys.argv[1]) if len(sys.argv) > 1 and not STARTS else 32
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 OUT = ROOT / "target" / "fusion-table"
@@ -122,6 +138,8 @@ def start_text(kind, wheel_variance, spacing, slip, k):
     text = text.replace(SPACING, f"spacing_m = {spacing:g}\n")
     text = text.replace(X_LINE, f"x_m = {k * 1e-6!r}\n", 1)
     text = text.replace(HEADING_LINE, f"heading_rad = {4.71238898038469 + k * 1e-5!r}", 1)
+    if PARTICLE_SEED is not None:
+        text = text.replace("[estimator.fusion]", f"[estimator.fusion]\nparticle_seed = {PARTICLE_SEED}", 1)
     if slip:
         text = text.replace(PLANT, PLANT + f"\n[plant.wheels]\ntravel_variance_m2_per_m = {slip:g}\n")
         text += f"\n[measurement]\nseed = {k + 1}\n"
@@ -145,14 +163,15 @@ def starts_table(kinds):
         (OUT / name / "run.csv").unlink(missing_ok=True)
         return job, s["max_error_m"], s["mean_error_m"]
 
-    jobs = [(kind, *case, k) for kind in kinds for case in START_CASES for k in range(START_COUNT)]
+    cases = START_CASES if CASES is None else [START_CASES[i] for i in CASES]
+    jobs = [(kind, *case, k) for kind in kinds for case in cases for k in range(START_COUNT)]
     with concurrent.futures.ThreadPoolExecutor(2) as pool:
         results = list(pool.map(one, jobs))
     print("| filter | wheel_variance_per_m | floor (m) | plant slip (m²/m) "
           "| median max | worst max | median mean |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
     for kind in kinds:
-        for case in START_CASES:
+        for case in cases:
             runs = [(m, mean) for job, m, mean in results if job[:4] == (kind, *case)]
             maxima = [m for m, _ in runs]
             means = [mean for _, mean in runs]
@@ -235,6 +254,6 @@ def grid():
 
 
 if STARTS:
-    starts_table(sys.argv[2:] or ["particle_filter"])
+    starts_table(ARGS or ["particle_filter"])
 else:
     grid()
