@@ -346,6 +346,16 @@ mod tests {
                 "got 5000000000",
             ),
             (
+                "counters_period_ms = 19",
+                "mavlink.counters_period_ms",
+                "got 19",
+            ),
+            (
+                "counters_period_ms = 5000000000",
+                "mavlink.counters_period_ms",
+                "got 5000000000",
+            ),
+            (
                 "origin = { latitude_deg = 86.0, longitude_deg = 0.0 }",
                 "mavlink.origin.latitude_deg",
                 "got 86",

@@ -129,13 +129,13 @@ impl MavlinkSettings {
 pub struct EndpointRefusal {
     /// The field: 0 system id, 1 component id, 2 link timeout, 3 item
     /// timeout, 4 item retries, 5 telemetry period, 6 origin latitude,
-    /// 7 origin longitude.
+    /// 7 origin longitude, 8 counters period.
     pub field: u8,
     /// The value given.
     pub value: i64,
 }
 
-const CONFIG_KEYS: [ConfigKey; 8] = [
+const CONFIG_KEYS: [ConfigKey; 9] = [
     ConfigKey::SystemId,
     ConfigKey::ComponentId,
     ConfigKey::LinkTimeout,
@@ -144,13 +144,14 @@ const CONFIG_KEYS: [ConfigKey; 8] = [
     ConfigKey::TelemetryPeriod,
     ConfigKey::OriginLatitude,
     ConfigKey::OriginLongitude,
+    ConfigKey::CountersPeriod,
 ];
 
 impl From<ConfigError> for EndpointRefusal {
     fn from(e: ConfigError) -> Self {
         let field = CONFIG_KEYS.iter().position(|k| *k == e.key).unwrap_or(0);
         Self {
-            // Eight keys: fits.
+            // Nine keys: fits.
             field: u8::try_from(field).unwrap_or(0),
             value: e.value,
         }
@@ -303,4 +304,30 @@ pub fn route_messages<'w>(
             })
         });
     core::iter::once(announce).chain(chunks)
+}
+
+#[cfg(test)]
+mod endpoint_refusal_tests {
+    use super::EndpointRefusal;
+    use wmr_mavlink::{ConfigError, ConfigKey};
+
+    /// Every setting the endpoint can refuse crosses the link as itself,
+    /// so that the host names the key the firmware refused.
+    #[test]
+    fn every_refused_key_crosses_the_link_as_itself() {
+        for key in [
+            ConfigKey::SystemId,
+            ConfigKey::ComponentId,
+            ConfigKey::LinkTimeout,
+            ConfigKey::ItemTimeout,
+            ConfigKey::ItemRetries,
+            ConfigKey::TelemetryPeriod,
+            ConfigKey::CountersPeriod,
+            ConfigKey::OriginLatitude,
+            ConfigKey::OriginLongitude,
+        ] {
+            let refusal = EndpointRefusal::from(ConfigError { key, value: 19 });
+            assert_eq!((refusal.key(), refusal.value), (key, 19));
+        }
+    }
 }
