@@ -83,7 +83,7 @@
 //! moves the fix by less: at `(0, 0)`, before any heading is known, not
 //! at all). With a zero offset the fix is used as it is, bit for bit.
 
-use crate::control::saturated::{GainBound, TrackingCommand};
+use crate::control::saturated::{GainBound, TrackingCommand, TrackingGains};
 use crate::control::{Law, LawChoice, LawCommand, TrackingLaw};
 use crate::estimation::heading_observer::ObserverConfigError;
 use crate::estimation::{Estimator, EstimatorChoice, PoseEstimator};
@@ -91,7 +91,6 @@ use crate::geometry::HeadingEstimate;
 use crate::geometry::{BodyVelocity, Vec2};
 use crate::odometry::OdometryStep;
 use crate::pilot::route::{RouteFollower, Steer};
-use crate::pilot::tuning::{Tuning, TuningSpec};
 use crate::plausible::{DECEL_M_S2, PERIOD_S};
 use crate::reference::{
     ReferenceClock, ReferenceError, ReferenceSample, ReferenceTime, TickClock, Trajectory,
@@ -269,7 +268,7 @@ impl TrackerConfig {
     }
 
     /// The fix timeout's check ([`Self::new`]'s, and a run-time
-    /// [`crate::pilot::tuning::TuningSpec`]'s): at least one tick.
+    /// [`TuningSpec`]'s): at least one tick.
     ///
     /// # Errors
     /// [`TrackerConfigError::FixTimeout`] for zero.
@@ -283,7 +282,7 @@ impl TrackerConfig {
     }
 
     /// The failsafe deceleration's check ([`Self::with_failsafe_decel`]'s,
-    /// and a run-time [`crate::pilot::tuning::TuningSpec`]'s), m/s².
+    /// and a run-time [`TuningSpec`]'s), m/s².
     ///
     /// # Errors
     /// [`TrackerConfigError::FailsafeDecel`] outside [`DECEL_M_S2`].
@@ -785,6 +784,74 @@ impl OutputFeedbackTracker {
                 omega_rad_s: w.signum() * (w.abs() - dv).max(0.0),
             }
         }
+    }
+}
+
+/// The run-time tunable numbers of a pilot (`crate::pilot::tuning`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TuningSpec {
+    /// Law (27)–(28)'s `[k1, k2, k3]`, each in [`crate::plausible::GAIN`];
+    /// `None` for a pilot on another law (it has no `k1, k2, k3`).
+    pub gains: Option<[f32; 3]>,
+    /// Ticks without a valid fix before the failsafe engages, ≥ 1.
+    pub fix_timeout_ticks: u32,
+    /// Age beyond which a fix is stale, ticks.
+    pub max_fix_age_ticks: u32,
+    /// Failsafe deceleration, m/s², in [`crate::plausible::DECEL_M_S2`].
+    pub failsafe_decel_m_s2: f32,
+    /// Consecutive encoder fault ticks bridged before the motors stop.
+    pub max_encoder_fault_ticks: u32,
+}
+
+/// A checked [`TuningSpec`] ([`TuningSpec::build`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Tuning {
+    spec: TuningSpec,
+    gains: Option<TrackingGains>,
+}
+
+impl Tuning {
+    /// A tuning whose values were checked ([`TuningSpec::build`]).
+    pub(crate) fn checked(spec: TuningSpec, gains: Option<TrackingGains>) -> Self {
+        Self { spec, gains }
+    }
+
+    /// Its numbers.
+    #[must_use]
+    pub fn spec(&self) -> &TuningSpec {
+        &self.spec
+    }
+
+    /// Law (27)–(28)'s gains, `None` for another law.
+    #[must_use]
+    pub fn gains(&self) -> Option<TrackingGains> {
+        self.gains
+    }
+
+    /// Ticks without a valid fix before the failsafe engages.
+    #[must_use]
+    pub fn fix_timeout_ticks(&self) -> u32 {
+        self.spec.fix_timeout_ticks
+    }
+
+    /// Age beyond which a fix is stale, ticks.
+    #[must_use]
+    pub fn max_fix_age_ticks(&self) -> u32 {
+        self.spec.max_fix_age_ticks
+    }
+
+    /// Failsafe deceleration, m/s².
+    #[must_use]
+    pub fn failsafe_decel_m_s2(&self) -> f32 {
+        self.spec.failsafe_decel_m_s2
+    }
+
+    /// Consecutive encoder fault ticks bridged before the motors stop.
+    #[must_use]
+    pub fn max_encoder_fault_ticks(&self) -> u32 {
+        self.spec.max_encoder_fault_ticks
     }
 }
 

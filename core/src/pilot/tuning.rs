@@ -18,23 +18,9 @@
 use crate::control::saturated::TrackingGains;
 use crate::pilot::spec::SpecError;
 use crate::pilot::tracker::TrackerConfig;
-
-/// The run-time tunable numbers of a pilot (module documentation).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct TuningSpec {
-    /// Law (27)–(28)'s `[k1, k2, k3]`, each in [`crate::plausible::GAIN`];
-    /// `None` for a pilot on another law (it has no `k1, k2, k3`).
-    pub gains: Option<[f32; 3]>,
-    /// Ticks without a valid fix before the failsafe engages, ≥ 1.
-    pub fix_timeout_ticks: u32,
-    /// Age beyond which a fix is stale, ticks.
-    pub max_fix_age_ticks: u32,
-    /// Failsafe deceleration, m/s², in [`crate::plausible::DECEL_M_S2`].
-    pub failsafe_decel_m_s2: f32,
-    /// Consecutive encoder fault ticks bridged before the motors stop.
-    pub max_encoder_fault_ticks: u32,
-}
+// The types live beside the tracker that takes them, so that the tracker
+// needs nothing from here; the checks here need the robot file's errors.
+pub use crate::pilot::tracker::{Tuning, TuningSpec};
 
 impl TuningSpec {
     /// The checked tuning.
@@ -51,8 +37,8 @@ impl TuningSpec {
             TrackerConfig::check_fix_timeout(self.fix_timeout_ticks).map_err(SpecError::Tracker)?;
         let failsafe_decel_m_s2 = TrackerConfig::check_failsafe_decel(self.failsafe_decel_m_s2)
             .map_err(SpecError::Tracker)?;
-        Ok(Tuning {
-            spec: TuningSpec {
+        Ok(Tuning::checked(
+            TuningSpec {
                 gains: self.gains,
                 fix_timeout_ticks,
                 max_fix_age_ticks: self.max_fix_age_ticks,
@@ -60,53 +46,7 @@ impl TuningSpec {
                 max_encoder_fault_ticks: self.max_encoder_fault_ticks,
             },
             gains,
-        })
-    }
-}
-
-/// A checked [`TuningSpec`] ([`TuningSpec::build`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Tuning {
-    spec: TuningSpec,
-    gains: Option<TrackingGains>,
-}
-
-impl Tuning {
-    /// Its numbers.
-    #[must_use]
-    pub fn spec(&self) -> &TuningSpec {
-        &self.spec
-    }
-
-    /// Law (27)–(28)'s gains, `None` for another law.
-    #[must_use]
-    pub fn gains(&self) -> Option<TrackingGains> {
-        self.gains
-    }
-
-    /// Ticks without a valid fix before the failsafe engages.
-    #[must_use]
-    pub fn fix_timeout_ticks(&self) -> u32 {
-        self.spec.fix_timeout_ticks
-    }
-
-    /// Age beyond which a fix is stale, ticks.
-    #[must_use]
-    pub fn max_fix_age_ticks(&self) -> u32 {
-        self.spec.max_fix_age_ticks
-    }
-
-    /// Failsafe deceleration, m/s².
-    #[must_use]
-    pub fn failsafe_decel_m_s2(&self) -> f32 {
-        self.spec.failsafe_decel_m_s2
-    }
-
-    /// Consecutive encoder fault ticks bridged before the motors stop.
-    #[must_use]
-    pub fn max_encoder_fault_ticks(&self) -> u32 {
-        self.spec.max_encoder_fault_ticks
+        ))
     }
 }
 
