@@ -187,23 +187,9 @@ impl Bridge {
             let n = budget.min(self.backlog.len()).min(MAVLINK_CHUNK_BYTES);
             let bytes: Vec<u8> = self.backlog.drain(..n).collect();
             budget -= n;
-            let message = MavlinkIn {
-                seq: self.seq,
-                bytes: MavlinkChunk::from_slice(&bytes),
-            };
-            self.seq = self.seq.wrapping_add(1);
-            let answer = exchange(&message)?;
-            ensure!(
-                answer.seq == message.seq,
-                "the firmware answered MAVLink message {} to message {}",
-                answer.seq,
-                message.seq
-            );
+            let (message, answer) = self.exchange_one(&bytes, &mut exchange)?;
             out.extend_from_slice(answer.bytes.as_slice());
-            self.report.messages += 1;
             self.report.bytes_to_firmware += n as u64;
-            self.report.bytes_from_firmware += answer.bytes.len() as u64;
-            self.report.firmware = answer.counters;
             self.log.exchanges.push((message, answer));
             if answer.pending == 0 && (budget == 0 || self.backlog.is_empty()) {
                 self.link.send_frames(&out);
@@ -230,28 +216,40 @@ impl Bridge {
         let most = MAVLINK_TX_QUEUE_BYTES / MAVLINK_CHUNK_BYTES + 4;
         let mut out = Vec::new();
         for _ in 0..most {
-            let message = MavlinkIn {
-                seq: self.seq,
-                bytes: MavlinkChunk::from_slice(&[]),
-            };
-            self.seq = self.seq.wrapping_add(1);
-            let answer = exchange(&message)?;
-            ensure!(
-                answer.seq == message.seq,
-                "the firmware answered MAVLink message {} to message {}",
-                answer.seq,
-                message.seq
-            );
+            let (_, answer) = self.exchange_one(&[], &mut exchange)?;
             out.extend_from_slice(answer.bytes.as_slice());
-            self.report.messages += 1;
-            self.report.bytes_from_firmware += answer.bytes.len() as u64;
-            self.report.firmware = answer.counters;
             if answer.pending == 0 {
                 self.link.send_frames(&out);
                 return Ok(());
             }
         }
         bail!("the firmware still had MAVLink output pending after {most} exchanges at the end")
+    }
+
+    /// One message of `bytes` to the firmware and its answer, checked to
+    /// answer that message; counted in the report (messages, bytes from
+    /// the firmware, its latest counters).
+    fn exchange_one(
+        &mut self,
+        bytes: &[u8],
+        exchange: &mut impl FnMut(&MavlinkIn) -> anyhow::Result<MavlinkOut>,
+    ) -> anyhow::Result<(MavlinkIn, MavlinkOut)> {
+        let message = MavlinkIn {
+            seq: self.seq,
+            bytes: MavlinkChunk::from_slice(bytes),
+        };
+        self.seq = self.seq.wrapping_add(1);
+        let answer = exchange(&message)?;
+        ensure!(
+            answer.seq == message.seq,
+            "the firmware answered MAVLink message {} to message {}",
+            answer.seq,
+            message.seq
+        );
+        self.report.messages += 1;
+        self.report.bytes_from_firmware += answer.bytes.len() as u64;
+        self.report.firmware = answer.counters;
+        Ok((message, answer))
     }
 
     /// The bridge's figures at the end of the run, with the firmware's
