@@ -22,11 +22,15 @@ use std::time::{Duration, Instant};
 
 use firmware_sim::Scenario;
 use firmware_sim::hil::{
-    BACKLOG_BYTES, HilOptions, HilRun, MavlinkBridgeSpec, build_firmware, run_hil, workspace_root,
+    BACKLOG_BYTES, HilOptions, HilRun, MavlinkBridgeSpec, build_firmware, build_firmware_with,
+    run_hil, workspace_root,
 };
+use firmware_sim::scenario::mavlink::{MavlinkSpec, PowerOnSpec};
 use firmware_sim::udp::MavlinkAddress;
 use mavlink::dialects::common::*;
 use mavlink::{MavHeader, MavlinkReader, MavlinkVersion};
+use wmr_core::builds;
+use wmr_core::estimation::spec::{EstimatorSpec, FusionFilterSpec};
 
 /// A wall-clock cap on any wait: only a hung run reaches it.
 const WALL_CAP: Duration = Duration::from_secs(60);
@@ -39,6 +43,44 @@ fn firmware() -> PathBuf {
             .expect("build the QEMU-board firmware"),
     })
     .clone()
+}
+
+/// The QEMU-board firmware with the fusion estimator's particle filter,
+/// found as `host-tests/tests/hil.rs` finds it: the ELF in
+/// `WMR_FIRMWARE_ELF_FUSION_PARTICLE_FILTER` if set (relative paths from
+/// the workspace root; `cargo xtask ci` builds it), else built here once
+/// into `target/hil-firmware-fusion-particle-filter`.
+fn particle_filter_firmware() -> PathBuf {
+    static ELF: OnceLock<PathBuf> = OnceLock::new();
+    let build = builds::FUSION_PARTICLE_FILTER;
+    ELF.get_or_init(|| match std::env::var_os(build.hil_firmware_env) {
+        Some(path) => workspace_root().join(path),
+        None => {
+            let dir = workspace_root()
+                .join("target")
+                .join(format!("hil-firmware-{}", build.feature));
+            build_firmware_with(Some(&dir), &[build.feature]).unwrap_or_else(|e| {
+                panic!("build the QEMU-board firmware with {}: {e}", build.feature)
+            })
+        }
+    })
+    .clone()
+}
+
+/// `[hil_peak_stack_limit_bytes] name` in `firmware/budgets.toml`: the
+/// hard limit of the firmware's peak stack over a HIL run.
+fn peak_stack_limit(name: &str) -> u32 {
+    let path = workspace_root().join("firmware").join("budgets.toml");
+    let text = std::fs::read_to_string(&path).expect("read firmware/budgets.toml");
+    let budgets: toml::Table = text.parse().expect("parse firmware/budgets.toml");
+    budgets
+        .get("hil_peak_stack_limit_bytes")
+        .and_then(|t| t.get(name))
+        .and_then(toml::Value::as_integer)
+        .and_then(|v| u32::try_from(v).ok())
+        .unwrap_or_else(|| {
+            panic!("firmware/budgets.toml has no [hil_peak_stack_limit_bytes] {name}")
+        })
 }
 
 /// The in-process ground station: a socket, the robot's address once it
@@ -144,6 +186,44 @@ impl Gcs {
     ) -> MavMessage {
         self.receive_until(what, sim_timeout_ms, true, until)
             .unwrap_or_else(|| panic!("{what}: not within {sim_timeout_ms} ms of the robot's time"))
+    }
+
+    /// Sends `COMMAND_LONG` `command` (`param1` = `p1`) and returns its
+    /// `COMMAND_ACK`'s result.
+    fn command(&mut self, command: MavCmd, p1: f32) -> MavResult {
+        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            command,
+            param1: p1,
+            target_system: 1,
+            target_component: 1,
+            ..Default::default()
+        }));
+        match self.wait(
+            "COMMAND_ACK",
+            5000,
+            |m| matches!(m, MavMessage::COMMAND_ACK(a) if a.command == command),
+        ) {
+            MavMessage::COMMAND_ACK(a) => a.result,
+            _ => unreachable!(),
+        }
+    }
+
+    /// The number of items of the robot's mission (`MISSION_REQUEST_LIST`
+    /// answered with `MISSION_COUNT`).
+    fn mission_count(&mut self) -> u16 {
+        self.send(&MavMessage::MISSION_REQUEST_LIST(
+            MISSION_REQUEST_LIST_DATA {
+                target_system: 1,
+                target_component: 1,
+                ..Default::default()
+            },
+        ));
+        match self.wait("MISSION_COUNT", 5000, |m| {
+            matches!(m, MavMessage::MISSION_COUNT(_))
+        }) {
+            MavMessage::MISSION_COUNT(c) => c.count,
+            _ => unreachable!(),
+        }
     }
 
     fn request_param(&mut self, name: &str) {
@@ -331,6 +411,278 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
     assert_eq!(report.firmware.tx_dropped_frames, 0);
     assert!(report.udp.frames_out > 0 && report.udp.frames_unsent == 0);
     assert!(run.result.summary.route.is_none(), "no route report");
+}
+
+/// `run_hil` of `scenario` on `firmware` in a thread, bridged at 5x real
+/// time to `gcs`'s socket, no telemetry on the firmware's log.
+fn start(gcs: &Gcs, scenario: Scenario, firmware: PathBuf) -> Run {
+    let port = gcs.socket.local_addr().unwrap().port();
+    let stop = Arc::new(AtomicBool::new(false));
+    let options = HilOptions {
+        firmware: Some(firmware),
+        answer_timeout: Duration::from_secs(20),
+        telemetry_every_ticks: 0,
+        mavlink: Some(MavlinkBridgeSpec {
+            address: MavlinkAddress::parse(&format!("udp:127.0.0.1:{port}"), false).unwrap(),
+            speedup: 5.0,
+            stop: Some(Arc::clone(&stop)),
+            stops_on_signals: false,
+            announce: None,
+        }),
+        ..HilOptions::default()
+    };
+    Run {
+        stop,
+        thread: Some(std::thread::spawn(move || {
+            run_hil(&scenario, &options, |_, _| {})
+        })),
+    }
+}
+
+/// The robot's estimated distance east (the floor's x) in a
+/// `LOCAL_POSITION_NED` past `east_m`.
+fn east_of(m: &MavMessage, east_m: f32) -> bool {
+    matches!(m, MavMessage::LOCAL_POSITION_NED(p) if p.y > east_m)
+}
+
+/// The first record whose motor duty or command is not zero.
+fn first_driven(records: &[firmware_sim::Record]) -> Option<&firmware_sim::Record> {
+    records.iter().find(|r| {
+        r.v_cmd_m_s != 0.0
+            || r.omega_cmd_rad_s != 0.0
+            || r.left_duty.is_some_and(|d| d != 0.0)
+            || r.right_duty.is_some_and(|d| d != 0.0)
+    })
+}
+
+/// The `route` scenario for 60 s with its robot file's `[mavlink]
+/// power_on`; the number of its route's waypoints.
+fn route_with_power_on(power_on: PowerOnSpec) -> (Scenario, usize) {
+    let mut scenario = Scenario::embedded("route").unwrap();
+    scenario.duration_s = 60.0;
+    scenario.mavlink = Some(MavlinkSpec {
+        power_on,
+        ..MavlinkSpec::default()
+    });
+    let waypoints = scenario
+        .validate()
+        .unwrap()
+        .route
+        .unwrap()
+        .waypoints
+        .as_slice()
+        .len();
+    (scenario, waypoints)
+}
+
+/// The firmware built with the fusion particle filter has the MAVLink
+/// endpoint too: on the `route` scenario with the particle filter as its
+/// fusion estimator (wheel noise 2e-7 m²/m, as `host-tests/tests/hil.rs`
+/// tunes it), a ground station sees it run the route armed and drive,
+/// reads a parameter and pauses it (acknowledged, then reported). The
+/// filter used the tags' fixes; the host's copy of the session gave every
+/// answer the firmware gave and no byte was dropped; the firmware's peak
+/// stack, the endpoint's and the filter's paths both run, is within the
+/// particle filter's hard limit (`[hil_peak_stack_limit_bytes]`).
+#[test]
+fn a_ground_station_talks_to_the_particle_filter_firmware_under_qemu() {
+    let mut gcs = Gcs::new();
+    let mut scenario = Scenario::embedded("route").unwrap();
+    scenario.duration_s = 60.0;
+    let EstimatorSpec::Fusion(fusion) = &mut scenario.estimator else {
+        panic!("the route scenario's estimator is the fusion estimator")
+    };
+    fusion.filter = FusionFilterSpec::ParticleFilter;
+    fusion.wheel_variance_per_m = 2e-7;
+    let limit = scenario
+        .validate()
+        .unwrap()
+        .route
+        .unwrap()
+        .limits_spec
+        .max_speed_m_s;
+    let run = start(&gcs, scenario, particle_filter_firmware());
+
+    let MavMessage::HEARTBEAT(h) = gcs.wait("the robot's heartbeat", 5000, |m| {
+        matches!(m, MavMessage::HEARTBEAT(_))
+    }) else {
+        unreachable!()
+    };
+    assert_eq!(h.custom_mode, 1, "running the scenario's route");
+    assert!(
+        h.base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
+    );
+    gcs.wait("driving 0.3 m east", 10_000, |m| east_of(m, 0.3));
+    assert_eq!(gcs.read_max_speed(), limit);
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_DO_PAUSE_CONTINUE, 0.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    gcs.wait(
+        "paused",
+        5000,
+        |m| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == 2),
+    );
+    gcs.last_datagram();
+
+    let run = run.end().expect("the HIL run");
+    let report = run.report.mavlink.clone().expect("the bridge's report");
+    let tracker = run.result.summary.tracker.expect("tracker report");
+    println!(
+        "particle filter firmware with a ground station: {} ticks, {} fixes used, \
+         peak stack {} B",
+        run.result.records.len(),
+        tracker.fixes_used,
+        run.report.peak_stack_bytes
+    );
+    assert!(tracker.fixes_used > 0, "{tracker:?}");
+    assert_eq!(report.copy_mismatches, 0, "{report:?}");
+    assert!(report.copy_compared >= run.result.records.len() as u64);
+    assert_eq!(report.firmware.rx_dropped_bytes, 0);
+    assert_eq!(report.firmware.tx_dropped_frames, 0);
+    assert!(report.udp.frames_out > 0 && report.udp.frames_unsent == 0);
+    let peak = run.report.peak_stack_bytes;
+    assert!(peak > 0, "the stack was not painted");
+    let limit = peak_stack_limit("fusion_particle_filter");
+    assert!(
+        peak <= limit,
+        "peak stack {peak} B, over its limit of {limit} B"
+    );
+}
+
+/// `[mavlink] power_on = "wait"` reaches the firmware under QEMU with the
+/// route's announcement: it stays disarmed and idle, with the scenario's
+/// route as its mission, refusing to start disarmed, its motors at zero
+/// and the robot where it was put, for the 2 s of the robot's time the
+/// ground station waits; armed and started (the route loaded at power-on,
+/// no upload), it runs and drives the route's first leg (east).
+#[test]
+fn with_power_on_wait_the_firmware_under_qemu_waits_until_armed_and_started() {
+    let mut gcs = Gcs::new();
+    let (scenario, waypoints) = route_with_power_on(PowerOnSpec::Wait);
+    let run = start(&gcs, scenario, firmware());
+
+    let MavMessage::HEARTBEAT(h) = gcs.wait("the robot's heartbeat", 5000, |m| {
+        matches!(m, MavMessage::HEARTBEAT(_))
+    }) else {
+        unreachable!()
+    };
+    assert_eq!(h.custom_mode, 0, "idle");
+    assert!(
+        !h.base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED),
+        "disarmed"
+    );
+    assert_eq!(
+        usize::from(gcs.mission_count()),
+        waypoints,
+        "the route is the mission"
+    );
+    gcs.wait(
+        "2 s of the robot's time",
+        5000,
+        |m| matches!(m, MavMessage::LOCAL_POSITION_NED(p) if p.time_boot_ms >= 2000),
+    );
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_MISSION_START, 0.0),
+        MavResult::MAV_RESULT_DENIED,
+        "disarmed"
+    );
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, 1.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    // The robot's time the start is sent after (its telemetry's latest).
+    let started_after_ms = gcs.sim_ms;
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_MISSION_START, 0.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    let MavMessage::HEARTBEAT(h) = gcs.wait(
+        "running",
+        5000,
+        |m| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == 1),
+    ) else {
+        unreachable!()
+    };
+    assert!(
+        h.base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
+    );
+    gcs.wait("driving 0.3 m east", 10_000, |m| east_of(m, 0.3));
+
+    let run = run.end().expect("the HIL run");
+    let records = &run.result.records;
+    let driven = first_driven(records).expect("driven after the start");
+    println!(
+        "power_on = wait: started after {started_after_ms} ms of the robot's time, \
+         first driven at {:.2} s",
+        driven.t_s
+    );
+    assert!(
+        driven.t_s * 1000.0 >= f64::from(started_after_ms),
+        "driven at {:.2} s, before the start (after {started_after_ms} ms)",
+        driven.t_s
+    );
+    let rest = &records[0];
+    for r in records.iter().take_while(|r| r.t_s < driven.t_s) {
+        assert!(
+            (r.x_m - rest.x_m).hypot(r.y_m - rest.y_m) < 1e-6,
+            "moved while waiting, at {:.2} s",
+            r.t_s
+        );
+    }
+    let last = records.last().unwrap();
+    assert!(
+        last.x_m > 0.25 && last.y_m.abs() < 0.05,
+        "on the first leg: ({:.3}, {:.3})",
+        last.x_m,
+        last.y_m
+    );
+    let report = run.report.mavlink.expect("the bridge's report");
+    assert_eq!(report.copy_mismatches, 0, "{report:?}");
+}
+
+/// `[mavlink] power_on = "run"` (as without a `[mavlink]` table): the
+/// firmware under QEMU is armed and runs the scenario's route (its
+/// mission) from power-on, driving from its first ticks, no ground
+/// station's command needed.
+#[test]
+fn with_power_on_run_the_firmware_under_qemu_drives_from_power_on() {
+    let mut gcs = Gcs::new();
+    let (scenario, waypoints) = route_with_power_on(PowerOnSpec::Run);
+    let run = start(&gcs, scenario, firmware());
+
+    let MavMessage::HEARTBEAT(h) = gcs.wait("the robot's heartbeat", 5000, |m| {
+        matches!(m, MavMessage::HEARTBEAT(_))
+    }) else {
+        unreachable!()
+    };
+    assert_eq!(h.custom_mode, 1, "running the scenario's route");
+    assert!(
+        h.base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
+    );
+    assert_eq!(
+        usize::from(gcs.mission_count()),
+        waypoints,
+        "the route is the mission"
+    );
+    gcs.wait("driving 0.3 m east", 10_000, |m| east_of(m, 0.3));
+
+    let run = run.end().expect("the HIL run");
+    let records = &run.result.records;
+    let driven = first_driven(records).expect("driven");
+    println!("power_on = run: first driven at {:.2} s", driven.t_s);
+    assert!(driven.t_s < 0.1, "first driven at {:.2} s", driven.t_s);
+    let last = records.last().unwrap();
+    assert!(
+        last.x_m > 0.25 && last.y_m.abs() < 0.05,
+        "on the first leg: ({:.3}, {:.3})",
+        last.x_m,
+        last.y_m
+    );
 }
 
 /// The pymavlink ground station (`tools/gcs/gcs_check.py --hil`) against
