@@ -14,7 +14,7 @@
 
 mod gcs;
 
-use std::net::{SocketAddr, UdpSocket};
+use std::net::UdpSocket;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
@@ -27,13 +27,10 @@ use firmware_sim::hil::{
 };
 use firmware_sim::scenario::mavlink::{MavlinkSpec, PowerOnSpec};
 use firmware_sim::udp::MavlinkAddress;
+use gcs::station::{Gcs, WALL_CAP};
 use mavlink::dialects::common::*;
-use mavlink::{MavHeader, MavlinkReader, MavlinkVersion};
 use wmr_core::builds;
 use wmr_core::estimation::spec::{EstimatorSpec, FusionFilterSpec};
-
-/// A wall-clock cap on any wait: only a hung run reaches it.
-const WALL_CAP: Duration = Duration::from_secs(60);
 
 fn firmware() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
@@ -83,186 +80,12 @@ fn peak_stack_limit(name: &str) -> u32 {
         })
 }
 
-/// The in-process ground station: a socket, the robot's address once it
-/// has spoken, the robot's time from its telemetry, the datagrams sent.
-struct Gcs {
-    socket: UdpSocket,
-    robot: Option<SocketAddr>,
-    seq: u8,
-    sim_ms: u32,
-    sent: u64,
-}
-
-impl Gcs {
-    fn new() -> Self {
-        let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-        socket
-            .set_read_timeout(Some(Duration::from_millis(2)))
-            .unwrap();
-        Self {
-            socket,
-            robot: None,
-            seq: 0,
-            sim_ms: 0,
-            sent: 0,
-        }
-    }
-
-    fn send(&mut self, msg: &MavMessage) {
-        let mut buf = [0u8; 300];
-        let header = MavHeader {
-            system_id: 255,
-            component_id: 190,
-            sequence: self.seq,
-        };
-        self.seq = self.seq.wrapping_add(1);
-        let n = mavlink::write_v2_msg(&mut &mut buf[..], header, msg).unwrap();
-        self.send_raw(&buf[..n]);
-    }
-
-    fn send_raw(&mut self, datagram: &[u8]) {
-        let to = self.robot.expect("the robot spoke first");
-        self.socket.send_to(datagram, to).unwrap();
-        self.sent += 1;
-    }
-
-    fn heartbeat(&mut self) {
-        self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            mavtype: MavType::MAV_TYPE_GCS,
-            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-            system_status: MavState::MAV_STATE_ACTIVE,
-            mavlink_version: 3,
-            ..Default::default()
-        }));
-    }
-
-    /// Receives (a heartbeat every 20 ms of wall time once the robot has
-    /// spoken, while `heartbeats`) until `until` holds for a message,
-    /// within `sim_timeout_ms` of the robot's time (`None` past it).
-    fn receive_until(
-        &mut self,
-        what: &str,
-        sim_timeout_ms: u32,
-        heartbeats: bool,
-        mut until: impl FnMut(&MavMessage) -> bool,
-    ) -> Option<MavMessage> {
-        let start_sim = self.sim_ms;
-        let wall = Instant::now();
-        let mut last_heartbeat = Instant::now();
-        let mut buf = [0u8; 2048];
-        loop {
-            if heartbeats
-                && self.robot.is_some()
-                && last_heartbeat.elapsed() >= Duration::from_millis(20)
-            {
-                last_heartbeat = Instant::now();
-                self.heartbeat();
-            }
-            if let Ok((n, from)) = self.socket.recv_from(&mut buf) {
-                self.robot = Some(from);
-                let mut reader = MavlinkReader::new(&buf[..n]);
-                while let Ok((_, msg)) = reader.read_message::<MavMessage>(MavlinkVersion::V2) {
-                    if let MavMessage::LOCAL_POSITION_NED(p) = &msg {
-                        self.sim_ms = self.sim_ms.max(p.time_boot_ms);
-                    }
-                    if until(&msg) {
-                        return Some(msg);
-                    }
-                }
-            }
-            if self.sim_ms.saturating_sub(start_sim) > sim_timeout_ms {
-                return None;
-            }
-            assert!(wall.elapsed() < WALL_CAP, "{what}: the HIL run hung");
-        }
-    }
-
-    /// [`Self::receive_until`] with heartbeats, which must succeed.
-    fn wait(
-        &mut self,
-        what: &str,
-        sim_timeout_ms: u32,
-        until: impl FnMut(&MavMessage) -> bool,
-    ) -> MavMessage {
-        self.receive_until(what, sim_timeout_ms, true, until)
-            .unwrap_or_else(|| panic!("{what}: not within {sim_timeout_ms} ms of the robot's time"))
-    }
-
-    /// Sends `COMMAND_LONG` `command` (`param1` = `p1`) and returns its
-    /// `COMMAND_ACK`'s result.
-    fn command(&mut self, command: MavCmd, p1: f32) -> MavResult {
-        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            command,
-            param1: p1,
-            target_system: 1,
-            target_component: 1,
-            ..Default::default()
-        }));
-        match self.wait(
-            "COMMAND_ACK",
-            5000,
-            |m| matches!(m, MavMessage::COMMAND_ACK(a) if a.command == command),
-        ) {
-            MavMessage::COMMAND_ACK(a) => a.result,
-            _ => unreachable!(),
-        }
-    }
-
-    /// The number of items of the robot's mission (`MISSION_REQUEST_LIST`
-    /// answered with `MISSION_COUNT`).
-    fn mission_count(&mut self) -> u16 {
-        self.send(&MavMessage::MISSION_REQUEST_LIST(
-            MISSION_REQUEST_LIST_DATA {
-                target_system: 1,
-                target_component: 1,
-                ..Default::default()
-            },
-        ));
-        match self.wait("MISSION_COUNT", 5000, |m| {
-            matches!(m, MavMessage::MISSION_COUNT(_))
-        }) {
-            MavMessage::MISSION_COUNT(c) => c.count,
-            _ => unreachable!(),
-        }
-    }
-
-    fn request_param(&mut self, name: &str) {
-        self.send(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
-            param_index: -1,
-            target_system: 1,
-            target_component: 1,
-            param_id: name.into(),
-        }));
-    }
-
-    /// `RT_MAX_SPEED`, asked again after each second of the robot's time
-    /// without an answer, as a ground station does: a request sent into
-    /// a flood may be dropped (by the kernel or the bridge's backlog,
-    /// counted).
-    fn read_max_speed(&mut self) -> f32 {
-        for _ in 0..5 {
-            self.request_param("RT_MAX_SPEED");
-            let answer = self.receive_until("PARAM_VALUE", 1000, true, |m| {
-                matches!(m, MavMessage::PARAM_VALUE(p) if p.param_id.to_str() == Ok("RT_MAX_SPEED"))
-            });
-            if let Some(MavMessage::PARAM_VALUE(p)) = answer {
-                return p.param_value;
-            }
-        }
-        panic!("RT_MAX_SPEED: no PARAM_VALUE to 5 requests, 1 s of the robot's time each")
-    }
-
-    /// The last datagram: a parameter request answered with nothing sent
-    /// after it, so that the bridge has read (or the kernel dropped)
-    /// every datagram sent before it. A parameter no earlier request
-    /// asked for, so that no late answer to one is taken for its answer.
-    fn last_datagram(&mut self) {
-        self.request_param("LINK_TIMEOUT_MS");
-        let answer = self.receive_until("the last PARAM_VALUE", 5000, false, |m| {
-            matches!(m, MavMessage::PARAM_VALUE(p) if p.param_id.to_str() == Ok("LINK_TIMEOUT_MS"))
-        });
-        assert!(answer.is_some(), "no PARAM_VALUE to the last request");
-    }
+/// The in-process ground station, sending a heartbeat every 20 ms of
+/// wall time once the robot has spoken.
+fn ground_station() -> Gcs {
+    let mut gcs = Gcs::new(Duration::from_millis(20));
+    gcs.heartbeats = true;
+    gcs
 }
 
 /// `run_hil` in its thread. Ended through the stop flag, as Ctrl-C ends
@@ -305,8 +128,7 @@ impl Drop for Run {
 /// answer the firmware gave, and no route report is made.
 #[test]
 fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
-    let mut gcs = Gcs::new();
-    let port = gcs.socket.local_addr().unwrap().port();
+    let mut gcs = ground_station();
     let mut scenario = Scenario::embedded("route").unwrap();
     scenario.duration_s = 60.0;
     let limit = scenario
@@ -316,28 +138,7 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
         .unwrap()
         .limits_spec
         .max_speed_m_s;
-    let stop = Arc::new(AtomicBool::new(false));
-    let options = HilOptions {
-        firmware: Some(firmware()),
-        answer_timeout: Duration::from_secs(20),
-        telemetry_every_ticks: 0,
-        mavlink: Some(MavlinkBridgeSpec {
-            address: MavlinkAddress::parse(&format!("udp:127.0.0.1:{port}"), false).unwrap(),
-            speedup: 5.0,
-            stop: Some(Arc::clone(&stop)),
-            // No signal handler here: Ctrl-C on `cargo test` ends QEMU
-            // with the test.
-            stops_on_signals: false,
-            announce: None,
-        }),
-        ..HilOptions::default()
-    };
-    let run = Run {
-        stop: Arc::clone(&stop),
-        thread: Some(std::thread::spawn(move || {
-            run_hil(&scenario, &options, |_, _| {})
-        })),
-    };
+    let run = start(&gcs, scenario, firmware());
 
     let heartbeat = gcs.wait("the robot's heartbeat", 5000, |m| {
         matches!(m, MavMessage::HEARTBEAT(_))
@@ -353,20 +154,10 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
     );
     assert_eq!(gcs.read_max_speed(), limit);
 
-    gcs.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        command: MavCmd::MAV_CMD_DO_PAUSE_CONTINUE,
-        param1: 0.0,
-        target_system: 1,
-        target_component: 1,
-        ..Default::default()
-    }));
-    let ack = gcs.wait("COMMAND_ACK", 5000, |m| {
-        matches!(m, MavMessage::COMMAND_ACK(a) if a.command == MavCmd::MAV_CMD_DO_PAUSE_CONTINUE)
-    });
-    let MavMessage::COMMAND_ACK(ack) = ack else {
-        unreachable!()
-    };
-    assert_eq!(ack.result, MavResult::MAV_RESULT_ACCEPTED);
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_DO_PAUSE_CONTINUE, 0.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
     gcs.wait(
         "paused",
         5000,
@@ -416,7 +207,7 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
 /// `run_hil` of `scenario` on `firmware` in a thread, bridged at 5x real
 /// time to `gcs`'s socket, no telemetry on the firmware's log.
 fn start(gcs: &Gcs, scenario: Scenario, firmware: PathBuf) -> Run {
-    let port = gcs.socket.local_addr().unwrap().port();
+    let port = gcs.port();
     let stop = Arc::new(AtomicBool::new(false));
     let options = HilOptions {
         firmware: Some(firmware),
@@ -426,6 +217,8 @@ fn start(gcs: &Gcs, scenario: Scenario, firmware: PathBuf) -> Run {
             address: MavlinkAddress::parse(&format!("udp:127.0.0.1:{port}"), false).unwrap(),
             speedup: 5.0,
             stop: Some(Arc::clone(&stop)),
+            // No signal handler here: Ctrl-C on `cargo test` ends QEMU
+            // with the test.
             stops_on_signals: false,
             announce: None,
         }),
@@ -478,15 +271,17 @@ fn route_with_power_on(power_on: PowerOnSpec) -> (Scenario, usize) {
 /// The firmware built with the fusion particle filter has the MAVLink
 /// endpoint too: on the `route` scenario with the particle filter as its
 /// fusion estimator (wheel noise 2e-7 m²/m, as `host-tests/tests/hil.rs`
-/// tunes it), a ground station sees it run the route armed and drive,
-/// reads a parameter and pauses it (acknowledged, then reported). The
+/// tunes it), a ground station sees it run the route armed and drive
+/// past its first station,
+/// reads a parameter, pauses it (acknowledged, then reported) and
+/// uploads a mission (accepted, read back). The
 /// filter used the tags' fixes; the host's copy of the session gave every
 /// answer the firmware gave and no byte was dropped; the firmware's peak
 /// stack, the endpoint's and the filter's paths both run, is within the
 /// particle filter's hard limit (`[hil_peak_stack_limit_bytes]`).
 #[test]
 fn a_ground_station_talks_to_the_particle_filter_firmware_under_qemu() {
-    let mut gcs = Gcs::new();
+    let mut gcs = ground_station();
     let mut scenario = Scenario::embedded("route").unwrap();
     scenario.duration_s = 60.0;
     let EstimatorSpec::Fusion(fusion) = &mut scenario.estimator else {
@@ -513,7 +308,8 @@ fn a_ground_station_talks_to_the_particle_filter_firmware_under_qemu() {
         h.base_mode
             .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
     );
-    gcs.wait("driving 0.3 m east", 10_000, |m| east_of(m, 0.3));
+    // Past station A (1 m east, a stop of 2 s).
+    gcs.wait("driving 1.5 m east", 20_000, |m| east_of(m, 1.5));
     assert_eq!(gcs.read_max_speed(), limit);
     assert_eq!(
         gcs.command(MavCmd::MAV_CMD_DO_PAUSE_CONTINUE, 0.0),
@@ -524,6 +320,10 @@ fn a_ground_station_talks_to_the_particle_filter_firmware_under_qemu() {
         5000,
         |m| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == 2),
     );
+    // A mission uploaded (the endpoint's deepest path) and read back.
+    let mission = [(0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (0.5, 0.4, 0.5)];
+    assert_eq!(gcs.upload(&mission), MavMissionResult::MAV_MISSION_ACCEPTED);
+    assert_eq!(usize::from(gcs.mission_count()), mission.len());
     gcs.last_datagram();
 
     let run = run.end().expect("the HIL run");
@@ -559,7 +359,7 @@ fn a_ground_station_talks_to_the_particle_filter_firmware_under_qemu() {
 /// no upload), it runs and drives the route's first leg (east).
 #[test]
 fn with_power_on_wait_the_firmware_under_qemu_waits_until_armed_and_started() {
-    let mut gcs = Gcs::new();
+    let mut gcs = ground_station();
     let (scenario, waypoints) = route_with_power_on(PowerOnSpec::Wait);
     let run = start(&gcs, scenario, firmware());
 
@@ -650,7 +450,7 @@ fn with_power_on_wait_the_firmware_under_qemu_waits_until_armed_and_started() {
 /// station's command needed.
 #[test]
 fn with_power_on_run_the_firmware_under_qemu_drives_from_power_on() {
-    let mut gcs = Gcs::new();
+    let mut gcs = ground_station();
     let (scenario, waypoints) = route_with_power_on(PowerOnSpec::Run);
     let run = start(&gcs, scenario, firmware());
 
