@@ -3,12 +3,16 @@
 //! (docs/hil.md, "A ground station on the firmware under QEMU"): an
 //! in-process one (the `mavlink` library) against `run_hil` in a thread,
 //! and the real one, `tools/gcs/gcs_check.py --hil` (pymavlink), against
-//! this test build's `firmware-sim hil route --mavlink`.
+//! this test build's `firmware-sim hil route --mavlink`; each against the
+//! default firmware and against the one built with the fusion particle
+//! filter; and `[mavlink] power_on` at the firmware's power-on.
 //!
-//! Needs `qemu-system-arm` and the firmware ELF, found as
-//! `host-tests/tests/hil.rs` finds them: `WMR_FIRMWARE_ELF` if set
-//! (relative paths from the workspace root; `cargo xtask ci` builds it),
-//! else built here into `target/hil-firmware`. The pymavlink check's
+//! Needs `qemu-system-arm` and the firmware ELFs, found as
+//! `host-tests/tests/hil.rs` finds them: `WMR_FIRMWARE_ELF` and
+//! `WMR_FIRMWARE_ELF_FUSION_PARTICLE_FILTER` if set (relative paths from
+//! the workspace root; `cargo xtask ci` builds both), else built here
+//! into `target/hil-firmware` and
+//! `target/hil-firmware-fusion-particle-filter`. The pymavlink check's
 //! Python as in `tests/sitl.rs` (`gcs`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, deprecated)]
 
@@ -500,6 +504,28 @@ fn pymavlink_ground_station_against_the_firmware_under_qemu() {
         "20",
     ]);
     assert!(passed >= 34, "only {passed} checks ran");
+    assert_eq!(
+        skipped, 0,
+        "the firmware has every feature the script checks"
+    );
+}
+
+/// The same pymavlink ground station against the firmware built with the
+/// fusion particle filter, on the route with that filter
+/// (`--particle-filter`): every check passes, and the filter used the
+/// tags' fixes (one check more).
+#[test]
+fn pymavlink_ground_station_against_the_particle_filter_firmware_under_qemu() {
+    let elf = particle_filter_firmware();
+    let (passed, skipped) = gcs::gcs_check(&[
+        "--hil",
+        "--firmware",
+        elf.to_str().unwrap(),
+        "--speedup",
+        "20",
+        "--particle-filter",
+    ]);
+    assert!(passed >= 35, "only {passed} checks ran");
     assert_eq!(
         skipped, 0,
         "the firmware has every feature the script checks"
