@@ -331,7 +331,7 @@ fn a_ground_station_talks_to_the_particle_filter_firmware_under_qemu() {
     gcs.last_datagram();
 
     let run = run.end().expect("the HIL run");
-    let report = run.report.mavlink.clone().expect("the bridge's report");
+    let report = run.report.mavlink.expect("the bridge's report");
     let tracker = run.result.summary.tracker.expect("tracker report");
     println!(
         "particle filter firmware with a ground station: {} ticks, {} fixes used, \

@@ -219,7 +219,6 @@ impl Gcs {
             MISSION_REQUEST_LIST_DATA {
                 target_system: 1,
                 target_component: 1,
-                ..Default::default()
             },
         ));
         match self.wait("MISSION_COUNT", 5000, |m| {
