@@ -3,18 +3,22 @@
 //! (docs/hil.md, "A ground station on the firmware under QEMU"): an
 //! in-process one (the `mavlink` library) against `run_hil` in a thread,
 //! and the real one, `tools/gcs/gcs_check.py --hil` (pymavlink), against
-//! this test build's `firmware-sim hil route --mavlink`.
+//! this test build's `firmware-sim hil route --mavlink`; each against the
+//! default firmware and against the one built with the fusion particle
+//! filter; and `[mavlink] power_on` at the firmware's power-on.
 //!
-//! Needs `qemu-system-arm` and the firmware ELF, found as
-//! `host-tests/tests/hil.rs` finds them: `WMR_FIRMWARE_ELF` if set
-//! (relative paths from the workspace root; `cargo xtask ci` builds it),
-//! else built here into `target/hil-firmware`. The pymavlink check's
+//! Needs `qemu-system-arm` and the firmware ELFs, found as
+//! `host-tests/tests/hil.rs` finds them: `WMR_FIRMWARE_ELF` and
+//! `WMR_FIRMWARE_ELF_FUSION_PARTICLE_FILTER` if set (relative paths from
+//! the workspace root; `cargo xtask ci` builds both), else built here
+//! into `target/hil-firmware` and
+//! `target/hil-firmware-fusion-particle-filter`. The pymavlink check's
 //! Python as in `tests/sitl.rs` (`gcs`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, deprecated)]
 
 mod gcs;
 
-use std::net::{SocketAddr, UdpSocket};
+use std::net::UdpSocket;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
@@ -22,14 +26,15 @@ use std::time::{Duration, Instant};
 
 use firmware_sim::Scenario;
 use firmware_sim::hil::{
-    BACKLOG_BYTES, HilOptions, HilRun, MavlinkBridgeSpec, build_firmware, run_hil, workspace_root,
+    BACKLOG_BYTES, HilOptions, HilRun, MavlinkBridgeSpec, build_firmware, build_firmware_with,
+    run_hil, workspace_root,
 };
+use firmware_sim::scenario::mavlink::{MavlinkSpec, PowerOnSpec};
 use firmware_sim::udp::MavlinkAddress;
+use gcs::station::{Gcs, WALL_CAP};
 use mavlink::dialects::common::*;
-use mavlink::{MavHeader, MavlinkReader, MavlinkVersion};
-
-/// A wall-clock cap on any wait: only a hung run reaches it.
-const WALL_CAP: Duration = Duration::from_secs(60);
+use wmr_core::builds;
+use wmr_core::estimation::spec::{EstimatorSpec, FusionFilterSpec};
 
 fn firmware() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
@@ -41,148 +46,50 @@ fn firmware() -> PathBuf {
     .clone()
 }
 
-/// The in-process ground station: a socket, the robot's address once it
-/// has spoken, the robot's time from its telemetry, the datagrams sent.
-struct Gcs {
-    socket: UdpSocket,
-    robot: Option<SocketAddr>,
-    seq: u8,
-    sim_ms: u32,
-    sent: u64,
+/// The QEMU-board firmware with the fusion estimator's particle filter,
+/// found as `host-tests/tests/hil.rs` finds it: the ELF in
+/// `WMR_FIRMWARE_ELF_FUSION_PARTICLE_FILTER` if set (relative paths from
+/// the workspace root; `cargo xtask ci` builds it), else built here once
+/// into `target/hil-firmware-fusion-particle-filter`.
+fn particle_filter_firmware() -> PathBuf {
+    static ELF: OnceLock<PathBuf> = OnceLock::new();
+    let build = builds::FUSION_PARTICLE_FILTER;
+    ELF.get_or_init(|| match std::env::var_os(build.hil_firmware_env) {
+        Some(path) => workspace_root().join(path),
+        None => {
+            let dir = workspace_root()
+                .join("target")
+                .join(format!("hil-firmware-{}", build.feature));
+            build_firmware_with(Some(&dir), &[build.feature]).unwrap_or_else(|e| {
+                panic!("build the QEMU-board firmware with {}: {e}", build.feature)
+            })
+        }
+    })
+    .clone()
 }
 
-impl Gcs {
-    fn new() -> Self {
-        let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-        socket
-            .set_read_timeout(Some(Duration::from_millis(2)))
-            .unwrap();
-        Self {
-            socket,
-            robot: None,
-            seq: 0,
-            sim_ms: 0,
-            sent: 0,
-        }
-    }
+/// `[hil_peak_stack_limit_bytes] name` in `firmware/budgets.toml`: the
+/// hard limit of the firmware's peak stack over a HIL run.
+fn peak_stack_limit(name: &str) -> u32 {
+    let path = workspace_root().join("firmware").join("budgets.toml");
+    let text = std::fs::read_to_string(&path).expect("read firmware/budgets.toml");
+    let budgets: toml::Table = text.parse().expect("parse firmware/budgets.toml");
+    budgets
+        .get("hil_peak_stack_limit_bytes")
+        .and_then(|t| t.get(name))
+        .and_then(toml::Value::as_integer)
+        .and_then(|v| u32::try_from(v).ok())
+        .unwrap_or_else(|| {
+            panic!("firmware/budgets.toml has no [hil_peak_stack_limit_bytes] {name}")
+        })
+}
 
-    fn send(&mut self, msg: &MavMessage) {
-        let mut buf = [0u8; 300];
-        let header = MavHeader {
-            system_id: 255,
-            component_id: 190,
-            sequence: self.seq,
-        };
-        self.seq = self.seq.wrapping_add(1);
-        let n = mavlink::write_v2_msg(&mut &mut buf[..], header, msg).unwrap();
-        self.send_raw(&buf[..n]);
-    }
-
-    fn send_raw(&mut self, datagram: &[u8]) {
-        let to = self.robot.expect("the robot spoke first");
-        self.socket.send_to(datagram, to).unwrap();
-        self.sent += 1;
-    }
-
-    fn heartbeat(&mut self) {
-        self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            mavtype: MavType::MAV_TYPE_GCS,
-            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-            system_status: MavState::MAV_STATE_ACTIVE,
-            mavlink_version: 3,
-            ..Default::default()
-        }));
-    }
-
-    /// Receives (a heartbeat every 20 ms of wall time once the robot has
-    /// spoken, while `heartbeats`) until `until` holds for a message,
-    /// within `sim_timeout_ms` of the robot's time (`None` past it).
-    fn receive_until(
-        &mut self,
-        what: &str,
-        sim_timeout_ms: u32,
-        heartbeats: bool,
-        mut until: impl FnMut(&MavMessage) -> bool,
-    ) -> Option<MavMessage> {
-        let start_sim = self.sim_ms;
-        let wall = Instant::now();
-        let mut last_heartbeat = Instant::now();
-        let mut buf = [0u8; 2048];
-        loop {
-            if heartbeats
-                && self.robot.is_some()
-                && last_heartbeat.elapsed() >= Duration::from_millis(20)
-            {
-                last_heartbeat = Instant::now();
-                self.heartbeat();
-            }
-            if let Ok((n, from)) = self.socket.recv_from(&mut buf) {
-                self.robot = Some(from);
-                let mut reader = MavlinkReader::new(&buf[..n]);
-                while let Ok((_, msg)) = reader.read_message::<MavMessage>(MavlinkVersion::V2) {
-                    if let MavMessage::LOCAL_POSITION_NED(p) = &msg {
-                        self.sim_ms = self.sim_ms.max(p.time_boot_ms);
-                    }
-                    if until(&msg) {
-                        return Some(msg);
-                    }
-                }
-            }
-            if self.sim_ms.saturating_sub(start_sim) > sim_timeout_ms {
-                return None;
-            }
-            assert!(wall.elapsed() < WALL_CAP, "{what}: the HIL run hung");
-        }
-    }
-
-    /// [`Self::receive_until`] with heartbeats, which must succeed.
-    fn wait(
-        &mut self,
-        what: &str,
-        sim_timeout_ms: u32,
-        until: impl FnMut(&MavMessage) -> bool,
-    ) -> MavMessage {
-        self.receive_until(what, sim_timeout_ms, true, until)
-            .unwrap_or_else(|| panic!("{what}: not within {sim_timeout_ms} ms of the robot's time"))
-    }
-
-    fn request_param(&mut self, name: &str) {
-        self.send(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
-            param_index: -1,
-            target_system: 1,
-            target_component: 1,
-            param_id: name.into(),
-        }));
-    }
-
-    /// `RT_MAX_SPEED`, asked again after each second of the robot's time
-    /// without an answer, as a ground station does: a request sent into
-    /// a flood may be dropped (by the kernel or the bridge's backlog,
-    /// counted).
-    fn read_max_speed(&mut self) -> f32 {
-        for _ in 0..5 {
-            self.request_param("RT_MAX_SPEED");
-            let answer = self.receive_until("PARAM_VALUE", 1000, true, |m| {
-                matches!(m, MavMessage::PARAM_VALUE(p) if p.param_id.to_str() == Ok("RT_MAX_SPEED"))
-            });
-            if let Some(MavMessage::PARAM_VALUE(p)) = answer {
-                return p.param_value;
-            }
-        }
-        panic!("RT_MAX_SPEED: no PARAM_VALUE to 5 requests, 1 s of the robot's time each")
-    }
-
-    /// The last datagram: a parameter request answered with nothing sent
-    /// after it, so that the bridge has read (or the kernel dropped)
-    /// every datagram sent before it. A parameter no earlier request
-    /// asked for, so that no late answer to one is taken for its answer.
-    fn last_datagram(&mut self) {
-        self.request_param("LINK_TIMEOUT_MS");
-        let answer = self.receive_until("the last PARAM_VALUE", 5000, false, |m| {
-            matches!(m, MavMessage::PARAM_VALUE(p) if p.param_id.to_str() == Ok("LINK_TIMEOUT_MS"))
-        });
-        assert!(answer.is_some(), "no PARAM_VALUE to the last request");
-    }
+/// The in-process ground station, sending a heartbeat every 20 ms of
+/// wall time once the robot has spoken.
+fn ground_station() -> Gcs {
+    let mut gcs = Gcs::new(Duration::from_millis(20));
+    gcs.heartbeats = true;
+    gcs
 }
 
 /// `run_hil` in its thread. Ended through the stop flag, as Ctrl-C ends
@@ -225,8 +132,7 @@ impl Drop for Run {
 /// answer the firmware gave, and no route report is made.
 #[test]
 fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
-    let mut gcs = Gcs::new();
-    let port = gcs.socket.local_addr().unwrap().port();
+    let mut gcs = ground_station();
     let mut scenario = Scenario::embedded("route").unwrap();
     scenario.duration_s = 60.0;
     let limit = scenario
@@ -236,28 +142,7 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
         .unwrap()
         .limits_spec
         .max_speed_m_s;
-    let stop = Arc::new(AtomicBool::new(false));
-    let options = HilOptions {
-        firmware: Some(firmware()),
-        answer_timeout: Duration::from_secs(20),
-        telemetry_every_ticks: 0,
-        mavlink: Some(MavlinkBridgeSpec {
-            address: MavlinkAddress::parse(&format!("udp:127.0.0.1:{port}"), false).unwrap(),
-            speedup: 5.0,
-            stop: Some(Arc::clone(&stop)),
-            // No signal handler here: Ctrl-C on `cargo test` ends QEMU
-            // with the test.
-            stops_on_signals: false,
-            announce: None,
-        }),
-        ..HilOptions::default()
-    };
-    let run = Run {
-        stop: Arc::clone(&stop),
-        thread: Some(std::thread::spawn(move || {
-            run_hil(&scenario, &options, |_, _| {})
-        })),
-    };
+    let run = start(&gcs, scenario, firmware());
 
     let heartbeat = gcs.wait("the robot's heartbeat", 5000, |m| {
         matches!(m, MavMessage::HEARTBEAT(_))
@@ -273,20 +158,10 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
     );
     assert_eq!(gcs.read_max_speed(), limit);
 
-    gcs.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        command: MavCmd::MAV_CMD_DO_PAUSE_CONTINUE,
-        param1: 0.0,
-        target_system: 1,
-        target_component: 1,
-        ..Default::default()
-    }));
-    let ack = gcs.wait("COMMAND_ACK", 5000, |m| {
-        matches!(m, MavMessage::COMMAND_ACK(a) if a.command == MavCmd::MAV_CMD_DO_PAUSE_CONTINUE)
-    });
-    let MavMessage::COMMAND_ACK(ack) = ack else {
-        unreachable!()
-    };
-    assert_eq!(ack.result, MavResult::MAV_RESULT_ACCEPTED);
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_DO_PAUSE_CONTINUE, 0.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
     gcs.wait(
         "paused",
         5000,
@@ -333,6 +208,287 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
     assert!(run.result.summary.route.is_none(), "no route report");
 }
 
+/// `run_hil` of `scenario` on `firmware` in a thread, bridged at 5x real
+/// time to `gcs`'s socket, no telemetry on the firmware's log.
+fn start(gcs: &Gcs, scenario: Scenario, firmware: PathBuf) -> Run {
+    let port = gcs.port();
+    let stop = Arc::new(AtomicBool::new(false));
+    let options = HilOptions {
+        firmware: Some(firmware),
+        answer_timeout: Duration::from_secs(20),
+        telemetry_every_ticks: 0,
+        mavlink: Some(MavlinkBridgeSpec {
+            address: MavlinkAddress::parse(&format!("udp:127.0.0.1:{port}"), false).unwrap(),
+            speedup: 5.0,
+            stop: Some(Arc::clone(&stop)),
+            // No signal handler here: Ctrl-C on `cargo test` ends QEMU
+            // with the test.
+            stops_on_signals: false,
+            announce: None,
+        }),
+        ..HilOptions::default()
+    };
+    Run {
+        stop,
+        thread: Some(std::thread::spawn(move || {
+            run_hil(&scenario, &options, |_, _| {})
+        })),
+    }
+}
+
+/// The robot's estimated distance east (the floor's x) in a
+/// `LOCAL_POSITION_NED` past `east_m`.
+fn east_of(m: &MavMessage, east_m: f32) -> bool {
+    matches!(m, MavMessage::LOCAL_POSITION_NED(p) if p.y > east_m)
+}
+
+/// The first record whose motor duty or command is not zero.
+fn first_driven(records: &[firmware_sim::Record]) -> Option<&firmware_sim::Record> {
+    records.iter().find(|r| {
+        r.v_cmd_m_s != 0.0
+            || r.omega_cmd_rad_s != 0.0
+            || r.left_duty.is_some_and(|d| d != 0.0)
+            || r.right_duty.is_some_and(|d| d != 0.0)
+    })
+}
+
+/// The `route` scenario for 60 s with its robot file's `[mavlink]
+/// power_on`; the number of its route's waypoints.
+fn route_with_power_on(power_on: PowerOnSpec) -> (Scenario, usize) {
+    let mut scenario = Scenario::embedded("route").unwrap();
+    scenario.duration_s = 60.0;
+    scenario.mavlink = Some(MavlinkSpec {
+        power_on,
+        ..MavlinkSpec::default()
+    });
+    let waypoints = scenario
+        .validate()
+        .unwrap()
+        .route
+        .unwrap()
+        .waypoints
+        .as_slice()
+        .len();
+    (scenario, waypoints)
+}
+
+/// The firmware built with the fusion particle filter has the MAVLink
+/// endpoint too: on the `route` scenario with the particle filter as its
+/// fusion estimator (wheel noise 2e-7 m²/m, as `host-tests/tests/hil.rs`
+/// tunes it), a ground station sees it run the route armed and drive
+/// past its first station,
+/// reads a parameter, pauses it (acknowledged, then reported) and
+/// uploads a mission (accepted, read back). The
+/// filter used the tags' fixes; the host's copy of the session gave every
+/// answer the firmware gave and no byte was dropped; the firmware's peak
+/// stack, the endpoint's and the filter's paths both run, is within the
+/// particle filter's hard limit (`[hil_peak_stack_limit_bytes]`).
+#[test]
+fn a_ground_station_talks_to_the_particle_filter_firmware_under_qemu() {
+    let mut gcs = ground_station();
+    let mut scenario = Scenario::embedded("route").unwrap();
+    scenario.duration_s = 60.0;
+    let EstimatorSpec::Fusion(fusion) = &mut scenario.estimator else {
+        panic!("the route scenario's estimator is the fusion estimator")
+    };
+    fusion.filter = FusionFilterSpec::ParticleFilter;
+    fusion.wheel_variance_per_m = 2e-7;
+    let limit = scenario
+        .validate()
+        .unwrap()
+        .route
+        .unwrap()
+        .limits_spec
+        .max_speed_m_s;
+    let run = start(&gcs, scenario, particle_filter_firmware());
+
+    let MavMessage::HEARTBEAT(h) = gcs.wait("the robot's heartbeat", 5000, |m| {
+        matches!(m, MavMessage::HEARTBEAT(_))
+    }) else {
+        unreachable!()
+    };
+    assert_eq!(h.custom_mode, 1, "running the scenario's route");
+    assert!(
+        h.base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
+    );
+    // Past station A (1 m east, a stop of 2 s).
+    gcs.wait("driving 1.5 m east", 20_000, |m| east_of(m, 1.5));
+    assert_eq!(gcs.read_max_speed(), limit);
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_DO_PAUSE_CONTINUE, 0.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    gcs.wait(
+        "paused",
+        5000,
+        |m| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == 2),
+    );
+    // A mission uploaded (the endpoint's deepest path) and read back.
+    let mission = [(0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (0.5, 0.4, 0.5)];
+    assert_eq!(gcs.upload(&mission), MavMissionResult::MAV_MISSION_ACCEPTED);
+    assert_eq!(usize::from(gcs.mission_count()), mission.len());
+    gcs.last_datagram();
+
+    let run = run.end().expect("the HIL run");
+    let report = run.report.mavlink.expect("the bridge's report");
+    let tracker = run.result.summary.tracker.expect("tracker report");
+    println!(
+        "particle filter firmware with a ground station: {} ticks, {} fixes used, \
+         peak stack {} B",
+        run.result.records.len(),
+        tracker.fixes_used,
+        run.report.peak_stack_bytes
+    );
+    assert!(tracker.fixes_used > 0, "{tracker:?}");
+    assert_eq!(report.copy_mismatches, 0, "{report:?}");
+    assert!(report.copy_compared >= run.result.records.len() as u64);
+    assert_eq!(report.firmware.rx_dropped_bytes, 0);
+    assert_eq!(report.firmware.tx_dropped_frames, 0);
+    assert!(report.udp.frames_out > 0 && report.udp.frames_unsent == 0);
+    let peak = run.report.peak_stack_bytes;
+    assert!(peak > 0, "the stack was not painted");
+    let limit = peak_stack_limit("fusion_particle_filter");
+    assert!(
+        peak <= limit,
+        "peak stack {peak} B, over its limit of {limit} B"
+    );
+}
+
+/// `[mavlink] power_on = "wait"` reaches the firmware under QEMU with the
+/// route's announcement: it stays disarmed and idle, with the scenario's
+/// route as its mission, refusing to start disarmed, its motors at zero
+/// and the robot where it was put, for the 2 s of the robot's time the
+/// ground station waits; armed and started (the route loaded at power-on,
+/// no upload), it runs and drives the route's first leg (east).
+#[test]
+fn with_power_on_wait_the_firmware_under_qemu_waits_until_armed_and_started() {
+    let mut gcs = ground_station();
+    let (scenario, waypoints) = route_with_power_on(PowerOnSpec::Wait);
+    let run = start(&gcs, scenario, firmware());
+
+    let MavMessage::HEARTBEAT(h) = gcs.wait("the robot's heartbeat", 5000, |m| {
+        matches!(m, MavMessage::HEARTBEAT(_))
+    }) else {
+        unreachable!()
+    };
+    assert_eq!(h.custom_mode, 0, "idle");
+    assert!(
+        !h.base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED),
+        "disarmed"
+    );
+    assert_eq!(
+        usize::from(gcs.mission_count()),
+        waypoints,
+        "the route is the mission"
+    );
+    gcs.wait(
+        "2 s of the robot's time",
+        5000,
+        |m| matches!(m, MavMessage::LOCAL_POSITION_NED(p) if p.time_boot_ms >= 2000),
+    );
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_MISSION_START, 0.0),
+        MavResult::MAV_RESULT_DENIED,
+        "disarmed"
+    );
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, 1.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    // The robot's time the start is sent after (its telemetry's latest).
+    let started_after_ms = gcs.sim_ms;
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_MISSION_START, 0.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    let MavMessage::HEARTBEAT(h) = gcs.wait(
+        "running",
+        5000,
+        |m| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == 1),
+    ) else {
+        unreachable!()
+    };
+    assert!(
+        h.base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
+    );
+    gcs.wait("driving 0.3 m east", 10_000, |m| east_of(m, 0.3));
+
+    let run = run.end().expect("the HIL run");
+    let records = &run.result.records;
+    let driven = first_driven(records).expect("driven after the start");
+    println!(
+        "power_on = wait: started after {started_after_ms} ms of the robot's time, \
+         first driven at {:.2} s",
+        driven.t_s
+    );
+    assert!(
+        driven.t_s * 1000.0 >= f64::from(started_after_ms),
+        "driven at {:.2} s, before the start (after {started_after_ms} ms)",
+        driven.t_s
+    );
+    let rest = &records[0];
+    for r in records.iter().take_while(|r| r.t_s < driven.t_s) {
+        assert!(
+            (r.x_m - rest.x_m).hypot(r.y_m - rest.y_m) < 1e-6,
+            "moved while waiting, at {:.2} s",
+            r.t_s
+        );
+    }
+    let last = records.last().unwrap();
+    assert!(
+        last.x_m > 0.25 && last.y_m.abs() < 0.05,
+        "on the first leg: ({:.3}, {:.3})",
+        last.x_m,
+        last.y_m
+    );
+    let report = run.report.mavlink.expect("the bridge's report");
+    assert_eq!(report.copy_mismatches, 0, "{report:?}");
+}
+
+/// `[mavlink] power_on = "run"` (as without a `[mavlink]` table): the
+/// firmware under QEMU is armed and runs the scenario's route (its
+/// mission) from power-on, driving from its first ticks, no ground
+/// station's command needed.
+#[test]
+fn with_power_on_run_the_firmware_under_qemu_drives_from_power_on() {
+    let mut gcs = ground_station();
+    let (scenario, waypoints) = route_with_power_on(PowerOnSpec::Run);
+    let run = start(&gcs, scenario, firmware());
+
+    let MavMessage::HEARTBEAT(h) = gcs.wait("the robot's heartbeat", 5000, |m| {
+        matches!(m, MavMessage::HEARTBEAT(_))
+    }) else {
+        unreachable!()
+    };
+    assert_eq!(h.custom_mode, 1, "running the scenario's route");
+    assert!(
+        h.base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
+    );
+    assert_eq!(
+        usize::from(gcs.mission_count()),
+        waypoints,
+        "the route is the mission"
+    );
+    gcs.wait("driving 0.3 m east", 10_000, |m| east_of(m, 0.3));
+
+    let run = run.end().expect("the HIL run");
+    let records = &run.result.records;
+    let driven = first_driven(records).expect("driven");
+    println!("power_on = run: first driven at {:.2} s", driven.t_s);
+    assert!(driven.t_s < 0.1, "first driven at {:.2} s", driven.t_s);
+    let last = records.last().unwrap();
+    assert!(
+        last.x_m > 0.25 && last.y_m.abs() < 0.05,
+        "on the first leg: ({:.3}, {:.3})",
+        last.x_m,
+        last.y_m
+    );
+}
+
 /// The pymavlink ground station (`tools/gcs/gcs_check.py --hil`) against
 /// this build's `firmware-sim hil route --mavlink`, at 20x real time:
 /// every check of the SITL's list passes, the global-frame mission too
@@ -348,6 +504,28 @@ fn pymavlink_ground_station_against_the_firmware_under_qemu() {
         "20",
     ]);
     assert!(passed >= 34, "only {passed} checks ran");
+    assert_eq!(
+        skipped, 0,
+        "the firmware has every feature the script checks"
+    );
+}
+
+/// The same pymavlink ground station against the firmware built with the
+/// fusion particle filter, on the route with that filter
+/// (`--particle-filter`): every check passes, and the filter used the
+/// tags' fixes (one check more).
+#[test]
+fn pymavlink_ground_station_against_the_particle_filter_firmware_under_qemu() {
+    let elf = particle_filter_firmware();
+    let (passed, skipped) = gcs::gcs_check(&[
+        "--hil",
+        "--firmware",
+        elf.to_str().unwrap(),
+        "--speedup",
+        "20",
+        "--particle-filter",
+    ]);
+    assert!(passed >= 35, "only {passed} checks ran");
     assert_eq!(
         skipped, 0,
         "the firmware has every feature the script checks"

@@ -11,183 +11,16 @@
 
 mod gcs;
 
-use std::net::UdpSocket;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use firmware_sim::Scenario;
 use firmware_sim::scenario::Setup;
 use firmware_sim::scenario::mavlink::{MavlinkSpec, PowerOnSpec};
 use firmware_sim::sitl::{self, MavlinkAddress, SitlOptions, SitlReport};
+use gcs::station::Gcs;
 use mavlink::dialects::common::*;
-use mavlink::{MavHeader, MavlinkReader, MavlinkVersion};
-
-/// A wall-clock cap on a wait: only a hung SITL reaches it (the waits
-/// themselves are in the robot's simulated time).
-const WALL_CAP: Duration = Duration::from_secs(60);
-
-struct Gcs {
-    socket: UdpSocket,
-    robot: Option<std::net::SocketAddr>,
-    seq: u8,
-    heartbeats: bool,
-    last_heartbeat: Instant,
-    /// The robot's time, ms (from its telemetry).
-    sim_ms: u32,
-    reached: Vec<u16>,
-    mode: Option<u32>,
-}
-
-impl Gcs {
-    fn new() -> Self {
-        let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-        socket
-            .set_read_timeout(Some(Duration::from_millis(2)))
-            .unwrap();
-        Self {
-            socket,
-            robot: None,
-            seq: 0,
-            heartbeats: false,
-            last_heartbeat: Instant::now(),
-            sim_ms: 0,
-            reached: Vec::new(),
-            mode: None,
-        }
-    }
-
-    fn port(&self) -> u16 {
-        self.socket.local_addr().unwrap().port()
-    }
-
-    fn send(&mut self, msg: &MavMessage) {
-        let mut buf = [0u8; 300];
-        let header = MavHeader {
-            system_id: 255,
-            component_id: 190,
-            sequence: self.seq,
-        };
-        self.seq = self.seq.wrapping_add(1);
-        let n = mavlink::write_v2_msg(&mut &mut buf[..], header, msg).unwrap();
-        let to = self.robot.expect("the robot spoke first");
-        self.socket.send_to(&buf[..n], to).unwrap();
-    }
-
-    /// Receives (sending a heartbeat every 5 ms of wall time while
-    /// `heartbeats`) until `until` holds for a message, within
-    /// `sim_timeout_ms` of the robot's time.
-    fn wait(
-        &mut self,
-        what: &str,
-        sim_timeout_ms: u32,
-        mut until: impl FnMut(&MavMessage) -> bool,
-    ) -> MavMessage {
-        let start_sim = self.sim_ms;
-        let wall = Instant::now();
-        let mut buf = [0u8; 2048];
-        loop {
-            if self.heartbeats
-                && self.robot.is_some()
-                && self.last_heartbeat.elapsed() >= Duration::from_millis(5)
-            {
-                self.last_heartbeat = Instant::now();
-                self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-                    mavtype: MavType::MAV_TYPE_GCS,
-                    autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-                    system_status: MavState::MAV_STATE_ACTIVE,
-                    mavlink_version: 3,
-                    ..Default::default()
-                }));
-            }
-            if let Ok((n, from)) = self.socket.recv_from(&mut buf) {
-                self.robot = Some(from);
-                let mut reader = MavlinkReader::new(&buf[..n]);
-                while let Ok((_, msg)) = reader.read_message::<MavMessage>(MavlinkVersion::V2) {
-                    match &msg {
-                        MavMessage::LOCAL_POSITION_NED(p) => {
-                            self.sim_ms = self.sim_ms.max(p.time_boot_ms)
-                        }
-                        MavMessage::MISSION_ITEM_REACHED(r) => self.reached.push(r.seq),
-                        MavMessage::HEARTBEAT(h) => self.mode = Some(h.custom_mode),
-                        _ => {}
-                    }
-                    if until(&msg) {
-                        return msg;
-                    }
-                }
-            }
-            assert!(
-                self.sim_ms.saturating_sub(start_sim) <= sim_timeout_ms,
-                "{what}: not within {sim_timeout_ms} ms of simulated time"
-            );
-            assert!(wall.elapsed() < WALL_CAP, "{what}: the SITL hung");
-        }
-    }
-
-    fn mode_is(&mut self, what: &str, mode: u32, sim_timeout_ms: u32) {
-        self.wait(
-            what,
-            sim_timeout_ms,
-            |m| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == mode),
-        );
-    }
-
-    fn command(&mut self, command: MavCmd, p1: f32) -> MavResult {
-        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            command,
-            param1: p1,
-            target_system: 1,
-            target_component: 1,
-            ..Default::default()
-        }));
-        match self.wait(
-            "COMMAND_ACK",
-            5000,
-            |m| matches!(m, MavMessage::COMMAND_ACK(a) if a.command == command),
-        ) {
-            MavMessage::COMMAND_ACK(a) => a.result,
-            _ => unreachable!(),
-        }
-    }
-
-    /// Uploads waypoints (floor x east, y north, m; hold s): the ack.
-    fn upload(&mut self, items: &[(f32, f32, f32)]) -> MavMissionResult {
-        self.send(&MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-            count: items.len() as u16,
-            target_system: 1,
-            target_component: 1,
-        }));
-        loop {
-            let msg = self.wait("upload", 10_000, |m| {
-                matches!(
-                    m,
-                    MavMessage::MISSION_REQUEST_INT(_) | MavMessage::MISSION_ACK(_)
-                )
-            });
-            match msg {
-                MavMessage::MISSION_ACK(a) => return a.mavtype,
-                MavMessage::MISSION_REQUEST_INT(r) => {
-                    let (x, y, hold) = items[usize::from(r.seq)];
-                    self.send(&MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
-                        param1: hold,
-                        param4: f32::NAN,
-                        x: (y * 1e4).round() as i32,
-                        y: (x * 1e4).round() as i32,
-                        seq: r.seq,
-                        command: MavCmd::MAV_CMD_NAV_WAYPOINT,
-                        target_system: 1,
-                        target_component: 1,
-                        frame: MavFrame::MAV_FRAME_LOCAL_NED,
-                        autocontinue: 1,
-                        ..Default::default()
-                    }));
-                }
-                _ => unreachable!(),
-            }
-        }
-    }
-}
 
 /// The `route` scenario with `power_on` and a telemetry period of
 /// `telemetry_period_ms`.
@@ -205,7 +38,8 @@ fn route_setup(power_on: PowerOnSpec, telemetry_period_ms: u64) -> Setup {
 /// disarmed at power-on; the ground station, the stop flag and the
 /// thread.
 fn start(speedup: f64) -> (Gcs, Arc<AtomicBool>, std::thread::JoinHandle<SitlReport>) {
-    let gcs = Gcs::new();
+    // Heartbeats (once turned on) every 5 ms of wall time.
+    let gcs = Gcs::new(Duration::from_millis(5));
     let setup = route_setup(PowerOnSpec::Wait, 100);
     let options = SitlOptions {
         address: MavlinkAddress::parse(&format!("udp:127.0.0.1:{}", gcs.port()), false).unwrap(),

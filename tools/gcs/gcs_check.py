@@ -416,14 +416,22 @@ def main():
                         help="against the firmware under QEMU (firmware-sim hil --mavlink)")
     parser.add_argument("--firmware", help="with --hil: the QEMU-board firmware ELF "
                         "(default: firmware-sim builds it)")
+    parser.add_argument("--particle-filter", action="store_true",
+                        help="with --hil: the route scenario with the fusion estimator's "
+                        "particle filter (--firmware: one built with fusion-particle-filter)")
     args = parser.parse_args()
+    if args.particle_filter and not args.hil:
+        parser.error("--particle-filter needs --hil")
 
     port = free_port()
     gcs = Gcs(port)
     out_dir = tempfile.mkdtemp(prefix="wmr-gcs-hil-") if args.hil else None
+    scenario = "route"
+    if args.particle_filter:
+        scenario = particle_filter_route(args.firmware_sim, out_dir)
     if args.hil:
         command = [
-            args.firmware_sim, "hil", "route",
+            args.firmware_sim, "hil", scenario,
             "--mavlink", f"udp:127.0.0.1:{port}",
             "--speedup", str(args.speedup),
             # Far longer than the checks take; they end the run by Ctrl-C.
@@ -599,7 +607,7 @@ def main():
             sitl.kill()
             status = sitl.wait()
     if args.hil:
-        hil_end(c, status, out_dir)
+        hil_end(c, status, out_dir, args.particle_filter)
         # The run's files are kept for a look when a check failed.
         if c.failed == 0:
             shutil.rmtree(out_dir, ignore_errors=True)
@@ -610,16 +618,39 @@ def main():
     return 0 if c.failed == 0 else 1
 
 
-def hil_end(c, status, out_dir):
+def particle_filter_route(firmware_sim, out_dir):
+    """The route scenario (`firmware-sim show route`) with the fusion
+    estimator's particle filter (wheel noise 2e-7 m^2/m, as the HIL tests
+    tune it), written into out_dir; its path."""
+    text = subprocess.run([firmware_sim, "show", "route"], check=True,
+                          capture_output=True, text=True).stdout
+    ekf = 'filter = "ekf"\n'
+    if text.count(ekf) != 1:
+        raise SystemExit("the route scenario's fusion filter line not found: "
+                         "update particle_filter_route()")
+    text = text.replace(ekf, 'filter = "particle_filter"\nwheel_variance_per_m = 2e-7\n')
+    path = os.path.join(out_dir, "route_particle_filter.toml")
+    with open(path, "w") as f:
+        f.write(text)
+    return path
+
+
+def hil_end(c, status, out_dir, particle_filter):
     """The HIL run's end, from its summary.json: ended by Ctrl-C, cleanly;
     the host's copy of the firmware's session answered every MAVLink
-    message as the firmware did; no byte dropped on the way."""
+    message as the firmware did; no byte dropped on the way; with
+    particle_filter, the filter used the tags' fixes."""
     try:
         with open(os.path.join(out_dir, "summary.json")) as f:
-            mavlink = json.load(f)["hil"]["mavlink"]
+            summary = json.load(f)
+        mavlink = summary["hil"]["mavlink"]
     except (OSError, KeyError, ValueError) as e:
         c.check("Ctrl-C ends the HIL run cleanly (summary written)", False, f"exit {status}: {e}")
         return
+    if particle_filter:
+        tracker = summary.get("tracker") or {}
+        c.check("the particle filter used the tags' fixes",
+                tracker.get("fixes_used", 0) > 0, f"{tracker}")
     c.check("Ctrl-C ends the HIL run cleanly (summary written)",
             status == 0 and mavlink["interrupted"], f"exit {status}")
     c.check("host copy of the session gave every MAVLink answer the firmware gave",

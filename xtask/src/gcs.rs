@@ -9,6 +9,10 @@
 //! * `cargo xtask gcs --hil`: builds `firmware-sim` (release) and the
 //!   QEMU-board firmware (as `cargo xtask firmware` does) and runs the
 //!   script with `--hil` against `firmware-sim hil --mavlink`.
+//! * `cargo xtask gcs --hil --particle-filter`: the same with the
+//!   QEMU-board firmware built with `fusion-particle-filter` (as `cargo
+//!   xtask ci` builds it for the HIL tests), the script's route run with
+//!   the fusion estimator's particle filter (`--particle-filter`).
 //! * `cargo xtask ci`: [`venv`] before the workspace tests, whose
 //!   `firmware-sim/tests/sitl.rs` and `firmware-sim/tests/hil_mavlink.rs`
 //!   run the script against the `firmware-sim` that the test build has
@@ -64,20 +68,36 @@ pub fn venv() -> std::result::Result<PathBuf, String> {
     Ok(python)
 }
 
-/// `cargo xtask gcs [--hil]`: the script against a release
-/// `firmware-sim`'s SITL, or with `hil` against the firmware under QEMU.
-pub fn gcs(hil: bool) -> Result {
+/// Which QEMU-board firmware `cargo xtask gcs --hil` runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HilFirmware {
+    /// The default build (`cargo xtask firmware`'s).
+    Default,
+    /// The build with the fusion particle filter, on a route run with it.
+    ParticleFilter,
+}
+
+/// `cargo xtask gcs [--hil [--particle-filter]]`: the script against a
+/// release `firmware-sim`'s SITL, or with `hil` against the firmware
+/// under QEMU.
+pub fn gcs(hil: Option<HilFirmware>) -> Result {
     let python = venv()?;
-    let firmware = if hil {
-        let elfs = crate::build_firmware()?;
-        let elf = elfs
-            .into_iter()
-            .find(|(board, _)| *board == "qemu")
-            .map(|(_, elf)| elf)
-            .ok_or("no QEMU-board firmware")?;
-        Some(elf.display().to_string())
-    } else {
-        None
+    let firmware = match hil {
+        Some(HilFirmware::Default) => {
+            let elfs = crate::build_firmware()?;
+            let elf = elfs
+                .into_iter()
+                .find(|(board, _)| *board == "qemu")
+                .map(|(_, elf)| elf)
+                .ok_or("no QEMU-board firmware")?;
+            Some(elf.display().to_string())
+        }
+        Some(HilFirmware::ParticleFilter) => Some(
+            crate::build_hil_variant(wmr_core::builds::FUSION_PARTICLE_FILTER)?
+                .display()
+                .to_string(),
+        ),
+        None => None,
     };
     step("build firmware-sim (release)", || {
         cargo(&["build", "--release", "-p", "firmware-sim"], &[])
@@ -93,10 +113,13 @@ pub fn gcs(hil: bool) -> Result {
         // 2-core machine (docs/mavlink.md, "The firmware under QEMU").
         args.extend(["--hil", "--firmware", elf.as_str(), "--speedup", "20"]);
     }
-    let against = if hil {
-        "the firmware under QEMU"
-    } else {
-        "the SITL"
+    if hil == Some(HilFirmware::ParticleFilter) {
+        args.push("--particle-filter");
+    }
+    let against = match hil {
+        Some(HilFirmware::Default) => "the firmware under QEMU",
+        Some(HilFirmware::ParticleFilter) => "the particle filter's firmware under QEMU",
+        None => "the SITL",
     };
     step(
         &format!("ground station (pymavlink) against {against}"),

@@ -49,9 +49,11 @@
 //! * `opt-levels` — firmware size and tick instructions for each release
 //!   opt-level (3, 2, s, z); writes `target/opt-levels.md`. Slow: every
 //!   level rebuilds all dependencies.
-//! * `gcs [--hil]` — the pymavlink ground station (`tools/gcs/gcs_check.py`)
-//!   against `firmware-sim sitl` (release), or with `--hil` against the
-//!   firmware under QEMU (`firmware-sim hil --mavlink`), in a Python
+//! * `gcs [--hil [--particle-filter]]` — the pymavlink ground station
+//!   (`tools/gcs/gcs_check.py`) against `firmware-sim sitl` (release), or
+//!   with `--hil` against the firmware under QEMU (`firmware-sim hil
+//!   --mavlink`; `--particle-filter`: the firmware built with the fusion
+//!   particle filter, on the route with that filter), in a Python
 //!   virtual environment under `target/gcs-venv` with the pinned
 //!   `tools/gcs/requirements.txt` (`xtask/src/gcs.rs`); `ci` runs the same
 //!   script both ways from the workspace tests
@@ -75,7 +77,7 @@ use std::time::Instant;
 const TARGETS: [&str; 2] = ["thumbv7em-none-eabihf", "thumbv6m-none-eabi"];
 
 /// The command line's synopsis.
-const USAGE: &str = "usage: cargo xtask <ci|features|firmware [--robot FILE]|flash --robot FILE|panic-free|bench|bench-target [--write]|size|opt-levels|fuzz [--seconds N]|gcs [--hil]>";
+const USAGE: &str = "usage: cargo xtask <ci|features|firmware [--robot FILE]|flash --robot FILE|panic-free|bench|bench-target [--write]|size|opt-levels|fuzz [--seconds N]|gcs [--hil [--particle-filter]]>";
 
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
@@ -84,9 +86,12 @@ fn main() -> ExitCode {
     let mut write = false;
     let mut fuzz_seconds = fuzz::CI_SECONDS;
     let mut robot = None;
-    let mut gcs_hil = false;
+    let mut gcs_hil = None;
     match (task.as_str(), options.as_slice()) {
-        ("gcs", [flag]) if flag == "--hil" => gcs_hil = true,
+        ("gcs", [flag]) if flag == "--hil" => gcs_hil = Some(gcs::HilFirmware::Default),
+        ("gcs", [flag, pf]) if flag == "--hil" && pf == "--particle-filter" => {
+            gcs_hil = Some(gcs::HilFirmware::ParticleFilter);
+        }
         ("bench-target", [flag]) if flag == "--write" => write = true,
         ("firmware" | "flash", [flag, file]) if flag == "--robot" => robot = Some(file.clone()),
         ("flash", _) => {
@@ -330,33 +335,42 @@ fn build_firmware() -> std::result::Result<Vec<(&'static str, std::path::PathBuf
 /// docs/budgets.md, "Flash and static RAM"; and the particle filter's
 /// frames would set the others' stack).
 fn build_hil_variants() -> std::result::Result<Vec<(&'static str, String)>, String> {
-    let mut elfs = Vec::new();
-    for build in wmr_core::builds::OPTIONAL_BUILDS {
-        let (variable, label) = (build.hil_firmware_env, format!("qemu-{}", build.feature));
-        let features = &["board-qemu", build.feature];
-        let mut built = Vec::new();
-        step(
-            &format!("build firmware {} (release)", features.join(" + ")),
-            || {
-                built = target::Build {
-                    bins: &["wmr-firmware"],
-                    no_default_features: true,
-                    features,
-                    env: &[],
-                }
-                .run(&format!("firmware-{label}"))?;
-                Ok(())
-            },
-        )?;
-        let built = built.first().ok_or("no ELF built")?;
-        let elf = target::workspace_root()
-            .join("target")
-            .join("firmware")
-            .join(format!("wmr-firmware-{label}.elf"));
-        std::fs::copy(built, &elf).map_err(|e| format!("{}: {e}", built.display()))?;
-        elfs.push((variable, elf.display().to_string()));
-    }
-    Ok(elfs)
+    wmr_core::builds::OPTIONAL_BUILDS
+        .into_iter()
+        .map(|build| {
+            let elf = build_hil_variant(build)?;
+            Ok((build.hil_firmware_env, elf.display().to_string()))
+        })
+        .collect()
+}
+
+/// The QEMU-board firmware of one optional build, as
+/// [`build_hil_variants`] builds each: its ELF's copy.
+fn build_hil_variant(
+    build: wmr_core::builds::OptionalBuild,
+) -> std::result::Result<std::path::PathBuf, String> {
+    let label = format!("qemu-{}", build.feature);
+    let features = &["board-qemu", build.feature];
+    let mut built = Vec::new();
+    step(
+        &format!("build firmware {} (release)", features.join(" + ")),
+        || {
+            built = target::Build {
+                bins: &["wmr-firmware"],
+                no_default_features: true,
+                features,
+                env: &[],
+            }
+            .run(&format!("firmware-{label}"))?;
+            Ok(())
+        },
+    )?;
+    let built = built.first().ok_or("no ELF built")?;
+    let out_dir = target::workspace_root().join("target").join("firmware");
+    std::fs::create_dir_all(&out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
+    let elf = out_dir.join(format!("wmr-firmware-{label}.elf"));
+    std::fs::copy(built, &elf).map_err(|e| format!("{}: {e}", built.display()))?;
+    Ok(elf)
 }
 
 /// flip-link, the firmware's linker (`.cargo/config.toml`), installed with

@@ -143,12 +143,6 @@ pub fn run_hil(
             "--mavlink and --link-faults cannot be combined: the MAVLink channel is not \
              resent over a faulty link"
         );
-        let features = firmware_features(&configure.pilot);
-        ensure!(
-            !features.contains(&wmr_core::builds::FUSION_PARTICLE_FILTER.feature),
-            "--mavlink: the firmware with the fusion particle filter has no MAVLink endpoint \
-             (no RAM left for it beside the filter): a ground station's bytes would be dropped"
-        );
     }
     // The ground station's socket first: an address in use is reported
     // before QEMU boots, not after the configuration.

@@ -1,6 +1,7 @@
 //! What the ground-station tests (`sitl.rs`, `hil_mavlink.rs`) share: the
-//! pymavlink check (`tools/gcs/gcs_check.py`) run on this test build's
-//! `firmware-sim`, and its Python.
+//! in-process ground station ([`station::Gcs`]), and the pymavlink check
+//! (`tools/gcs/gcs_check.py`) run on this test build's `firmware-sim`, and
+//! its Python.
 //!
 //! The Python: `WMR_GCS_PYTHON` if set (`cargo xtask ci` makes the
 //! virtual environment first), else a virtual environment made here under
@@ -10,6 +11,8 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+pub mod station;
 
 /// The workspace root.
 pub fn workspace_root() -> PathBuf {

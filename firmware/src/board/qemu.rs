@@ -201,7 +201,6 @@ fn fail() -> ! {
 /// robot file's `[mavlink]`). Not inlined: what building it
 /// puts on the stack (the endpoint, 3 KB) is in this frame, gone before
 /// the run loop's ([`run`]).
-#[cfg(not(feature = "fusion-particle-filter"))]
 #[inline(never)]
 fn mavlink_store() -> Option<&'static mut MavlinkStore> {
     use wmr_core::reference::route::RouteLimits;
@@ -229,21 +228,17 @@ pub fn run() -> ! {
     // Built first, in a frame of its own that is gone before the run
     // loop's: the endpoint passes through the stack on its way to its
     // static, and stacked on the run loop's frame it would be the deepest
-    // point of a run. Not in the particle filter's build: its 27.8 KB of
-    // stack leave no RAM for the store's 11 KB (its route runs count a
-    // ground station's bytes dropped).
-    #[cfg(not(feature = "fusion-particle-filter"))]
-    let Some(mav) = mavlink_store().map(Some) else {
-        fail()
-    };
-    #[cfg(feature = "fusion-particle-filter")]
-    let mav = None;
+    // point of a run. In every build, the particle filter's included: that
+    // filter is built in place, so its stack (8 KiB at most,
+    // `[hil_peak_stack_limit_bytes]` in `firmware/budgets.toml`) leaves RAM
+    // for the store.
+    let Some(mav) = mavlink_store() else { fail() };
     serve(mav)
 }
 
 /// [`run`]'s loop, lent the MAVLink store.
 #[inline(never)]
-fn serve(mav: Option<&'static mut MavlinkStore>) -> ! {
+fn serve(mav: &'static mut MavlinkStore) -> ! {
     let Some(cp) = cortex_m::Peripherals::take() else {
         // Only possible if something took them before `main`.
         fail()
@@ -276,9 +271,7 @@ fn serve(mav: Option<&'static mut MavlinkStore>) -> ! {
     else {
         fail()
     };
-    if let Some(mav) = mav {
-        session.lend_mavlink(mav);
-    }
+    session.lend_mavlink(mav);
     let Some(rx) = cortex_m::singleton!(: Receiver = Receiver::new()) else {
         fail()
     };
