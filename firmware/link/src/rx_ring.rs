@@ -199,16 +199,30 @@ pub struct TxCounters {
     pub peak: u32,
 }
 
-/// A fixed-capacity transmit ring of `N` bytes: the tick queues whole
-/// frames ([`TxRing::push_slice`], within [`TxRing::room`]), the UART's
-/// transmit interrupt takes one byte at each "data register empty"
-/// ([`TxRing::pop`]). Shared between the two as [`RxRing`] is (module
-/// documentation). Never panics; a byte that finds no room is refused
-/// and counted, never silently lost.
+/// A fixed-capacity transmit ring of `N` bytes (`N` a power of two): the
+/// tick queues whole frames ([`TxRing::push_slice`], within
+/// [`TxRing::room`]), the UART's transmit interrupt takes one byte at
+/// each "data register empty" ([`TxRing::pop`]). Shared between the two
+/// as [`RxRing`] is (module documentation). Never panics; a byte that
+/// finds no room is refused and counted, never silently lost.
+///
+/// Its state is two free-running counts, the bytes ever queued and ever
+/// sent (both wrapping): the bytes waiting are their difference, the
+/// next byte in and out at each count modulo `N` (a mask, `N` dividing
+/// 2^32), and [`TxCounters::sent`] is the sent count itself. The
+/// interrupt's pop is then a compare, a masked load and an increment,
+/// and a queued byte a masked store (a `heapless::Deque` keeps a
+/// "full" flag besides its two indices, and wraps each index by a
+/// compare).
 #[derive(Debug)]
 pub struct TxRing<const N: usize> {
-    bytes: Deque<u8, N>,
-    counters: TxCounters,
+    bytes: [u8; N],
+    /// Bytes ever queued (wrapping).
+    queued: u32,
+    /// Bytes ever sent (wrapping).
+    sent: u32,
+    ring_full: u32,
+    peak: u32,
 }
 
 impl<const N: usize> Default for TxRing<N> {
@@ -218,67 +232,80 @@ impl<const N: usize> Default for TxRing<N> {
 }
 
 impl<const N: usize> TxRing<N> {
+    /// `N - 1`, the mask of an index; refuses, at compile time, an `N`
+    /// that is not a power of two (or does not fit the counts).
+    const MASK: u32 = {
+        assert!(N.is_power_of_two() && N <= 1 << 31, "TxRing's N: a power of two");
+        (N - 1) as u32
+    };
+
     /// An empty ring (`const`: it can initialise a `static`).
     #[must_use]
     pub const fn new() -> Self {
+        let _ = Self::MASK;
         Self {
-            bytes: Deque::new(),
-            counters: TxCounters {
-                sent: 0,
-                ring_full: 0,
-                peak: 0,
-            },
+            bytes: [0; N],
+            queued: 0,
+            sent: 0,
+            ring_full: 0,
+            peak: 0,
         }
     }
 
     /// Bytes waiting to be sent.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.bytes.len()
+        self.queued.wrapping_sub(self.sent) as usize
     }
 
     /// Nothing waiting.
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.bytes.is_empty()
+        self.queued == self.sent
     }
 
     /// Bytes that can still be queued.
     #[must_use]
     pub fn room(&self) -> usize {
-        N.saturating_sub(self.bytes.len())
+        N.saturating_sub(self.len())
     }
 
     /// Queues what fits of `bytes`, in order; returns how many. The rest
     /// is counted in [`TxCounters::ring_full`].
     pub fn push_slice(&mut self, bytes: &[u8]) -> usize {
-        let mut n = 0;
-        for &b in bytes {
-            if self.bytes.push_back(b).is_err() {
-                break;
+        let n = bytes.len().min(self.room());
+        let mut at = self.queued;
+        for &b in bytes.iter().take(n) {
+            if let Some(slot) = self.bytes.get_mut((at & Self::MASK) as usize) {
+                *slot = b;
             }
-            n += 1;
+            at = at.wrapping_add(1);
         }
+        self.queued = at;
         let refused = u32::try_from(bytes.len().saturating_sub(n)).unwrap_or(u32::MAX);
-        let c = &mut self.counters;
-        c.ring_full = c.ring_full.saturating_add(refused);
-        c.peak = c
-            .peak
-            .max(u32::try_from(self.bytes.len()).unwrap_or(u32::MAX));
+        self.ring_full = self.ring_full.saturating_add(refused);
+        self.peak = self.peak.max(u32::try_from(self.len()).unwrap_or(u32::MAX));
         n
     }
 
     /// The next byte to send, taken out (counted sent).
     pub fn pop(&mut self) -> Option<u8> {
-        let b = self.bytes.pop_front()?;
-        self.counters.sent = self.counters.sent.wrapping_add(1);
-        Some(b)
+        if self.queued == self.sent {
+            return None;
+        }
+        let b = self.bytes.get((self.sent & Self::MASK) as usize).copied();
+        self.sent = self.sent.wrapping_add(1);
+        b
     }
 
     /// What the ring has seen.
     #[must_use]
     pub fn counters(&self) -> TxCounters {
-        self.counters
+        TxCounters {
+            sent: self.sent,
+            ring_full: self.ring_full,
+            peak: self.peak,
+        }
     }
 }
 
