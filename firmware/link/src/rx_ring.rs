@@ -235,7 +235,10 @@ impl<const N: usize> TxRing<N> {
     /// `N - 1`, the mask of an index; refuses, at compile time, an `N`
     /// that is not a power of two (or does not fit the counts).
     const MASK: u32 = {
-        assert!(N.is_power_of_two() && N <= 1 << 31, "TxRing's N: a power of two");
+        assert!(
+            N.is_power_of_two() && N <= 1 << 31,
+            "TxRing's N: a power of two"
+        );
         (N - 1) as u32
     };
 

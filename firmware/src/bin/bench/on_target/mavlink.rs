@@ -179,7 +179,8 @@ fn count_frames(mut bytes: &[u8], counts: &mut [u32; 5]) {
     }
 }
 
-/// Runs the ticks and reports `mavlink_tick`.
+/// Runs the ticks and reports `mavlink_tick`, `mavlink_usart_interrupt`
+/// and `mavlink_tick_with_interrupts`.
 pub(super) fn bench_mavlink(cal: Calibration) {
     let spec = EndpointSpec {
         telemetry_period_ms: TELEMETRY_PERIOD_MS,
