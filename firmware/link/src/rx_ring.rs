@@ -4,10 +4,14 @@
 //!
 //! [`RxRing`] is plain data with `&mut self` methods: one producer (the
 //! UART's receive interrupt) pushes, one consumer (the tick) pops. A board
-//! shares it between the two as `critical_section::Mutex<RefCell<RxRing<N>>>`
-//! in a `static` (the Black Pill: `firmware/src/board/blackpill/devices.rs`):
-//! no `unsafe`, no heap, and a critical section of a few instructions per
-//! byte pushed or per chunk popped. `heapless::spsc` would avoid the
+//! shares it between the two as a [`SharedPort`] (a
+//! `critical_section::Mutex<RefCell<Port>>` holding the USART, its receive
+//! ring and its [`TxRing`]) in a `static` (the Black Pill:
+//! `firmware/src/board/blackpill/devices.rs`): no `unsafe`, no heap, and a
+//! critical section of a few instructions per byte pushed or per chunk
+//! popped. The interrupt handler's body ([`on_interrupt`]) is here, generic
+//! over the USART's registers ([`Usart`]), so that the board runs it on
+//! its USARTs and `wmr-bench` counts its instructions on registers in RAM. `heapless::spsc` would avoid the
 //! critical section but needs `&'static mut` queue storage to split
 //! (`unsafe` or a `singleton!`), and its producer would still have to reach
 //! the interrupt handler through a `Mutex<RefCell<Option<…>>>`; with the
@@ -195,16 +199,30 @@ pub struct TxCounters {
     pub peak: u32,
 }
 
-/// A fixed-capacity transmit ring of `N` bytes: the tick queues whole
-/// frames ([`TxRing::push_slice`], within [`TxRing::room`]), the UART's
-/// transmit interrupt takes one byte at each "data register empty"
-/// ([`TxRing::pop`]). Shared between the two as [`RxRing`] is (module
-/// documentation). Never panics; a byte that finds no room is refused
-/// and counted, never silently lost.
+/// A fixed-capacity transmit ring of `N` bytes (`N` a power of two): the
+/// tick queues whole frames ([`TxRing::push_slice`], within
+/// [`TxRing::room`]), the UART's transmit interrupt takes one byte at
+/// each "data register empty" ([`TxRing::pop`]). Shared between the two
+/// as [`RxRing`] is (module documentation). Never panics; a byte that
+/// finds no room is refused and counted, never silently lost.
+///
+/// Its state is two free-running counts, the bytes ever queued and ever
+/// sent (both wrapping): the bytes waiting are their difference, the
+/// next byte in and out at each count modulo `N` (a mask, `N` dividing
+/// 2^32), and [`TxCounters::sent`] is the sent count itself. The
+/// interrupt's pop is then a compare, a masked load and an increment,
+/// and a queued byte a masked store (a `heapless::Deque` keeps a
+/// "full" flag besides its two indices, and wraps each index by a
+/// compare).
 #[derive(Debug)]
 pub struct TxRing<const N: usize> {
-    bytes: Deque<u8, N>,
-    counters: TxCounters,
+    bytes: [u8; N],
+    /// Bytes ever queued (wrapping).
+    queued: u32,
+    /// Bytes ever sent (wrapping).
+    sent: u32,
+    ring_full: u32,
+    peak: u32,
 }
 
 impl<const N: usize> Default for TxRing<N> {
@@ -214,68 +232,347 @@ impl<const N: usize> Default for TxRing<N> {
 }
 
 impl<const N: usize> TxRing<N> {
+    /// `N - 1`, the mask of an index; refuses, at compile time, an `N`
+    /// that is not a power of two (or does not fit the counts).
+    const MASK: u32 = {
+        assert!(
+            N.is_power_of_two() && N <= 1 << 31,
+            "TxRing's N: a power of two"
+        );
+        (N - 1) as u32
+    };
+
     /// An empty ring (`const`: it can initialise a `static`).
     #[must_use]
     pub const fn new() -> Self {
+        let _ = Self::MASK;
         Self {
-            bytes: Deque::new(),
-            counters: TxCounters {
-                sent: 0,
-                ring_full: 0,
-                peak: 0,
-            },
+            bytes: [0; N],
+            queued: 0,
+            sent: 0,
+            ring_full: 0,
+            peak: 0,
         }
     }
 
     /// Bytes waiting to be sent.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.bytes.len()
+        self.queued.wrapping_sub(self.sent) as usize
     }
 
     /// Nothing waiting.
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.bytes.is_empty()
+        self.queued == self.sent
     }
 
     /// Bytes that can still be queued.
     #[must_use]
     pub fn room(&self) -> usize {
-        N.saturating_sub(self.bytes.len())
+        N.saturating_sub(self.len())
     }
 
     /// Queues what fits of `bytes`, in order; returns how many. The rest
     /// is counted in [`TxCounters::ring_full`].
     pub fn push_slice(&mut self, bytes: &[u8]) -> usize {
-        let mut n = 0;
-        for &b in bytes {
-            if self.bytes.push_back(b).is_err() {
-                break;
+        let n = bytes.len().min(self.room());
+        let mut at = self.queued;
+        for &b in bytes.iter().take(n) {
+            if let Some(slot) = self.bytes.get_mut((at & Self::MASK) as usize) {
+                *slot = b;
             }
-            n += 1;
+            at = at.wrapping_add(1);
         }
+        self.queued = at;
         let refused = u32::try_from(bytes.len().saturating_sub(n)).unwrap_or(u32::MAX);
-        let c = &mut self.counters;
-        c.ring_full = c.ring_full.saturating_add(refused);
-        c.peak = c
-            .peak
-            .max(u32::try_from(self.bytes.len()).unwrap_or(u32::MAX));
+        self.ring_full = self.ring_full.saturating_add(refused);
+        self.peak = self.peak.max(u32::try_from(self.len()).unwrap_or(u32::MAX));
         n
     }
 
     /// The next byte to send, taken out (counted sent).
     pub fn pop(&mut self) -> Option<u8> {
-        let b = self.bytes.pop_front()?;
-        self.counters.sent = self.counters.sent.wrapping_add(1);
-        Some(b)
+        if self.queued == self.sent {
+            return None;
+        }
+        let b = self.bytes.get((self.sent & Self::MASK) as usize).copied();
+        self.sent = self.sent.wrapping_add(1);
+        b
     }
 
     /// What the ring has seen.
     #[must_use]
     pub fn counters(&self) -> TxCounters {
-        self.counters
+        TxCounters {
+            sent: self.sent,
+            ring_full: self.ring_full,
+            peak: self.peak,
+        }
     }
+}
+
+/// Bits of the STM32F4 USART's status register (`USART_SR`, RM0383
+/// §19.6.1) that [`service_rx`] and [`service_tx`] read.
+pub mod status {
+    /// Parity error.
+    pub const PE: u32 = 1 << 0;
+    /// Framing error.
+    pub const FE: u32 = 1 << 1;
+    /// Noise detected.
+    pub const NF: u32 = 1 << 2;
+    /// Overrun: a byte arrived before the held one was read.
+    pub const ORE: u32 = 1 << 3;
+    /// A received byte waits in the data register.
+    pub const RXNE: u32 = 1 << 5;
+    /// The transmit data register is empty.
+    pub const TXE: u32 = 1 << 7;
+}
+
+/// A USART's registers as its interrupt handler uses them: the status
+/// register, the data register read and written, and the transmit
+/// interrupt's enable bit (`CR1.TXEIE`). The Black Pill implements it on
+/// its USARTs' register blocks (`firmware/src/board/blackpill/devices.rs`);
+/// `wmr-bench` on registers in RAM, so that it counts the handler's own
+/// instructions ([`on_interrupt`]) as the board runs them.
+pub trait Usart {
+    /// The status register ([`status`]'s bits).
+    fn status(&self) -> u32;
+    /// The received byte (reading the data register clears `RXNE` and the
+    /// error flags on the STM32).
+    fn read_data(&mut self) -> u8;
+    /// `byte` into the data register, to send (clears `TXE`).
+    fn write_data(&mut self, byte: u8);
+    /// Whether the transmit interrupt (`TXEIE`) is on.
+    fn tx_interrupt_enabled(&self) -> bool;
+    /// Turns the transmit interrupt on or off.
+    fn set_tx_interrupt(&mut self, on: bool);
+}
+
+/// The receive interrupt's work: moves the byte `usart` holds, if any,
+/// into `ring`, and counts the errors it flags. One status read, and one
+/// data read whenever a byte or an error is pending (the data read is
+/// what clears `RXNE` and the error flags, so the interrupt does not fire
+/// again for the same byte).
+///
+/// An overrun (`ORE`) means a byte after the held one was lost; the held
+/// one is valid (RM0383 §19.3.4) and goes into the ring. A byte with a
+/// parity, framing or noise error is suspect and is dropped, counted by
+/// its kind.
+pub fn service_rx<U: Usart, const N: usize>(usart: &mut U, ring: &mut RxRing<N>) {
+    let sr = usart.status();
+    let suspect = sr & (status::PE | status::FE | status::NF);
+    if sr & (status::RXNE | status::ORE) == 0 && suspect == 0 {
+        return;
+    }
+    let byte = usart.read_data();
+    // Each flag tested on its own, not in a loop over the kinds: the
+    // Black Pill's firmware crate is built for size (opt-level "z"),
+    // where such a loop stays a loop, an iterator's calls a flag.
+    if sr & status::ORE != 0 {
+        ring.line_error(LineError::Overrun);
+    }
+    if sr & status::PE != 0 {
+        ring.line_error(LineError::Parity);
+    }
+    if sr & status::FE != 0 {
+        ring.line_error(LineError::Framing);
+    }
+    if sr & status::NF != 0 {
+        ring.line_error(LineError::Noise);
+    }
+    if suspect == 0 {
+        ring.push(byte);
+    }
+}
+
+/// The transmit interrupt's work: while the transmit interrupt is on
+/// ([`Usart::set_tx_interrupt`]) and the data register is empty (`TXE`),
+/// the next byte of `ring` into it (the write clears `TXE`); an empty
+/// ring turns the interrupt off, so it does not fire again until bytes
+/// are queued ([`queue_tx`]).
+pub fn service_tx<U: Usart, const N: usize>(usart: &mut U, ring: &mut TxRing<N>) {
+    if !usart.tx_interrupt_enabled() || usart.status() & status::TXE == 0 {
+        return;
+    }
+    match ring.pop() {
+        Some(byte) => usart.write_data(byte),
+        None => usart.set_tx_interrupt(false),
+    }
+}
+
+/// A USART `U`, its receive ring of `N` bytes and its transmit ring of
+/// `T` bytes (1 for a port that sends nothing), shared between the
+/// USART's interrupt handler (the producer of received bytes, the
+/// consumer of bytes to send: [`on_interrupt`]) and the control tick in
+/// a `static` [`SharedPort`]: no `unsafe`, and each access a short
+/// critical section (one byte moved, or at most [`READ_CHUNK`] bytes
+/// popped, or [`TX_CHUNK`] queued).
+pub struct Port<U, const N: usize, const T: usize> {
+    /// The USART, once [`attach`] has put it there.
+    usart: Option<U>,
+    rx: RxRing<N>,
+    tx: TxRing<T>,
+}
+
+impl<U, const N: usize, const T: usize> Default for Port<U, N, T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<U, const N: usize, const T: usize> Port<U, N, T> {
+    /// No USART yet, empty rings (`const`: for a `static`).
+    #[must_use]
+    pub const fn new() -> Self {
+        Self {
+            usart: None,
+            rx: RxRing::new(),
+            tx: TxRing::new(),
+        }
+    }
+}
+
+/// A [`Port`] as a `static`: a critical section's mutex around it.
+pub type SharedPort<U, const N: usize, const T: usize> =
+    critical_section::Mutex<core::cell::RefCell<Port<U, N, T>>>;
+
+/// Hands the USART to its port, for the interrupt handler. Call before
+/// unmasking the USART's interrupt: until then the handler finds no
+/// USART and does nothing.
+pub fn attach<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>, usart: U) {
+    critical_section::with(|cs| {
+        if let Ok(mut port) = port.borrow(cs).try_borrow_mut() {
+            port.usart = Some(usart);
+        }
+    });
+}
+
+/// The USART interrupt handler's body: the received byte, or the error,
+/// into the port's receive ring ([`service_rx`]); then, if the
+/// transmitter is waiting for one, the next byte to send
+/// ([`service_tx`]). One critical section.
+pub fn on_interrupt<U: Usart, const N: usize, const T: usize>(port: &SharedPort<U, N, T>) {
+    critical_section::with(|cs| {
+        // Never already borrowed: every borrow is inside a critical
+        // section, and a single core runs one at a time.
+        if let Ok(mut port) = port.borrow(cs).try_borrow_mut() {
+            let Port { usart, rx, tx } = &mut *port;
+            if let Some(usart) = usart {
+                service_rx(usart, rx);
+                // A port built with a one-byte transmit ring (the RFID
+                // reader's: nothing is sent to it) never turns its
+                // transmit interrupt on: its handler leaves the
+                // transmit path out.
+                if T > 1 {
+                    service_tx(usart, tx);
+                }
+            }
+        }
+    });
+}
+
+/// Most bytes one critical section of [`queue_tx`] copies into a
+/// transmit ring (interrupts masked for about as long as a
+/// [`READ_CHUNK`] read).
+pub const TX_CHUNK: usize = 16;
+
+/// Most bytes one [`read`] takes out of a receive ring, in one critical
+/// section (interrupts masked): 16 byte moves, against 87 µs between two
+/// bytes at 115 200 Bd, so no receive interrupt waits long enough to
+/// lose a byte.
+pub const READ_CHUNK: usize = 16;
+
+/// Free room of `port`'s transmit ring, bytes (0 in the impossible case
+/// of a port already borrowed).
+pub fn tx_room<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>) -> usize {
+    critical_section::with(|cs| {
+        port.borrow(cs)
+            .try_borrow()
+            .map(|port| port.tx.room())
+            .unwrap_or(0)
+    })
+}
+
+/// Queues `bytes` on `port`'s transmit ring, [`TX_CHUNK`] bytes per
+/// critical section, and turns the transmit interrupt on; returns the
+/// bytes queued (all of them when they fit [`tx_room`]; the rest are
+/// counted in the ring's [`TxCounters::ring_full`]).
+pub fn queue_tx<U: Usart, const N: usize, const T: usize>(
+    port: &SharedPort<U, N, T>,
+    bytes: &[u8],
+) -> usize {
+    let mut queued = 0;
+    for chunk in bytes.chunks(TX_CHUNK) {
+        queued += critical_section::with(|cs| {
+            port.borrow(cs)
+                .try_borrow_mut()
+                .map(|mut port| {
+                    let Port { usart, tx, .. } = &mut *port;
+                    let n = tx.push_slice(chunk);
+                    if let Some(usart) = usart.as_mut().filter(|_| n > 0) {
+                        usart.set_tx_interrupt(true);
+                    }
+                    n
+                })
+                .unwrap_or(0)
+        });
+    }
+    queued
+}
+
+/// The counters of `port`'s transmit ring.
+pub fn tx_counters<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>) -> TxCounters {
+    critical_section::with(|cs| {
+        port.borrow(cs)
+            .try_borrow()
+            .map(|port| port.tx.counters())
+            .unwrap_or_default()
+    })
+}
+
+/// The counters of `port`'s receive ring (all zero in the impossible case
+/// of a port already borrowed).
+pub fn rx_counters<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>) -> RxCounters {
+    critical_section::with(|cs| {
+        port.borrow(cs)
+            .try_borrow()
+            .map(|port| port.rx.counters())
+            .unwrap_or_default()
+    })
+}
+
+/// Whether `port`'s receive ring holds bytes, and its faults counted, in
+/// one critical section (`None` in the impossible case of a port already
+/// borrowed).
+pub fn rx_state<U, const N: usize, const T: usize>(
+    port: &SharedPort<U, N, T>,
+) -> Option<(bool, u32)> {
+    critical_section::with(|cs| {
+        port.borrow(cs)
+            .try_borrow()
+            .map(|port| (!port.rx.is_empty(), port.rx.counters().faults()))
+            .ok()
+    })
+}
+
+/// Moves the oldest bytes of `port`'s receive ring into `buf`, at most
+/// [`READ_CHUNK`] in one critical section; returns how many (0 when the
+/// ring is empty).
+pub fn read<U, const N: usize, const T: usize>(
+    port: &SharedPort<U, N, T>,
+    buf: &mut [u8],
+) -> usize {
+    let len = buf.len().min(READ_CHUNK);
+    let Some(chunk) = buf.get_mut(..len) else {
+        return 0;
+    };
+    critical_section::with(|cs| {
+        port.borrow(cs)
+            .try_borrow_mut()
+            .map(|mut port| port.rx.pop_into(chunk))
+            .unwrap_or(0)
+    })
 }
 
 /// The capacity a ring needs on a line of `baud` Bd, 8N1 (10 bits a byte),
@@ -655,5 +952,167 @@ mod tests {
             // The ring's peak is the fullest it got: just before a tick.
             prop_assert_eq!(run.peak as usize, run.max_len);
         }
+    }
+
+    /// A USART as registers in memory: what the handler read and wrote.
+    #[derive(Debug, Default)]
+    struct FakeUsart {
+        sr: u32,
+        dr: u8,
+        txeie: bool,
+        data_reads: u32,
+        sent: std::vec::Vec<u8>,
+    }
+
+    impl Usart for FakeUsart {
+        fn status(&self) -> u32 {
+            self.sr
+        }
+        fn read_data(&mut self) -> u8 {
+            self.data_reads += 1;
+            // As the STM32: the read clears RXNE and the error flags.
+            self.sr &= !(status::RXNE | status::ORE | status::PE | status::FE | status::NF);
+            self.dr
+        }
+        fn write_data(&mut self, byte: u8) {
+            self.sent.push(byte);
+        }
+        fn tx_interrupt_enabled(&self) -> bool {
+            self.txeie
+        }
+        fn set_tx_interrupt(&mut self, on: bool) {
+            self.txeie = on;
+        }
+    }
+
+    fn shared<const N: usize, const T: usize>() -> SharedPort<FakeUsart, N, T> {
+        let port = SharedPort::new(core::cell::RefCell::new(Port::new()));
+        attach(&port, FakeUsart::default());
+        port
+    }
+
+    /// Runs `f` on the port's USART and rings.
+    fn with_port<const N: usize, const T: usize, R>(
+        port: &SharedPort<FakeUsart, N, T>,
+        f: impl FnOnce(&mut FakeUsart, &mut RxRing<N>, &mut TxRing<T>) -> R,
+    ) -> R {
+        critical_section::with(|cs| {
+            let mut port = port.borrow(cs).borrow_mut();
+            let Port { usart, rx, tx } = &mut *port;
+            let usart = usart.as_mut().expect("attached");
+            f(usart, rx, tx)
+        })
+    }
+
+    #[test]
+    fn the_handler_moves_a_received_byte_and_counts_each_line_error() {
+        let port = shared::<8, 1>();
+        // Nothing pending (TXE alone): the data register is not read. The
+        // transmit interrupt on, as a fault would leave it: a port with a
+        // one-byte transmit ring (the RFID reader's) never services it.
+        with_port(&port, |u, _, _| {
+            u.sr = status::TXE;
+            u.txeie = true;
+        });
+        on_interrupt(&port);
+        with_port(&port, |u, rx, _| {
+            assert_eq!(u.data_reads, 0);
+            assert!(rx.is_empty());
+            u.sr = status::RXNE | status::TXE;
+            u.dr = 0x41;
+        });
+        on_interrupt(&port);
+        // An overrun: the held byte is good and kept, the lost one counted.
+        with_port(&port, |u, _, _| {
+            u.sr = status::RXNE | status::ORE;
+            u.dr = 0x42;
+        });
+        on_interrupt(&port);
+        // Framing and noise: the byte is suspect, dropped, both counted.
+        with_port(&port, |u, _, _| {
+            u.sr = status::RXNE | status::FE | status::NF;
+            u.dr = 0x43;
+        });
+        on_interrupt(&port);
+        with_port(&port, |u, _, _| {
+            u.sr = status::RXNE | status::PE;
+            u.dr = 0x44;
+        });
+        on_interrupt(&port);
+        let mut buf = [0_u8; 8];
+        assert_eq!(read(&port, &mut buf), 2);
+        assert_eq!(buf.get(..2), Some(&[0x41, 0x42][..]));
+        let c = rx_counters(&port);
+        assert_eq!(
+            (c.received, c.overrun, c.framing, c.noise, c.parity),
+            (2, 1, 1, 1, 1)
+        );
+        assert_eq!(rx_state(&port), Some((false, 4)));
+        with_port(&port, |u, _, _| {
+            assert_eq!(u.data_reads, 4);
+            // Its transmit path left out: nothing sent, the interrupt
+            // not turned off (the transmit path would have, its ring
+            // being empty).
+            assert!(u.sent.is_empty());
+            assert!(u.txeie);
+        });
+    }
+
+    #[test]
+    fn the_handler_sends_the_queued_bytes_one_an_interrupt_then_turns_itself_off() {
+        let port = shared::<8, 64>();
+        let frame: std::vec::Vec<u8> = (0..40).collect();
+        assert_eq!(tx_room(&port), 64);
+        assert_eq!(queue_tx(&port, &frame), 40);
+        assert_eq!(tx_room(&port), 24);
+        // The data register still busy: nothing moves.
+        with_port(&port, |u, _, _| {
+            assert!(u.txeie);
+            u.sr = 0;
+        });
+        on_interrupt(&port);
+        with_port(&port, |u, _, _| {
+            assert!(u.sent.is_empty());
+            u.sr = status::TXE;
+        });
+        let mut interrupts = 0;
+        while with_port(&port, |u, _, _| u.txeie) && interrupts < 100 {
+            on_interrupt(&port);
+            interrupts += 1;
+        }
+        // One interrupt a byte, and one more that finds the ring empty.
+        assert_eq!(interrupts, 41);
+        with_port(&port, |u, _, _| assert_eq!(u.sent, frame));
+        let c = tx_counters(&port);
+        assert_eq!((c.sent, c.ring_full, c.peak), (40, 0, 40));
+        // More than the room: what fits is queued, the rest counted.
+        assert_eq!(queue_tx(&port, &[7; 70]), 64);
+        assert_eq!(tx_counters(&port).ring_full, 6);
+        // Nothing queued: the interrupt stays off.
+        let idle = shared::<8, 64>();
+        assert_eq!(queue_tx(&idle, &[]), 0);
+        with_port(&idle, |u, _, _| assert!(!u.txeie));
+    }
+
+    #[test]
+    fn a_read_takes_at_most_a_chunk() {
+        let port = shared::<64, 1>();
+        for b in 0..40 {
+            with_port(&port, |u, _, _| {
+                u.sr = status::RXNE;
+                u.dr = b;
+            });
+            on_interrupt(&port);
+        }
+        let mut buf = [0_u8; 64];
+        assert_eq!(read(&port, &mut buf), READ_CHUNK);
+        assert_eq!(
+            buf.get(..READ_CHUNK),
+            (0..16).collect::<std::vec::Vec<u8>>().get(..)
+        );
+        assert_eq!(read(&port, &mut buf), READ_CHUNK);
+        assert_eq!(read(&port, &mut buf), 8);
+        assert_eq!(read(&port, &mut buf), 0);
+        assert_eq!(rx_state(&port), Some((false, 0)));
     }
 }

@@ -53,11 +53,14 @@
 //!    the whole tick of item 3 on a route through the figure-eight
 //!    (`Pilot::step_route`: `robot_tick_route`, in a build with the
 //!    feature `bench-route-tick` of its own);
-//! 6. runs the MAVLink endpoint's part of a tick (`wmr_link::mavlink_run`,
-//!    as both boards run it) with telemetry at 10 Hz and a ground
-//!    station's heartbeat arriving at 1 Hz, its frames through the Black
-//!    Pill's transmit ring byte by byte, averaged over 2 s of ticks
-//!    (`mavlink_tick`, `on_target/mavlink.rs`);
+//! 6. runs the MAVLink endpoint's part of a tick (`wmr_link::mavlink_run`)
+//!    as the Black Pill runs it, with telemetry at 10 Hz and a ground
+//!    station's heartbeat arriving at 1 Hz, averaged over 2 s of ticks
+//!    (`mavlink_tick`), and the MAVLink USART's interrupt handler
+//!    (`wmr_link::rx_ring::on_interrupt`, the board's) on registers in
+//!    RAM for each byte received and sent (`mavlink_usart_interrupt`, per
+//!    call; `mavlink_tick_with_interrupts`, a tick with its interrupts;
+//!    `on_target/mavlink.rs`);
 //! 7. paints a window below the stack pointer, runs one call (a tick, a
 //!    filter step) and reports the bytes it used below its caller's stack
 //!    pointer.

@@ -14,15 +14,15 @@
 //! most: a telemetry burst, a mission item, a parameter); at 115 200 Bd
 //! each byte takes 87 µs on the line, so writing them by polling `TXE`
 //! would hold the tick for tens of milliseconds. The tick copies them
-//! into the transmit ring ([`queue_tx`], [`TX_CHUNK`] bytes per critical
+//! into the transmit ring ([`queue_tx`], [`rx_ring::TX_CHUNK`] bytes per critical
 //! section) and turns the transmit interrupt on; the interrupt moves one
 //! byte per "data register empty" and turns itself off when the ring is
 //! empty. DMA (DMA2 stream 7, channel 4) would save the interrupt per
-//! byte (about 11,500 a second at the line's full rate, of about 65
-//! instructions each on the send path by the handler's disassembly:
-//! about 1 % of the core), at the price of `unsafe` buffer addresses
-//! handed to the DMA controller; the interrupt is safe code and cheap
-//! enough. The endpoint is given the ring's free room as its buffer, so
+//! byte (about 11,500 a second at the line's full rate, of about 40
+//! instructions each on the send path, `mavlink_usart_interrupt` of
+//! `cargo xtask bench-target`: under 1 % of the core), at the price of
+//! `unsafe` buffer addresses handed to the DMA controller; the interrupt
+//! is safe code and cheap enough. The endpoint is given the ring's free room as its buffer, so
 //! a frame that does not fit is dropped whole and counted by it, never
 //! cut.
 //!
@@ -32,7 +32,7 @@
 //! 115 200 Bd). Read only by the control tick, a UART would keep one byte a
 //! tick and overrun the rest. So each USART's receive interrupt (`RXNEIE`:
 //! a byte, or an overrun) moves the byte into the port's ring
-//! ([`on_interrupt`], [`super::setup::UartRx::service`]), whatever the tick
+//! ([`on_interrupt`], [`rx_ring::service_rx`]), whatever the tick
 //! is doing, and the tick reads the ring ([`PortReader`]) as the core's
 //! `RfidReader` reads any UART, so the core is unchanged. The rings are
 //! sized so that a tick late by several periods loses nothing
@@ -41,24 +41,23 @@
 //! Producer and consumer share each port as a `static`
 //! `critical_section::Mutex<RefCell<Port>>` ([`SharedPort`]): no `unsafe`,
 //! and each access a short critical section (one byte pushed, or at most
-//! [`READ_CHUNK`] bytes popped). Line errors (overrun, framing, noise,
+//! [`rx_ring::READ_CHUNK`] bytes popped). Line errors (overrun, framing, noise,
 //! parity) and bytes dropped because a ring was full are counted per kind
 //! in the ring's [`RxCounters`], and each one is also reported once through
 //! [`ReadReady::read_ready`], so the core's `RfidCounters::read_errors`
 //! counts the RFID reader's too.
 
-use core::cell::RefCell;
 use core::convert::Infallible;
 use core::ops::Deref;
 
-use critical_section::Mutex;
 use embedded_io::{ErrorKind, ErrorType, Read, ReadReady};
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::pac::tim3::ccmr1_input::ICFILTER;
 use stm32f4xx_hal::qei::{self, Qei};
 use wmr_core::devices::QuadratureCounter;
 
-use wmr_link::rx_ring::{RxCounters, RxRing, TxCounters, TxRing};
+pub use wmr_link::rx_ring::Port;
+use wmr_link::rx_ring::{self, RxCounters, TxCounters, Usart};
 
 use super::setup::UartRx;
 
@@ -111,91 +110,68 @@ where
     }
 }
 
-/// A UART's receiver and its receive ring of `N` bytes, and its transmit
-/// ring of `T` bytes (1 for a port that sends nothing), shared between
-/// the UART's interrupt handler (the producer of received bytes, the
-/// consumer of bytes to send) and the control tick in a `static`
-/// [`SharedPort`]. See the module documentation.
-pub struct Port<U, const N: usize, const T: usize> {
-    /// The receiver, once [`attach`] has put it there.
-    rx: Option<UartRx<U>>,
-    ring: RxRing<N>,
-    tx: TxRing<T>,
-}
+/// A USART's receiver and its receive ring of `N` bytes, and its
+/// transmit ring of `T` bytes (1 for a port that sends nothing), shared
+/// between the USART's interrupt handler (the producer of received
+/// bytes, the consumer of bytes to send) and the control tick: the
+/// shared [`rx_ring::Port`] on the board's [`UartRx`]. See the module
+/// documentation.
+pub type SharedPort<U, const N: usize, const T: usize> = rx_ring::SharedPort<UartRx<U>, N, T>;
 
-impl<U, const N: usize, const T: usize> Port<U, N, T> {
-    /// No receiver yet, empty rings (`const`: for a `static`).
-    pub const fn new() -> Self {
-        Self {
-            rx: None,
-            ring: RxRing::new(),
-            tx: TxRing::new(),
-        }
+/// The USART's registers as the shared handler ([`rx_ring::on_interrupt`])
+/// reads and writes them: the status register, the data register (its
+/// read clears `RXNE` and the error flags) and `CR1.TXEIE`.
+impl<U: Deref<Target = pac::usart1::RegisterBlock>> Usart for UartRx<U> {
+    fn status(&self) -> u32 {
+        u32::from(self.usart.sr().read().bits())
+    }
+
+    fn read_data(&mut self) -> u8 {
+        self.usart.dr().read().dr().bits().to_le_bytes()[0]
+    }
+
+    fn write_data(&mut self, byte: u8) {
+        self.usart.dr().write(|w| w.dr().set(u16::from(byte)));
+    }
+
+    fn tx_interrupt_enabled(&self) -> bool {
+        self.usart.cr1().read().txeie().bit_is_set()
+    }
+
+    fn set_tx_interrupt(&mut self, on: bool) {
+        self.usart.cr1().modify(|_, w| w.txeie().bit(on));
     }
 }
-
-/// A [`Port`] as a `static`: a critical section's mutex around it.
-pub type SharedPort<U, const N: usize, const T: usize> = Mutex<RefCell<Port<U, N, T>>>;
 
 /// Hands the receiver to its port, for the interrupt handler. Call before
 /// unmasking the UART's interrupt: until then the handler finds no
 /// receiver and does nothing.
 pub fn attach<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>, rx: UartRx<U>) {
-    critical_section::with(|cs| {
-        if let Ok(mut port) = port.borrow(cs).try_borrow_mut() {
-            port.rx = Some(rx);
-        }
-    });
+    rx_ring::attach(port, rx);
 }
 
-/// The UART interrupt handler's body: the received byte, or the error,
-/// into the port's ring ([`UartRx::service`]); then, if the transmitter
-/// is waiting for one, the next byte to send ([`UartRx::service_tx`]).
+/// The UART interrupt handler's body ([`rx_ring::on_interrupt`], the code
+/// `wmr-bench` counts): the received byte, or the error, into the port's
+/// ring; then, if the transmitter is waiting for one, the next byte to
+/// send.
+#[inline(always)]
 pub fn on_interrupt<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>)
 where
     U: Deref<Target = pac::usart1::RegisterBlock>,
 {
-    critical_section::with(|cs| {
-        // Never already borrowed: every borrow is inside a critical
-        // section, and this core runs one at a time.
-        if let Ok(mut port) = port.borrow(cs).try_borrow_mut() {
-            let Port { rx, ring, tx } = &mut *port;
-            if let Some(rx) = rx {
-                rx.service(ring);
-                // A port built with a one-byte transmit ring (the RFID
-                // reader's: nothing is sent to it) never turns its
-                // transmit interrupt on: its handler leaves the
-                // transmit path out.
-                if T > 1 {
-                    rx.service_tx(tx);
-                }
-            }
-        }
-    });
+    rx_ring::on_interrupt(port);
 }
 
-/// Most bytes one critical section of [`queue_tx`] copies into a
-/// transmit ring (interrupts masked for about as long as a
-/// [`READ_CHUNK`] read).
-#[cfg_attr(not(wmr_robot_image), allow(dead_code))]
-pub const TX_CHUNK: usize = 16;
-
-/// Free room of `port`'s transmit ring, bytes (0 in the impossible case
-/// of a port already borrowed).
+/// Free room of `port`'s transmit ring, bytes.
 #[cfg_attr(not(wmr_robot_image), allow(dead_code))]
 pub fn tx_room<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>) -> usize {
-    critical_section::with(|cs| {
-        port.borrow(cs)
-            .try_borrow()
-            .map(|port| port.tx.room())
-            .unwrap_or(0)
-    })
+    rx_ring::tx_room(port)
 }
 
-/// Queues `bytes` on `port`'s transmit ring, [`TX_CHUNK`] bytes per
-/// critical section, and turns the transmit interrupt on; returns the
-/// bytes queued (all of them when they fit [`tx_room`]; the rest are
-/// counted in the ring's [`TxCounters::ring_full`]).
+/// Queues `bytes` on `port`'s transmit ring ([`rx_ring::TX_CHUNK`] bytes
+/// per critical section) and turns the transmit interrupt on; returns the
+/// bytes queued (the rest are counted in the ring's
+/// [`TxCounters::ring_full`]).
 #[cfg_attr(not(wmr_robot_image), allow(dead_code))]
 pub fn queue_tx<U, const N: usize, const T: usize>(
     port: &SharedPort<U, N, T>,
@@ -204,60 +180,27 @@ pub fn queue_tx<U, const N: usize, const T: usize>(
 where
     U: Deref<Target = pac::usart1::RegisterBlock>,
 {
-    let mut queued = 0;
-    for chunk in bytes.chunks(TX_CHUNK) {
-        queued += critical_section::with(|cs| {
-            port.borrow(cs)
-                .try_borrow_mut()
-                .map(|mut port| {
-                    let Port { rx, tx, .. } = &mut *port;
-                    let n = tx.push_slice(chunk);
-                    if let Some(rx) = rx.as_mut().filter(|_| n > 0) {
-                        rx.start_tx();
-                    }
-                    n
-                })
-                .unwrap_or(0)
-        });
-    }
-    queued
+    rx_ring::queue_tx(port, bytes)
 }
 
 /// The counters of `port`'s transmit ring.
 #[cfg_attr(not(wmr_robot_image), allow(dead_code))]
 pub fn tx_counters<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>) -> TxCounters {
-    critical_section::with(|cs| {
-        port.borrow(cs)
-            .try_borrow()
-            .map(|port| port.tx.counters())
-            .unwrap_or_default()
-    })
+    rx_ring::tx_counters(port)
 }
 
 /// The counters of `port`'s ring (all zero in the impossible case of a
 /// port already borrowed).
 pub fn counters<U, const N: usize, const T: usize>(port: &SharedPort<U, N, T>) -> RxCounters {
-    critical_section::with(|cs| {
-        port.borrow(cs)
-            .try_borrow()
-            .map(|port| port.ring.counters())
-            .unwrap_or_default()
-    })
+    rx_ring::rx_counters(port)
 }
-
-/// Most bytes one [`Read::read`] takes out of a ring, in one critical
-/// section (interrupts masked): 16 byte moves, a few hundred cycles
-/// (not measured on the board; a few µs at 96 MHz), against 87 µs between
-/// two bytes at 115 200 Bd, so no receive interrupt waits long enough to
-/// lose a byte.
-const READ_CHUNK: usize = 16;
 
 /// The tick's side of a [`Port`]: its ring as embedded-io 0.7
 /// `Read + ReadReady`, for the core's `RfidReader` (and the MAVLink
 /// byte path). See the module documentation.
 ///
 /// Never blocks: [`Read::read`] returns what the ring holds, up to
-/// [`READ_CHUNK`] bytes, and at least one byte whenever
+/// [`rx_ring::READ_CHUNK`] bytes, and at least one byte whenever
 /// [`ReadReady::read_ready`] said `true` (the interrupt only adds bytes).
 /// Called on an empty ring (which `RfidReader` never does: it asks
 /// `read_ready` first) it returns `Ok(0)` instead of waiting.
@@ -282,13 +225,7 @@ impl<U, const N: usize, const T: usize> PortReader<U, N, T> {
 
     /// Bytes waiting and faults counted, in one critical section.
     fn state(&self) -> (bool, u32) {
-        critical_section::with(|cs| {
-            self.port
-                .borrow(cs)
-                .try_borrow()
-                .map(|port| (!port.ring.is_empty(), port.ring.counters().faults()))
-                .unwrap_or((false, self.reported))
-        })
+        rx_ring::rx_state(self.port).unwrap_or((false, self.reported))
     }
 }
 
@@ -317,16 +254,6 @@ impl<U, const N: usize, const T: usize> ReadReady for PortReader<U, N, T> {
 
 impl<U, const N: usize, const T: usize> Read for PortReader<U, N, T> {
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, ErrorKind> {
-        let len = buf.len().min(READ_CHUNK);
-        let Some(chunk) = buf.get_mut(..len) else {
-            return Ok(0);
-        };
-        Ok(critical_section::with(|cs| {
-            self.port
-                .borrow(cs)
-                .try_borrow_mut()
-                .map(|mut port| port.ring.pop_into(chunk))
-                .unwrap_or(0)
-        }))
+        Ok(rx_ring::read(self.port, buf))
     }
 }

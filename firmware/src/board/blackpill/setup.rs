@@ -26,7 +26,6 @@ use core::ops::Deref;
 
 use embedded_hal::pwm::{ErrorType, SetDutyCycle};
 use stm32f4xx_hal::pac;
-use wmr_link::rx_ring::{LineError, RxRing, TxRing};
 
 /// The PLL input divider: HSE 25 MHz / 25 = 1 MHz (VCO input 1–2 MHz).
 const PLL_M: u32 = 25;
@@ -268,7 +267,9 @@ impl TickTimer {
 /// are queued: the MAVLink port's). USART1 and USART2 share one register
 /// block type.
 pub struct UartRx<U> {
-    usart: U,
+    /// Its registers, for the interrupt handler's register access
+    /// (`super::devices`, `wmr_link::rx_ring::Usart`).
+    pub(super) usart: U,
 }
 
 impl UartRx<pac::USART2> {
@@ -338,66 +339,5 @@ impl<U: Deref<Target = pac::usart1::RegisterBlock>> UartRx<U> {
                 .set_bit()
         });
         Some(Self { usart })
-    }
-
-    /// The transmit interrupt's work: while the transmit interrupt is on
-    /// (`TXEIE`, [`Self::start_tx`]) and the data register is empty
-    /// (`TXE`), the next byte of `ring` into it (the write clears `TXE`);
-    /// an empty ring turns the interrupt off, so it does not fire again
-    /// until bytes are queued.
-    pub fn service_tx<const N: usize>(&mut self, ring: &mut TxRing<N>) {
-        if self.usart.cr1().read().txeie().bit_is_clear()
-            || self.usart.sr().read().txe().bit_is_clear()
-        {
-            return;
-        }
-        match ring.pop() {
-            Some(byte) => self.usart.dr().write(|w| w.dr().set(u16::from(byte))),
-            None => self.usart.cr1().modify(|_, w| w.txeie().clear_bit()),
-        };
-    }
-
-    /// Turns the transmit interrupt on: bytes are queued for
-    /// [`Self::service_tx`].
-    #[cfg_attr(not(wmr_robot_image), allow(dead_code))]
-    pub fn start_tx(&mut self) {
-        self.usart.cr1().modify(|_, w| w.txeie().set_bit());
-    }
-
-    /// The receive interrupt's work: moves the byte the USART holds, if
-    /// any, into `ring`, and counts the errors it flags. One status read,
-    /// and one data read whenever a byte or an error is pending (the data
-    /// read is what clears `RXNE` and the error flags, so the interrupt
-    /// does not fire again for the same byte).
-    ///
-    /// An overrun (`ORE`) means a byte after the held one was lost; the
-    /// held one is valid (RM0383 §19.3.4) and goes into the ring. A byte
-    /// with a parity, framing or noise error is suspect and is dropped,
-    /// counted by its kind.
-    pub fn service<const N: usize>(&mut self, ring: &mut RxRing<N>) {
-        let sr = self.usart.sr().read();
-        let suspect = [
-            (sr.pe().bit_is_set(), LineError::Parity),
-            (sr.fe().bit_is_set(), LineError::Framing),
-            (sr.nf().bit_is_set(), LineError::Noise),
-        ];
-        let overrun = sr.ore().bit_is_set();
-        if !(sr.rxne().bit_is_set() || overrun || suspect.iter().any(|&(set, _)| set)) {
-            return;
-        }
-        let byte = self.usart.dr().read().dr().bits().to_le_bytes()[0];
-        if overrun {
-            ring.line_error(LineError::Overrun);
-        }
-        let mut good = true;
-        for (set, error) in suspect {
-            if set {
-                ring.line_error(error);
-                good = false;
-            }
-        }
-        if good {
-            ring.push(byte);
-        }
     }
 }
