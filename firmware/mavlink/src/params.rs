@@ -134,10 +134,18 @@ const fn names() -> [[u8; 16]; PARAMS.len()] {
 
 /// The index of the parameter whose 16-byte, NUL-padded id is `id` (what
 /// follows its first NUL ignored).
+// Out of line: inlined into its two callers it was copied in each.
+#[inline(never)]
 fn find(id: &[u8]) -> Option<usize> {
+    // An opaque id: with its length known (16), LLVM unrolls the search
+    // for its NUL a byte at a time.
+    let id = core::hint::black_box(id);
+    let len = id.iter().position(|&b| b == 0).unwrap_or(id.len());
     let mut key = [0u8; 16];
-    for (slot, &b) in key.iter_mut().zip(id.iter().take_while(|&&b| b != 0)) {
-        *slot = b;
+    // An id of more than 16 bytes before its NUL leaves the key zero: no
+    // name matches.
+    if let (Some(dst), Some(src)) = (key.get_mut(..len), id.get(..len)) {
+        dst.copy_from_slice(src);
     }
     let key = u128::from_le_bytes(key);
     // An opaque table: with its length and contents known, LLVM unrolls
@@ -248,6 +256,8 @@ fn param_value_words(value: f32, index: usize, name: &[u8; 16]) -> [u32; 7] {
 }
 
 /// A whole number (of milliseconds, or ticks) in `u32`, or `None`.
+// Out of line: inlined into its two callers it was copied in each.
+#[inline(never)]
 fn millis(value: f32) -> Option<u32> {
     if value.is_finite() && value >= 0.0 && value <= u32::MAX as f32 && libm::truncf(value) == value
     {
