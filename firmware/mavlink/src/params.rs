@@ -259,12 +259,11 @@ fn param_value_words(value: f32, index: usize, name: &[u8; 16]) -> [u32; 7] {
 // Out of line: inlined into its two callers it was copied in each.
 #[inline(never)]
 fn millis(value: f32) -> Option<u32> {
-    if value.is_finite() && value >= 0.0 && value <= u32::MAX as f32 && libm::truncf(value) == value
-    {
-        Some(value as u32)
-    } else {
-        None
-    }
+    // In range, `as` truncates toward zero (and takes 2^32, the nearest
+    // `f32` to `u32::MAX`, to `u32::MAX`), so the value is whole exactly
+    // when it converts back to itself; NaN fails every comparison.
+    let whole = value as u32;
+    (value >= 0.0 && value <= u32::MAX as f32 && whole as f32 == value).then_some(whole)
 }
 
 impl MavlinkEndpoint {
@@ -438,7 +437,49 @@ mod tests {
     use mavlink::MessageData;
     use mavlink::dialects::common as c;
 
-    use super::{NAMES, PARAMS, find, param_value_words};
+    use super::{NAMES, PARAMS, find, millis, param_value_words};
+
+    /// The whole-number check is the definition's: finite, in `u32`'s
+    /// range and equal to its truncation.
+    #[test]
+    fn whole_numbers_are_the_truncations_that_fit() {
+        let reference = |v: f32| {
+            (v.is_finite() && v >= 0.0 && v <= u32::MAX as f32 && libm::truncf(v) == v)
+                .then_some(v as u32)
+        };
+        let values = [
+            0.0,
+            -0.0,
+            0.5,
+            1.0,
+            1.5,
+            -1.0,
+            -0.5,
+            999.999,
+            1_000.0,
+            16_777_216.0,
+            16_777_218.0,
+            2_147_483_648.0,
+            4_294_967_040.0,
+            4_294_967_296.0,
+            8_589_934_592.0,
+            f32::MAX,
+            f32::MIN,
+            f32::MIN_POSITIVE,
+            f32::EPSILON,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let mut bits: u32 = 1;
+        let drawn = core::iter::repeat_with(|| {
+            bits = bits.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            [f32::from_bits(bits), f32::from_bits(bits >> 3) % 70_000.0]
+        });
+        for v in values.into_iter().chain(drawn.take(20_000).flatten()) {
+            assert_eq!(millis(v), reference(v), "{v:e} ({:#x})", v.to_bits());
+        }
+    }
 
     /// The names' table holds every name, NUL-padded, and the search finds
     /// each by its wire id, with or without bytes after its NUL.
