@@ -36,6 +36,26 @@ pub const COUNTER_NAMES: [&str; COUNTERS] = [
     "RF_SUPERSD", // superseded
 ];
 
+/// [`COUNTER_NAMES`] as `NAMED_VALUE_INT`'s `name` carries them:
+/// NUL-padded to 10 bytes, made at build time. The firmware links this
+/// table alone, not the names' string addresses and lengths; a name past
+/// 10 characters fails the build.
+const COUNTER_IDS: [[u8; 10]; COUNTERS] = {
+    let mut out = [[0; 10]; COUNTERS];
+    let mut i = 0;
+    while i < COUNTERS {
+        let name = COUNTER_NAMES[i].as_bytes();
+        assert!(name.len() <= 10, "a counter name past 10 characters");
+        let mut k = 0;
+        while k < name.len() {
+            out[i][k] = name[k];
+            k += 1;
+        }
+        i += 1;
+    }
+    out
+};
+
 /// The robot's counters a ground station is sent, in the order of
 /// [`COUNTER_NAMES`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -85,16 +105,14 @@ impl MavlinkEndpoint {
         self.last_count_ms = Some(now_ms);
         let i = usize::from(self.next_count) % COUNTERS;
         self.next_count = ((i + 1) % COUNTERS) as u8;
-        let (Some(&value), Some(name)) = (counts.0.get(i), COUNTER_NAMES.get(i)) else {
+        let (Some(&value), Some(name)) = (counts.0.get(i), COUNTER_IDS.get(i)) else {
             return;
         };
         let mut payload = [0u8; 18];
         let [t0, t1, t2, t3] = now_ms.to_le_bytes();
         let [v0, v1, v2, v3] = value.to_le_bytes();
         payload[..8].copy_from_slice(&[t0, t1, t2, t3, v0, v1, v2, v3]);
-        for (slot, b) in payload[8..].iter_mut().zip(name.bytes()) {
-            *slot = b;
-        }
+        payload[8..].copy_from_slice(name);
         self.send_raw(
             tx,
             c::NAMED_VALUE_INT_DATA::ID,
