@@ -302,16 +302,17 @@ impl MavlinkEndpoint {
         );
     }
 
+    // Out of line: called from three places.
+    #[inline(never)]
     fn param_refused(&mut self, tx: &mut TxBuffer<'_>, what: &[u8], id: &[u8]) {
         self.counters.param_refusals = self.counters.param_refusals.wrapping_add(1);
+        // `what`, then the id up to its NUL (16 bytes at most).
+        let name = id.iter().take(16).take_while(|&&b| b != 0);
         let mut text = [0u8; 50];
-        let name_len = id.iter().position(|&b| b == 0).unwrap_or(id.len()).min(16);
         let mut n = 0;
-        for &b in what.iter().chain(id.iter().take(name_len)) {
-            if let Some(slot) = text.get_mut(n) {
-                *slot = b;
-                n += 1;
-            }
+        for (slot, &b) in text.iter_mut().zip(what.iter().chain(name)) {
+            *slot = b;
+            n += 1;
         }
         self.status_text(
             tx,
