@@ -124,6 +124,8 @@ impl Events {
         self.len < EVENT_CAPACITY
     }
 
+    // Out of line: called from six handlers; inlined in each it cost flash.
+    #[inline(never)]
     pub(crate) fn push(&mut self, event: Event) -> bool {
         match self.items.get_mut(self.len) {
             Some(slot) => {
@@ -272,6 +274,8 @@ impl MavlinkEndpoint {
 
     /// The running mission's items.
     #[must_use]
+    // Out of line: called from six handlers; inlined in each it cost flash.
+    #[inline(never)]
     pub fn mission(&self) -> &Mission {
         self.missions.get(self.active).unwrap_or(&self.missions[0])
     }
