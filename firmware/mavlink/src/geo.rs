@@ -107,6 +107,8 @@ impl Origin {
         self.lon_e7
     }
 
+    // Out of line: inlined into both conversions it cost flash.
+    #[inline(never)]
     fn cos_mid(&self, dlat_e7: i64) -> f32 {
         let mid = (i64::from(self.lat_e7) + dlat_e7 / 2) as f32 * RAD_PER_E7;
         math::cos(mid)
