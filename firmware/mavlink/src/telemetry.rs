@@ -395,7 +395,6 @@ mod tests {
                     errors_count3: sat(param),
                     errors_count4: sat(dropped),
                     battery_remaining: -1,
-                    ..c::SYS_STATUS_DATA::default()
                 },
             );
         }
