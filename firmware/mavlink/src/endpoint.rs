@@ -274,8 +274,6 @@ impl MavlinkEndpoint {
 
     /// The running mission's items.
     #[must_use]
-    // Out of line: called from six handlers; inlined in each it cost flash.
-    #[inline(never)]
     pub fn mission(&self) -> &Mission {
         self.missions.get(self.active).unwrap_or(&self.missions[0])
     }
@@ -636,7 +634,10 @@ impl MavlinkEndpoint {
         for (bytes, word) in payload.chunks_exact_mut(4).zip(words) {
             bytes.copy_from_slice(&word.to_le_bytes());
         }
-        self.send_raw(tx, id, extra, &payload);
+        // Only the message's own words: the cut of the trailing zeros
+        // scans no more than it must (a tick's cost).
+        let len = (4 * words.len()).min(payload.len());
+        self.send_raw(tx, id, extra, payload.get(..len).unwrap_or(&payload));
     }
 
     /// Sends a payload already serialised (its trailing zeros cut, as
