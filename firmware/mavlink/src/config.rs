@@ -141,6 +141,8 @@ impl EndpointConfig {
     ///
     /// # Errors
     /// [`ConfigError`] naming the first field out of its range, with its value.
+    // Out of line: inlined into the parameters' set it was copied there.
+    #[inline(never)]
     pub fn new(spec: &EndpointSpec) -> Result<Self, ConfigError> {
         let check = |ok: bool, key: ConfigKey, value: i64| {
             if ok {

@@ -8,7 +8,7 @@ use wmr_core::reference::route::{RouteError, RouteLimits, Waypoints};
 use crate::config::EndpointConfig;
 use crate::mission::Mission;
 use crate::telemetry::Counts;
-use crate::wire::{MAX_PAYLOAD, Parser, RxCounters, RxFrame, TxBuffer};
+use crate::wire::{Parser, RxCounters, RxFrame, TxBuffer};
 
 /// Events one [`MavlinkEndpoint::handle`] call can return; a command past
 /// them is answered `MAV_RESULT_TEMPORARILY_REJECTED` (counted).
@@ -124,6 +124,8 @@ impl Events {
         self.len < EVENT_CAPACITY
     }
 
+    // Out of line: called from six handlers; inlined in each it cost flash.
+    #[inline(never)]
     pub(crate) fn push(&mut self, event: Event) -> bool {
         match self.items.get_mut(self.len) {
             Some(slot) => {
@@ -617,23 +619,25 @@ impl MavlinkEndpoint {
         );
     }
 
-    /// Serialises one message into a MAVLink 2 frame in `tx`.
+    /// Sends a payload given as little-endian 32-bit words (at most 8,
+    /// the longest of the messages written so: `SYS_STATUS`' fields before
+    /// its zero extensions), its trailing zeros cut by [`Self::send_raw`].
+    /// The heartbeat, `SYS_STATUS`, the position and attitude telemetry
+    /// and `PARAM_VALUE` are written by their wire layout in words: one
+    /// copy of this function rather than one of the library's encoder per
+    /// message (each test compares the bytes with the library's).
     // Out of line: called from many places; inlined at each (opt-level 3,
     // fat LTO) it cost flash (docs/mavlink.md, Cost).
     #[inline(never)]
-    pub(crate) fn send<D: MessageData>(&mut self, tx: &mut TxBuffer<'_>, msg: &D) {
-        let mut payload = [0u8; MAX_PAYLOAD];
-        // The whole payload goes to `send_raw`, which cuts its trailing
-        // zeros: the length `ser` returns is that same cut, unrolled a
-        // byte at a time in each message's copy of this function (about
-        // 200 bytes of flash each), so it is not used.
-        let _ = msg.ser(mavlink::MavlinkVersion::V2, &mut payload);
-        self.send_raw(
-            tx,
-            D::ID,
-            D::EXTRA_CRC,
-            payload.get(..D::ENCODED_LEN).unwrap_or(&payload),
-        );
+    pub(crate) fn send_words(&mut self, tx: &mut TxBuffer<'_>, id: u32, extra: u8, words: &[u32]) {
+        let mut payload = [0u8; 32];
+        for (bytes, word) in payload.chunks_exact_mut(4).zip(words) {
+            bytes.copy_from_slice(&word.to_le_bytes());
+        }
+        // Only the message's own words: the cut of the trailing zeros
+        // scans no more than it must (a tick's cost).
+        let len = (4 * words.len()).min(payload.len());
+        self.send_raw(tx, id, extra, payload.get(..len).unwrap_or(&payload));
     }
 
     /// Sends a payload already serialised (its trailing zeros cut, as

@@ -35,13 +35,21 @@ const RAD_PER_E7: f32 = math::PI / 180.0 * 1e-7;
 /// clockwise from north).
 #[must_use]
 pub fn heading_to_yaw(heading_rad: f32) -> f32 {
-    math::wrap_angle(math::PI / 2.0 - heading_rad)
+    mirror(heading_rad)
 }
 
 /// A MAVLink yaw (rad, clockwise from north) as a floor heading.
 #[must_use]
 pub fn yaw_to_heading(yaw_rad: f32) -> f32 {
-    math::wrap_angle(math::PI / 2.0 - yaw_rad)
+    mirror(yaw_rad)
+}
+
+/// The angle mirrored about the diagonal between +x and north, π/2 − a,
+/// wrapped: the same map both ways between a heading and a yaw.
+// Out of line: inlined at each of its three callers it cost flash.
+#[inline(never)]
+fn mirror(angle_rad: f32) -> f32 {
+    math::wrap_angle(math::PI / 2.0 - angle_rad)
 }
 
 /// Floor `(x, y)` from NED `(north, east)`, m.
@@ -99,6 +107,8 @@ impl Origin {
         self.lon_e7
     }
 
+    // Out of line: inlined into both conversions it cost flash.
+    #[inline(never)]
     fn cos_mid(&self, dlat_e7: i64) -> f32 {
         let mid = (i64::from(self.lat_e7) + dlat_e7 / 2) as f32 * RAD_PER_E7;
         math::cos(mid)

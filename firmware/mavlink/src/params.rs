@@ -108,11 +108,51 @@ const COUNTERS_PERIOD: usize = 9;
 /// The first of the tuning's parameters ([`TuningSpec`]): `TRK_K1`.
 const TUNING: usize = 10;
 
-/// The index of the parameter whose 16-byte, NUL-padded id is `id`.
+/// The parameters' names as `param_id` carries them: NUL-padded to 16
+/// bytes, in index order, made from [`PARAMS`] at build time. The firmware
+/// links this table alone: [`PARAMS`]' keys and string addresses are for
+/// the host, and a search over the names as strings was unrolled by
+/// LLVM into one comparison per name.
+const NAMES: [[u8; 16]; PARAMS.len()] = names();
+
+/// [`NAMES`] from [`PARAMS`]; a name past 16 characters fails the build.
+const fn names() -> [[u8; 16]; PARAMS.len()] {
+    let mut out = [[0; 16]; PARAMS.len()];
+    let mut i = 0;
+    while i < PARAMS.len() {
+        let name = PARAMS[i].name.as_bytes();
+        assert!(name.len() <= 16, "a parameter name past 16 characters");
+        let mut k = 0;
+        while k < name.len() {
+            out[i][k] = name[k];
+            k += 1;
+        }
+        i += 1;
+    }
+    out
+}
+
+/// The index of the parameter whose 16-byte, NUL-padded id is `id` (what
+/// follows its first NUL ignored).
+// Out of line: inlined into its two callers it was copied in each.
+#[inline(never)]
 fn find(id: &[u8]) -> Option<usize> {
+    // An opaque id: with its length known (16), LLVM unrolls the search
+    // for its NUL a byte at a time.
+    let id = core::hint::black_box(id);
     let len = id.iter().position(|&b| b == 0).unwrap_or(id.len());
-    let name = id.get(..len)?;
-    PARAMS.iter().position(|p| p.name.as_bytes() == name)
+    let mut key = [0u8; 16];
+    // An id of more than 16 bytes before its NUL leaves the key zero: no
+    // name matches.
+    if let (Some(dst), Some(src)) = (key.get_mut(..len), id.get(..len)) {
+        dst.copy_from_slice(src);
+    }
+    let key = u128::from_le_bytes(key);
+    // An opaque table: with its length and contents known, LLVM unrolls
+    // the search into one comparison per name.
+    core::hint::black_box(&NAMES[..])
+        .iter()
+        .position(|name| u128::from_le_bytes(*name) == key)
 }
 
 fn limit(spec: &RouteLimitsSpec, index: usize) -> f32 {
@@ -196,14 +236,34 @@ fn set_tuning(spec: &mut TuningSpec, i: usize, value: f32) -> bool {
     }
 }
 
+/// `PARAM_VALUE`'s payload as little-endian words: `param_value` f32,
+/// `param_count` and `param_index` u16, `param_id` (16 bytes), and
+/// `param_type` `MAV_PARAM_TYPE_REAL32`.
+fn param_value_words(value: f32, index: usize, name: &[u8; 16]) -> [u32; 7] {
+    let id = |k: usize| {
+        let b = |j: usize| name.get(4 * k + j).copied().unwrap_or(0);
+        u32::from_le_bytes([b(0), b(1), b(2), b(3)])
+    };
+    [
+        value.to_bits(),
+        PARAMS.len() as u32 | ((index as u32) << 16),
+        id(0),
+        id(1),
+        id(2),
+        id(3),
+        c::MavParamType::MAV_PARAM_TYPE_REAL32 as u32,
+    ]
+}
+
 /// A whole number (of milliseconds, or ticks) in `u32`, or `None`.
+// Out of line: inlined into its two callers it was copied in each.
+#[inline(never)]
 fn millis(value: f32) -> Option<u32> {
-    if value.is_finite() && value >= 0.0 && value <= u32::MAX as f32 && libm::truncf(value) == value
-    {
-        Some(value as u32)
-    } else {
-        None
-    }
+    // In range, `as` truncates toward zero (and takes 2^32, the nearest
+    // `f32` to `u32::MAX`, to `u32::MAX`), so the value is whole exactly
+    // when it converts back to itself; NaN fails every comparison.
+    let whole = value as u32;
+    (value >= 0.0 && value <= u32::MAX as f32 && whole as f32 == value).then_some(whole)
 }
 
 impl MavlinkEndpoint {
@@ -230,37 +290,29 @@ impl MavlinkEndpoint {
     // fat LTO) it cost flash (docs/mavlink.md, Cost).
     #[inline(never)]
     fn send_param(&mut self, tx: &mut TxBuffer<'_>, index: usize) {
-        let Some(param) = PARAMS.get(index) else {
+        let Some(name) = NAMES.get(index) else {
             return;
         };
-        let mut id = [0u8; 16];
-        let name = param.name.as_bytes();
-        if let (Some(d), Some(s)) = (id.get_mut(..name.len()), name.get(..16.min(name.len()))) {
-            d.copy_from_slice(s);
-        }
-        let value = self.param_value(index);
-        self.send(
+        let words = param_value_words(self.param_value(index), index, name);
+        self.send_words(
             tx,
-            &c::PARAM_VALUE_DATA {
-                param_value: value,
-                param_count: PARAMS.len() as u16,
-                param_index: index as u16,
-                param_id: id.into(),
-                param_type: c::MavParamType::MAV_PARAM_TYPE_REAL32,
-            },
+            c::PARAM_VALUE_DATA::ID,
+            c::PARAM_VALUE_DATA::EXTRA_CRC,
+            &words,
         );
     }
 
+    // Out of line: called from three places.
+    #[inline(never)]
     fn param_refused(&mut self, tx: &mut TxBuffer<'_>, what: &[u8], id: &[u8]) {
         self.counters.param_refusals = self.counters.param_refusals.wrapping_add(1);
+        // `what`, then the id up to its NUL (16 bytes at most).
+        let name = id.iter().take(16).take_while(|&&b| b != 0);
         let mut text = [0u8; 50];
-        let name_len = id.iter().position(|&b| b == 0).unwrap_or(id.len()).min(16);
         let mut n = 0;
-        for &b in what.iter().chain(id.iter().take(name_len)) {
-            if let Some(slot) = text.get_mut(n) {
-                *slot = b;
-                n += 1;
-            }
+        for (slot, &b) in text.iter_mut().zip(what.iter().chain(name)) {
+            *slot = b;
+            n += 1;
         }
         self.status_text(
             tx,
@@ -276,7 +328,9 @@ impl MavlinkEndpoint {
         match frame.msg_id {
             c::PARAM_REQUEST_LIST_DATA::ID => {
                 if self.for_us(frame.byte(0), frame.byte(1)) {
-                    for index in 0..PARAMS.len() {
+                    // An opaque count: LLVM unrolls the loop into one call
+                    // per parameter otherwise.
+                    for index in 0..core::hint::black_box(PARAMS.len()) {
                         self.send_param(tx, index);
                     }
                 }
@@ -374,6 +428,103 @@ impl MavlinkEndpoint {
                     }
                     _ => false,
                 }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use mavlink::MessageData;
+    use mavlink::dialects::common as c;
+
+    use super::{NAMES, PARAMS, find, millis, param_value_words};
+
+    /// The whole-number check is the definition's: finite, in `u32`'s
+    /// range and equal to its truncation.
+    #[test]
+    fn whole_numbers_are_the_truncations_that_fit() {
+        let reference = |v: f32| {
+            (v.is_finite() && v >= 0.0 && v <= u32::MAX as f32 && libm::truncf(v) == v)
+                .then_some(v as u32)
+        };
+        let values = [
+            0.0,
+            -0.0,
+            0.5,
+            1.0,
+            1.5,
+            -1.0,
+            -0.5,
+            999.999,
+            1_000.0,
+            16_777_216.0,
+            16_777_218.0,
+            2_147_483_648.0,
+            4_294_967_040.0,
+            4_294_967_296.0,
+            8_589_934_592.0,
+            f32::MAX,
+            f32::MIN,
+            f32::MIN_POSITIVE,
+            f32::EPSILON,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let mut bits: u32 = 1;
+        let drawn = core::iter::repeat_with(|| {
+            bits = bits.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            [f32::from_bits(bits), f32::from_bits(bits >> 3) % 70_000.0]
+        });
+        for v in values.into_iter().chain(drawn.take(20_000).flatten()) {
+            assert_eq!(millis(v), reference(v), "{v:e} ({:#x})", v.to_bits());
+        }
+    }
+
+    /// The names' table holds every name, NUL-padded, and the search finds
+    /// each by its wire id, with or without bytes after its NUL.
+    #[test]
+    fn the_names_table_is_the_parameters() {
+        for (i, p) in PARAMS.iter().enumerate() {
+            let mut id = [0u8; 16];
+            id[..p.name.len()].copy_from_slice(p.name.as_bytes());
+            assert_eq!(NAMES[i], id, "{}", p.name);
+            assert_eq!(find(&id), Some(i), "{}", p.name);
+            if p.name.len() < 15 {
+                id[p.name.len() + 1] = b'X';
+                assert_eq!(find(&id), Some(i), "{} with bytes after its NUL", p.name);
+            }
+        }
+        assert_eq!(find(b"RT_MAX_SPEE\0\0\0\0\0"), None);
+        assert_eq!(find(b"RT_MAX_SPEEDX\0\0\0"), None);
+        assert_eq!(find(&[0; 16]), None);
+        assert_eq!(find(&[]), None);
+    }
+
+    #[test]
+    fn param_values_are_the_librarys_encoding() {
+        for (index, p) in PARAMS.iter().enumerate() {
+            for value in [0.0, -1.5, 1e9, f32::NAN, f32::MIN_POSITIVE] {
+                let mut id = [0u8; 16];
+                id[..p.name.len()].copy_from_slice(p.name.as_bytes());
+                let mut ours = [0u8; 255];
+                for (bytes, word) in
+                    ours.chunks_exact_mut(4)
+                        .zip(param_value_words(value, index, &NAMES[index]))
+                {
+                    bytes.copy_from_slice(&word.to_le_bytes());
+                }
+                let mut lib = [0u8; 255];
+                let _ = c::PARAM_VALUE_DATA {
+                    param_value: value,
+                    param_count: PARAMS.len() as u16,
+                    param_index: index as u16,
+                    param_id: id.into(),
+                    param_type: c::MavParamType::MAV_PARAM_TYPE_REAL32,
+                }
+                .ser(mavlink::MavlinkVersion::V2, &mut lib);
+                assert_eq!(ours, lib, "{} = {value}", p.name);
             }
         }
     }

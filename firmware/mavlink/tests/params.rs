@@ -147,6 +147,56 @@ fn example_tuning() -> TuningSpec {
 }
 
 /// The STATUSTEXTs of `out`.
+/// An unknown name, read or set, is refused by name: the id up to its
+/// NUL (all 16 bytes when it has none), what follows the NUL ignored
+/// (and a known name followed by bytes after its NUL is found).
+#[test]
+fn unknown_names_are_refused_by_their_name() {
+    let mut rig = Rig::default_rig();
+    let mut garbled = id("RT_MAX_SPEED");
+    garbled[13..].copy_from_slice(b"XYZ");
+    let mut unknown = id("NO_SUCH");
+    unknown[9..].copy_from_slice(b"garbage");
+    let cases: [([u8; 16], Option<&str>); 4] = [
+        (unknown, Some("NO_SUCH")),
+        (*b"SIXTEEN_CHARS_XY", Some("SIXTEEN_CHARS_XY")),
+        ([0; 16], Some("")),
+        (garbled, None),
+    ];
+    for (k, (param_id, refused)) in cases.into_iter().enumerate() {
+        let (_, set_out) = rig.send(MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: 0.5,
+            target_system: 1,
+            target_component: 1,
+            param_id: param_id.into(),
+            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+        }));
+        let (_, read_out) = rig.send(MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+            param_index: -1,
+            target_system: 1,
+            target_component: 1,
+            param_id: param_id.into(),
+        }));
+        for out in [set_out, read_out] {
+            match refused {
+                Some(name) => {
+                    assert!(values(&out).is_empty(), "case {k}");
+                    assert_eq!(
+                        texts(&out),
+                        vec![format!("no such parameter: {name}")],
+                        "case {k}"
+                    );
+                }
+                None => {
+                    assert_eq!(values(&out)[0].0, "RT_MAX_SPEED", "case {k}");
+                    assert!(texts(&out).is_empty(), "case {k}");
+                }
+            }
+        }
+    }
+    assert_eq!(rig.ep.counters().param_refusals, 6);
+}
+
 fn texts(out: &[MavMessage]) -> Vec<String> {
     out.iter()
         .filter_map(|m| match m {

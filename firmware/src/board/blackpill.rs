@@ -821,6 +821,8 @@ fn wait_for_tick(timer: &mut TickTimer) -> bool {
 /// returns the bytes taken out, dropped: a firmware without a route has
 /// no MAVLink endpoint (`MavlinkPort`), as the QEMU board's runs without
 /// a route have none.
+// Out of line: inlined, it took a second copy of the ring's read.
+#[inline(never)]
 fn drain(uart: &mut MavlinkUart) -> u32 {
     let mut buf = [0_u8; 16];
     let mut bytes: u32 = 0;
