@@ -152,10 +152,7 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
     };
     assert_eq!(h.mavtype, MavType::MAV_TYPE_GROUND_ROVER);
     assert_eq!(h.custom_mode, 1, "running the scenario's route");
-    assert!(
-        h.base_mode
-            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
-    );
+    assert!(armed(&h), "armed");
     assert_eq!(gcs.read_max_speed(), limit);
 
     assert_eq!(
@@ -242,6 +239,35 @@ fn east_of(m: &MavMessage, east_m: f32) -> bool {
     matches!(m, MavMessage::LOCAL_POSITION_NED(p) if p.y > east_m)
 }
 
+/// The robot's first heartbeat, within 5 s of the ground station's wall
+/// time.
+fn first_heartbeat(gcs: &mut Gcs) -> HEARTBEAT_DATA {
+    let MavMessage::HEARTBEAT(h) = gcs.wait("the robot's heartbeat", 5000, |m| {
+        matches!(m, MavMessage::HEARTBEAT(_))
+    }) else {
+        unreachable!()
+    };
+    h
+}
+
+/// Whether a heartbeat says the robot is armed.
+fn armed(h: &HEARTBEAT_DATA) -> bool {
+    h.base_mode
+        .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
+}
+
+/// The run ends on the route's first leg: past 0.25 m east, within 5 cm
+/// of its line.
+fn assert_on_first_leg(records: &[firmware_sim::Record]) {
+    let last = records.last().unwrap();
+    assert!(
+        last.x_m > 0.25 && last.y_m.abs() < 0.05,
+        "on the first leg: ({:.3}, {:.3})",
+        last.x_m,
+        last.y_m
+    );
+}
+
 /// The first record whose motor duty or command is not zero.
 fn first_driven(records: &[firmware_sim::Record]) -> Option<&firmware_sim::Record> {
     records.iter().find(|r| {
@@ -302,16 +328,9 @@ fn a_ground_station_talks_to_the_particle_filter_firmware_under_qemu() {
         .max_speed_m_s;
     let run = start(&gcs, scenario, particle_filter_firmware());
 
-    let MavMessage::HEARTBEAT(h) = gcs.wait("the robot's heartbeat", 5000, |m| {
-        matches!(m, MavMessage::HEARTBEAT(_))
-    }) else {
-        unreachable!()
-    };
+    let h = first_heartbeat(&mut gcs);
     assert_eq!(h.custom_mode, 1, "running the scenario's route");
-    assert!(
-        h.base_mode
-            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
-    );
+    assert!(armed(&h), "armed");
     // Past station A (1 m east, a stop of 2 s).
     gcs.wait("driving 1.5 m east", 20_000, |m| east_of(m, 1.5));
     assert_eq!(gcs.read_max_speed(), limit);
@@ -367,17 +386,9 @@ fn with_power_on_wait_the_firmware_under_qemu_waits_until_armed_and_started() {
     let (scenario, waypoints) = route_with_power_on(PowerOnSpec::Wait);
     let run = start(&gcs, scenario, firmware());
 
-    let MavMessage::HEARTBEAT(h) = gcs.wait("the robot's heartbeat", 5000, |m| {
-        matches!(m, MavMessage::HEARTBEAT(_))
-    }) else {
-        unreachable!()
-    };
+    let h = first_heartbeat(&mut gcs);
     assert_eq!(h.custom_mode, 0, "idle");
-    assert!(
-        !h.base_mode
-            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED),
-        "disarmed"
-    );
+    assert!(!armed(&h), "disarmed");
     assert_eq!(
         usize::from(gcs.mission_count()),
         waypoints,
@@ -410,10 +421,7 @@ fn with_power_on_wait_the_firmware_under_qemu_waits_until_armed_and_started() {
     ) else {
         unreachable!()
     };
-    assert!(
-        h.base_mode
-            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
-    );
+    assert!(armed(&h), "armed");
     gcs.wait("driving 0.3 m east", 10_000, |m| east_of(m, 0.3));
 
     let run = run.end().expect("the HIL run");
@@ -437,13 +445,7 @@ fn with_power_on_wait_the_firmware_under_qemu_waits_until_armed_and_started() {
             r.t_s
         );
     }
-    let last = records.last().unwrap();
-    assert!(
-        last.x_m > 0.25 && last.y_m.abs() < 0.05,
-        "on the first leg: ({:.3}, {:.3})",
-        last.x_m,
-        last.y_m
-    );
+    assert_on_first_leg(records);
     let report = run.report.mavlink.expect("the bridge's report");
     assert_eq!(report.copy_mismatches, 0, "{report:?}");
 }
@@ -458,16 +460,9 @@ fn with_power_on_run_the_firmware_under_qemu_drives_from_power_on() {
     let (scenario, waypoints) = route_with_power_on(PowerOnSpec::Run);
     let run = start(&gcs, scenario, firmware());
 
-    let MavMessage::HEARTBEAT(h) = gcs.wait("the robot's heartbeat", 5000, |m| {
-        matches!(m, MavMessage::HEARTBEAT(_))
-    }) else {
-        unreachable!()
-    };
+    let h = first_heartbeat(&mut gcs);
     assert_eq!(h.custom_mode, 1, "running the scenario's route");
-    assert!(
-        h.base_mode
-            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
-    );
+    assert!(armed(&h), "armed");
     assert_eq!(
         usize::from(gcs.mission_count()),
         waypoints,
@@ -480,13 +475,7 @@ fn with_power_on_run_the_firmware_under_qemu_drives_from_power_on() {
     let driven = first_driven(records).expect("driven");
     println!("power_on = run: first driven at {:.2} s", driven.t_s);
     assert!(driven.t_s < 0.1, "first driven at {:.2} s", driven.t_s);
-    let last = records.last().unwrap();
-    assert!(
-        last.x_m > 0.25 && last.y_m.abs() < 0.05,
-        "on the first leg: ({:.3}, {:.3})",
-        last.x_m,
-        last.y_m
-    );
+    assert_on_first_leg(records);
 }
 
 /// The pymavlink ground station (`tools/gcs/gcs_check.py --hil`) against

@@ -19,7 +19,7 @@ use wmr_core::reference::route::{RouteLimits, RouteLimitsSpec};
 
 use crate::config::EndpointConfig;
 use crate::endpoint::{Event, Events, MavlinkEndpoint};
-use crate::wire::{RxFrame, TxBuffer};
+use crate::wire::{self, RxFrame, TxBuffer};
 
 /// One parameter: its MAVLink name (≤ 16 characters) and what it sets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -120,13 +120,7 @@ const fn names() -> [[u8; 16]; PARAMS.len()] {
     let mut out = [[0; 16]; PARAMS.len()];
     let mut i = 0;
     while i < PARAMS.len() {
-        let name = PARAMS[i].name.as_bytes();
-        assert!(name.len() <= 16, "a parameter name past 16 characters");
-        let mut k = 0;
-        while k < name.len() {
-            out[i][k] = name[k];
-            k += 1;
-        }
+        out[i] = wire::nul_padded(PARAMS[i].name);
         i += 1;
     }
     out

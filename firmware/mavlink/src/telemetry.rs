@@ -9,7 +9,7 @@ use wmr_core::pilot::tracker::TrackerCounters;
 
 use crate::endpoint::{MavlinkEndpoint, RobotMode, RobotView, due};
 use crate::geo;
-use crate::wire::TxBuffer;
+use crate::wire::{self, TxBuffer};
 
 /// How many counters [`Counts`] holds.
 pub const COUNTERS: usize = 15;
@@ -44,13 +44,7 @@ const COUNTER_IDS: [[u8; 10]; COUNTERS] = {
     let mut out = [[0; 10]; COUNTERS];
     let mut i = 0;
     while i < COUNTERS {
-        let name = COUNTER_NAMES[i].as_bytes();
-        assert!(name.len() <= 10, "a counter name past 10 characters");
-        let mut k = 0;
-        while k < name.len() {
-            out[i][k] = name[k];
-            k += 1;
-        }
+        out[i] = wire::nul_padded(COUNTER_NAMES[i]);
         i += 1;
     }
     out

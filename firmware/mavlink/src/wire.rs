@@ -84,6 +84,21 @@ const fn pack<const N: usize>(full: [(u32, u8); N]) -> [(u8, u8); N] {
     out
 }
 
+/// `name` NUL-padded to `W` bytes, as MAVLink's fixed-width `char` fields
+/// carry it (`PARAM_VALUE`'s `param_id`, `NAMED_VALUE_INT`'s `name`), for
+/// tables made at build time; a name past `W` bytes fails the build.
+pub(crate) const fn nul_padded<const W: usize>(name: &str) -> [u8; W] {
+    let name = name.as_bytes();
+    assert!(name.len() <= W, "a name past its field's width");
+    let mut out = [0; W];
+    let mut k = 0;
+    while k < name.len() {
+        out[k] = name[k];
+        k += 1;
+    }
+    out
+}
+
 /// The `CRC_EXTRA` of a message the endpoint handles, `None` for others.
 #[must_use]
 pub fn crc_extra(msg_id: u32) -> Option<u8> {
