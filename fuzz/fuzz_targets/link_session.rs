@@ -205,7 +205,10 @@ impl Harness<'_> {
                     );
                 }
                 TargetMessage::Refused(Refusal::Route(
-                    RouteRefusal::Size { .. } | RouteRefusal::Limits(_) | RouteRefusal::Options(_),
+                    RouteRefusal::Size { .. }
+                    | RouteRefusal::Limits(_)
+                    | RouteRefusal::Options(_)
+                    | RouteRefusal::Endpoint(_),
                 )) => {
                     assert!(self.pwm_max_duty.is_some() && !self.ticked);
                     self.pwm_max_duty = None;
