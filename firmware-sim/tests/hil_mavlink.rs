@@ -26,8 +26,8 @@ use std::time::{Duration, Instant};
 
 use firmware_sim::Scenario;
 use firmware_sim::hil::{
-    BACKLOG_BYTES, HilOptions, HilRun, MavlinkBridgeSpec, build_firmware, build_firmware_with,
-    run_hil, workspace_root,
+    BACKLOG_BYTES, HilOptions, HilRun, MavlinkBridgeSpec, hil_test_firmware, run_hil,
+    workspace_root,
 };
 use firmware_sim::scenario::mavlink::{MavlinkSpec, PowerOnSpec};
 use firmware_sim::udp::MavlinkAddress;
@@ -36,34 +36,20 @@ use mavlink::dialects::common::*;
 use wmr_core::builds;
 use wmr_core::estimation::spec::{EstimatorSpec, FusionFilterSpec};
 
+/// The default QEMU-board firmware (`hil_test_firmware`).
 fn firmware() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
-    ELF.get_or_init(|| match std::env::var_os("WMR_FIRMWARE_ELF") {
-        Some(path) => workspace_root().join(path),
-        None => build_firmware(Some(&workspace_root().join("target").join("hil-firmware")))
-            .expect("build the QEMU-board firmware"),
-    })
-    .clone()
+    ELF.get_or_init(|| hil_test_firmware(None).expect("the QEMU-board firmware"))
+        .clone()
 }
 
-/// The QEMU-board firmware with the fusion estimator's particle filter,
-/// found as `host-tests/tests/hil.rs` finds it: the ELF in
-/// `WMR_FIRMWARE_ELF_FUSION_PARTICLE_FILTER` if set (relative paths from
-/// the workspace root; `cargo xtask ci` builds it), else built here once
-/// into `target/hil-firmware-fusion-particle-filter`.
+/// The QEMU-board firmware with the fusion estimator's particle filter
+/// (`hil_test_firmware`).
 fn particle_filter_firmware() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
-    let build = builds::FUSION_PARTICLE_FILTER;
-    ELF.get_or_init(|| match std::env::var_os(build.hil_firmware_env) {
-        Some(path) => workspace_root().join(path),
-        None => {
-            let dir = workspace_root()
-                .join("target")
-                .join(format!("hil-firmware-{}", build.feature));
-            build_firmware_with(Some(&dir), &[build.feature]).unwrap_or_else(|e| {
-                panic!("build the QEMU-board firmware with {}: {e}", build.feature)
-            })
-        }
+    ELF.get_or_init(|| {
+        hil_test_firmware(Some(builds::FUSION_PARTICLE_FILTER))
+            .expect("the QEMU-board firmware with the fusion particle filter")
     })
     .clone()
 }
@@ -144,26 +130,13 @@ fn a_ground_station_on_udp_talks_to_the_firmware_under_qemu() {
         .max_speed_m_s;
     let run = start(&gcs, scenario, firmware());
 
-    let heartbeat = gcs.wait("the robot's heartbeat", 5000, |m| {
-        matches!(m, MavMessage::HEARTBEAT(_))
-    });
-    let MavMessage::HEARTBEAT(h) = heartbeat else {
-        unreachable!()
-    };
+    let h = first_heartbeat(&mut gcs);
     assert_eq!(h.mavtype, MavType::MAV_TYPE_GROUND_ROVER);
     assert_eq!(h.custom_mode, 1, "running the scenario's route");
     assert!(armed(&h), "armed");
     assert_eq!(gcs.read_max_speed(), limit);
 
-    assert_eq!(
-        gcs.command(MavCmd::MAV_CMD_DO_PAUSE_CONTINUE, 0.0),
-        MavResult::MAV_RESULT_ACCEPTED
-    );
-    gcs.wait(
-        "paused",
-        5000,
-        |m| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == 2),
-    );
+    pause(&mut gcs);
 
     // A flood: three times the backlog in datagrams of 1,000 garbage
     // bytes, sent as fast as the socket takes them.
@@ -250,6 +223,20 @@ fn first_heartbeat(gcs: &mut Gcs) -> HEARTBEAT_DATA {
     h
 }
 
+/// A pause sent, acknowledged accepted, and a heartbeat saying paused
+/// (custom mode 2) within 5 s.
+fn pause(gcs: &mut Gcs) {
+    assert_eq!(
+        gcs.command(MavCmd::MAV_CMD_DO_PAUSE_CONTINUE, 0.0),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    gcs.wait(
+        "paused",
+        5000,
+        |m| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == 2),
+    );
+}
+
 /// Whether a heartbeat says the robot is armed.
 fn armed(h: &HEARTBEAT_DATA) -> bool {
     h.base_mode
@@ -334,15 +321,7 @@ fn a_ground_station_talks_to_the_particle_filter_firmware_under_qemu() {
     // Past station A (1 m east, a stop of 2 s).
     gcs.wait("driving 1.5 m east", 20_000, |m| east_of(m, 1.5));
     assert_eq!(gcs.read_max_speed(), limit);
-    assert_eq!(
-        gcs.command(MavCmd::MAV_CMD_DO_PAUSE_CONTINUE, 0.0),
-        MavResult::MAV_RESULT_ACCEPTED
-    );
-    gcs.wait(
-        "paused",
-        5000,
-        |m| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == 2),
-    );
+    pause(&mut gcs);
     // A mission uploaded (the endpoint's deepest path) and read back.
     let mission = [(0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (0.5, 0.4, 0.5)];
     assert_eq!(gcs.upload(&mission), MavMissionResult::MAV_MISSION_ACCEPTED);

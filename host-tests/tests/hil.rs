@@ -12,8 +12,7 @@ use std::sync::OnceLock;
 use std::time::Duration;
 
 use firmware_sim::hil::{
-    HilOptions, LinkFaultSpec, QemuTarget, build_firmware, build_firmware_with, run_hil,
-    workspace_root,
+    HilOptions, LinkFaultSpec, QemuTarget, hil_test_firmware, run_hil, workspace_root,
 };
 use firmware_sim::{Record, Scenario, Summary, run};
 use wmr_core::builds::{self, OptionalBuild};
@@ -22,34 +21,20 @@ use wmr_core::estimation::spec::{EstimatorSpec, FusionFilterSpec, FusionSpec};
 use wmr_core::pilot::spec::SpecError;
 use wmr_link::{HostMessage, Refusal, TargetMessage, TickInput};
 
+/// The default QEMU-board firmware (`hil_test_firmware`).
 fn firmware() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
-    ELF.get_or_init(|| match std::env::var_os("WMR_FIRMWARE_ELF") {
-        // A relative path is taken from the workspace root (tests run in
-        // `host-tests/`).
-        Some(path) => workspace_root().join(path),
-        None => build_firmware(Some(&workspace_root().join("target").join("hil-firmware")))
-            .expect("build the QEMU-board firmware"),
-    })
-    .clone()
+    ELF.get_or_init(|| hil_test_firmware(None).expect("the QEMU-board firmware"))
+        .clone()
 }
 
-/// The QEMU-board firmware of an optional build (`wmr_core::builds`): one
-/// feature more than the default. The ELF in the build's
-/// `hil_firmware_env` variable if set (relative paths from the workspace
-/// root), else built here once into `target/hil-firmware-<feature>`
-/// (`cargo xtask ci` builds each and sets its variable).
+/// The QEMU-board firmware of an optional build (`wmr_core::builds`: one
+/// feature more than the default), found or built once
+/// (`hil_test_firmware`).
 fn variant_firmware(elf: &'static OnceLock<PathBuf>, build: OptionalBuild) -> PathBuf {
-    elf.get_or_init(|| match std::env::var_os(build.hil_firmware_env) {
-        Some(path) => workspace_root().join(path),
-        None => {
-            let dir = workspace_root()
-                .join("target")
-                .join(format!("hil-firmware-{}", build.feature));
-            build_firmware_with(Some(&dir), &[build.feature]).unwrap_or_else(|e| {
-                panic!("build the QEMU-board firmware with {}: {e}", build.feature)
-            })
-        }
+    elf.get_or_init(|| {
+        hil_test_firmware(Some(build))
+            .unwrap_or_else(|e| panic!("the QEMU-board firmware with {}: {e:#}", build.feature))
     })
     .clone()
 }

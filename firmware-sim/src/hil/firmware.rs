@@ -17,6 +17,37 @@ pub fn workspace_root() -> PathBuf {
         .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
 }
 
+/// The environment variable naming the default QEMU-board firmware's ELF
+/// for the HIL tests ([`hil_test_firmware`]).
+pub const HIL_FIRMWARE_ENV: &str = "WMR_FIRMWARE_ELF";
+
+/// The QEMU-board firmware a HIL test runs: the default build (`None`)
+/// or an optional one (`wmr_core::builds`: one feature more). Its ELF is
+/// the path in [`HIL_FIRMWARE_ENV`] (or the build's `hil_firmware_env`)
+/// if set, relative paths taken from the workspace root (`cargo xtask
+/// ci` builds each and sets its variable); else it is built here into
+/// `target/hil-firmware` (or `target/hil-firmware-<feature>`): a target
+/// directory of its own, so that the nested cargo never waits on the
+/// test's own build lock.
+///
+/// # Errors
+/// The build failing ([`build_firmware_with`]).
+pub fn hil_test_firmware(
+    build: Option<wmr_core::builds::OptionalBuild>,
+) -> anyhow::Result<PathBuf> {
+    let root = workspace_root();
+    let env = build.map_or(HIL_FIRMWARE_ENV, |b| b.hil_firmware_env);
+    if let Some(path) = std::env::var_os(env) {
+        return Ok(root.join(path));
+    }
+    let (dir, features) = match build {
+        None => ("hil-firmware".to_owned(), Vec::new()),
+        Some(b) => (format!("hil-firmware-{}", b.feature), vec![b.feature]),
+    };
+    build_firmware_with(Some(&root.join("target").join(&dir)), &features)
+        .with_context(|| format!("building the QEMU-board firmware into target/{dir}"))
+}
+
 /// Builds the QEMU-board firmware (release) with cargo and returns its ELF.
 ///
 /// `target_dir`: cargo's target directory (`None`: the workspace's).

@@ -41,7 +41,8 @@ mod qemu;
 pub use crate::report::mavlink_bridge::MavlinkBridgeReport;
 pub use faults::{ExpectedCounters, InjectedFaults, LinkFaultReport, LinkFaultSpec, OUTAGE_MS};
 pub use firmware::{
-    FIRMWARE_TARGET, build_firmware, build_firmware_with, decode_defmt_log, workspace_root,
+    FIRMWARE_TARGET, HIL_FIRMWARE_ENV, build_firmware, build_firmware_with, decode_defmt_log,
+    hil_test_firmware, workspace_root,
 };
 pub use mavlink::{BACKLOG_BYTES, MAX_WALL_PER_TICK_S, MavlinkBridgeSpec};
 pub use qemu::{DEFAULT_TELEMETRY_EVERY_TICKS, HilOptions, QEMU, QemuTarget};

@@ -11,6 +11,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::OnceLock;
 
 pub mod station;
 
@@ -35,15 +36,25 @@ fn run(program: &Path, args: &[&str]) {
     );
 }
 
-/// The ground station's Python (module documentation).
+/// The ground station's Python (module documentation). Made once per
+/// test process (the tests of one binary run in threads and would each
+/// find a half-made environment); an environment counts as made only
+/// once its requirements are installed (the file `installed` in it), so
+/// an interrupted install is redone.
 pub fn python() -> PathBuf {
+    static PYTHON: OnceLock<PathBuf> = OnceLock::new();
+    PYTHON.get_or_init(make_python).clone()
+}
+
+fn make_python() -> PathBuf {
     if let Some(python) = std::env::var_os("WMR_GCS_PYTHON") {
         return PathBuf::from(python);
     }
     let root = workspace_root();
     let dir = root.join("target").join("gcs-venv-test");
     let python = dir.join("bin").join("python");
-    if !python.exists() {
+    let installed = dir.join("installed");
+    if !installed.exists() {
         run(
             Path::new("python3"),
             &["-m", "venv", "--clear", dir.to_str().unwrap()],
@@ -61,6 +72,7 @@ pub fn python() -> PathBuf {
                 requirements.to_str().unwrap(),
             ],
         );
+        std::fs::write(&installed, b"").expect("mark the environment made");
     }
     python
 }

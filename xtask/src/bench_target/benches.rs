@@ -67,7 +67,7 @@ pub(super) const STAGES: [(&str, &str); 16] = [
     ),
     (
         "mavlink_tick_with_interrupts",
-        "MAVLink's whole cost a tick: the tick above and the USART interrupts of the bytes it read and sent (issue 31's goal: 1,500)",
+        "MAVLink's whole cost a tick: the tick above and the USART interrupts of the bytes it read and sent (goal: 1,500, `[targets]`)",
     ),
     (
         ROUTE_TICK,

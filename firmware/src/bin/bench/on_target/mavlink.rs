@@ -27,8 +27,8 @@
 //!   for each byte received (before the tick that reads it) and for each
 //!   byte sent, plus the one that finds the transmit ring empty;
 //! - `mavlink_tick_with_interrupts`, instructions per tick: a tick and
-//!   the interrupts of the bytes it read and sent, summed (issue 31's
-//!   goal: 1,500 on average).
+//!   the interrupts of the bytes it read and sent, summed (its goal,
+//!   1,500 on average, is `[targets]` in `firmware/budgets.toml`).
 //!
 //! The USART's registers are words in RAM ([`RamUsart`]: a `static` at a
 //! fixed address, read and written as the handler reads and writes the
