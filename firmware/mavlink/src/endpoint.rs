@@ -309,23 +309,8 @@ impl MavlinkEndpoint {
         Self {
             config,
             limits,
-            parser: Parser::new(),
-            counters: Counters::default(),
-            seq: 0,
-            missions: [const { Mission::new() }; 2],
-            active: 0,
-            upload: None,
-            gcs_heartbeat_ms: None,
-            link_lost: false,
-            last_heartbeat_ms: None,
-            last_telemetry_ms: None,
-            last_current: None,
-            last_reached: None,
             last_mode: None,
-            tuning: TuningSlot::NotTold,
-            counts: None,
-            next_count: 0,
-            last_count_ms: None,
+            ..Self::BLANK
         }
     }
 

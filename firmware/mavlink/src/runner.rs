@@ -155,15 +155,9 @@ impl MissionRunner {
     pub fn new(first_start: RouteStart, limits: RouteLimits) -> Self {
         Self {
             first_start,
-            started_once: false,
-            armed: false,
-            mode: RobotMode::Idle,
-            mission: Waypoints::new(),
             limits,
             deviation_m: limits.blend_deviation_m(),
-            progress: Progress::default(),
-            current_set: false,
-            route: Waypoints::new(),
+            ..Self::BLANK
         }
     }
 
