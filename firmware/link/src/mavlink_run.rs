@@ -42,11 +42,10 @@ use crate::route_store::RouteStore;
 
 /// A route run's MAVLink side (module documentation): the endpoint, the
 /// mission runner and where an uploaded mission is written for its check,
-/// about 9 KB; keep it in a `static`, built in place ([`Self::new`]) and
-/// reset in place by each run ([`Self::activate`]).
+/// about 9 KB; keep it in a `static`, built in place ([`Self::BLANK`] or
+/// [`Self::new`]) and reset in place by each run ([`Self::activate`]).
 #[derive(Debug, Clone)]
 pub struct MavlinkRun {
-    config: EndpointConfig,
     endpoint: MavlinkEndpoint,
     runner: MissionRunner,
     /// The control period, µs: the endpoint's clock is the tick's time.
@@ -74,6 +73,22 @@ impl MavlinkRun {
         pivot_accel_rad_s2: 2.0,
     };
 
+    /// Idle (no run) and not configured, every field zero: for a `static`
+    /// built by clearing memory (a `memset`, no 9 KB value built on the
+    /// stack and copied; the static lands in `.bss`). Its endpoint and
+    /// runner are blank (`MavlinkEndpoint::BLANK`, `MissionRunner::BLANK`)
+    /// until [`Self::activate`] configures both: meanwhile
+    /// [`Self::before_tick`] takes no byte and sends none, and
+    /// [`Self::after_tick`] does nothing, as for any run not active.
+    pub const BLANK: Self = Self {
+        endpoint: MavlinkEndpoint::BLANK,
+        runner: MissionRunner::BLANK,
+        period_us: 0,
+        active: false,
+        route_check: Waypoints::new(),
+        retune: false,
+    };
+
     /// Idle (no run), its endpoint configured by `config` for every run
     /// (system and component ids, timeouts, telemetry period, origin);
     /// `limits` are replaced by each run's ([`Self::IDLE_LIMITS`] will
@@ -83,7 +98,6 @@ impl MavlinkRun {
     #[inline(always)]
     pub fn new(config: EndpointConfig, limits: RouteLimits) -> Self {
         Self {
-            config,
             endpoint: MavlinkEndpoint::new_in_place(config, limits),
             runner: MissionRunner::new(RouteStart::AsGiven, limits),
             period_us: 0,
@@ -109,7 +123,6 @@ impl MavlinkRun {
         config: EndpointConfig,
         power_on: PowerOn,
     ) {
-        self.config = config;
         self.endpoint.reset(config, limits);
         self.endpoint.load_route_mission(route.waypoints());
         match power_on {
@@ -443,6 +456,91 @@ mod tests {
         assert_eq!(run.runner().mode(), RobotMode::Running);
         assert!(run.runner().armed());
         assert!(store.follower().unwrap().status().pending);
+    }
+
+    /// A blank run (`MavlinkRun::BLANK`, every byte zero) is idle before
+    /// it is activated: it takes no byte, sends none, commands nothing;
+    /// activated, it is a run built by `MavlinkRun::new` and activated
+    /// alike: tick for tick the same bytes out, with a ground station's
+    /// heartbeats, a disarm and an arm coming in, the same runner and
+    /// the same counters.
+    #[test]
+    fn a_blank_run_activated_runs_as_a_built_one() {
+        use wmr_mavlink::{Counts, RobotMode};
+        let (mut built_store, mut built) = a_run();
+        let (mut blank_store, _) = a_run();
+        let mut blank = Box::new(MavlinkRun::BLANK);
+        let mut room = [0_u8; 1024];
+        let heartbeat = [0xFD_u8, 9, 0, 0, 0, 255, 190, 0, 0, 0];
+        assert_eq!(
+            blank.before_tick(&mut blank_store, 0, None, &heartbeat, &mut room),
+            (0, 0)
+        );
+        blank.after_tick(&blank_store, wmr_core::geometry::Vec2::new(0.0, 0.0));
+        assert!(!blank.is_active());
+        assert_eq!(blank.runner().mode(), RobotMode::Idle);
+        assert!(!blank.runner().armed());
+        assert_eq!(blank.take_tuning(), None);
+        let spec = crate::MavlinkSettings::default();
+        let limits =
+            wmr_core::reference::route::RouteLimits::new(&MavlinkRun::IDLE_LIMITS).unwrap();
+        blank.activate(
+            &mut blank_store,
+            RouteStart::AsGiven,
+            limits,
+            0.01,
+            spec.config().unwrap(),
+            spec.power_on,
+        );
+        assert!(blank.is_active());
+        assert_eq!(blank.runner(), built.runner());
+        // A ground station's heartbeat every 100 ticks, a disarm
+        // (COMMAND_LONG 400, 0) at tick 150 and an arm at 250, framed by
+        // the endpoint's own encoder.
+        let input = |tick: u32| {
+            let mut bytes = [0_u8; 64];
+            let mut tx = wmr_mavlink::TxBuffer::new(&mut bytes);
+            if tick.is_multiple_of(100) {
+                // HEARTBEAT of a MAV_TYPE_GCS (6), MAV_AUTOPILOT_INVALID (8).
+                let payload = [0, 0, 0, 0, 6, 8, 0, 0, 4];
+                assert!(tx.frame([tick as u8, 255, 190], 0, 50, &payload));
+            }
+            if tick == 150 || tick == 250 {
+                let mut payload = [0_u8; 33];
+                let p1: f32 = if tick == 150 { 0.0 } else { 1.0 };
+                payload[..4].copy_from_slice(&p1.to_le_bytes());
+                payload[28..30].copy_from_slice(&400_u16.to_le_bytes());
+                payload[30] = 1;
+                payload[31] = 1;
+                assert!(tx.frame([tick as u8, 255, 190], 76, 152, &payload));
+            }
+            let len = tx.len();
+            (bytes, len)
+        };
+        let mut sent = 0;
+        for tick in 0..400_u32 {
+            let (bytes, len) = input(tick);
+            let estimate = Some(super::estimate(
+                [0.01 * tick as f32, 0.0],
+                [1.0, 0.0],
+                [0.1, 0.0],
+            ));
+            let mut out = [[0_u8; 1024]; 2];
+            let a = built.before_tick(&mut built_store, tick, estimate, &bytes[..len], &mut out[0]);
+            let b = blank.before_tick(&mut blank_store, tick, estimate, &bytes[..len], &mut out[1]);
+            assert_eq!(a, b, "tick {tick}");
+            assert_eq!(out[0][..a.0], out[1][..b.0], "tick {tick}");
+            sent += a.0;
+            for (run, store) in [(&mut built, &built_store), (&mut blank, &blank_store)] {
+                run.after_tick(store, wmr_core::geometry::Vec2::new(0.0, 0.0));
+                run.set_counts(Counts([tick; wmr_mavlink::COUNTERS]));
+            }
+            assert_eq!(blank.runner(), built.runner(), "tick {tick}");
+            assert_eq!(blank.endpoint().counters(), built.endpoint().counters());
+        }
+        assert!(sent > 0);
+        assert!(built.runner().armed());
+        assert_eq!(built.endpoint().counters().rx.frames, 6);
     }
 
     /// The `u32` clock agrees with the exact `u64` product over 1000,

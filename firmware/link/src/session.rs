@@ -128,6 +128,15 @@ pub struct MavlinkStore {
 }
 
 impl MavlinkStore {
+    /// Idle (no run) and not configured, every byte zero: for a `static`
+    /// built by clearing memory (in `.bss`, no 11 KB value built on the
+    /// stack and copied); each route run configures it
+    /// (`MavlinkRun::activate`, [`MavlinkRun::BLANK`]).
+    pub const BLANK: Self = Self {
+        run: MavlinkRun::BLANK,
+        queues: MavlinkQueues::new(),
+    };
+
     /// Route limits to build an idle store with ([`Self::new`]): valid,
     /// and replaced by each run's.
     pub const IDLE_LIMITS: RouteLimitsSpec = MavlinkRun::IDLE_LIMITS;

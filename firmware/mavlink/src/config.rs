@@ -137,6 +137,20 @@ pub struct EndpointConfig {
 }
 
 impl EndpointConfig {
+    /// Every field 0: not a valid configuration ([`Self::new`] refuses
+    /// it), the placeholder of an endpoint not configured yet
+    /// ([`crate::MavlinkEndpoint::BLANK`]).
+    pub(crate) const BLANK: Self = Self {
+        system_id: 0,
+        component_id: 0,
+        link_timeout_ms: 0,
+        item_timeout_ms: 0,
+        item_retries: 0,
+        telemetry_period_ms: 0,
+        counters_period_ms: 0,
+        origin: None,
+    };
+
     /// The checked configuration.
     ///
     /// # Errors

@@ -159,6 +159,20 @@ pub struct Counters {
     pub tx_dropped: u32,
 }
 
+impl Counters {
+    /// Every count 0 ([`MavlinkEndpoint::BLANK`]).
+    pub(crate) const ZERO: Self = Self {
+        rx: RxCounters::ZERO,
+        not_for_us: 0,
+        mission_refusals: 0,
+        upload_timeouts: 0,
+        command_refusals: 0,
+        param_refusals: 0,
+        link_losses: 0,
+        tx_dropped: 0,
+    };
+}
+
 /// An upload in progress.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Upload {
@@ -190,13 +204,33 @@ pub struct MavlinkEndpoint {
     pub(crate) last_reached: Option<u16>,
     pub(crate) last_mode: Option<(bool, RobotMode)>,
     /// The robot's gains and failsafe times, as last set
-    /// ([`Self::set_tuning`], `PARAM_SET`); `None`: not told.
-    pub(crate) tuning: Option<Tuning>,
+    /// ([`Self::set_tuning`], `PARAM_SET`).
+    pub(crate) tuning: TuningSlot,
     /// The robot's counters, as last told ([`Self::set_counts`]).
     pub(crate) counts: Option<Counts>,
     /// The counter sent next, and when the last one went.
     pub(crate) next_count: u8,
     pub(crate) last_count_ms: Option<u32>,
+}
+
+/// The robot's gains and failsafe times if told: an `Option<Tuning>`
+/// with its tag first (`repr(u8)`), so that "not told" is all zero bits
+/// ([`MavlinkEndpoint::BLANK`]); an `Option`'s `None` is a non-zero niche
+/// of `Tuning`.
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum TuningSlot {
+    NotTold = 0,
+    Told(Tuning),
+}
+
+impl TuningSlot {
+    pub(crate) fn get(self) -> Option<Tuning> {
+        match self {
+            Self::NotTold => None,
+            Self::Told(tuning) => Some(tuning),
+        }
+    }
 }
 
 /// An upload's route check and where the uploaded route is written for
@@ -227,6 +261,35 @@ pub(crate) fn due(now_ms: u32, last: Option<u32>, period_ms: u32) -> bool {
 }
 
 impl MavlinkEndpoint {
+    /// An endpoint not configured yet, every field zero: for a `static`
+    /// built by clearing memory (it lands in `.bss`, and building it is a
+    /// `memset`, not a copy of a 3.5 KB value), given its configuration
+    /// by [`Self::reset`] before any other call. Until then its system
+    /// id, timeouts and route limits are 0: not an endpoint to talk with
+    /// (a route must not be planned with its limits).
+    pub const BLANK: Self = Self {
+        config: EndpointConfig::BLANK,
+        limits: RouteLimits::BLANK,
+        parser: Parser::new(),
+        counters: Counters::ZERO,
+        seq: 0,
+        missions: [const { Mission::new() }; 2],
+        active: 0,
+        upload: None,
+        gcs_heartbeat_ms: None,
+        link_lost: false,
+        last_heartbeat_ms: None,
+        last_telemetry_ms: None,
+        last_current: None,
+        last_reached: None,
+        // Zero bits (`None` is not): `reset` makes it `None`.
+        last_mode: Some((false, RobotMode::Idle)),
+        tuning: TuningSlot::NotTold,
+        counts: None,
+        next_count: 0,
+        last_count_ms: None,
+    };
+
     /// An endpoint with no mission; `limits` are the route limits the
     /// parameters start from (the robot file's).
     #[must_use]
@@ -246,23 +309,8 @@ impl MavlinkEndpoint {
         Self {
             config,
             limits,
-            parser: Parser::new(),
-            counters: Counters::default(),
-            seq: 0,
-            missions: [const { Mission::new() }; 2],
-            active: 0,
-            upload: None,
-            gcs_heartbeat_ms: None,
-            link_lost: false,
-            last_heartbeat_ms: None,
-            last_telemetry_ms: None,
-            last_current: None,
-            last_reached: None,
             last_mode: None,
-            tuning: None,
-            counts: None,
-            next_count: 0,
-            last_count_ms: None,
+            ..Self::BLANK
         }
     }
 
@@ -350,7 +398,7 @@ impl MavlinkEndpoint {
         self.last_current = None;
         self.last_reached = None;
         self.last_mode = None;
-        self.tuning = None;
+        self.tuning = TuningSlot::NotTold;
         self.counts = None;
         self.next_count = 0;
         self.last_count_ms = None;
@@ -367,7 +415,7 @@ impl MavlinkEndpoint {
         &mut self,
         spec: &TuningSpec,
     ) -> Result<(), wmr_core::pilot::spec::SpecError> {
-        self.tuning = Some(spec.build()?);
+        self.tuning = TuningSlot::Told(spec.build()?);
         Ok(())
     }
 
@@ -375,7 +423,7 @@ impl MavlinkEndpoint {
     /// [`Event::Tuning`] (`Pilot::retune`).
     #[must_use]
     pub fn tuning(&self) -> Option<Tuning> {
-        self.tuning
+        self.tuning.get()
     }
 
     /// The robot's counters now, sent at `counters_period_ms`

@@ -274,6 +274,7 @@ impl MavlinkEndpoint {
             COUNTERS_PERIOD => self.config.counters_period_ms as f32,
             i if i >= TUNING => self
                 .tuning
+                .get()
                 .and_then(|t| tuning_value(t.spec(), i - TUNING))
                 .unwrap_or(f32::NAN),
             i => limit(&spec_of(&self.limits), i),
@@ -380,7 +381,7 @@ impl MavlinkEndpoint {
     fn set_param(&mut self, index: usize, value: f32, events: &mut Events) -> bool {
         match index {
             i if i >= TUNING => {
-                let Some(mut spec) = self.tuning.map(|t| *t.spec()) else {
+                let Some(mut spec) = self.tuning.get().map(|t| *t.spec()) else {
                     return false;
                 };
                 if !set_tuning(&mut spec, i - TUNING, value) {
@@ -388,7 +389,7 @@ impl MavlinkEndpoint {
                 }
                 match spec.build() {
                     Ok(tuning) if events.push(Event::Tuning) => {
-                        self.tuning = Some(tuning);
+                        self.tuning = crate::endpoint::TuningSlot::Told(tuning);
                         true
                     }
                     _ => false,

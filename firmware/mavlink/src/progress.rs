@@ -36,6 +36,16 @@ pub struct Progress {
 }
 
 impl Progress {
+    /// Nothing loaded: [`Progress::default`] as a constant.
+    pub(crate) const NONE: Self = Self {
+        current: 0,
+        reached: None,
+        base: 0,
+        started_before: 0,
+        stops_before: 0,
+        base_pending: false,
+    };
+
     /// A route loaded from item `base`; `base_pending`: item `base` is
     /// still to be reached (a start from item 0; otherwise the robot
     /// starts where it is, and drives to `base + 1`); `reached`: what

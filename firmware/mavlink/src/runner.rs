@@ -130,6 +130,24 @@ pub struct MissionRunner {
 }
 
 impl MissionRunner {
+    /// Disarmed, idle, no mission, every field zero: for a `static` built
+    /// by clearing memory (it lands in `.bss`), given its route limits by
+    /// [`Self::reset_running`] or [`Self::reset_waiting`] before any
+    /// other call. Until then its route limits are 0
+    /// ([`RouteLimits::BLANK`]): it must not load a follower.
+    pub const BLANK: Self = Self {
+        first_start: RouteStart::AsGiven,
+        started_once: false,
+        armed: false,
+        mode: RobotMode::Idle,
+        mission: Waypoints::new(),
+        limits: RouteLimits::BLANK,
+        deviation_m: 0.0,
+        progress: Progress::NONE,
+        current_set: false,
+        route: Waypoints::new(),
+    };
+
     /// Disarmed, idle, with no mission; `first_start` is how the first
     /// route from item 0 starts, `limits` the route limits until an event
     /// brings others.
@@ -137,15 +155,9 @@ impl MissionRunner {
     pub fn new(first_start: RouteStart, limits: RouteLimits) -> Self {
         Self {
             first_start,
-            started_once: false,
-            armed: false,
-            mode: RobotMode::Idle,
-            mission: Waypoints::new(),
             limits,
             deviation_m: limits.blend_deviation_m(),
-            progress: Progress::default(),
-            current_set: false,
-            route: Waypoints::new(),
+            ..Self::BLANK
         }
     }
 

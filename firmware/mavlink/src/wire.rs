@@ -153,6 +153,17 @@ pub struct RxCounters {
     pub unsupported_frames: u32,
 }
 
+impl RxCounters {
+    /// Every count 0.
+    pub(crate) const ZERO: Self = Self {
+        frames: 0,
+        garbage_bytes: 0,
+        crc_errors: 0,
+        unknown_messages: 0,
+        unsupported_frames: 0,
+    };
+}
+
 /// A received frame, its payload zero-extended to [`MAX_PAYLOAD`] bytes
 /// (MAVLink 2 drops trailing zeros on the wire).
 #[derive(Debug, Clone, Copy)]

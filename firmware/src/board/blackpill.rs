@@ -651,7 +651,7 @@ pub fn run() -> ! {
                 Ok(limits) => {
                     // Checked by the load: configured.
                     let config = image_route.spec.mavlink.config().ok();
-                    mav = config.and_then(|config| mavlink_port(limits, config));
+                    mav = config.and_then(|_| mavlink_port());
                     if mav.is_none() {
                         defmt::error!(
                             "no MAVLink endpoint: the route runs without a ground station link (its bytes counted and dropped)"
@@ -851,6 +851,14 @@ struct MavlinkPort {
 
 #[cfg(wmr_robot_image)]
 impl MavlinkPort {
+    /// Not active, every byte zero ([`mavlink_port`]).
+    const BLANK: Self = Self {
+        run: wmr_link::mavlink_run::MavlinkRun::BLANK,
+        rx: [0; MAVLINK_RING_BYTES],
+        tx: [0; MAVLINK_TX_RING_BYTES],
+        estimate: None,
+    };
+
     /// Before the robot's tick, `tick` control periods after the loop
     /// started (by the cycle counter: `wmr_link::period_clock`): the receive ring
     /// emptied into the endpoint, its output queued on the transmit ring
@@ -920,24 +928,14 @@ impl MavlinkPort {
     }
 }
 
-/// The MAVLink side of a route run, in a static, its parameters starting
-/// from the route's `limits`, its endpoint configured by `config` (the
-/// robot image's route's: the robot file's `[mavlink]`). `None`: the
-/// static already taken. Not inlined: what building it puts on the stack
-/// is gone before the loop runs.
+/// The MAVLink side of a route run, in a static, blank (every byte
+/// zero: building it clears memory, and the static is in `.bss`) and not
+/// active until its run is activated (`MavlinkRun::activate`, with the
+/// robot image's route, limits and `[mavlink]`). `None`: the static
+/// already taken.
 #[cfg(wmr_robot_image)]
-#[inline(never)]
-fn mavlink_port(
-    limits: wmr_core::reference::route::RouteLimits,
-    config: wmr_mavlink::EndpointConfig,
-) -> Option<&'static mut MavlinkPort> {
-    use wmr_link::mavlink_run::MavlinkRun;
-    cortex_m::singleton!(: MavlinkPort = MavlinkPort {
-        run: MavlinkRun::new(config, limits),
-        rx: [0; MAVLINK_RING_BYTES],
-        tx: [0; MAVLINK_TX_RING_BYTES],
-        estimate: None,
-    })
+fn mavlink_port() -> Option<&'static mut MavlinkPort> {
+    cortex_m::singleton!(: MavlinkPort = MavlinkPort::BLANK)
 }
 
 /// Sets both motors' duty to 0. The PWM and GPIO writes cannot fail

@@ -196,22 +196,12 @@ fn fail() -> ! {
 
 /// The MAVLink endpoint and mission runner of route runs (about 11 KB
 /// with the channel's queues and the upload check's route), in a static,
-/// idle with `EndpointSpec::default()`: each route run configures it with
-/// the settings its route announcement carries (`RouteSpec::mavlink`, the
-/// robot file's `[mavlink]`). Not inlined: what building it
-/// puts on the stack (the endpoint, 3 KB) is in this frame, gone before
-/// the run loop's ([`run`]).
-#[inline(never)]
+/// blank (`MavlinkStore::BLANK`: every byte zero, so building it clears
+/// memory) and idle: each route run configures it with the settings its
+/// route announcement carries (`RouteSpec::mavlink`, the robot file's
+/// `[mavlink]`).
 fn mavlink_store() -> Option<&'static mut MavlinkStore> {
-    use wmr_core::reference::route::RouteLimits;
-    use wmr_mavlink::{EndpointConfig, EndpointSpec};
-    let (Ok(config), Ok(limits)) = (
-        EndpointConfig::new(&EndpointSpec::default()),
-        RouteLimits::new(&MavlinkStore::IDLE_LIMITS),
-    ) else {
-        return None;
-    };
-    cortex_m::singleton!(: MavlinkStore = MavlinkStore::new(config, limits))
+    cortex_m::singleton!(: MavlinkStore = MavlinkStore::BLANK)
 }
 
 /// The firmware: serve the link until the host says `Finish`.

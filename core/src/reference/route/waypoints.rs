@@ -101,10 +101,16 @@ impl Waypoints {
     #[must_use]
     pub const fn new() -> Self {
         Self {
-            items: [Waypoint::pass(0.0, 0.0); ROUTE_CAPACITY],
+            items: [Self::UNUSED; ROUTE_CAPACITY],
             len: 0,
         }
     }
+
+    /// What the slots past the length hold (never read): a stop at the
+    /// origin for 0 s, keeping its heading, whose bits are all zero (a
+    /// pass's `None` stop is a non-zero niche), so that a route is built
+    /// by clearing memory, and one in a `static` lands in `.bss`.
+    const UNUSED: Waypoint = Waypoint::stop(0.0, 0.0, 0.0);
 
     /// The waypoints of a slice.
     ///
@@ -271,6 +277,20 @@ pub struct RouteLimitsSpec {
 }
 
 impl RouteLimits {
+    /// Every limit 0: not a valid limit set ([`Self::new`] refuses it).
+    /// A placeholder, all zero bits, in a structure built by clearing
+    /// memory (a `static`) that is given its limits before it plans or
+    /// loads a route; a route must never be planned with it.
+    pub const BLANK: Self = Self {
+        max_speed_m_s: 0.0,
+        max_tangential_accel_m_s2: 0.0,
+        max_lateral_accel_m_s2: 0.0,
+        blend_deviation_m: 0.0,
+        pivot_threshold_rad: 0.0,
+        pivot_rate_rad_s: 0.0,
+        pivot_accel_rad_s2: 0.0,
+    };
+
     /// The validated limits.
     ///
     /// # Errors
