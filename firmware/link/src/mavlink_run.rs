@@ -92,8 +92,8 @@ impl MavlinkRun {
     /// Idle (no run), its endpoint configured by `config` for every run
     /// (system and component ids, timeouts, telemetry period, origin);
     /// `limits` are replaced by each run's ([`Self::IDLE_LIMITS`] will
-    /// do). Infallible and inlined, so that a board builds it in its
-    /// `static`, not on the stack.
+    /// do). Infallible and inlined, so that it is built where its caller
+    /// puts it; a board's `static` starts from [`Self::BLANK`] instead.
     #[must_use]
     #[inline(always)]
     pub fn new(config: EndpointConfig, limits: RouteLimits) -> Self {

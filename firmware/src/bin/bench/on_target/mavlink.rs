@@ -217,7 +217,7 @@ pub(super) fn bench_mavlink(cal: Calibration) {
     if store.finish(&limits, route.start, PERIOD_S).is_err() {
         fail("bench route refused");
     }
-    let Some(run) = cortex_m::singleton!(: MavlinkRun = MavlinkRun::new(config, limits)) else {
+    let Some(run) = cortex_m::singleton!(: MavlinkRun = MavlinkRun::BLANK) else {
         fail("MAVLink run already taken");
     };
     run.activate(
