@@ -12,6 +12,37 @@
 //! wheels keeps the particles on arcs a robot can drive, where the
 //! paper's additive `σ_q` per state component would not.
 //!
+//! # Noise level
+//! The configured wheel noise is a ceiling, not a fact: on wheels that
+//! slip less, particles that drive with the configured spread random-walk
+//! their headings where the robot's does not, and the cells, which
+//! constrain the position and hardly the heading, cannot tell them apart
+//! (docs/fusion.md, "The particle filter at the template's defaults").
+//! So each particle carries a discrete noise level `k` in `0…5`
+//! ([`NOISE_LEVELS`]) as the mode of a jump-Markov system (Doucet,
+//! Gordon & Krishnamurthy 2001, *Particle filters for state estimation of
+//! jump Markov linear systems*, IEEE Trans. Signal Process.
+//! 49(3):613–624; the multiple-model bootstrap filter of McGinnity & Irwin
+//! 2000, *Multiple model bootstrap filter for maneuvering target
+//! tracking*, IEEE Trans. AES 36(3):1006–1012; the generic filter's
+//! [`ParticleModel::MODES`]): its wheels' variance is `10^{−k}` times the
+//! configured one ([`LEVEL_STD_SCALE`], the standard deviations), the
+//! configured noise the noisiest level. The levels discretize a log noise
+//! scale over five decades in steps of one. A particle's level is drawn
+//! at the start from `round(N(2, 2.5²))` clamped to `0…5`
+//! ([`LEVEL_PRIOR_CDF`], by the inverse distribution function of one
+//! uniform draw), kept from step to step, and jumps with probability
+//! [`LEVEL_JUMP_PROBABILITY`] = 1e-4 per particle and prediction to a new
+//! draw from that prior (about one particle a second at 100 particles and
+//! 100 Hz, so that a start or a resampling that lost every particle of a
+//! level does not lose it for good). The level goes with its particle
+//! through resampling and is never smoothed (roughening moves the pose
+//! and scale errors only); a heading reset, a re-localisation and a
+//! collapse keep each slot's level. On exact wheels the particles of the
+//! low levels keep meeting the cells and take over, and the cloud follows
+//! the odometry as the EKF's mean does; on slipping wheels the noisier
+//! levels survive.
+//!
 //! # Correction
 //! (Nearest-tag reads: see "Tag cells" below; this is for the other
 //! measurements.) A fix weights every particle by its Gaussian likelihood with the fix's
@@ -78,8 +109,9 @@
 //! stays on the effective sample size (below `P/2`).
 //!
 //! # Resets
-//! A heading reset redraws every particle from the Gaussian of the new
-//! mean and covariance ([`ParticleFilter::reset`]).
+//! A heading reset redraws every particle's pose from the Gaussian of the
+//! new mean and covariance ([`ParticleFilter::reset`]); each slot keeps
+//! its noise level.
 //!
 //! # Re-localisation
 //! After consecutive gated reads the filter takes itself to be lost
@@ -87,8 +119,8 @@
 //! contradict, is redrawn, and what else its particles know is kept.
 //! Every particle's position is drawn from the read's Gaussian (for a tag
 //! cell its moments, [`TagCell::moments`]; for a fix its own mean and
-//! covariance; an axis fix redraws that axis only), its heading and wheel
-//! scale errors stay as they were, the weights become equal
+//! covariance; an axis fix redraws that axis only), its heading, wheel
+//! scale errors and noise level stay as they were, the weights become equal
 //! ([`ParticleFilter::reposition`]); the ungated correction that follows
 //! then weights them by the read's likelihood (the cell's). This is sensor
 //! resetting (Lenser & Veloso 2000, *Sensor resetting localization for
@@ -108,8 +140,8 @@
 //! # Randomness and cost
 //! The generator is seeded from the configuration
 //! (`PoseFilterConfig::with_particle_seed`): a run repeats bit
-//! for bit from its seed. A prediction draws `4P` Gaussians and drives `P`
-//! arcs; with [`FUSION_PARTICLES`] = 100 its whole tick on a Cortex-M4F
+//! for bit from its seed. A prediction draws `P` uniforms (the levels'
+//! jumps) and `4P` Gaussians and drives `P` arcs; with [`FUSION_PARTICLES`] = 100 its whole tick on a Cortex-M4F
 //! is in the bench table of docs/budgets.md.
 
 use nalgebra::{SVector, Vector2};
@@ -199,10 +231,66 @@ impl TagDisc {
     }
 }
 
+/// The wheel noise levels a particle may take (module docs, "Noise
+/// level"): `k = 0…NOISE_LEVELS − 1`.
+pub const NOISE_LEVELS: u8 = 6;
+
+/// Level `k`'s wheel standard deviation as a share of the configured one:
+/// `10^{−k/2}` (its variance `10^{−k}` times the configured).
+pub const LEVEL_STD_SCALE: [f32; NOISE_LEVELS as usize] =
+    [1.0, 0.316_227_77, 0.1, 0.031_622_777, 0.01, 0.003_162_277_7];
+
+/// The levels' prior `round(N(2, 2.5²))` clamped to `0…5` as its
+/// distribution function: entry `k` is `P(level ≤ k) = Φ((k + ½ − 2) /
+/// 2.5)` (the last level takes the rest).
+pub const LEVEL_PRIOR_CDF: [f32; NOISE_LEVELS as usize - 1] = [
+    0.274_253_1,
+    0.420_740_3,
+    0.579_259_7,
+    0.725_746_9,
+    0.841_344_7,
+];
+
+/// The probability that a particle's level jumps to a new draw from its
+/// prior, per prediction (module docs, "Noise level").
+pub const LEVEL_JUMP_PROBABILITY: f32 = 1e-4;
+
+/// The level whose prior mass holds `uniform` (in [0, 1)): the inverse of
+/// [`LEVEL_PRIOR_CDF`].
+fn prior_level(uniform: f32) -> u8 {
+    let below = LEVEL_PRIOR_CDF.iter().filter(|&&c| uniform >= c).count();
+    u8::try_from(below).unwrap_or(NOISE_LEVELS - 1)
+}
+
 /// The pose on odometry with per-wheel noise, for the particle filter.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoisyOdometryModel {
     config: PoseFilterConfig,
+}
+
+impl NoisyOdometryModel {
+    /// One particle's step with its wheels' standard deviation `scale`
+    /// times the configured one (module docs, "Prediction").
+    fn sample_scaled(
+        &self,
+        scale: f32,
+        x: &PoseState,
+        u: &OdometryStep,
+        gaussian: &mut dyn FnMut() -> f32,
+    ) -> PoseState {
+        let config = &self.config;
+        let b = config.track_width_m();
+        let (nominal_r, nominal_l) = wheel_travels(u.ds_m, u.dtheta_rad, b);
+        let noisy = |travel: f32, gaussian: &mut dyn FnMut() -> f32| {
+            travel + scale * math::sqrt(wheel_variance(config, travel)) * gaussian()
+        };
+        let right = noisy(nominal_r * (1.0 + x.w), gaussian);
+        let left = noisy(nominal_l * (1.0 + x.a), gaussian);
+        let mut next = drive_wheels(x, right, left, b);
+        next.w += math::sqrt(scale_walk_variance(config, right)) * gaussian();
+        next.a += math::sqrt(scale_walk_variance(config, left)) * gaussian();
+        next
+    }
 }
 
 impl ParticleModel<5, 2> for NoisyOdometryModel {
@@ -212,6 +300,7 @@ impl ParticleModel<5, 2> for NoisyOdometryModel {
         odometry_transition(x, u, self.config.track_width_m())
     }
 
+    /// The configured noise (level 0).
     fn sample_transition(
         &self,
         x: &PoseState,
@@ -220,18 +309,43 @@ impl ParticleModel<5, 2> for NoisyOdometryModel {
         _process_std: &PoseState,
         gaussian: &mut dyn FnMut() -> f32,
     ) -> PoseState {
-        let config = &self.config;
-        let b = config.track_width_m();
-        let (nominal_r, nominal_l) = wheel_travels(u.ds_m, u.dtheta_rad, b);
-        let noisy = |travel: f32, gaussian: &mut dyn FnMut() -> f32| {
-            travel + math::sqrt(wheel_variance(config, travel)) * gaussian()
-        };
-        let right = noisy(nominal_r * (1.0 + x.w), gaussian);
-        let left = noisy(nominal_l * (1.0 + x.a), gaussian);
-        let mut next = drive_wheels(x, right, left, b);
-        next.w += math::sqrt(scale_walk_variance(config, right)) * gaussian();
-        next.a += math::sqrt(scale_walk_variance(config, left)) * gaussian();
-        next
+        self.sample_scaled(1.0, x, u, gaussian)
+    }
+
+    const MODES: u8 = NOISE_LEVELS;
+
+    fn initial_mode(&self, uniform: f32) -> u8 {
+        prior_level(uniform)
+    }
+
+    /// Kept, but with probability [`LEVEL_JUMP_PROBABILITY`] a new draw
+    /// from the prior (module docs, "Noise level"): the one uniform
+    /// serves both, as `uniform / LEVEL_JUMP_PROBABILITY` is uniform in
+    /// [0, 1) below it.
+    fn next_mode(&self, mode: u8, uniform: f32) -> u8 {
+        if uniform < LEVEL_JUMP_PROBABILITY {
+            prior_level(uniform / LEVEL_JUMP_PROBABILITY)
+        } else {
+            mode
+        }
+    }
+
+    /// The wheels' standard deviation [`LEVEL_STD_SCALE`]`[level]` times
+    /// the configured one.
+    fn sample_transition_in_mode(
+        &self,
+        level: u8,
+        x: &PoseState,
+        u: &OdometryStep,
+        _dt_s: f32,
+        _process_std: &PoseState,
+        gaussian: &mut dyn FnMut() -> f32,
+    ) -> PoseState {
+        let scale = LEVEL_STD_SCALE
+            .get(usize::from(level))
+            .copied()
+            .unwrap_or(1.0);
+        self.sample_scaled(scale, x, u, gaussian)
     }
 
     fn measure(&self, x: &PoseState) -> SVector<f32, 2> {
@@ -250,7 +364,7 @@ impl ParticleModel<5, 2> for NoisyOdometryModel {
 /// The particle filter as a [`PoseFilterCore`], `P` particles.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParticleCore<const P: usize> {
-    filter: ParticleFilter<NoisyOdometryModel, 5, 2, P>,
+    filter: ParticleFilter<NoisyOdometryModel, 5, 2, P, P>,
 }
 
 /// The pose particle filter.
@@ -260,7 +374,7 @@ impl<const P: usize> ParticleCore<P> {
     /// The particle filter inside (its counters say what it resampled,
     /// recovered or skipped).
     #[must_use]
-    pub fn filter(&self) -> &ParticleFilter<NoisyOdometryModel, 5, 2, P> {
+    pub fn filter(&self) -> &ParticleFilter<NoisyOdometryModel, 5, 2, P, P> {
         &self.filter
     }
 }
@@ -581,6 +695,46 @@ mod tests {
         assert_ne!(first.pose(), other.pose());
         assert!(first.core().filter().resamplings() > 0);
         assert_eq!(first.core().filter().collapses(), 0);
+    }
+
+    /// The levels: each a tenth of the variance of the one before, the
+    /// configured noise the first; the prior's inverse distribution
+    /// function covers `0…5` in order; a jump is rare and draws from the
+    /// prior.
+    #[test]
+    fn the_noise_levels_and_their_prior() {
+        for (k, scale) in LEVEL_STD_SCALE.iter().enumerate() {
+            let variance = scale * scale;
+            let expected = math::exp(-(k as f32) * core::f32::consts::LN_10);
+            assert!((variance / expected - 1.0).abs() < 1e-5, "{k}: {variance}");
+        }
+        assert_eq!(prior_level(0.0), 0);
+        assert_eq!(prior_level(0.3), 1);
+        assert_eq!(prior_level(0.5), 2);
+        assert_eq!(prior_level(0.7), 3);
+        assert_eq!(prior_level(0.8), 4);
+        assert_eq!(prior_level(0.999_999), 5);
+        let model = NoisyOdometryModel { config: config(1) };
+        assert_eq!(model.next_mode(3, LEVEL_JUMP_PROBABILITY), 3);
+        assert_eq!(model.next_mode(3, 0.9), 3);
+        assert_eq!(model.next_mode(3, 0.0), 0);
+        assert_eq!(model.next_mode(0, 0.999_999 * LEVEL_JUMP_PROBABILITY), 5);
+    }
+
+    /// On wheels that do not slip (the truth drives the odometry) the
+    /// particles of the quieter levels take over: at the end of the drive
+    /// most particles are below the configured noise.
+    #[test]
+    fn quiet_levels_take_over_on_exact_wheels() {
+        let (_, pf) = drive(5);
+        let modes = pf.core().filter().modes();
+        let mut counts = [0_usize; NOISE_LEVELS as usize];
+        for &m in modes {
+            counts[usize::from(m)] += 1;
+        }
+        println!("particles per level after the drive: {counts:?}");
+        let quiet: usize = counts[3..].iter().sum();
+        assert!(quiet > 50 && counts[0] < 10, "{counts:?}");
     }
 
     /// Started in place (from the blank, as the estimator does) it is the
