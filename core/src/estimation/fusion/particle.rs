@@ -737,6 +737,16 @@ mod tests {
         assert!(quiet > 50 && counts[0] < 10, "{counts:?}");
     }
 
+    /// The filter's size: the generic filter's particles, buffer, weights
+    /// and log-likelihoods, and a byte of level per particle with its
+    /// resampling buffer (module docs of the generic filter, "Memory").
+    #[test]
+    fn memory_footprint() {
+        let core = core::mem::size_of::<ParticleCore<100>>();
+        println!("ParticleCore<100>: {core} B");
+        assert_eq!(core, 5_240);
+    }
+
     /// Started in place (from the blank, as the estimator does) it is the
     /// filter `new` builds, bit for bit, and it restarts in place (a
     /// second start on a used filter) to the same again; a start it

@@ -442,29 +442,24 @@ where
             self.reject();
             return;
         }
-        for ((x, next), w) in self
+        for (slot, ((x, next), w)) in self
             .particles
             .iter_mut()
             .zip(self.buffer.iter())
             .zip(self.weights.iter_mut())
+            .enumerate()
         {
             if finite(next) {
                 *x = *next;
+                // A dropped particle keeps its mode with its state.
+                if moded
+                    && let (Some(mode), Some(&jumped)) =
+                        (self.modes.get_mut(slot), self.mode_buffer.get(slot))
+                {
+                    *mode = jumped;
+                }
             } else {
                 *w = 0.0;
-            }
-        }
-        if moded {
-            // A dropped particle keeps its mode with its state.
-            for ((mode, next), next_x) in self
-                .modes
-                .iter_mut()
-                .zip(self.mode_buffer.iter())
-                .zip(self.buffer.iter())
-            {
-                if finite(next_x) {
-                    *mode = *next;
-                }
             }
         }
         if dropped > 0 {
