@@ -238,7 +238,7 @@ pub const NOISE_LEVELS: u8 = 6;
 /// Level `k`'s wheel standard deviation as a share of the configured one:
 /// `10^{−k/2}` (its variance `10^{−k}` times the configured).
 pub const LEVEL_STD_SCALE: [f32; NOISE_LEVELS as usize] =
-    [1.0, 0.316_227_77, 0.1, 0.031_622_777, 0.01, 0.003_162_277_7];
+    [1.0, 0.316_227_77, 0.1, 0.031_622_78, 0.01, 0.003_162_277_7];
 
 /// The levels' prior `round(N(2, 2.5²))` clamped to `0…5` as its
 /// distribution function: entry `k` is `P(level ≤ k) = Φ((k + ½ − 2) /

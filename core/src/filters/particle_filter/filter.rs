@@ -267,7 +267,7 @@ where
             *mode = self
                 .model
                 .initial_mode(self.noise.uniform())
-                .min(Model::MODES - 1);
+                .min(Model::MODES.saturating_sub(1));
         }
     }
 
@@ -411,7 +411,7 @@ where
                 let jumped = self
                     .model
                     .next_mode(mode, noise.uniform())
-                    .min(Model::MODES - 1);
+                    .min(Model::MODES.saturating_sub(1));
                 if let Some(next_mode) = self.mode_buffer.get_mut(slot) {
                     *next_mode = jumped;
                 }
