@@ -257,6 +257,13 @@ where
         }
     }
 
+    /// Every particle's mode redrawn from its prior
+    /// ([`ParticleModel::initial_mode`]), as at the start; the states and
+    /// weights are left as they are. A model without modes draws nothing.
+    pub fn redraw_modes(&mut self) {
+        self.draw_modes();
+    }
+
     /// A model with modes: every particle's from its prior
     /// ([`ParticleModel::initial_mode`]), one uniform draw each.
     fn draw_modes(&mut self) {

@@ -1056,3 +1056,23 @@ fn modes_need_their_slots_and_the_prior_proposal() {
         .unwrap();
     assert_eq!(used, two_modes(3));
 }
+
+/// `redraw_modes` draws every mode from the model's prior again and
+/// leaves the states and weights: after three jumps left about one
+/// particle in 24 in mode 0, about a third are back in it, at the same
+/// states.
+#[test]
+fn redrawn_modes_come_from_the_prior_and_leave_the_states() {
+    let mut f = two_modes(5);
+    for _ in 0..3 {
+        f.predict(&(), 0.01);
+    }
+    let before = f.modes().iter().filter(|&&m| m == 0).count();
+    assert!(before < 12, "{before}");
+    let (particles, weights) = (*f.particles(), *f.weights());
+    f.redraw_modes();
+    let zeros = f.modes().iter().filter(|&&m| m == 0).count();
+    // A third of 100 from the prior, within 3.5 σ of sampling.
+    assert!((17..=50).contains(&zeros), "{zeros}");
+    assert_eq!((*f.particles(), *f.weights()), (particles, weights));
+}
