@@ -715,7 +715,10 @@ mod tests {
         for (scale, exponent) in LEVEL_STD_SCALE.iter().zip([0.0_f32, -4.0, -5.0]) {
             let variance = scale * scale;
             let expected = math::exp(exponent * core::f32::consts::LN_10);
-            assert!((variance / expected - 1.0).abs() < 1e-5, "{exponent}: {variance}");
+            assert!(
+                (variance / expected - 1.0).abs() < 1e-5,
+                "{exponent}: {variance}"
+            );
         }
         assert_eq!(prior_level(0.0), 0);
         assert_eq!(prior_level(0.499_999), 0);
