@@ -43,6 +43,7 @@ import json
 import os
 import pathlib
 import re
+import shutil
 import statistics
 import subprocess
 import sys
@@ -65,7 +66,12 @@ RUNS = int(sys.argv[1]) if len(sys.argv) > 1 and not STARTS else 32
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 OUT = ROOT / "target" / "fusion-table"
 OUT.mkdir(parents=True, exist_ok=True)
-SIM = ["cargo", "run", "--release", "-q", "-p", "firmware-sim", "--"]
+# Built once and copied, so that every run of a table comes from the same
+# binary even if the sources change while it runs.
+subprocess.run(["cargo", "build", "--release", "-q", "-p", "firmware-sim"], cwd=ROOT, check=True)
+_TARGET = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
+shutil.copy2(_TARGET / "release" / "firmware-sim", OUT / "firmware-sim")
+SIM = [str(OUT / "firmware-sim")]
 
 TEMPLATE = subprocess.run(SIM + ["show", "figure_eight_rfid_fusion_ekf"], cwd=ROOT,
                           check=True, capture_output=True, text=True).stdout
@@ -147,9 +153,7 @@ def start_text(kind, wheel_variance, spacing, slip, k):
 
 
 def starts_table(kinds):
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "firmware-sim"], cwd=ROOT, check=True)
-    target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
-    binary = str(target / "release" / "firmware-sim")
+    binary = SIM[0]
 
     def one(job):
         kind, wheel_variance, spacing, slip, k = job

@@ -220,47 +220,86 @@ fn the_slip_tuning_in_the_pilot() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// The UKF with the template's defaults (`figure_eight_rfid_fusion_ekf`,
-/// `filter = "ukf"`, wheel noise 1e-3 m²/m) on the 10, 20 and 30 cm
-/// nearest-tag floors: the filters' targets, medians over 32 starts
-/// (`host_tests::ENSEMBLE_OFFSETS_M`) at most 0.01 / 0.001 m on the
-/// template's 10 cm floor and within 1.5× of the EKF's medians on each
-/// floor. Measured medians, max / mean (m), UKF against EKF: 10 cm 0.0056
-/// / 0.0005 against 0.0051 / 0.0005; 20 cm 0.0130 / 0.0011 against 0.0134
-/// / 0.0011; 30 cm 0.0129 / 0.0012 against 0.0129 / 0.0013 (docs/fusion.md,
-/// "The UKF at the default wheel noise").
-#[test]
-fn the_ukf_at_the_template_defaults() {
+/// The template (`figure_eight_rfid_fusion_ekf`) with only `filter`
+/// switched, over 32 starts (`host_tests::ENSEMBLE_OFFSETS_M`) on a
+/// nearest-tag floor of `spacing_m`: each start's max and mean error.
+fn template_ensemble(kind: FusionFilterSpec, spacing_m: f64) -> host_tests::EnsembleErrors {
     use firmware_sim::scenario::PositionSpec;
+    let ensemble = host_tests::run_scenario_ensemble("figure_eight_rfid_fusion_ekf", |scenario| {
+        if let EstimatorSpec::Fusion(fusion) = &mut scenario.estimator {
+            fusion.filter = kind;
+        }
+        if let PositionSpec::NearestTag { spacing_m: s, .. } = &mut scenario.position {
+            *s = spacing_m;
+        }
+    });
+    assert!(ensemble.iter().all(|s| s.non_finite_ticks == 0));
+    host_tests::EnsembleErrors::new(
+        &format!("{kind:?}, template defaults, {spacing_m} m tags"),
+        ensemble.iter().map(|s| (s.max_error_m, s.mean_error_m)),
+    )
+}
+
+/// The UKF and the particle filter with the template's defaults
+/// (`figure_eight_rfid_fusion_ekf`, `filter` switched, wheel noise 1e-3
+/// m²/m on the simulator's exact wheels) on the 10, 20 and 30 cm
+/// nearest-tag floors, medians over 32 starts against the EKF's.
+///
+/// The UKF: median max and mean at most 0.01 / 0.001 m on the template's
+/// 10 cm floor and within 1.5× of the EKF's on each floor. Measured, max
+/// / mean (m), UKF against EKF: 10 cm 0.0056 / 0.0005 against 0.0051 /
+/// 0.0005; 20 cm 0.0130 / 0.0011 against 0.0134 / 0.0011; 30 cm 0.0129 /
+/// 0.0012 against 0.0129 / 0.0013 (docs/fusion.md, "The UKF at the
+/// default wheel noise").
+///
+/// The particle filter, whose noise levels (docs/fusion.md, "The particle
+/// filter's noise levels") let it follow the odometry as the EKF does:
+/// the template's own run (seed 1, its start) at most 0.01 / 0.001 m, as
+/// the EKF's and the UKF's; the median max at most 0.01 m on 10 cm and
+/// within 1.5× of the EKF's on each floor. Its median mean is 1.6–2.2×
+/// the EKF's and is not held here. Measured: the run 0.0026 / 0.0008 m;
+/// median max (worst start) against the EKF's: 10 cm 0.0049 (0.0106)
+/// against 0.0051 (0.0072), 20 cm 0.0118 (0.0381) against 0.0134
+/// (0.0176), 30 cm 0.0110 (0.0289) against 0.0129 (0.0137).
+#[test]
+fn the_ukf_and_the_particle_filter_at_the_template_defaults() {
     let mut failures = Vec::new();
+    let template = host_tests::run_scenario_variant("figure_eight_rfid_fusion_ekf", |scenario| {
+        if let EstimatorSpec::Fusion(fusion) = &mut scenario.estimator {
+            fusion.filter = FusionFilterSpec::ParticleFilter;
+        }
+    });
+    assert_eq!(template.non_finite_ticks, 0);
+    if !(template.max_error_m <= 0.01 && template.mean_error_m <= 0.001) {
+        failures.push(format!(
+            "particle filter, template run: max {:.4}, mean {:.4} over 0.01 / 0.001 m",
+            template.max_error_m, template.mean_error_m
+        ));
+    }
     for spacing in [0.1_f64, 0.2, 0.3] {
-        let medians = |kind| {
-            let ensemble =
-                host_tests::run_scenario_ensemble("figure_eight_rfid_fusion_ekf", |scenario| {
-                    if let EstimatorSpec::Fusion(fusion) = &mut scenario.estimator {
-                        fusion.filter = kind;
-                    }
-                    if let PositionSpec::NearestTag { spacing_m, .. } = &mut scenario.position {
-                        *spacing_m = spacing;
-                    }
-                });
-            assert!(ensemble.iter().all(|s| s.non_finite_ticks == 0));
-            let errors = host_tests::EnsembleErrors::new(
-                &format!("{kind:?}, template defaults, {spacing} m tags"),
-                ensemble.iter().map(|s| (s.max_error_m, s.mean_error_m)),
-            );
-            (errors.median_max(), errors.median_mean())
-        };
-        let (ekf, ukf) = (
-            medians(FusionFilterSpec::Ekf),
-            medians(FusionFilterSpec::Ukf),
-        );
+        let ekf = template_ensemble(FusionFilterSpec::Ekf, spacing);
+        let ukf = template_ensemble(FusionFilterSpec::Ukf, spacing);
+        let pf = template_ensemble(FusionFilterSpec::ParticleFilter, spacing);
+        let ekf = (ekf.median_max(), ekf.median_mean());
+        let ukf = (ukf.median_max(), ukf.median_mean());
+        let pf_max = pf.median_max();
         if spacing == 0.1 && !(ukf.0 <= 0.01 && ukf.1 <= 0.001) {
             failures.push(format!("{spacing} m: UKF {ukf:?} over 0.01 / 0.001 m"));
         }
         if !(ukf.0 <= 1.5 * ekf.0 && ukf.1 <= 1.5 * ekf.1) {
             failures.push(format!(
                 "{spacing} m: UKF {ukf:?} not within 1.5x of EKF {ekf:?}"
+            ));
+        }
+        if spacing == 0.1 && pf_max > 0.01 {
+            failures.push(format!(
+                "{spacing} m: particle filter's median max {pf_max:.4} over 0.01 m"
+            ));
+        }
+        if pf_max > 1.5 * ekf.0 {
+            failures.push(format!(
+                "{spacing} m: particle filter's median max {pf_max:.4} not within 1.5x of the EKF's {:.4}",
+                ekf.0
             ));
         }
     }
@@ -455,10 +494,9 @@ fn sparse_reader_range_mode() {
 /// (`[estimator.fusion]`, `filter = "ukf"` / `"particle_filter"`), with
 /// the guide observer, on the unicycle and on the full device stack. The
 /// UKF runs at 3e-5 m²/m here and at the template's 1e-3 in
-/// `the_ukf_at_the_template_defaults`; the particle filter needs a
-/// wheel-noise model close to the truth: its particles spread too thin for
-/// 100 of them at 1e-3 (0.343 / 0.0296 m; the simulated plants' wheels are
-/// exact, and the particle filter's tuning is [`PF_WHEEL_VARIANCE`]).
+/// `the_ukf_and_the_particle_filter_at_the_template_defaults`, as the
+/// particle filter does; here the particle filter runs at
+/// [`PF_WHEEL_VARIANCE`].
 /// The particle filter's runs repeat from the seed.
 #[test]
 fn the_ukf_and_the_particle_filter_as_the_pilots_estimator() {

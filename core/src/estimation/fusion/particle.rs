@@ -12,6 +12,44 @@
 //! wheels keeps the particles on arcs a robot can drive, where the
 //! paper's additive `σ_q` per state component would not.
 //!
+//! # Noise level
+//! The configured wheel noise is a ceiling, not a fact: on wheels that
+//! slip less, particles that drive with the configured spread random-walk
+//! their headings where the robot's does not, and the cells, which
+//! constrain the position and hardly the heading, cannot tell them apart
+//! (docs/fusion.md, "The particle filter at the template's defaults").
+//! So each particle carries a discrete noise level `k` in `0…2`
+//! ([`NOISE_LEVELS`]) as the mode of a jump-Markov system (Doucet,
+//! Gordon & Krishnamurthy 2001, *Particle filters for state estimation of
+//! jump Markov linear systems*, IEEE Trans. Signal Process.
+//! 49(3):613–624; the multiple-model bootstrap filter of McGinnity & Irwin
+//! 2000, *Multiple model bootstrap filter for maneuvering target
+//! tracking*, IEEE Trans. AES 36(3):1006–1012; the generic filter's
+//! [`ParticleModel::MODES`]): level 0 drives with the configured noise,
+//! levels 1 and 2 with `10^{−4}` and `10^{−5}` of its variance
+//! ([`LEVEL_STD_SCALE`], the standard deviations), the configured noise
+//! the ceiling. The ladder has a gap on purpose. On wheels that slip, the
+//! configured noise, even 10× above the wheels', tracks better than a
+//! matched one (it keeps the cloud over-dispersed), so the particles that
+//! may learn a smaller noise must not be able to settle just below it;
+//! on exact wheels the quiet levels are far enough below it that the
+//! cloud follows the odometry as the EKF's mean does. A particle's level
+//! is drawn at the start from the prior ([`LEVEL_PRIOR_CDF`]: half at the
+//! configured noise, a quarter at each quiet level, by the inverse
+//! distribution function of one uniform draw), kept from step to step,
+//! and jumps with probability [`LEVEL_JUMP_PROBABILITY`] = 1e-3 per
+//! particle and prediction to a new draw from that prior (about ten
+//! particles a second at 100 particles and 100 Hz, so that a start or a
+//! resampling that lost every particle of a level does not lose it for
+//! long). The level goes with its particle through resampling and is
+//! never smoothed (roughening moves the pose and scale errors only). A
+//! heading reset and a re-localisation redraw every level from the prior:
+//! a cloud whose quiet particles took over with a wrong heading or scale
+//! has too little noise left to find the right one, and the reset is
+//! where the estimator has said so; a collapse keeps each slot's level.
+//! The ladder, the prior and the jump rate were chosen by the starts
+//! table of docs/fusion.md ("The particle filter's noise levels").
+//!
 //! # Correction
 //! (Nearest-tag reads: see "Tag cells" below; this is for the other
 //! measurements.) A fix weights every particle by its Gaussian likelihood with the fix's
@@ -78,8 +116,9 @@
 //! stays on the effective sample size (below `P/2`).
 //!
 //! # Resets
-//! A heading reset redraws every particle from the Gaussian of the new
-//! mean and covariance ([`ParticleFilter::reset`]).
+//! A heading reset redraws every particle's pose from the Gaussian of the
+//! new mean and covariance ([`ParticleFilter::reset`]) and every noise
+//! level from its prior ([`ParticleFilter::redraw_modes`]).
 //!
 //! # Re-localisation
 //! After consecutive gated reads the filter takes itself to be lost
@@ -87,8 +126,9 @@
 //! contradict, is redrawn, and what else its particles know is kept.
 //! Every particle's position is drawn from the read's Gaussian (for a tag
 //! cell its moments, [`TagCell::moments`]; for a fix its own mean and
-//! covariance; an axis fix redraws that axis only), its heading and wheel
-//! scale errors stay as they were, the weights become equal
+//! covariance; an axis fix redraws that axis only), its heading, wheel
+//! scale errors stay as they were, its noise level is redrawn from the
+//! prior ("Noise level"), the weights become equal
 //! ([`ParticleFilter::reposition`]); the ungated correction that follows
 //! then weights them by the read's likelihood (the cell's). This is sensor
 //! resetting (Lenser & Veloso 2000, *Sensor resetting localization for
@@ -108,8 +148,8 @@
 //! # Randomness and cost
 //! The generator is seeded from the configuration
 //! (`PoseFilterConfig::with_particle_seed`): a run repeats bit
-//! for bit from its seed. A prediction draws `4P` Gaussians and drives `P`
-//! arcs; with [`FUSION_PARTICLES`] = 100 its whole tick on a Cortex-M4F
+//! for bit from its seed. A prediction draws `P` uniforms (the levels'
+//! jumps) and `4P` Gaussians and drives `P` arcs; with [`FUSION_PARTICLES`] = 100 its whole tick on a Cortex-M4F
 //! is in the bench table of docs/budgets.md.
 
 use nalgebra::{SVector, Vector2};
@@ -199,10 +239,60 @@ impl TagDisc {
     }
 }
 
+/// The wheel noise levels a particle may take (module docs, "Noise
+/// level"): `k = 0…NOISE_LEVELS − 1`.
+pub const NOISE_LEVELS: u8 = 3;
+
+/// Level `k`'s wheel standard deviation as a share of the configured one:
+/// the configured noise, then `10^{−4}` and `10^{−5}` of its variance
+/// (module docs, "Noise level", for why there is a gap).
+pub const LEVEL_STD_SCALE: [f32; NOISE_LEVELS as usize] = [1.0, 0.01, 0.003_162_277_7];
+
+/// The levels' prior as its distribution function: entry `k` is
+/// `P(level ≤ k)`, half the particles at the configured noise and a
+/// quarter at each quiet level (the last level takes the rest).
+pub const LEVEL_PRIOR_CDF: [f32; NOISE_LEVELS as usize - 1] = [0.5, 0.75];
+
+/// The probability that a particle's level jumps to a new draw from its
+/// prior, per prediction (module docs, "Noise level").
+pub const LEVEL_JUMP_PROBABILITY: f32 = 1e-3;
+
+/// The level whose prior mass holds `uniform` (in [0, 1)): the inverse of
+/// [`LEVEL_PRIOR_CDF`].
+fn prior_level(uniform: f32) -> u8 {
+    let below = LEVEL_PRIOR_CDF.iter().filter(|&&c| uniform >= c).count();
+    u8::try_from(below).unwrap_or(NOISE_LEVELS - 1)
+}
+
 /// The pose on odometry with per-wheel noise, for the particle filter.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoisyOdometryModel {
     config: PoseFilterConfig,
+}
+
+impl NoisyOdometryModel {
+    /// One particle's step with its wheels' standard deviation `scale`
+    /// times the configured one (module docs, "Prediction").
+    fn sample_scaled(
+        &self,
+        scale: f32,
+        x: &PoseState,
+        u: &OdometryStep,
+        gaussian: &mut dyn FnMut() -> f32,
+    ) -> PoseState {
+        let config = &self.config;
+        let b = config.track_width_m();
+        let (nominal_r, nominal_l) = wheel_travels(u.ds_m, u.dtheta_rad, b);
+        let noisy = |travel: f32, gaussian: &mut dyn FnMut() -> f32| {
+            travel + scale * math::sqrt(wheel_variance(config, travel)) * gaussian()
+        };
+        let right = noisy(nominal_r * (1.0 + x.w), gaussian);
+        let left = noisy(nominal_l * (1.0 + x.a), gaussian);
+        let mut next = drive_wheels(x, right, left, b);
+        next.w += math::sqrt(scale_walk_variance(config, right)) * gaussian();
+        next.a += math::sqrt(scale_walk_variance(config, left)) * gaussian();
+        next
+    }
 }
 
 impl ParticleModel<5, 2> for NoisyOdometryModel {
@@ -212,6 +302,7 @@ impl ParticleModel<5, 2> for NoisyOdometryModel {
         odometry_transition(x, u, self.config.track_width_m())
     }
 
+    /// The configured noise (level 0).
     fn sample_transition(
         &self,
         x: &PoseState,
@@ -220,18 +311,43 @@ impl ParticleModel<5, 2> for NoisyOdometryModel {
         _process_std: &PoseState,
         gaussian: &mut dyn FnMut() -> f32,
     ) -> PoseState {
-        let config = &self.config;
-        let b = config.track_width_m();
-        let (nominal_r, nominal_l) = wheel_travels(u.ds_m, u.dtheta_rad, b);
-        let noisy = |travel: f32, gaussian: &mut dyn FnMut() -> f32| {
-            travel + math::sqrt(wheel_variance(config, travel)) * gaussian()
-        };
-        let right = noisy(nominal_r * (1.0 + x.w), gaussian);
-        let left = noisy(nominal_l * (1.0 + x.a), gaussian);
-        let mut next = drive_wheels(x, right, left, b);
-        next.w += math::sqrt(scale_walk_variance(config, right)) * gaussian();
-        next.a += math::sqrt(scale_walk_variance(config, left)) * gaussian();
-        next
+        self.sample_scaled(1.0, x, u, gaussian)
+    }
+
+    const MODES: u8 = NOISE_LEVELS;
+
+    fn initial_mode(&self, uniform: f32) -> u8 {
+        prior_level(uniform)
+    }
+
+    /// Kept, but with probability [`LEVEL_JUMP_PROBABILITY`] a new draw
+    /// from the prior (module docs, "Noise level"): the one uniform
+    /// serves both, as `uniform / LEVEL_JUMP_PROBABILITY` is uniform in
+    /// [0, 1) below it.
+    fn next_mode(&self, mode: u8, uniform: f32) -> u8 {
+        if uniform < LEVEL_JUMP_PROBABILITY {
+            prior_level(uniform / LEVEL_JUMP_PROBABILITY)
+        } else {
+            mode
+        }
+    }
+
+    /// The wheels' standard deviation [`LEVEL_STD_SCALE`]`[level]` times
+    /// the configured one.
+    fn sample_transition_in_mode(
+        &self,
+        level: u8,
+        x: &PoseState,
+        u: &OdometryStep,
+        _dt_s: f32,
+        _process_std: &PoseState,
+        gaussian: &mut dyn FnMut() -> f32,
+    ) -> PoseState {
+        let scale = LEVEL_STD_SCALE
+            .get(usize::from(level))
+            .copied()
+            .unwrap_or(1.0);
+        self.sample_scaled(scale, x, u, gaussian)
     }
 
     fn measure(&self, x: &PoseState) -> SVector<f32, 2> {
@@ -250,7 +366,7 @@ impl ParticleModel<5, 2> for NoisyOdometryModel {
 /// The particle filter as a [`PoseFilterCore`], `P` particles.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParticleCore<const P: usize> {
-    filter: ParticleFilter<NoisyOdometryModel, 5, 2, P>,
+    filter: ParticleFilter<NoisyOdometryModel, 5, 2, P, P>,
 }
 
 /// The pose particle filter.
@@ -260,7 +376,7 @@ impl<const P: usize> ParticleCore<P> {
     /// The particle filter inside (its counters say what it resampled,
     /// recovered or skipped).
     #[must_use]
-    pub fn filter(&self) -> &ParticleFilter<NoisyOdometryModel, 5, 2, P> {
+    pub fn filter(&self) -> &ParticleFilter<NoisyOdometryModel, 5, 2, P, P> {
         &self.filter
     }
 }
@@ -363,14 +479,20 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
         self.filter.rejected_inputs() == rejected
     }
 
+    /// Every particle's pose redrawn from `N(mean, covariance)` and its
+    /// noise level from the prior (module docs, "Resets").
     fn reset(&mut self, mean: &PoseState, covariance: &PoseCovariance) -> bool {
-        self.filter.reset(mean, covariance).is_ok()
+        let ok = self.filter.reset(mean, covariance).is_ok();
+        if ok {
+            self.filter.redraw_modes();
+        }
+        ok
     }
 
     /// Sensor resetting of the position only (module docs,
     /// "Re-localisation"): every particle's position redrawn from
-    /// `measurement`'s Gaussian, its heading and wheel scale errors kept;
-    /// `mean` and `covariance` (the Gaussian restart of the other filters)
+    /// `measurement`'s Gaussian, its heading and wheel scale errors kept,
+    /// its noise level redrawn from the prior; `mean` and `covariance` (the Gaussian restart of the other filters)
     /// are not used. `false` (nothing changed) for a measurement that is
     /// not finite with positive (definite) variances.
     fn relocalise(
@@ -425,6 +547,7 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
                 [true, false],
             ),
         };
+        self.filter.redraw_modes();
         self.filter.reposition(|x, gaussian| {
             let (a, b) = (gaussian(), gaussian());
             if !keep[0] {
@@ -581,6 +704,89 @@ mod tests {
         assert_ne!(first.pose(), other.pose());
         assert!(first.core().filter().resamplings() > 0);
         assert_eq!(first.core().filter().collapses(), 0);
+    }
+
+    /// The levels: the configured noise, then `10^{−4}` and `10^{−5}` of
+    /// its variance; the prior's inverse distribution function gives half
+    /// the draws to level 0 and a quarter to each other, in order; a jump
+    /// is rare and draws from the prior.
+    #[test]
+    fn the_noise_levels_and_their_prior() {
+        for (scale, exponent) in LEVEL_STD_SCALE.iter().zip([0.0_f32, -4.0, -5.0]) {
+            let variance = scale * scale;
+            let expected = math::exp(exponent * core::f32::consts::LN_10);
+            assert!(
+                (variance / expected - 1.0).abs() < 1e-5,
+                "{exponent}: {variance}"
+            );
+        }
+        assert_eq!(prior_level(0.0), 0);
+        assert_eq!(prior_level(0.499_999), 0);
+        assert_eq!(prior_level(0.5), 1);
+        assert_eq!(prior_level(0.749_999), 1);
+        assert_eq!(prior_level(0.75), 2);
+        assert_eq!(prior_level(0.999_999), 2);
+        let model = NoisyOdometryModel { config: config(1) };
+        assert_eq!(model.next_mode(1, LEVEL_JUMP_PROBABILITY), 1);
+        assert_eq!(model.next_mode(1, 0.9), 1);
+        assert_eq!(model.next_mode(1, 0.0), 0);
+        assert_eq!(model.next_mode(0, 0.999_999 * LEVEL_JUMP_PROBABILITY), 2);
+    }
+
+    /// On wheels that do not slip (the truth drives the odometry) the
+    /// particles of the quieter levels take over: at the end of the drive
+    /// most particles are below the configured noise, and fewer than 30
+    /// are at it where the prior (and the jumps) put half.
+    #[test]
+    fn quiet_levels_take_over_on_exact_wheels() {
+        let (_, pf) = drive(5);
+        let counts = level_counts(&pf);
+        println!("particles per level after the drive: {counts:?}");
+        let quiet: usize = counts[1..].iter().sum();
+        assert!(quiet > 50 && counts[0] < 30, "{counts:?}");
+    }
+
+    /// Particles per level.
+    fn level_counts(pf: &PoseParticleFilter<100>) -> [usize; NOISE_LEVELS as usize] {
+        let mut counts = [0_usize; NOISE_LEVELS as usize];
+        for &m in pf.core().filter().modes() {
+            counts[usize::from(m)] += 1;
+        }
+        counts
+    }
+
+    /// A re-localisation redraws every level from the prior (module docs,
+    /// "Noise level"): after the drive the quiet levels hold the cloud,
+    /// (fewer than 30 particles at the configured noise), after fixes that
+    /// re-localise it about half are back at it (the prior's half; 35 and
+    /// 65 are three standard deviations of the binomial either side).
+    #[test]
+    fn a_relocalisation_redraws_the_levels() {
+        let (_, mut pf) = drive(5);
+        let before = level_counts(&pf);
+        assert!(before[0] < 30, "{before:?}");
+        let far = PositionMeasurement::Point {
+            position: pf.pose().position + Vec2::new(0.5, 0.0),
+            variance_m2: [1e-4, 1e-4],
+        };
+        for _ in 0..2 {
+            assert_eq!(pf.correct(&far), FixOutcome::Gated);
+        }
+        assert_eq!(pf.correct(&far), FixOutcome::Used);
+        let after = level_counts(&pf);
+        println!("particles per level: {before:?} before, {after:?} after");
+        assert!((35..=65).contains(&after[0]), "{after:?}");
+        assert!(after[1] > 10 && after[2] > 10, "{after:?}");
+    }
+
+    /// The filter's size: the generic filter's particles, buffer, weights
+    /// and log-likelihoods, and a byte of level per particle with its
+    /// resampling buffer (module docs of the generic filter, "Memory").
+    #[test]
+    fn memory_footprint() {
+        let core = core::mem::size_of::<ParticleCore<100>>();
+        println!("ParticleCore<100>: {core} B");
+        assert_eq!(core, 5_240);
     }
 
     /// Started in place (from the blank, as the estimator does) it is the

@@ -52,6 +52,12 @@ pub enum ParticleFilterError {
     ///
     /// [`ParticleModel::measures_state`]: super::ParticleModel::measures_state
     Proposal,
+    /// A model with modes ([`ParticleModel::MODES`] > 0) in a filter whose
+    /// mode slots `K` are not `P`, or with [`Proposal::Optimal`] (whose
+    /// closed-form draw knows `σ_q` only).
+    ///
+    /// [`ParticleModel::MODES`]: super::ParticleModel::MODES
+    Modes,
 }
 
 impl core::fmt::Display for ParticleFilterError {
@@ -67,6 +73,7 @@ impl core::fmt::Display for ParticleFilterError {
             Self::PriorStd => "each prior standard deviation must be finite and ≥ 0",
             Self::NoParticles => "the particle count P must be ≥ 1",
             Self::Proposal => "the optimal proposal needs a model whose measurement is its state (ParticleModel::measures_state, M = N)",
+            Self::Modes => "a model with modes (ParticleModel::MODES > 0) needs K = P mode slots and the prior proposal",
         })
     }
 }

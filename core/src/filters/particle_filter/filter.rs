@@ -57,9 +57,11 @@ pub struct ParticleFilterCounters {
 }
 
 /// The particle filter (module docs): model `Model`, `N` states, `M`
-/// measurements, `P` particles.
+/// measurements, `P` particles, and `K` mode slots: `P` for a model with
+/// modes (a `u8` per particle beside it, module docs of the model,
+/// "Modes"), 0 (the default) for one without.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ParticleFilter<Model, const N: usize, const M: usize, const P: usize>
+pub struct ParticleFilter<Model, const N: usize, const M: usize, const P: usize, const K: usize = 0>
 where
     Model: ParticleModel<N, M>,
 {
@@ -76,6 +78,10 @@ where
     pub(super) particles: [SVector<f32, N>; P],
     /// Where predictions and resamplings are built before being taken.
     pub(super) buffer: [SVector<f32, N>; P],
+    /// Each particle's mode (`K = P` with modes, else empty), and where
+    /// predictions and resamplings build them.
+    pub(super) modes: [u8; K],
+    pub(super) mode_buffer: [u8; K],
     /// Normalised (sum 1) between calls.
     pub(super) weights: [f32; P],
     /// `ℓ⁽ⁱ⁾ = −ln p(z | x⁽ⁱ⁾) + const` of the update in progress.
@@ -91,22 +97,27 @@ where
     pub(super) pending_std: SVector<f32, N>,
 }
 
-impl<Model, const N: usize, const M: usize, const P: usize> ParticleFilter<Model, N, M, P>
+impl<Model, const N: usize, const M: usize, const P: usize, const K: usize>
+    ParticleFilter<Model, N, M, P, K>
 where
     Model: ParticleModel<N, M>,
 {
     /// A filter whose `P` particles are drawn from the Gaussian prior
     /// `N(prior_mean, diag(prior_std²))` (per component, state units; the
     /// paper's `P(0) = 10 I` is `prior_std = √10` everywhere) with equal
-    /// weights, by a generator seeded with `seed`. The estimate is
-    /// `prior_mean` (angles wrapped) until the first step.
+    /// weights, by a generator seeded with `seed`, and then, for a model
+    /// with modes, each particle's mode from
+    /// [`ParticleModel::initial_mode`]. The estimate is `prior_mean`
+    /// (angles wrapped) until the first step.
     ///
     /// # Errors
     /// [`ParticleFilterError::NoParticles`] for `P = 0`,
     /// [`ParticleFilterError::PriorMean`] for a non-finite mean,
     /// [`ParticleFilterError::PriorStd`] for a negative or non-finite
     /// spread, [`ParticleFilterError::Proposal`] for
-    /// [`Proposal::Optimal`] with a model that does not measure its state.
+    /// [`Proposal::Optimal`] with a model that does not measure its state,
+    /// [`ParticleFilterError::Modes`] for a model with modes and `K ≠ P`
+    /// or the optimal proposal.
     pub fn new(
         model: Model,
         config: ParticleFilterConfig<N, M>,
@@ -114,7 +125,7 @@ where
         prior_std: SVector<f32, N>,
         seed: u64,
     ) -> Result<Self, ParticleFilterError> {
-        let start = Start::of::<Model, M, P>(&model, &config, &prior_mean, &prior_std)?;
+        let start = Start::of::<Model, M, P, K>(&model, &config, &prior_mean, &prior_std)?;
         let mut filter = Self {
             model,
             recovery_std: config.recovery_std.unwrap_or(prior_std),
@@ -124,6 +135,8 @@ where
             shrinkage: start.shrinkage,
             particles: [start.mean; P],
             buffer: [start.mean; P],
+            modes: [0; K],
+            mode_buffer: [0; K],
             weights: [1.0 / P as f32; P],
             log_likelihood: [0.0; P],
             estimate: start.mean,
@@ -133,6 +146,7 @@ where
             pending_std: prior_std,
         };
         filter.draw_prior(&prior_std);
+        filter.draw_modes();
         Ok(filter)
     }
 
@@ -152,7 +166,7 @@ where
         prior_std: SVector<f32, N>,
         seed: u64,
     ) -> Result<(), ParticleFilterError> {
-        let start = Start::of::<Model, M, P>(&model, &config, &prior_mean, &prior_std)?;
+        let start = Start::of::<Model, M, P, K>(&model, &config, &prior_mean, &prior_std)?;
         self.model = model;
         self.recovery_std = config.recovery_std.unwrap_or(prior_std);
         self.config = config;
@@ -161,6 +175,8 @@ where
         self.shrinkage = start.shrinkage;
         self.particles.fill(start.mean);
         self.buffer.fill(start.mean);
+        self.modes.fill(0);
+        self.mode_buffer.fill(0);
         self.weights.fill(1.0 / P as f32);
         self.log_likelihood.fill(0.0);
         self.estimate = start.mean;
@@ -169,6 +185,7 @@ where
         self.draw_pending = false;
         self.pending_std = prior_std;
         self.draw_prior(&prior_std);
+        self.draw_modes();
         Ok(())
     }
 
@@ -211,6 +228,8 @@ where
             shrinkage: 1.0,
             particles: Self::ALL_AT_ORIGIN,
             buffer: Self::ALL_AT_ORIGIN,
+            modes: [0; K],
+            mode_buffer: [0; K],
             weights: [0.0; P],
             log_likelihood: [0.0; P],
             estimate: Self::ORIGIN,
@@ -235,6 +254,27 @@ where
             self.draw_pending = true;
         } else {
             self.redraw(prior_std);
+        }
+    }
+
+    /// Every particle's mode redrawn from its prior
+    /// ([`ParticleModel::initial_mode`]), as at the start; the states and
+    /// weights are left as they are. A model without modes draws nothing.
+    pub fn redraw_modes(&mut self) {
+        self.draw_modes();
+    }
+
+    /// A model with modes: every particle's from its prior
+    /// ([`ParticleModel::initial_mode`]), one uniform draw each.
+    fn draw_modes(&mut self) {
+        if Model::MODES == 0 {
+            return;
+        }
+        for mode in self.modes.iter_mut() {
+            *mode = self
+                .model
+                .initial_mode(self.noise.uniform())
+                .min(Model::MODES.saturating_sub(1));
         }
     }
 
@@ -308,6 +348,13 @@ where
         &self.weights
     }
 
+    /// Their modes (module docs of the model, "Modes"; empty for a filter
+    /// without mode slots).
+    #[must_use]
+    pub fn modes(&self) -> &[u8; K] {
+        &self.modes
+    }
+
     /// What was resampled, recovered or skipped.
     #[must_use]
     pub fn counters(&self) -> ParticleFilterCounters {
@@ -354,12 +401,38 @@ where
             self.draw_pending = false;
         }
         let mut dropped = 0_usize;
+        let moded = Model::MODES > 0;
         let noise = &mut self.noise;
-        let mut gaussian = || noise.gaussian();
-        for (x, next) in self.particles.iter().zip(self.buffer.iter_mut()) {
+        for (slot, (x, next)) in self
+            .particles
+            .iter()
+            .zip(self.buffer.iter_mut())
+            .enumerate()
+        {
             let mut moved = if optimal {
                 self.model.transition(x, u, dt_s)
+            } else if moded {
+                // The mode's jump, then the state's move in it (module docs
+                // of the model, "Modes").
+                let mode = self.modes.get(slot).copied().unwrap_or(0);
+                let jumped = self
+                    .model
+                    .next_mode(mode, noise.uniform())
+                    .min(Model::MODES.saturating_sub(1));
+                if let Some(next_mode) = self.mode_buffer.get_mut(slot) {
+                    *next_mode = jumped;
+                }
+                let mut gaussian = || noise.gaussian();
+                self.model.sample_transition_in_mode(
+                    jumped,
+                    x,
+                    u,
+                    dt_s,
+                    &self.config.process_std,
+                    &mut gaussian,
+                )
             } else {
+                let mut gaussian = || noise.gaussian();
                 self.model
                     .sample_transition(x, u, dt_s, &self.config.process_std, &mut gaussian)
             };
@@ -376,14 +449,22 @@ where
             self.reject();
             return;
         }
-        for ((x, next), w) in self
+        for (slot, ((x, next), w)) in self
             .particles
             .iter_mut()
             .zip(self.buffer.iter())
             .zip(self.weights.iter_mut())
+            .enumerate()
         {
             if finite(next) {
                 *x = *next;
+                // A dropped particle keeps its mode with its state.
+                if moded
+                    && let (Some(mode), Some(&jumped)) =
+                        (self.modes.get_mut(slot), self.mode_buffer.get(slot))
+                {
+                    *mode = jumped;
+                }
             } else {
                 *w = 0.0;
             }
@@ -613,7 +694,7 @@ struct Start<const N: usize> {
 
 impl<const N: usize> Start<N> {
     /// The checks of [`ParticleFilter::new`], in its order.
-    fn of<Model: ParticleModel<N, M>, const M: usize, const P: usize>(
+    fn of<Model: ParticleModel<N, M>, const M: usize, const P: usize, const K: usize>(
         model: &Model,
         config: &ParticleFilterConfig<N, M>,
         prior_mean: &SVector<f32, N>,
@@ -630,6 +711,9 @@ impl<const N: usize> Start<N> {
         }
         if config.proposal == Proposal::Optimal && !(M == N && model.measures_state()) {
             return Err(ParticleFilterError::Proposal);
+        }
+        if Model::MODES > 0 && (K != P || config.proposal == Proposal::Optimal) {
+            return Err(ParticleFilterError::Modes);
         }
         let bandwidth = if config.regularization > 0.0 {
             config.regularization * optimal_bandwidth(N, P)

@@ -14,6 +14,24 @@
 //! [`ParticleModel::measurement_residual`] to wrap them
 //! ([`crate::math::wrap_angle`]).
 //!
+//! # Modes
+//! A model may give each particle a discrete mode beside its state
+//! ([`ParticleModel::MODES`] > 0): the jump-Markov system of Doucet,
+//! Gordon & Krishnamurthy 2001 (*Particle filters for state estimation of
+//! jump Markov linear systems*, IEEE Trans. Signal Process.
+//! 49(3):613–624), whose particles carry the pair `(r, x)`: at each
+//! prediction the mode first makes its Markov jump
+//! ([`ParticleModel::next_mode`], `r_k ~ p(r_k | r_{k−1})`), then the
+//! state moves in the new mode
+//! ([`ParticleModel::sample_transition_in_mode`], `x_k ~ p(x_k | x_{k−1},
+//! r_k)`); the weights are the state's likelihood, as without modes, and
+//! a resampling copies each particle's mode with it (the multiple-model
+//! bootstrap filter of McGinnity & Irwin 2000, *Multiple model bootstrap
+//! filter for maneuvering target tracking*, IEEE Trans. AES
+//! 36(3):1006–1012). The filter keeps the modes in a `u8` array beside
+//! the particles (its `K = P` slots, [`ParticleFilter`]); a model without
+//! modes (the default) costs no draw and no byte.
+//!
 //! [`ParticleFilter`]: super::ParticleFilter
 //! [`ParticleFilter::covariance`]: super::ParticleFilter::covariance
 
@@ -76,6 +94,47 @@ pub trait ParticleModel<const N: usize, const M: usize> {
     /// [`Proposal::Optimal`]: super::Proposal::Optimal
     fn measures_state(&self) -> bool {
         false
+    }
+
+    /// How many discrete modes a particle carries beside its state (module
+    /// docs, "Modes"), at most 255; 0 (the default) for none: the filter
+    /// then asks none of the mode methods below and draws nothing for
+    /// them. With modes the filter needs `K = P` mode slots and the prior
+    /// proposal ([`ParticleFilterError::Modes`] otherwise).
+    ///
+    /// [`ParticleFilterError::Modes`]: super::ParticleFilterError::Modes
+    const MODES: u8 = 0;
+
+    /// A particle's mode at the start, from a uniform draw `uniform` in
+    /// [0, 1) (the mode's prior by its inverse distribution function;
+    /// default 0). A mode `≥` [`Self::MODES`] is taken as the last one.
+    fn initial_mode(&self, uniform: f32) -> u8 {
+        let _ = uniform;
+        0
+    }
+
+    /// The mode after a step from `mode`, from a uniform draw `uniform` in
+    /// [0, 1) (the mode's Markov transition; default: kept). Asked before
+    /// the step's [`Self::sample_transition_in_mode`]. A mode `≥`
+    /// [`Self::MODES`] is taken as the last one.
+    fn next_mode(&self, mode: u8, uniform: f32) -> u8 {
+        let _ = uniform;
+        mode
+    }
+
+    /// [`Self::sample_transition`] in mode `mode`, the particle's mode
+    /// after [`Self::next_mode`] (default: the mode ignored).
+    fn sample_transition_in_mode(
+        &self,
+        mode: u8,
+        x: &SVector<f32, N>,
+        u: &Self::Input,
+        dt_s: f32,
+        process_std: &SVector<f32, N>,
+        gaussian: &mut dyn FnMut() -> f32,
+    ) -> SVector<f32, N> {
+        let _ = mode;
+        self.sample_transition(x, u, dt_s, process_std, gaussian)
     }
 
     /// One particle's step with its process noise, drawing standard

@@ -69,7 +69,8 @@ pub enum Proposal {
     Optimal,
 }
 
-impl<Model, const N: usize, const M: usize, const P: usize> ParticleFilter<Model, N, M, P>
+impl<Model, const N: usize, const M: usize, const P: usize, const K: usize>
+    ParticleFilter<Model, N, M, P, K>
 where
     Model: ParticleModel<N, M>,
 {

@@ -75,7 +75,8 @@ pub(super) fn covariance_factor<const K: usize>(
     nalgebra::Cholesky::new(symmetric + SMatrix::<f32, K, K>::identity() * jitter).map(|l| l.l())
 }
 
-impl<Model, const N: usize, const M: usize, const P: usize> ParticleFilter<Model, N, M, P>
+impl<Model, const N: usize, const M: usize, const P: usize, const K: usize>
+    ParticleFilter<Model, N, M, P, K>
 where
     Model: ParticleModel<N, M>,
 {

@@ -9,7 +9,8 @@
 //! copied once for each pointer in `[Σ_{j<i} w̃⁽ʲ⁾, Σ_{j≤i} w̃⁽ʲ⁾)`, so it gets
 //! `⌊P w̃⁽ⁱ⁾⌋` or `⌈P w̃⁽ⁱ⁾⌉` copies (the lowest-variance of the standard
 //! schemes, `O(P)`). The copies go to a second particle array of the filter
-//! and are copied back.
+//! and are copied back; a model's modes go the same way, with their
+//! particles.
 
 use super::regularization::covariance_factor;
 use super::{ParticleFilter, ParticleModel};
@@ -27,6 +28,12 @@ pub fn systematic_resample<T: Copy, const P: usize>(
     uniform: f32,
     out: &mut [T; P],
 ) -> bool {
+    resample_slices(source, weights, uniform, out)
+}
+
+/// [`systematic_resample`] on slices: `out.len()` pointers over the
+/// pairs of `source` and `weights` (the shorter one's length).
+fn resample_slices<T: Copy>(source: &[T], weights: &[f32], uniform: f32, out: &mut [T]) -> bool {
     let clean = |w: f32| if w > 0.0 { w } else { 0.0 };
     let total: f32 = weights.iter().map(|&w| clean(w)).sum();
     if !(total.is_finite() && total > 0.0) {
@@ -37,7 +44,7 @@ pub fn systematic_resample<T: Copy, const P: usize>(
     } else {
         0.0
     };
-    let step = total / P as f32;
+    let step = total / out.len() as f32;
     let mut candidates = source.iter().zip(weights.iter().map(|&w| clean(w)));
     let mut chosen: Option<&T> = None;
     let mut cumulative = 0.0_f32;
@@ -62,7 +69,8 @@ pub fn systematic_resample<T: Copy, const P: usize>(
     true
 }
 
-impl<Model, const N: usize, const M: usize, const P: usize> ParticleFilter<Model, N, M, P>
+impl<Model, const N: usize, const M: usize, const P: usize, const K: usize>
+    ParticleFilter<Model, N, M, P, K>
 where
     Model: ParticleModel<N, M>,
 {
@@ -87,6 +95,14 @@ where
         let uniform = self.noise.uniform();
         if systematic_resample(&self.particles, &self.weights, uniform, &mut self.buffer) {
             self.particles = self.buffer;
+            // The same weights and pointer pick the same particles: each
+            // mode goes with its particle (module docs of the model,
+            // "Modes").
+            if Model::MODES > 0
+                && resample_slices(&self.modes, &self.weights, uniform, &mut self.mode_buffer)
+            {
+                self.modes = self.mode_buffer;
+            }
             self.weights = [1.0 / P as f32; P];
             self.counters.resamplings = self.counters.resamplings.saturating_add(1);
             if let Some(factor) = factor {

@@ -962,3 +962,117 @@ proptest! {
         }
     }
 }
+
+/// A walk with two modes (module docs of the model, "Modes"): mode `m`
+/// puts the particle at `m` (a little noise beside it), and the mode
+/// jumps to 1 on a uniform below ½; the prior mode is 0 below ⅓.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TwoModes;
+
+impl ParticleModel<1, 1> for TwoModes {
+    type Input = ();
+    fn transition(&self, x: &Vector1<f32>, _: &(), _: f32) -> Vector1<f32> {
+        *x
+    }
+    fn measure(&self, x: &Vector1<f32>) -> Vector1<f32> {
+        *x
+    }
+    fn measures_state(&self) -> bool {
+        true
+    }
+    const MODES: u8 = 2;
+    fn initial_mode(&self, uniform: f32) -> u8 {
+        u8::from(uniform >= 1.0 / 3.0)
+    }
+    fn next_mode(&self, mode: u8, uniform: f32) -> u8 {
+        if uniform < 0.5 { 1 } else { mode }
+    }
+    fn sample_transition_in_mode(
+        &self,
+        mode: u8,
+        _: &Vector1<f32>,
+        _: &(),
+        _: f32,
+        _: &Vector1<f32>,
+        gaussian: &mut dyn FnMut() -> f32,
+    ) -> Vector1<f32> {
+        Vector1::new(f32::from(mode) + 0.01 * gaussian())
+    }
+}
+
+fn two_modes(seed: u64) -> ParticleFilter<TwoModes, 1, 1, 100, 100> {
+    let config = walk_config(0.0, 0.05).with_roughening(0.05).unwrap();
+    ParticleFilter::new(TwoModes, config, Vector1::new(0.0), Vector1::new(1.0), seed).unwrap()
+}
+
+/// The modes start from the model's prior, jump by its Markov step, move
+/// the state by the mode, and go with their particles through
+/// resampling: after a measurement at 0 that removes the mode-1
+/// particles, every particle left is where its mode puts it, in mode 0.
+#[test]
+fn modes_jump_move_and_resample_with_their_particles() {
+    let mut f = two_modes(3);
+    let zeros = f.modes().iter().filter(|&&m| m == 0).count();
+    // A third of 100 from the prior, within 3.5 σ of sampling.
+    assert!((17..=50).contains(&zeros), "{zeros}");
+    f.predict(&(), 0.01);
+    let after_jump = f.modes().iter().filter(|&&m| m == 0).count();
+    // About half of the mode-0 particles jumped to 1.
+    assert!(after_jump < zeros && after_jump > 0, "{zeros} {after_jump}");
+    for (x, &m) in f.particles().iter().zip(f.modes().iter()) {
+        assert!((x[0] - f32::from(m)).abs() < 0.06, "{x} {m}");
+    }
+    f.update(&Vector1::new(0.0));
+    assert_eq!(f.resamplings(), 1);
+    for (x, &m) in f.particles().iter().zip(f.modes().iter()) {
+        assert_eq!(m, 0);
+        // Roughening moves the state, never the mode.
+        assert!(x[0].abs() < 0.1, "{x} {m}");
+    }
+    assert_eq!(f, {
+        let mut again = two_modes(3);
+        again.predict(&(), 0.01);
+        again.update(&Vector1::new(0.0));
+        again
+    });
+}
+
+/// A model with modes needs `K = P` mode slots and the prior proposal;
+/// started in place it is the filter `new` builds, modes included.
+#[test]
+fn modes_need_their_slots_and_the_prior_proposal() {
+    let config = walk_config(0.0, 0.05);
+    let few: Result<ParticleFilter<TwoModes, 1, 1, 100, 10>, _> =
+        ParticleFilter::new(TwoModes, config, Vector1::new(0.0), Vector1::new(1.0), 1);
+    assert_eq!(few.err(), Some(ParticleFilterError::Modes));
+    let optimal = config.with_proposal(Proposal::Optimal);
+    let refused: Result<ParticleFilter<TwoModes, 1, 1, 100, 100>, _> =
+        ParticleFilter::new(TwoModes, optimal, Vector1::new(0.0), Vector1::new(1.0), 1);
+    assert_eq!(refused.err(), Some(ParticleFilterError::Modes));
+    let mut used = two_modes(4);
+    used.predict(&(), 0.01);
+    let config = walk_config(0.0, 0.05).with_roughening(0.05).unwrap();
+    used.init(TwoModes, config, Vector1::new(0.0), Vector1::new(1.0), 3)
+        .unwrap();
+    assert_eq!(used, two_modes(3));
+}
+
+/// `redraw_modes` draws every mode from the model's prior again and
+/// leaves the states and weights: after three jumps left about one
+/// particle in 24 in mode 0, about a third are back in it, at the same
+/// states.
+#[test]
+fn redrawn_modes_come_from_the_prior_and_leave_the_states() {
+    let mut f = two_modes(5);
+    for _ in 0..3 {
+        f.predict(&(), 0.01);
+    }
+    let before = f.modes().iter().filter(|&&m| m == 0).count();
+    assert!(before < 12, "{before}");
+    let (particles, weights) = (*f.particles(), *f.weights());
+    f.redraw_modes();
+    let zeros = f.modes().iter().filter(|&&m| m == 0).count();
+    // A third of 100 from the prior, within 3.5 σ of sampling.
+    assert!((17..=50).contains(&zeros), "{zeros}");
+    assert_eq!((*f.particles(), *f.weights()), (particles, weights));
+}

@@ -90,7 +90,8 @@ pub(super) fn normalise<const P: usize>(weights: &mut [f32; P]) -> bool {
     true
 }
 
-impl<Model, const N: usize, const M: usize, const P: usize> ParticleFilter<Model, N, M, P>
+impl<Model, const N: usize, const M: usize, const P: usize, const K: usize>
+    ParticleFilter<Model, N, M, P, K>
 where
     Model: ParticleModel<N, M>,
 {
