@@ -18,8 +18,8 @@ docs/fusion.md, "The three filters together".
    same runs is the floor every filter must beat.
 
 The goals of issue 32 are checked at the end and printed as counts.
-The sweeps' files go to target/fusion-table/. About two hours on 2
-cores at 32 runs (the particle filter's sweeps are most of it).
+The sweeps' files go to target/fusion-table/. About 20 minutes on 2
+cores at 32 runs, about 7 at 8.
 
     python3 tools/fusion_table.py starts [FILTER ...] [--seed N] [--cases I,J,...]
     # default: particle_filter, the filter's default particle_seed, every case
