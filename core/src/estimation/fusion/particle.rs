@@ -482,18 +482,14 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
     /// Every particle's pose redrawn from `N(mean, covariance)` and its
     /// noise level from the prior (module docs, "Resets").
     fn reset(&mut self, mean: &PoseState, covariance: &PoseCovariance) -> bool {
-        let ok = self.filter.reset(mean, covariance).is_ok();
-        if ok {
-            self.filter.redraw_modes();
-        }
-        ok
+        self.filter.reset(mean, covariance).is_ok()
     }
 
     /// Sensor resetting of the position only (module docs,
     /// "Re-localisation"): every particle's position redrawn from
     /// `measurement`'s Gaussian, its heading and wheel scale errors kept,
-    /// its noise level redrawn from the prior; `mean` and `covariance` (the Gaussian restart of the other filters)
-    /// are not used. `false` (nothing changed) for a measurement that is
+    /// its noise level redrawn from the prior; `mean` and `covariance`
+    /// (the Gaussian restart of the other filters) are not used. `false` (nothing changed) for a measurement that is
     /// not finite with positive (definite) variances.
     fn relocalise(
         &mut self,

@@ -146,7 +146,7 @@ where
             pending_std: prior_std,
         };
         filter.draw_prior(&prior_std);
-        filter.draw_modes();
+        filter.redraw_modes();
         Ok(filter)
     }
 
@@ -185,7 +185,7 @@ where
         self.draw_pending = false;
         self.pending_std = prior_std;
         self.draw_prior(&prior_std);
-        self.draw_modes();
+        self.redraw_modes();
         Ok(())
     }
 
@@ -257,16 +257,11 @@ where
         }
     }
 
-    /// Every particle's mode redrawn from its prior
-    /// ([`ParticleModel::initial_mode`]), as at the start; the states and
-    /// weights are left as they are. A model without modes draws nothing.
+    /// Every particle's mode drawn from its prior
+    /// ([`ParticleModel::initial_mode`], one uniform draw each), as at the
+    /// start and at a [`Self::reset`]; the states and weights are left as
+    /// they are. A model without modes draws nothing.
     pub fn redraw_modes(&mut self) {
-        self.draw_modes();
-    }
-
-    /// A model with modes: every particle's from its prior
-    /// ([`ParticleModel::initial_mode`]), one uniform draw each.
-    fn draw_modes(&mut self) {
         if Model::MODES == 0 {
             return;
         }
@@ -542,7 +537,9 @@ where
     /// that Gaussian (through the lower Cholesky factor of `covariance`,
     /// after the same symmetrise-and-jitter repair as the UKF's if it is
     /// only semi-definite), with equal weights, and the estimate becomes
-    /// `mean` (angles wrapped). Counters and the generator's stream go on.
+    /// `mean` (angles wrapped); a model's modes are drawn from their prior
+    /// ([`Self::redraw_modes`]), as at the start. Counters and the
+    /// generator's stream go on.
     ///
     /// # Errors
     /// [`ParticleFilterError::PriorMean`] for a non-finite mean,
@@ -568,6 +565,7 @@ where
             wrap_angles(&mut moved, &self.angles);
             *x = if finite(&moved) { moved } else { centre };
         }
+        self.redraw_modes();
         self.weights = [1.0 / P as f32; P];
         self.estimate = centre;
         self.draw_pending = false;

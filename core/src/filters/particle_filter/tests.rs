@@ -1060,7 +1060,7 @@ fn modes_need_their_slots_and_the_prior_proposal() {
 /// `redraw_modes` draws every mode from the model's prior again and
 /// leaves the states and weights: after three jumps left about one
 /// particle in 24 in mode 0, about a third are back in it, at the same
-/// states.
+/// states. A reset draws them from the prior too.
 #[test]
 fn redrawn_modes_come_from_the_prior_and_leave_the_states() {
     let mut f = two_modes(5);
@@ -1075,4 +1075,13 @@ fn redrawn_modes_come_from_the_prior_and_leave_the_states() {
     // A third of 100 from the prior, within 3.5 σ of sampling.
     assert!((17..=50).contains(&zeros), "{zeros}");
     assert_eq!((*f.particles(), *f.weights()), (particles, weights));
+    for _ in 0..3 {
+        f.predict(&(), 0.01);
+    }
+    let before_reset = f.modes().iter().filter(|&&m| m == 0).count();
+    assert!(before_reset < 12, "{before_reset}");
+    f.reset(&Vector1::new(0.0), &SMatrix::<f32, 1, 1>::new(1.0))
+        .unwrap();
+    let zeros = f.modes().iter().filter(|&&m| m == 0).count();
+    assert!((17..=50).contains(&zeros), "{zeros}");
 }
