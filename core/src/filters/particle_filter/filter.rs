@@ -637,13 +637,17 @@ where
     /// origin; angles on the circle). `false` (estimate kept) if the mean is
     /// not finite.
     pub(super) fn refresh_estimate(&mut self) -> bool {
-        let mut linear = SVector::<f32, N>::zeros();
-        let mut sines = SVector::<f32, N>::zeros();
-        let mut cosines = SVector::<f32, N>::zeros();
+        // Arrays and slices: zipped, their iterators compile to one indexed
+        // loop, where nalgebra's matrix iterators each keep a position and
+        // an end per component.
+        let mut linear = [0.0_f32; N];
+        let mut sines = [0.0_f32; N];
+        let mut cosines = [0.0_f32; N];
         for (x, &w) in self.particles.iter().zip(self.weights.iter()) {
             let components = x
+                .as_slice()
                 .iter()
-                .zip(self.estimate.iter())
+                .zip(self.estimate.as_slice())
                 .zip(self.angles.iter())
                 .zip(linear.iter_mut())
                 .zip(sines.iter_mut().zip(cosines.iter_mut()));
