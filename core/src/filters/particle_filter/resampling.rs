@@ -109,8 +109,10 @@ where
         let (particles, buffer) = (&self.particles, &mut self.buffer);
         let (modes, mode_buffer) = (&self.modes, &mut self.mode_buffer);
         let picked = systematic_pick(&self.weights, uniform, |k, i| {
+            // Component by component: a whole-vector assignment here
+            // becomes a call to `memmove` per copy on the Cortex-M4.
             if let (Some(slot), Some(x)) = (buffer.get_mut(k), particles.get(i)) {
-                *slot = *x;
+                slot.copy_from(x);
             }
             // Each mode goes with its particle (module docs of the model,
             // "Modes").
