@@ -307,8 +307,17 @@ where
         let mut covariance = SMatrix::<f32, N, N>::zeros();
         for (x, &w) in self.particles.iter().zip(self.weights.iter()) {
             let d = self.deviation(x, &self.estimate);
-            covariance += (d * d.transpose()) * w;
+            // The upper triangle of `(d dᵀ) w`, mirrored below after the
+            // sum: `(d_i d_j) w` and `(d_j d_i) w` are the same `f32`.
+            for (j, &dj) in d.as_slice().iter().enumerate() {
+                for (i, &di) in d.as_slice().iter().enumerate().take(j + 1) {
+                    if let Some(c) = covariance.get_mut((i, j)) {
+                        *c += (di * dj) * w;
+                    }
+                }
+            }
         }
+        covariance.fill_lower_triangle_with_upper_triangle();
         if self.draw_pending {
             for (i, &sigma) in self.pending_std.iter().enumerate() {
                 if let Some(c) = covariance.get_mut((i, i)) {
