@@ -307,8 +307,17 @@ where
         let mut covariance = SMatrix::<f32, N, N>::zeros();
         for (x, &w) in self.particles.iter().zip(self.weights.iter()) {
             let d = self.deviation(x, &self.estimate);
-            covariance += (d * d.transpose()) * w;
+            // The upper triangle of `(d dᵀ) w`, mirrored below after the
+            // sum: `(d_i d_j) w` and `(d_j d_i) w` are the same `f32`.
+            for (j, &dj) in d.as_slice().iter().enumerate() {
+                for (i, &di) in d.as_slice().iter().enumerate().take(j + 1) {
+                    if let Some(c) = covariance.get_mut((i, j)) {
+                        *c += (di * dj) * w;
+                    }
+                }
+            }
         }
+        covariance.fill_lower_triangle_with_upper_triangle();
         if self.draw_pending {
             for (i, &sigma) in self.pending_std.iter().enumerate() {
                 if let Some(c) = covariance.get_mut((i, i)) {
@@ -637,13 +646,17 @@ where
     /// origin; angles on the circle). `false` (estimate kept) if the mean is
     /// not finite.
     pub(super) fn refresh_estimate(&mut self) -> bool {
-        let mut linear = SVector::<f32, N>::zeros();
-        let mut sines = SVector::<f32, N>::zeros();
-        let mut cosines = SVector::<f32, N>::zeros();
+        // Arrays and slices: zipped, their iterators compile to one indexed
+        // loop, where nalgebra's matrix iterators each keep a position and
+        // an end per component.
+        let mut linear = [0.0_f32; N];
+        let mut sines = [0.0_f32; N];
+        let mut cosines = [0.0_f32; N];
         for (x, &w) in self.particles.iter().zip(self.weights.iter()) {
             let components = x
+                .as_slice()
                 .iter()
-                .zip(self.estimate.iter())
+                .zip(self.estimate.as_slice())
                 .zip(self.angles.iter())
                 .zip(linear.iter_mut())
                 .zip(sines.iter_mut().zip(cosines.iter_mut()));

@@ -53,8 +53,17 @@ impl Noise {
         // (0, 1]: ln stays finite.
         let u1 = ((self.rng.next_u32() >> 8) + 1) as f32 * UNIT_24;
         let angle = math::TAU * self.uniform();
-        // max(0): an approximate ln(1) may come out a hair above 0.
-        let radius = math::sqrt((-2.0 * math::ln(u1)).max(0.0));
+        // max(0): an approximate ln(1) may come out a hair above 0. Spelled
+        // out with `f32::max(0.0)`'s results (NaN and values below 0 give
+        // 0, −0 stays −0, on the host and the Cortex-M4 alike), where
+        // `f32::max` is a call to `fmaxf` on the Cortex-M4.
+        let square = -2.0 * math::ln(u1);
+        let square = if square.is_nan() || square < 0.0 {
+            0.0
+        } else {
+            square
+        };
+        let radius = math::sqrt(square);
         let (sin, cos) = math::sincos(angle);
         self.spare = Some(radius * sin);
         radius * cos

@@ -9,8 +9,8 @@
 //! copied once for each pointer in `[Σ_{j<i} w̃⁽ʲ⁾, Σ_{j≤i} w̃⁽ʲ⁾)`, so it gets
 //! `⌊P w̃⁽ⁱ⁾⌋` or `⌈P w̃⁽ⁱ⁾⌉` copies (the lowest-variance of the standard
 //! schemes, `O(P)`). The copies go to a second particle array of the filter
-//! and are copied back; a model's modes go the same way, with their
-//! particles.
+//! and are copied back; a model's modes go the same way, each copied with
+//! its particle in the one pass over the weights.
 
 use super::regularization::covariance_factor;
 use super::{ParticleFilter, ParticleModel};
@@ -28,12 +28,22 @@ pub fn systematic_resample<T: Copy, const P: usize>(
     uniform: f32,
     out: &mut [T; P],
 ) -> bool {
-    resample_slices(source, weights, uniform, out)
+    systematic_pick(weights, uniform, |k, i| {
+        if let (Some(slot), Some(x)) = (out.get_mut(k), source.get(i)) {
+            *slot = *x;
+        }
+    })
 }
 
-/// [`systematic_resample`] on slices: `out.len()` pointers over the
-/// pairs of `source` and `weights` (the shorter one's length).
-fn resample_slices<T: Copy>(source: &[T], weights: &[f32], uniform: f32, out: &mut [T]) -> bool {
+/// The selection of [`systematic_resample`]: `copy(k, i)` for each pointer
+/// `k = 0 … P−1`, in order, with `i` the particle it falls on. Returns
+/// `false` (and copies nothing) if the weights do not add up to a finite
+/// positive total.
+fn systematic_pick<const P: usize>(
+    weights: &[f32; P],
+    uniform: f32,
+    mut copy: impl FnMut(usize, usize),
+) -> bool {
     let clean = |w: f32| if w > 0.0 { w } else { 0.0 };
     let total: f32 = weights.iter().map(|&w| clean(w)).sum();
     if !(total.is_finite() && total > 0.0) {
@@ -44,27 +54,29 @@ fn resample_slices<T: Copy>(source: &[T], weights: &[f32], uniform: f32, out: &m
     } else {
         0.0
     };
-    let step = total / out.len() as f32;
-    let mut candidates = source.iter().zip(weights.iter().map(|&w| clean(w)));
-    let mut chosen: Option<&T> = None;
-    let mut cumulative = 0.0_f32;
-    for (k, slot) in out.iter_mut().enumerate() {
+    let step = total / P as f32;
+    // The particles with a stretch (positive weight), in order; the
+    // positive total guarantees a first one.
+    let mut candidates = weights
+        .iter()
+        .map(|&w| clean(w))
+        .enumerate()
+        .filter(|&(_, w)| w > 0.0);
+    let Some((mut chosen, mut cumulative)) = candidates.next() else {
+        return false;
+    };
+    for k in 0..P {
         let pointer = (k as f32 + uniform) * step;
-        // Advance to the first particle whose stretch ends past the pointer;
-        // zero-weight particles have no stretch and are never chosen (past
-        // the end, rounding keeps the last positive one).
-        while chosen.is_none() || pointer >= cumulative {
-            let Some((x, w)) = candidates.next() else {
+        // Advance to the first particle whose stretch ends past the pointer
+        // (past the end, rounding keeps the last one).
+        while pointer >= cumulative {
+            let Some((i, w)) = candidates.next() else {
                 break;
             };
-            if w > 0.0 {
-                chosen = Some(x);
-                cumulative += w;
-            }
+            chosen = i;
+            cumulative += w;
         }
-        if let Some(x) = chosen {
-            *slot = *x;
-        }
+        copy(k, chosen);
     }
     true
 }
@@ -93,14 +105,24 @@ where
             None
         };
         let uniform = self.noise.uniform();
-        if systematic_resample(&self.particles, &self.weights, uniform, &mut self.buffer) {
-            self.particles = self.buffer;
-            // The same weights and pointer pick the same particles: each
-            // mode goes with its particle (module docs of the model,
+        let moded = Model::MODES > 0;
+        let (particles, buffer) = (&self.particles, &mut self.buffer);
+        let (modes, mode_buffer) = (&self.modes, &mut self.mode_buffer);
+        let picked = systematic_pick(&self.weights, uniform, |k, i| {
+            // Component by component: a whole-vector assignment here
+            // becomes a call to `memmove` per copy on the Cortex-M4.
+            if let (Some(slot), Some(x)) = (buffer.get_mut(k), particles.get(i)) {
+                slot.copy_from(x);
+            }
+            // Each mode goes with its particle (module docs of the model,
             // "Modes").
-            if Model::MODES > 0
-                && resample_slices(&self.modes, &self.weights, uniform, &mut self.mode_buffer)
-            {
+            if moded && let (Some(slot), Some(&mode)) = (mode_buffer.get_mut(k), modes.get(i)) {
+                *slot = mode;
+            }
+        });
+        if picked {
+            self.particles = self.buffer;
+            if moded {
                 self.modes = self.mode_buffer;
             }
             self.weights = [1.0 / P as f32; P];
