@@ -107,6 +107,36 @@ impl TagCell {
         dx * dx + dy * dy
     }
 
+    /// The shortest move of the position `(x, y)` that makes the span of
+    /// [`Self::distance_sq`] meet the cell, per axis, m: the gap to the
+    /// nearer edge, towards the cell, on an axis where the span misses it;
+    /// 0 where it meets it. After the move `distance_sq` is 0 but for
+    /// rounding. NaN for a non-finite position.
+    #[must_use]
+    pub fn shift_onto(&self, x: f32, y: f32) -> Vec2 {
+        let h = self.half_width_m;
+        let shift = |value: f32, centre: f32, sweep: f32| {
+            let (low, high) = if sweep > 0.0 {
+                (value - sweep, value)
+            } else {
+                (value, value - sweep)
+            };
+            if !(low.is_finite() && high.is_finite()) {
+                f32::NAN
+            } else if low > centre + h {
+                (centre + h) - low
+            } else if high < centre - h {
+                (centre - h) - high
+            } else {
+                0.0
+            }
+        };
+        Vec2::new(
+            shift(x - self.lag.x, self.centre.x, self.sweep.x),
+            shift(y - self.lag.y, self.centre.y, self.sweep.y),
+        )
+    }
+
     /// The cell as a Gaussian of the same moments, centred half the sweep
     /// and the lag ahead of the tag with variance `h²/3 + sweep²/12 + σ_e²` per axis
     /// (the uniform square's `(2h)²/12`, the sweep's uniform share): what
