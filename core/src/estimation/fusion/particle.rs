@@ -101,8 +101,8 @@
 //! a read is weighted, if even its closest particle is more than
 //! [`STRAY_GAP_M`] (2 cm, twenty edge softenings) beyond the read cell,
 //! the whole cloud is moved by the shift that brings that particle onto
-//! the cell's edge ([`TagCell::shift_onto`]), with equal weights, before
-//! the read is weighted as usual: the smallest correction that makes the
+//! the cell's edge ([`TagCell::shift_onto`], [`ParticleFilter::shift`]:
+//! each particle keeps its weight), before the read is weighted as usual: the smallest correction that makes the
 //! read possible, leaving each particle's heading, scale errors and noise
 //! level and the cloud's shape as they were (the projection of a
 //! constrained estimate onto its constraint, Simon 2010, *Kalman filtering
@@ -646,7 +646,7 @@ impl<const P: usize> ParticleCore<P> {
         }
         let limit = STRAY_GAP_M / cell.edge_std_m;
         if closest > limit * limit && shift.is_finite() {
-            self.filter.reposition(|x, _| {
+            self.filter.shift(|x| {
                 x.x += shift.x;
                 x.y += shift.y;
             });
@@ -970,7 +970,10 @@ mod tests {
         assert!((0.14..=0.155).contains(&x), "{x}");
         // The heading as it was, but for the resampling's roughening.
         let heading = pf.pose().heading_rad;
-        assert!((heading - heading_before).abs() < 0.02, "{heading_before} → {heading}");
+        assert!(
+            (heading - heading_before).abs() < 0.02,
+            "{heading_before} → {heading}"
+        );
         // Now inside: reads of the cell weight without moving.
         assert_eq!(pf.correct_cell(&cell), FixOutcome::Used);
         assert_eq!(pf.core().stray_moves(), 1);
