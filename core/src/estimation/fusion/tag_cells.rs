@@ -78,6 +78,16 @@ pub struct TagCell {
     pub edge_std_m: f32,
 }
 
+/// The span `[value − max(sweep, 0), value − min(sweep, 0)]` a coordinate
+/// covered during a tick that moved it by `sweep` and ended at `value`.
+fn swept_span(value: f32, sweep: f32) -> (f32, f32) {
+    if sweep > 0.0 {
+        (value - sweep, value)
+    } else {
+        (value, value - sweep)
+    }
+}
+
 impl TagCell {
     /// Twice the cell's negative log-likelihood at the position `(x, y)`
     /// now (nats, up to a constant): per axis, the gap `g` between the
@@ -89,11 +99,7 @@ impl TagCell {
     pub fn distance_sq(&self, x: f32, y: f32) -> f32 {
         let h = self.half_width_m;
         let outside = |value: f32, centre: f32, sweep: f32| {
-            let (low, high) = if sweep > 0.0 {
-                (value - sweep, value)
-            } else {
-                (value, value - sweep)
-            };
+            let (low, high) = swept_span(value, sweep);
             let gap = (low - (centre + h)).max((centre - h) - high);
             // NaN stays NaN (`max` drops one NaN, not two).
             if gap > 0.0 || gap.is_nan() {
@@ -116,11 +122,7 @@ impl TagCell {
     pub fn shift_onto(&self, x: f32, y: f32) -> Vec2 {
         let h = self.half_width_m;
         let shift = |value: f32, centre: f32, sweep: f32| {
-            let (low, high) = if sweep > 0.0 {
-                (value - sweep, value)
-            } else {
-                (value, value - sweep)
-            };
+            let (low, high) = swept_span(value, sweep);
             if !(low.is_finite() && high.is_finite()) {
                 f32::NAN
             } else if low > centre + h {
