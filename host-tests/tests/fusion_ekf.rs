@@ -257,9 +257,9 @@ fn template_ensemble(kind: FusionFilterSpec, spacing_m: f64) -> host_tests::Ense
 /// the template's own run (seed 1, its start) at most 0.01 / 0.001 m, as
 /// the EKF's and the UKF's; the median max at most 0.01 m on 10 cm and
 /// within 1.5× of the EKF's on each floor. Its median mean is 1.6–2.2×
-/// the EKF's and is not held here. Measured: the run 0.0026 / 0.0008 m;
-/// median max (worst start) against the EKF's: 10 cm 0.0049 (0.0106)
-/// against 0.0051 (0.0072), 20 cm 0.0118 (0.0381) against 0.0134
+/// the EKF's and is not held here. Measured: the run 0.0037 / 0.000998 m;
+/// median max (worst start) against the EKF's: 10 cm 0.0039 (0.0075)
+/// against 0.0051 (0.0072), 20 cm 0.0115 (0.0284) against 0.0134
 /// (0.0176), 30 cm 0.0110 (0.0289) against 0.0129 (0.0137).
 #[test]
 fn the_ukf_and_the_particle_filter_at_the_template_defaults() {

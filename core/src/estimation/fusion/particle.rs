@@ -86,6 +86,33 @@
 //! take the cell's moments ([`TagCell::moments`]). The first read starts
 //! the particles in the cell (`s²/12` per axis) rather than a metre wide.
 //!
+//! # Stray clouds
+//! A cloud can lose its cell: on a sparse floor with nearly exact wheels
+//! the cell cuts and the quiet noise levels leave many copies of one
+//! particle, and a cloud of copies that drifted out of the robot's cell
+//! stays out, all its particles beyond the read cell's edge. The
+//! likelihood then weights them only by how far beyond the edge each is
+//! ([`ParticleFilter::update_with_likelihood`] weights relative to the
+//! closest particle), so each read hands the cloud to the one particle
+//! that happened to move closest, mostly by its heading: on the circle
+//! over 30 cm tags at 1e-6 m²/m, runs so caught read a cell more than
+//! 1 cm beyond every particle in a third of their reads and held headings
+//! 0.1–0.3 rad off for minutes (docs/fusion.md, "Stray clouds"). So before
+//! a read is weighted, if even its closest particle is more than
+//! [`STRAY_GAP_M`] (2 cm, twenty edge softenings) beyond the read cell,
+//! the whole cloud is moved by the shift that brings that particle onto
+//! the cell's edge ([`TagCell::shift_onto`], [`ParticleFilter::shift`]:
+//! each particle keeps its weight), before the read is weighted as usual: the smallest correction that makes the
+//! read possible, leaving each particle's heading, scale errors and noise
+//! level and the cloud's shape as they were (the projection of a
+//! constrained estimate onto its constraint, Simon 2010, *Kalman filtering
+//! with state constraints: a survey of linear and nonlinear algorithms*,
+//! IET Control Theory Appl. 4(8):1303–1318, applied to the cloud; the
+//! EKF's edge constraint of [`crate::estimation::fusion::tag_cells`] does
+//! the same to its mean). Counted ([`ParticleCore::stray_moves`]); a read
+//! that is an outlier rather than a lost cloud is the gate's to refuse,
+//! which runs first, on the cell's moments.
+//!
 //! # Read discs
 //! With a range reader (a read radius `r > 0`,
 //! [`crate::estimation::fusion::FusionSettings::with_read_radius`]) the
@@ -171,6 +198,12 @@ use crate::odometry::OdometryStep;
 
 /// The roughening constant `K` after each resampling (module docs).
 pub const ROUGHENING: f32 = 0.05;
+
+/// How far beyond a read cell's edge the closest particle may be before
+/// the cloud is moved onto the cell, m (module docs, "Stray clouds"):
+/// twenty edge softenings, a read with a likelihood below `e^{−200}`
+/// under every particle.
+pub const STRAY_GAP_M: f32 = 0.02;
 
 /// Particles of the tracker's particle-filter estimator.
 pub const FUSION_PARTICLES: usize = 100;
@@ -367,6 +400,9 @@ impl ParticleModel<5, 2> for NoisyOdometryModel {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParticleCore<const P: usize> {
     filter: ParticleFilter<NoisyOdometryModel, 5, 2, P, P>,
+    /// Reads whose cell lay beyond [`STRAY_GAP_M`] of every particle, so
+    /// that the cloud was moved onto it (module docs, "Stray clouds").
+    stray_moves: u32,
 }
 
 /// The pose particle filter.
@@ -405,7 +441,10 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
         let std = prior_std(covariance);
         ParticleFilter::new(model, settings()?, *mean, std, config.particle_seed())
             .ok()
-            .map(|filter| Self { filter })
+            .map(|filter| Self {
+                filter,
+                stray_moves: 0,
+            })
     }
 
     /// In place ([`ParticleFilter::init`]): the 5 KB of particles are
@@ -421,9 +460,14 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
         };
         let model = NoisyOdometryModel { config: *config };
         let std = prior_std(covariance);
-        self.filter
+        let started = self
+            .filter
             .init(model, settings, *mean, std, config.particle_seed())
-            .is_ok()
+            .is_ok();
+        if started {
+            self.stray_moves = 0;
+        }
+        started
     }
 
     fn predict(&mut self, _config: &PoseFilterConfig, odometry: &OdometryStep) -> bool {
@@ -571,6 +615,7 @@ impl<const P: usize> ParticleCore<P> {
         if !valid {
             return false;
         }
+        self.move_stray_cloud(cell);
         let rejected = self.filter.rejected_inputs();
         self.filter
             .update_with_likelihood(|x| cell.distance_sq(x.x, x.y));
@@ -579,6 +624,36 @@ impl<const P: usize> ParticleCore<P> {
 }
 
 impl<const P: usize> ParticleCore<P> {
+    /// Reads whose cell lay beyond [`STRAY_GAP_M`] of every particle
+    /// (module docs, "Stray clouds"), since the start.
+    #[must_use]
+    pub fn stray_moves(&self) -> u32 {
+        self.stray_moves
+    }
+
+    /// Moves the whole cloud by the shift that brings its particle closest
+    /// to `cell` onto the cell's edge, if that particle is more than
+    /// [`STRAY_GAP_M`] beyond it (module docs, "Stray clouds"); counted.
+    fn move_stray_cloud(&mut self, cell: &TagCell) {
+        let mut closest = f32::INFINITY;
+        let mut shift = Vec2::new(0.0, 0.0);
+        for x in self.filter.particles() {
+            let distance_sq = cell.distance_sq(x.x, x.y);
+            if distance_sq < closest {
+                closest = distance_sq;
+                shift = cell.shift_onto(x.x, x.y);
+            }
+        }
+        let limit = STRAY_GAP_M / cell.edge_std_m;
+        if closest > limit * limit && shift.is_finite() {
+            self.filter.shift(|x| {
+                x.x += shift.x;
+                x.y += shift.y;
+            });
+            self.stray_moves = self.stray_moves.saturating_add(1);
+        }
+    }
+
     /// Weights every particle by the likelihood of the read disc
     /// ([`TagDisc::distance_sq`]; module docs, "Read discs"); `false` (and
     /// nothing changed) for a disc that is not finite with positive sizes.
@@ -631,6 +706,7 @@ impl<const P: usize> PoseParticleFilter<P> {
                 filter: ParticleFilter::blank(NoisyOdometryModel {
                     config: PLACEHOLDER,
                 }),
+                stray_moves: 0,
             },
         )
     }
@@ -776,13 +852,14 @@ mod tests {
     }
 
     /// The filter's size: the generic filter's particles, buffer, weights
-    /// and log-likelihoods, and a byte of level per particle with its
-    /// resampling buffer (module docs of the generic filter, "Memory").
+    /// and log-likelihoods, a byte of level per particle with its
+    /// resampling buffer (module docs of the generic filter, "Memory"),
+    /// and the count of stray moves.
     #[test]
     fn memory_footprint() {
         let core = core::mem::size_of::<ParticleCore<100>>();
         println!("ParticleCore<100>: {core} B");
-        assert_eq!(core, 5_240);
+        assert_eq!(core, 5_248);
     }
 
     /// Started in place (from the blank, as the estimator does) it is the
@@ -868,6 +945,68 @@ mod tests {
             ..cell
         };
         assert_eq!(pf.correct_cell(&broken), FixOutcome::Invalid);
+    }
+
+    /// A cloud that lost its cell (module docs, "Stray clouds"): a tight
+    /// cloud 5 cm beyond the edge of a 30 cm cell (within the gate on the
+    /// cell's moments) is moved onto the cell with its heading as it was,
+    /// and counted; a cloud that meets the cell, or is within
+    /// [`STRAY_GAP_M`] of it, is weighted without a move.
+    #[test]
+    fn a_stray_cloud_is_moved_onto_the_read_cell() {
+        let start = Pose::new(0.20, 0.0, 0.3);
+        let mut pf =
+            PoseParticleFilter::<100>::new(config(3), start, [1e-6, 1e-6, 1e-4, 0.0]).unwrap();
+        let heading_before = pf.pose().heading_rad;
+        let mut cells = TagCellTracker::new(0.3).unwrap();
+        // The cell spans x ∈ [−0.15, 0.15]: every particle is about 5 cm
+        // beyond its edge.
+        let cell = cells.cell(Vec2::new(0.0, 0.0), Vec2::ZERO).unwrap();
+        assert_eq!(pf.correct_cell(&cell), FixOutcome::Used);
+        assert_eq!(pf.core().stray_moves(), 1);
+        // The closest particle on the edge, the others behind it weighted by
+        // the edge's 1 mm tail: the mean within a few mm of the edge, not
+        // 5 cm beyond it.
+        let x = pf.pose().position.x;
+        assert!((0.14..=0.155).contains(&x), "{x}");
+        // The heading as it was, but for the resampling's roughening.
+        let heading = pf.pose().heading_rad;
+        assert!(
+            (heading - heading_before).abs() < 0.02,
+            "{heading_before} → {heading}"
+        );
+        // Now inside: reads of the cell weight without moving.
+        assert_eq!(pf.correct_cell(&cell), FixOutcome::Used);
+        assert_eq!(pf.core().stray_moves(), 1);
+
+        // 1 cm beyond the edge: weighted, not moved.
+        let mut near = PoseParticleFilter::<100>::new(
+            config(3),
+            Pose::new(0.16, 0.0, 0.3),
+            [1e-8, 1e-8, 1e-4, 0.0],
+        )
+        .unwrap();
+        assert_eq!(near.correct_cell(&cell), FixOutcome::Used);
+        assert_eq!(near.core().stray_moves(), 0);
+    }
+
+    /// `shift_onto` brings a position onto the cell: the span misses it
+    /// before the move and meets it after, on either side and axis; a
+    /// position inside does not move.
+    #[test]
+    fn the_shift_onto_a_cell_is_the_gap_to_its_nearer_edge() {
+        let mut cells = TagCellTracker::new(0.1).unwrap();
+        let cell = cells
+            .cell(Vec2::new(1.0, 2.0), Vec2::new(0.004, -0.003))
+            .unwrap();
+        for (x, y) in [(1.2, 2.0), (0.8, 2.0), (1.0, 2.3), (1.0, 1.7), (1.3, 1.6)] {
+            assert!(cell.distance_sq(x, y) > 100.0, "({x}, {y})");
+            let shift = cell.shift_onto(x, y);
+            let moved = cell.distance_sq(x + shift.x, y + shift.y);
+            assert!(moved < 1e-3, "({x}, {y}) → {shift:?}: {moved}");
+        }
+        assert_eq!(cell.shift_onto(1.01, 2.02), Vec2::ZERO);
+        assert!(!cell.shift_onto(f32::NAN, 2.0).is_finite());
     }
 
     /// Re-localisation keeps what the particles know: after three gated

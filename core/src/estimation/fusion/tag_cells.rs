@@ -78,6 +78,16 @@ pub struct TagCell {
     pub edge_std_m: f32,
 }
 
+/// The span `[value − max(sweep, 0), value − min(sweep, 0)]` a coordinate
+/// covered during a tick that moved it by `sweep` and ended at `value`.
+fn swept_span(value: f32, sweep: f32) -> (f32, f32) {
+    if sweep > 0.0 {
+        (value - sweep, value)
+    } else {
+        (value, value - sweep)
+    }
+}
+
 impl TagCell {
     /// Twice the cell's negative log-likelihood at the position `(x, y)`
     /// now (nats, up to a constant): per axis, the gap `g` between the
@@ -89,11 +99,7 @@ impl TagCell {
     pub fn distance_sq(&self, x: f32, y: f32) -> f32 {
         let h = self.half_width_m;
         let outside = |value: f32, centre: f32, sweep: f32| {
-            let (low, high) = if sweep > 0.0 {
-                (value - sweep, value)
-            } else {
-                (value, value - sweep)
-            };
+            let (low, high) = swept_span(value, sweep);
             let gap = (low - (centre + h)).max((centre - h) - high);
             // NaN stays NaN (`max` drops one NaN, not two).
             if gap > 0.0 || gap.is_nan() {
@@ -105,6 +111,32 @@ impl TagCell {
         let dx = outside(x - self.lag.x, self.centre.x, self.sweep.x);
         let dy = outside(y - self.lag.y, self.centre.y, self.sweep.y);
         dx * dx + dy * dy
+    }
+
+    /// The shortest move of the position `(x, y)` that makes the span of
+    /// [`Self::distance_sq`] meet the cell, per axis, m: the gap to the
+    /// nearer edge, towards the cell, on an axis where the span misses it;
+    /// 0 where it meets it. After the move `distance_sq` is 0 but for
+    /// rounding. NaN for a non-finite position.
+    #[must_use]
+    pub fn shift_onto(&self, x: f32, y: f32) -> Vec2 {
+        let h = self.half_width_m;
+        let shift = |value: f32, centre: f32, sweep: f32| {
+            let (low, high) = swept_span(value, sweep);
+            if !(low.is_finite() && high.is_finite()) {
+                f32::NAN
+            } else if low > centre + h {
+                (centre + h) - low
+            } else if high < centre - h {
+                (centre - h) - high
+            } else {
+                0.0
+            }
+        };
+        Vec2::new(
+            shift(x - self.lag.x, self.centre.x, self.sweep.x),
+            shift(y - self.lag.y, self.centre.y, self.sweep.y),
+        )
     }
 
     /// The cell as a Gaussian of the same moments, centred half the sweep

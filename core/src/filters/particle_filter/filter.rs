@@ -608,6 +608,25 @@ where
         self.refresh_estimate();
     }
 
+    /// Moves every particle by `shift` (a deterministic map of the state,
+    /// e.g. a translation of the whole cloud), keeping its weight, and
+    /// takes the weighted mean as the estimate. Angles are wrapped after
+    /// the move; a particle the move would leave non-finite keeps its old
+    /// state. A pending draw of the optimal proposal is dropped (the move
+    /// replaces it).
+    pub fn shift(&mut self, mut shift: impl FnMut(&mut SVector<f32, N>)) {
+        for x in self.particles.iter_mut() {
+            let mut moved = *x;
+            shift(&mut moved);
+            wrap_angles(&mut moved, &self.angles);
+            if finite(&moved) {
+                *x = moved;
+            }
+        }
+        self.draw_pending = false;
+        self.refresh_estimate();
+    }
+
     /// Collapse recovery (module docs): redraw around the kept estimate.
     pub(super) fn collapse(&mut self) {
         let spread = self.recovery_std;

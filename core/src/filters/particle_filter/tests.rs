@@ -279,6 +279,42 @@ fn update_with_std_weights_only_the_measured_components() {
     assert_eq!(a.rejected_inputs(), 3);
 }
 
+/// A shift moves every particle by the map it is given and keeps its
+/// weight: the weighted mean moves with the cloud, headings are wrapped,
+/// and a move that would leave a particle non-finite leaves it where it
+/// was.
+#[test]
+fn a_shift_moves_the_particles_and_keeps_their_weights() {
+    let mut pf = unicycle(5);
+    // Unequal weights (wide enough that nothing is resampled).
+    pf.update_with_std(
+        &Vector3::new(0.4, -0.2, 0.0),
+        &Vector3::new(3.0 * PRIOR_STD, 3.0 * PRIOR_STD, f32::INFINITY),
+    );
+    assert_eq!(pf.resamplings(), 0);
+    let particles = *pf.particles();
+    let weights = *pf.weights();
+    let estimate = pf.estimate();
+    pf.shift(|x| {
+        x[0] += 0.25;
+        x[1] -= 0.5;
+        x[2] += core::f32::consts::TAU;
+    });
+    assert_eq!(pf.weights(), &weights);
+    for (moved, before) in pf.particles().iter().zip(particles.iter()) {
+        assert!((moved[0] - (before[0] + 0.25)).abs() < 1e-6);
+        assert!((moved[1] - (before[1] - 0.5)).abs() < 1e-6);
+        assert!(wrap_angle(moved[2] - before[2]).abs() < 1e-5);
+        assert!(moved[2].abs() <= core::f32::consts::PI);
+    }
+    assert!((pf.estimate()[0] - (estimate[0] + 0.25)).abs() < 1e-5);
+    assert!((pf.estimate()[1] - (estimate[1] - 0.5)).abs() < 1e-5);
+    let before = *pf.particles();
+    pf.shift(|x| x[0] = f32::NAN);
+    assert_eq!(pf.particles(), &before);
+    assert_eq!(pf.weights(), &weights);
+}
+
 /// A reset redraws the particles from the Gaussian it is given (its
 /// sample mean and covariance within sampling error of 400 particles)
 /// and refuses a covariance that is not one.
