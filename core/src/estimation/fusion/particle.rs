@@ -102,8 +102,8 @@
 //! [`STRAY_GAP_M`] (2 cm, twenty edge softenings) beyond the read cell,
 //! the whole cloud is moved by the shift that brings that particle onto
 //! the cell's edge ([`TagCell::shift_onto`], [`ParticleFilter::shift`]:
-//! each particle keeps its weight), before the read is weighted as usual: the smallest correction that makes the
-//! read possible, leaving each particle's heading, scale errors and noise
+//! each particle keeps its weight), before the read is weighted as
+//! usual: the smallest correction that makes the read possible, leaving each particle's heading, scale errors and noise
 //! level and the cloud's shape as they were (the projection of a
 //! constrained estimate onto its constraint, Simon 2010, *Kalman filtering
 //! with state constraints: a survey of linear and nonlinear algorithms*,
@@ -533,8 +533,9 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
     /// "Re-localisation"): every particle's position redrawn from
     /// `measurement`'s Gaussian, its heading and wheel scale errors kept,
     /// its noise level redrawn from the prior; `mean` and `covariance`
-    /// (the Gaussian restart of the other filters) are not used. `false` (nothing changed) for a measurement that is
-    /// not finite with positive (definite) variances.
+    /// (the Gaussian restart of the other filters) are not used. `false`
+    /// (nothing changed) for a measurement that is not finite with
+    /// positive (definite) variances.
     fn relocalise(
         &mut self,
         _mean: &PoseState,
