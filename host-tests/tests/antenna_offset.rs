@@ -9,7 +9,7 @@
 //! Measured (max / mean, m): paper 001's observer 0.0266 / 0.0042 at the
 //! midpoint, 0.1066 / 0.0949 ignored, 0.0283 / 0.0042 modelled; paper
 //! 002's pose observer 0.0434 / 0.0073, 0.1112 / 0.0975, 0.0493 / 0.0071;
-//! the fusion EKF 0.0035 / 0.0016, 0.1062 / 0.0959, 0.0064 / 0.0018 (its
+//! the fusion EKF 0.0068 / 0.0017, 0.1061 / 0.0959, 0.0079 / 0.0019 (its
 //! largest error not fully restored: the fix is moved with the heading
 //! estimate, not through the filter's measurement model).
 

@@ -324,7 +324,7 @@ fn the_firmware_refuses_a_bad_tag_map_naming_the_tag() {
 /// the fusion EKF, which every board carries, selected
 /// over the link): 120 s of the full-stack figure-eight, the same records
 /// as the host run, bit for bit, within the stack budget. (The whole 480 s
-/// run, by `firmware-sim hil`: 0.0035 / 0.0016 m max / mean after 100 s,
+/// run, by `firmware-sim hil`: 0.0068 / 0.0017 m max / mean after 100 s,
 /// against paper 001's estimator's 0.0266 / 0.0042 m.)
 #[test]
 fn fusion_ekf_in_the_default_firmware_runs_exactly_as_on_the_host() {

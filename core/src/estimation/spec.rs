@@ -192,9 +192,10 @@ pub struct FusionSpec {
     /// (`SensorSpec::tag_spacing_m` 0) there is no default: it must be
     /// given ([`PoseFilterError::TagMapBlindDistance`]).
     pub max_blind_distance_m: Option<f32>,
-    /// Reads of an unchanged tag pull an estimate that left the tag's cell
-    /// back to its edge (default off; with `wheel_variance_per_m` near the
-    /// real wheel noise it is the tuning for wheels that slip).
+    /// Reads of an unchanged tag pull any estimate that left the tag's cell
+    /// back to its edge (default off: only an estimate more than 2 cm
+    /// beyond the cell is truncated to it; with `wheel_variance_per_m` near
+    /// the real wheel noise it is the tuning for wheels that slip).
     pub edge_constraint: bool,
     /// The particle filter's generator seed (default 1; the other filters
     /// ignore it).

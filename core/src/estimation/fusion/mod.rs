@@ -31,6 +31,8 @@
 //!   ([`PoseFilter`], [`PoseFilterCore`]).
 //! * [`tag_cells`]: tag fixes as the measurements they carry
 //!   ([`TagCellTracker`]).
+//! * [`truncation`]: a Gaussian estimate truncated to a tag's cell, as a
+//!   measurement (a stray estimate's correction).
 //! * [`ekf`], [`ukf`], [`particle`]: the three filter cores.
 //! * This module: the estimator the tracker runs ([`FusionSettings`],
 //!   [`FusionEstimator`]) and its choice of filter ([`FusionFilter`]).
@@ -50,6 +52,7 @@ pub mod gate;
 pub mod odometry_noise;
 pub mod particle;
 pub mod tag_cells;
+pub mod truncation;
 pub mod ukf;
 
 pub use config::{PoseFilterConfig, PoseFilterError};
@@ -480,7 +483,13 @@ impl FusionEstimator {
                     // By reference: the slice iterator has no bounds check
                     // (the by-value iterator of heapless's Vec indexes, with
                     // a panic path).
-                    let measurements = self.cells.measurements(tag, last_step, pose.position);
+                    let covariance = filter.covariance();
+                    let measurements = self.cells.measurements(
+                        tag,
+                        last_step,
+                        pose.position,
+                        [covariance.m11, covariance.m22],
+                    );
                     for measurement in &measurements {
                         filter.correct(measurement);
                     }
@@ -988,18 +997,33 @@ mod tests {
     #[test]
     fn tag_changes_become_boundary_crossings() {
         let mut cells = TagCellTracker::new(0.1).unwrap().with_edge_constraint(true);
-        let first = cells.measurements(Vec2::new(0.0, 0.0), Vec2::new(0.001, 0.0), Vec2::ZERO);
+        let first = cells.measurements(
+            Vec2::new(0.0, 0.0),
+            Vec2::new(0.001, 0.0),
+            Vec2::ZERO,
+            [1e-4; 2],
+        );
         assert!(matches!(
             first.first(),
             Some(PositionMeasurement::Point { .. })
         ));
         assert!(
             cells
-                .measurements(Vec2::new(0.0, 0.0), Vec2::new(0.001, 0.0), Vec2::ZERO)
+                .measurements(
+                    Vec2::new(0.0, 0.0),
+                    Vec2::new(0.001, 0.0),
+                    Vec2::ZERO,
+                    [1e-4; 2]
+                )
                 .is_empty()
         );
         assert_eq!(cells.same_tag_reads(), 1);
-        let crossing = cells.measurements(Vec2::new(0.1, 0.0), Vec2::new(0.002, 0.0), Vec2::ZERO);
+        let crossing = cells.measurements(
+            Vec2::new(0.1, 0.0),
+            Vec2::new(0.002, 0.0),
+            Vec2::ZERO,
+            [1e-4; 2],
+        );
         match crossing.first() {
             Some(PositionMeasurement::X {
                 value_m,
@@ -1011,11 +1035,93 @@ mod tests {
             other => panic!("{other:?}"),
         }
         // A jump of two cells is not a crossing.
-        let jump = cells.measurements(Vec2::new(0.3, 0.0), Vec2::new(0.002, 0.0), Vec2::ZERO);
+        let jump = cells.measurements(
+            Vec2::new(0.3, 0.0),
+            Vec2::new(0.002, 0.0),
+            Vec2::ZERO,
+            [1e-4; 2],
+        );
         assert!(matches!(
             jump.first(),
             Some(PositionMeasurement::Point { .. })
         ));
+    }
+
+    /// Reads of an unchanged tag leave an estimate within 2 cm of the
+    /// tag's cell alone and truncate one beyond it to the cell (the
+    /// truncation's Kalman update lands inside); the edge constraint
+    /// instead pulls any estimate outside to the edge.
+    #[test]
+    fn a_stray_estimate_is_truncated_to_its_cell() {
+        let tag = Vec2::new(0.0, 0.0);
+        let step = Vec2::new(0.001, 0.0);
+        let variance = 4e-4_f32;
+        let read = |cells: &mut TagCellTracker, estimate: Vec2| {
+            let _ = cells.measurements(tag, step, Vec2::ZERO, [variance; 2]);
+            cells.measurements(tag, step, estimate, [variance; 2])
+        };
+        let mut cells = TagCellTracker::new(0.1).unwrap();
+        // 1.5 cm beyond the edge at x = 0.05, inside the cell in y.
+        assert!(read(&mut cells, Vec2::new(0.065, 0.0)).is_empty());
+        assert_eq!(cells.edge_corrections(), 0);
+        // 3 cm beyond the edge in x, 2.5 cm below the cell in y.
+        let mut cells = TagCellTracker::new(0.1).unwrap();
+        let estimate = Vec2::new(0.08, -0.075);
+        let pulled = read(&mut cells, estimate);
+        assert_eq!(pulled.len(), 2);
+        assert_eq!(cells.edge_corrections(), 2);
+        for m in &pulled {
+            let (mean, value_m, variance_m2) = match *m {
+                PositionMeasurement::X {
+                    value_m,
+                    variance_m2,
+                } => (estimate.x, value_m, variance_m2),
+                PositionMeasurement::Y {
+                    value_m,
+                    variance_m2,
+                } => (estimate.y, value_m, variance_m2),
+                other => panic!("{other:?}"),
+            };
+            let updated = mean + variance / (variance + variance_m2) * (value_m - mean);
+            assert!(updated.abs() < 0.05, "{m:?}: {updated}");
+            assert!((updated.abs() - 0.05).abs() < 0.02, "{m:?}: {updated}");
+        }
+        // The edge constraint: to the edge, at variance (s/10)².
+        let mut cells = TagCellTracker::new(0.1).unwrap().with_edge_constraint(true);
+        match read(&mut cells, Vec2::new(0.055, 0.0)).first() {
+            Some(PositionMeasurement::X {
+                value_m,
+                variance_m2,
+            }) => {
+                assert_eq!((*value_m, *variance_m2), (0.05, 0.1 * 0.1 / 100.0));
+            }
+            other => panic!("{other:?}"),
+        }
+        // A fix two ticks old: the cell has moved on by two steps (1 cm),
+        // so 2.5 cm past its edge at the read is 1.5 cm past it now.
+        let mut cells = TagCellTracker::new(0.1)
+            .unwrap()
+            .with_fix_age_ticks(2.0)
+            .unwrap();
+        let step = Vec2::new(0.005, 0.0);
+        let _ = cells.measurements(tag, step, Vec2::ZERO, [variance; 2]);
+        assert!(
+            cells
+                .measurements(tag, step, Vec2::new(0.075, 0.0), [variance; 2])
+                .is_empty()
+        );
+        assert_eq!(
+            cells
+                .measurements(tag, step, Vec2::new(0.082, 0.0), [variance; 2])
+                .len(),
+            1
+        );
+        // No variance, no truncation.
+        assert!(
+            cells
+                .measurements(tag, step, Vec2::new(0.2, 0.0), [f32::NAN; 2])
+                .is_empty()
+        );
     }
 
     /// A fix one tick old (the simulator's reader over its UART): a
@@ -1033,8 +1139,8 @@ mod tests {
         };
         for (ticks, beyond) in [(0.0, 0.5), (1.0, 1.5), (2.5, 3.0)] {
             let mut cells = aged(ticks);
-            let _ = cells.measurements(Vec2::new(0.0, 0.0), step, Vec2::ZERO);
-            let crossing = cells.measurements(Vec2::new(0.1, 0.0), step, Vec2::ZERO);
+            let _ = cells.measurements(Vec2::new(0.0, 0.0), step, Vec2::ZERO, [1e-4; 2]);
+            let crossing = cells.measurements(Vec2::new(0.1, 0.0), step, Vec2::ZERO, [1e-4; 2]);
             match crossing.first() {
                 Some(PositionMeasurement::X { value_m, .. }) => {
                     let expected = 0.05 + beyond * step.x;

@@ -8,9 +8,30 @@
 //! fix is a weak 2-D measurement (the uniform cell, variance `s²/12` per
 //! axis) and each later change of tag is a sharp 1-D measurement of the
 //! crossed axis. Reads of the same tag say the robot is still inside that
-//! cell; by default they are skipped, and optionally
-//! ([`TagCellTracker::with_edge_constraint`]) they pull an estimate that
-//! has drifted out back to the cell's edge (variance `(s/10)²`).
+//! cell; they are skipped while the estimate is within
+//! [`STRAY_ESTIMATE_GAP_M`] of it (below).
+//!
+//! # Stray estimates
+//! Between changes of tag nothing corrects the estimate, and under wheel
+//! slip it drifts: an estimate more than [`STRAY_ESTIMATE_GAP_M`] (2 cm)
+//! beyond the cell of the tag still being read is wrong by at least that
+//! much. Such a read truncates the estimate to the cell, along each axis
+//! it has left ([`crate::estimation::fusion::truncation`]: the truncated
+//! Gaussian's mean and variance, as the scalar measurement whose update
+//! gives them; Simon & Simon 2010), the cell moved on by the fix's age.
+//! Each is counted ([`TagCellTracker::edge_corrections`]). Closer in, the
+//! read is left alone: there the estimate's own error is within what the
+//! next crossing corrects, and pulling it at every read makes the filter
+//! trust its position more than the reads justify. Then the correlation
+//! carries each pull into the heading: 1 cm (on the template's
+//! figure-eight, 32 starts) doubled the 90th percentile of the worst
+//! error. The particle filter's cloud obeys the same 2 cm
+//! ([`crate::estimation::fusion::particle`], "Stray clouds").
+//!
+//! The edge constraint ([`TagCellTracker::with_edge_constraint`]) instead
+//! pulls any estimate outside the cell back to its edge, at a variance of
+//! `(s/10)²` per read: the tuning for wheels that slip, with a wheel noise
+//! near theirs (docs/fusion.md, "Random slip").
 //!
 //! A particle filter can take the read as what it is instead, the cell
 //! itself ([`TagCellTracker::cell`], [`TagCell`]), on every read: see
@@ -30,6 +51,7 @@
 //! filters take for a heading error wherever the robot turns.
 
 use crate::estimation::fusion::gate::{PI_SQUARED, PositionMeasurement};
+use crate::estimation::fusion::truncation::truncation_measurement;
 use crate::geometry::Vec2;
 use crate::math;
 
@@ -37,6 +59,10 @@ use crate::math;
 /// units of `r²`: `2/3 − π²/16` (docs of
 /// [`TagCellTracker::range_measurement`]).
 const ENTRY_ALONG_VARIANCE: f32 = 2.0 / 3.0 - PI_SQUARED / 16.0;
+
+/// How far beyond the cell of the tag still being read an estimate must be
+/// before the read truncates it (module docs, "Stray estimates"), m.
+pub const STRAY_ESTIMATE_GAP_M: f32 = 0.02;
 
 /// The softening of a cell's edges, m ([`TagCellTracker::cell`]).
 const CELL_EDGE_STD_M: f32 = 1e-3;
@@ -203,10 +229,11 @@ impl TagCellTracker {
     }
 
     /// Whether reads of an unchanged tag pull an estimate that has left its
-    /// cell back to the edge (default off: on the figure-eight it halves the
-    /// worst error under wheel slip but triples it without, because the
-    /// edge "measurement" is made from the estimate itself and its
-    /// correlation leaks into the heading).
+    /// cell back to the edge, however little (default off: only a stray
+    /// estimate is truncated, module docs. On the figure-eight the edge
+    /// constraint halves the worst error under wheel slip but triples it
+    /// without, because the edge "measurement" is made from the estimate
+    /// itself and its correlation leaks into the heading).
     #[must_use]
     pub fn with_edge_constraint(self, edges: bool) -> Self {
         Self { edges, ..self }
@@ -220,7 +247,8 @@ impl TagCellTracker {
     }
 
     /// Edge measurements made because the estimate had left the cell of the
-    /// tag still being read.
+    /// tag still being read: a stray estimate's truncations (module docs),
+    /// or the edge constraint's pulls.
     #[must_use]
     pub fn edge_corrections(&self) -> u32 {
         self.edge_corrections
@@ -313,8 +341,15 @@ impl TagCellTracker {
 
     /// The measurements of a fix at `tag`, given the displacement `(Δx, Δy)`
     /// the robot made during the last tick (from odometry and the current
-    /// heading estimate) and the current position estimate.
-    pub fn measurements(&mut self, tag: Vec2, last_step: Vec2, estimate: Vec2) -> CellMeasurements {
+    /// heading estimate), the current position estimate and its variances
+    /// `[σx², σy²]` (m²; for a stray estimate's truncation).
+    pub fn measurements(
+        &mut self,
+        tag: Vec2,
+        last_step: Vec2,
+        estimate: Vec2,
+        variance_m2: [f32; 2],
+    ) -> CellMeasurements {
         let mut out = CellMeasurements::new();
         if !(tag.is_finite() && last_step.is_finite() && estimate.is_finite()) {
             return out;
@@ -333,28 +368,47 @@ impl TagCellTracker {
         let crossed = |d: f32| d.abs() > 0.5 * s;
         let adjacent = |d: f32| d.abs() < 1.5 * s;
         if !crossed(dx) && !crossed(dy) {
-            // Still in the same cell: if the estimate has left it, the
-            // cell's edge is where the robot at most is.
+            // Still in the same cell: an estimate that has left it is pulled
+            // back (module docs, "Stray estimates" and the edge constraint).
             self.same_tag_reads = self.same_tag_reads.saturating_add(1);
-            if !self.edges {
-                return out;
-            }
             let edge = |estimate: f32, centre: f32| {
                 let offset = estimate - centre;
                 (offset.abs() > 0.5 * s).then(|| centre + 0.5 * s * offset.signum())
             };
             let edge_variance = s * s / 100.0;
-            if let Some(value_m) = edge(estimate.x, tag.x) {
+            // Where the cell read `age` ticks ago now is, along the motion.
+            let lag = Vec2::new(last_step.x.max(-s).min(s), last_step.y.max(-s).min(s))
+                .scaled(self.fix_age_ticks);
+            let stray = |estimate: f32, variance: f32, centre: f32| {
+                let (low, high) = (centre - 0.5 * s, centre + 0.5 * s);
+                if estimate >= low - STRAY_ESTIMATE_GAP_M && estimate <= high + STRAY_ESTIMATE_GAP_M
+                {
+                    return None;
+                }
+                truncation_measurement(estimate, variance, low, high)
+            };
+            let (x, y) = if self.edges {
+                (
+                    edge(estimate.x, tag.x).map(|value_m| (value_m, edge_variance)),
+                    edge(estimate.y, tag.y).map(|value_m| (value_m, edge_variance)),
+                )
+            } else {
+                (
+                    stray(estimate.x, variance_m2[0], tag.x + lag.x),
+                    stray(estimate.y, variance_m2[1], tag.y + lag.y),
+                )
+            };
+            if let Some((value_m, variance_m2)) = x {
                 let _ = out.push(PositionMeasurement::X {
                     value_m,
-                    variance_m2: edge_variance,
+                    variance_m2,
                 });
                 self.edge_corrections = self.edge_corrections.saturating_add(1);
             }
-            if let Some(value_m) = edge(estimate.y, tag.y) {
+            if let Some((value_m, variance_m2)) = y {
                 let _ = out.push(PositionMeasurement::Y {
                     value_m,
-                    variance_m2: edge_variance,
+                    variance_m2,
                 });
                 self.edge_corrections = self.edge_corrections.saturating_add(1);
             }
