@@ -210,13 +210,10 @@ pub fn figure_eight_run_from(
         let (command, estimate) = match estimator {
             Estimator::FusionEkf => {
                 // Measure: the nearest tag, turned into what it tells.
-                let covariance = ekf.covariance();
-                for m in cells.measurements(
-                    tag(&robot),
-                    last_step,
-                    ekf.pose().position,
-                    [covariance[(0, 0)], covariance[(1, 1)]],
-                ) {
+                for m in cells.measurements(tag(&robot), last_step, ekf.pose().position, || {
+                    let covariance = ekf.covariance();
+                    [covariance[(0, 0)], covariance[(1, 1)]]
+                }) {
                     let before = ekf.pose();
                     let outcome = ekf.correct(&m);
                     if std::env::var_os("FUSION_DEBUG").is_some()

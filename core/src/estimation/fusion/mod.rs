@@ -483,13 +483,11 @@ impl FusionEstimator {
                     // By reference: the slice iterator has no bounds check
                     // (the by-value iterator of heapless's Vec indexes, with
                     // a panic path).
-                    let covariance = filter.covariance();
-                    let measurements = self.cells.measurements(
-                        tag,
-                        last_step,
-                        pose.position,
-                        [covariance.m11, covariance.m22],
-                    );
+                    let measurements =
+                        self.cells.measurements(tag, last_step, pose.position, || {
+                            let covariance = filter.covariance();
+                            [covariance.m11, covariance.m22]
+                        });
                     for measurement in &measurements {
                         filter.correct(measurement);
                     }
@@ -1001,7 +999,7 @@ mod tests {
             Vec2::new(0.0, 0.0),
             Vec2::new(0.001, 0.0),
             Vec2::ZERO,
-            [1e-4; 2],
+            || [1e-4; 2],
         );
         assert!(matches!(
             first.first(),
@@ -1013,7 +1011,7 @@ mod tests {
                     Vec2::new(0.0, 0.0),
                     Vec2::new(0.001, 0.0),
                     Vec2::ZERO,
-                    [1e-4; 2]
+                    || [1e-4; 2]
                 )
                 .is_empty()
         );
@@ -1022,7 +1020,7 @@ mod tests {
             Vec2::new(0.1, 0.0),
             Vec2::new(0.002, 0.0),
             Vec2::ZERO,
-            [1e-4; 2],
+            || [1e-4; 2],
         );
         match crossing.first() {
             Some(PositionMeasurement::X {
@@ -1039,7 +1037,7 @@ mod tests {
             Vec2::new(0.3, 0.0),
             Vec2::new(0.002, 0.0),
             Vec2::ZERO,
-            [1e-4; 2],
+            || [1e-4; 2],
         );
         assert!(matches!(
             jump.first(),
@@ -1057,8 +1055,8 @@ mod tests {
         let step = Vec2::new(0.001, 0.0);
         let variance = 4e-4_f32;
         let read = |cells: &mut TagCellTracker, estimate: Vec2| {
-            let _ = cells.measurements(tag, step, Vec2::ZERO, [variance; 2]);
-            cells.measurements(tag, step, estimate, [variance; 2])
+            let _ = cells.measurements(tag, step, Vec2::ZERO, || [variance; 2]);
+            cells.measurements(tag, step, estimate, || [variance; 2])
         };
         let mut cells = TagCellTracker::new(0.1).unwrap();
         // 1.5 cm beyond the edge at x = 0.05, inside the cell in y.
@@ -1104,22 +1102,22 @@ mod tests {
             .with_fix_age_ticks(2.0)
             .unwrap();
         let step = Vec2::new(0.005, 0.0);
-        let _ = cells.measurements(tag, step, Vec2::ZERO, [variance; 2]);
+        let _ = cells.measurements(tag, step, Vec2::ZERO, || [variance; 2]);
         assert!(
             cells
-                .measurements(tag, step, Vec2::new(0.075, 0.0), [variance; 2])
+                .measurements(tag, step, Vec2::new(0.075, 0.0), || [variance; 2])
                 .is_empty()
         );
         assert_eq!(
             cells
-                .measurements(tag, step, Vec2::new(0.082, 0.0), [variance; 2])
+                .measurements(tag, step, Vec2::new(0.082, 0.0), || [variance; 2])
                 .len(),
             1
         );
         // No variance, no truncation.
         assert!(
             cells
-                .measurements(tag, step, Vec2::new(0.2, 0.0), [f32::NAN; 2])
+                .measurements(tag, step, Vec2::new(0.2, 0.0), || [f32::NAN; 2])
                 .is_empty()
         );
     }
@@ -1139,8 +1137,8 @@ mod tests {
         };
         for (ticks, beyond) in [(0.0, 0.5), (1.0, 1.5), (2.5, 3.0)] {
             let mut cells = aged(ticks);
-            let _ = cells.measurements(Vec2::new(0.0, 0.0), step, Vec2::ZERO, [1e-4; 2]);
-            let crossing = cells.measurements(Vec2::new(0.1, 0.0), step, Vec2::ZERO, [1e-4; 2]);
+            let _ = cells.measurements(Vec2::new(0.0, 0.0), step, Vec2::ZERO, || [1e-4; 2]);
+            let crossing = cells.measurements(Vec2::new(0.1, 0.0), step, Vec2::ZERO, || [1e-4; 2]);
             match crossing.first() {
                 Some(PositionMeasurement::X { value_m, .. }) => {
                     let expected = 0.05 + beyond * step.x;

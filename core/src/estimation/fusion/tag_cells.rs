@@ -326,10 +326,7 @@ impl TagCellTracker {
         {
             self.same_tag_reads = self.same_tag_reads.saturating_add(1);
         }
-        // `max`/`min`, not `clamp`: `clamp` has a panic path (for bounds
-        // the optimiser cannot prove ordered), which the release firmware
-        // must not link.
-        let sweep = Vec2::new(last_step.x.max(-s).min(s), last_step.y.max(-s).min(s));
+        let sweep = self.clamped_step(last_step);
         Some(TagCell {
             centre: tag,
             half_width_m: 0.5 * s,
@@ -339,16 +336,27 @@ impl TagCellTracker {
         })
     }
 
+    /// The last tick's displacement with each axis clamped to one spacing
+    /// (a larger step is not a tick's travel between reads of one grid).
+    fn clamped_step(&self, last_step: Vec2) -> Vec2 {
+        let s = self.spacing_m;
+        // `max`/`min`, not `clamp`: `clamp` has a panic path (for bounds
+        // the optimiser cannot prove ordered), which the release firmware
+        // must not link.
+        Vec2::new(last_step.x.max(-s).min(s), last_step.y.max(-s).min(s))
+    }
+
     /// The measurements of a fix at `tag`, given the displacement `(Δx, Δy)`
     /// the robot made during the last tick (from odometry and the current
-    /// heading estimate), the current position estimate and its variances
-    /// `[σx², σy²]` (m²; for a stray estimate's truncation).
+    /// heading estimate), the current position estimate and the source of
+    /// its variances `[σx², σy²]` (m²; called only for a stray estimate's
+    /// truncation, so that a filter assembles its covariance only then).
     pub fn measurements(
         &mut self,
         tag: Vec2,
         last_step: Vec2,
         estimate: Vec2,
-        variance_m2: [f32; 2],
+        variance_m2: impl FnOnce() -> [f32; 2],
     ) -> CellMeasurements {
         let mut out = CellMeasurements::new();
         if !(tag.is_finite() && last_step.is_finite() && estimate.is_finite()) {
@@ -376,26 +384,32 @@ impl TagCellTracker {
                 (offset.abs() > 0.5 * s).then(|| centre + 0.5 * s * offset.signum())
             };
             let edge_variance = s * s / 100.0;
-            // Where the cell read `age` ticks ago now is, along the motion.
-            let lag = Vec2::new(last_step.x.max(-s).min(s), last_step.y.max(-s).min(s))
-                .scaled(self.fix_age_ticks);
-            let stray = |estimate: f32, variance: f32, centre: f32| {
-                let (low, high) = (centre - 0.5 * s, centre + 0.5 * s);
-                if estimate >= low - STRAY_ESTIMATE_GAP_M && estimate <= high + STRAY_ESTIMATE_GAP_M
-                {
-                    return None;
-                }
-                truncation_measurement(estimate, variance, low, high)
-            };
             let (x, y) = if self.edges {
                 (
                     edge(estimate.x, tag.x).map(|value_m| (value_m, edge_variance)),
                     edge(estimate.y, tag.y).map(|value_m| (value_m, edge_variance)),
                 )
             } else {
+                // Where the cell read `age` ticks ago now is, along the
+                // motion.
+                let centre = tag + self.clamped_step(last_step).scaled(self.fix_age_ticks);
+                let within_gap = |estimate: f32, centre: f32| {
+                    estimate >= centre - 0.5 * s - STRAY_ESTIMATE_GAP_M
+                        && estimate <= centre + 0.5 * s + STRAY_ESTIMATE_GAP_M
+                };
+                if within_gap(estimate.x, centre.x) && within_gap(estimate.y, centre.y) {
+                    return out;
+                }
+                let [variance_x, variance_y] = variance_m2();
+                let stray = |estimate: f32, variance: f32, centre: f32| {
+                    if within_gap(estimate, centre) {
+                        return None;
+                    }
+                    truncation_measurement(estimate, variance, centre - 0.5 * s, centre + 0.5 * s)
+                };
                 (
-                    stray(estimate.x, variance_m2[0], tag.x + lag.x),
-                    stray(estimate.y, variance_m2[1], tag.y + lag.y),
+                    stray(estimate.x, variance_x, centre.x),
+                    stray(estimate.y, variance_y, centre.y),
                 )
             };
             if let Some((value_m, variance_m2)) = x {
