@@ -339,6 +339,37 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
         &self.config
     }
 
+    /// The normalised innovation squared `d² = y²/S` of a measurement of
+    /// one axis against the belief now (the gate's, module docs); `None`
+    /// for a 2-D measurement or if it cannot be formed.
+    #[must_use]
+    pub fn axis_innovation(&self, measurement: &PositionMeasurement) -> Option<f32> {
+        let mean = self.core.mean();
+        let covariance = self.core.covariance();
+        let (d2, _) = match *measurement {
+            PositionMeasurement::X {
+                value_m,
+                variance_m2,
+            } => axis_distance2(value_m - mean.x, covariance.m11 + variance_m2)?,
+            PositionMeasurement::Y {
+                value_m,
+                variance_m2,
+            } => axis_distance2(value_m - mean.y, covariance.m22 + variance_m2)?,
+            PositionMeasurement::Point { .. } | PositionMeasurement::Ellipse { .. } => {
+                return None;
+            }
+        };
+        d2.is_finite().then_some(d2)
+    }
+
+    /// Sets the wheel noise per metre the predictions use from now on
+    /// (m²/m, finite and ≥ 0; anything else is ignored).
+    pub(crate) fn set_wheel_variance_per_m(&mut self, variance_per_m: f32) {
+        if variance_per_m.is_finite() && variance_per_m >= 0.0 {
+            self.config.variance_per_m = variance_per_m;
+        }
+    }
+
     /// Propagates with one odometry step (module docs); a non-finite step,
     /// or one the filter cannot take, is counted and ignored.
     pub fn predict(&mut self, odometry: &OdometryStep) {
