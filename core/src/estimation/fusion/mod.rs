@@ -774,8 +774,8 @@ impl RunningFilter {
     }
 
     /// The EKF and the UKF: the normalised innovation squared `y²/S` of a
-    /// crossing, a measurement of one axis, as the gate forms it
-    /// ([`PoseFilter::normalised_innovation`]); `None` for any other
+    /// crossing, a measurement of one axis, against the belief now
+    /// ([`PoseFilter::axis_innovation`]); `None` for any other
     /// measurement, one it cannot be formed for, and the particle filter
     /// (not adapted, [`noise_adaptation`]).
     pub fn crossing_innovation(&self, measurement: &PositionMeasurement) -> Option<f32> {

@@ -8,9 +8,9 @@
 //! sure of its dead reckoning: its crossings' innovations are larger than
 //! their predicted spread, the gate refuses the larger ones, and between
 //! crossings the estimate drifts further than the filter allows for. On
-//! the grid of docs/fusion.md ("The three filters together") a filter
-//! tuned 10× low lost to paper 001's observer in 16 of its 18 cases at
-//! 1e-4 and 1e-2 m²/m.
+//! the grid of docs/fusion.md ("The three filters together") the EKF and
+//! the UKF tuned 10× low lost to paper 001's observer in 17 of their 54
+//! cases (14 of the 18 at 1e-2 m²/m).
 //!
 //! Each crossing (a 1-D measurement of the crossed axis,
 //! [`crate::estimation::fusion::tag_cells`]) gives its normalised
@@ -30,12 +30,23 @@
 //! wheels' 1e-6 m²/m on the figure-eight over 30 cm tags, 17 % worse for
 //! it (median max error 0.0366 → 0.0428 m over the grid's 32 starts).
 //!
-//! Reads of an unchanged tag (a stray estimate's truncation, the edge
-//! constraint's pulls) are not crossings and are not counted: their
-//! innovation is large by construction. The particle filter has its own
-//! answer to a wrong noise, its noise levels
-//! ([`crate::estimation::fusion::particle`], "Noise level"), and is not
-//! adapted.
+//! Crossings count only once the guide observer is trusted (its error
+//! bound below the one the heading resets use,
+//! [`crate::estimation::fusion::FusionEstimator`]): before that a filter
+//! acquiring its pose from a far start has large innovations for a reason
+//! other than its wheels. Reads of an unchanged tag (a stray estimate's
+//! truncation, the edge constraint's pulls) are not crossings
+//! ([`crate::estimation::fusion::CellReading`]) and are not counted: their
+//! innovation is large by construction. A range reader gives no crossings,
+//! so its filters keep the configured noise.
+//!
+//! The particle filter is not adapted: its noise levels
+//! ([`crate::estimation::fusion::particle`], "Noise level") reach below
+//! the configured noise only. The same rule on its particles' mean and
+//! covariance was measured on the grid (docs/fusion.md, "A wheel noise
+//! tuned too low"): it wins where the filter is tuned 10× low but loses
+//! more where it is matched or 10× high at 1e-2 m²/m, its cloud's spread
+//! too small a measure of its error there.
 
 /// The weight of each crossing's `d²` in the average (module docs).
 pub const NIS_AVERAGE_WEIGHT: f32 = 0.1;
