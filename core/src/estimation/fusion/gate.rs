@@ -344,22 +344,13 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
     /// for a 2-D measurement or if it cannot be formed.
     #[must_use]
     pub fn axis_innovation(&self, measurement: &PositionMeasurement) -> Option<f32> {
-        let mean = self.core.mean();
-        let covariance = self.core.covariance();
-        let (d2, _) = match *measurement {
-            PositionMeasurement::X {
-                value_m,
-                variance_m2,
-            } => axis_distance2(value_m - mean.x, covariance.m11 + variance_m2)?,
-            PositionMeasurement::Y {
-                value_m,
-                variance_m2,
-            } => axis_distance2(value_m - mean.y, covariance.m22 + variance_m2)?,
-            PositionMeasurement::Point { .. } | PositionMeasurement::Ellipse { .. } => {
-                return None;
+        match measurement {
+            PositionMeasurement::X { .. } | PositionMeasurement::Y { .. } => {
+                mahalanobis(&self.core.mean(), &self.core.covariance(), measurement)
+                    .map(|(d2, _)| d2)
             }
-        };
-        d2.is_finite().then_some(d2)
+            PositionMeasurement::Point { .. } | PositionMeasurement::Ellipse { .. } => None,
+        }
     }
 
     /// Sets the wheel noise per metre the predictions use from now on
