@@ -210,12 +210,12 @@ pub fn figure_eight_run_from(
         let (command, estimate) = match estimator {
             Estimator::FusionEkf => {
                 // Measure: the nearest tag, turned into what it tells.
-                for m in cells.measurements(tag(&robot), last_step, ekf.pose().position, || {
+                for m in &cells.measurements(tag(&robot), last_step, ekf.pose().position, || {
                     let covariance = ekf.covariance();
                     [covariance[(0, 0)], covariance[(1, 1)]]
                 }) {
                     let before = ekf.pose();
-                    let outcome = ekf.correct(&m);
+                    let outcome = ekf.correct(m);
                     if std::env::var_os("FUSION_DEBUG").is_some()
                         && outcome != wmr_core::estimation::fusion::FixOutcome::Used
                     {

@@ -339,6 +339,28 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
         &self.config
     }
 
+    /// The normalised innovation squared `d² = y²/S` of a measurement of
+    /// one axis against the belief now (the gate's, module docs); `None`
+    /// for a 2-D measurement or if it cannot be formed.
+    #[must_use]
+    pub fn axis_innovation(&self, measurement: &PositionMeasurement) -> Option<f32> {
+        match measurement {
+            PositionMeasurement::X { .. } | PositionMeasurement::Y { .. } => {
+                mahalanobis(&self.core.mean(), &self.core.covariance(), measurement)
+                    .map(|(d2, _)| d2)
+            }
+            PositionMeasurement::Point { .. } | PositionMeasurement::Ellipse { .. } => None,
+        }
+    }
+
+    /// Sets the wheel noise per metre the predictions use from now on
+    /// (m²/m, finite and ≥ 0; anything else is ignored).
+    pub(crate) fn set_wheel_variance_per_m(&mut self, variance_per_m: f32) {
+        if variance_per_m.is_finite() && variance_per_m >= 0.0 {
+            self.config.variance_per_m = variance_per_m;
+        }
+    }
+
     /// Propagates with one odometry step (module docs); a non-finite step,
     /// or one the filter cannot take, is counted and ignored.
     pub fn predict(&mut self, odometry: &OdometryStep) {

@@ -33,6 +33,9 @@
 //!   ([`TagCellTracker`]).
 //! * [`truncation`]: a Gaussian estimate truncated to a tag's cell, as a
 //!   measurement (a stray estimate's correction).
+//! * [`noise_adaptation`]: the EKF's and UKF's wheel noise raised when the
+//!   crossings' innovations say the configured one is too small
+//!   ([`WheelNoiseAdaptation`]).
 //! * [`ekf`], [`ukf`], [`particle`]: the three filter cores.
 //! * This module: the estimator the tracker runs ([`FusionSettings`],
 //!   [`FusionEstimator`]) and its choice of filter ([`FusionFilter`]).
@@ -49,6 +52,7 @@
 pub mod config;
 pub mod ekf;
 pub mod gate;
+pub mod noise_adaptation;
 pub mod odometry_noise;
 pub mod particle;
 pub mod tag_cells;
@@ -61,7 +65,8 @@ pub use gate::{
     FixOutcome, PoseCovariance, PoseFilter, PoseFilterCore, PoseFilterCounters, PoseState,
     PositionMeasurement,
 };
-pub use tag_cells::{CellMeasurements, TagCellTracker};
+pub use noise_adaptation::WheelNoiseAdaptation;
+pub use tag_cells::{CellMeasurements, CellReading, TagCellTracker};
 
 use crate::estimation::fusion::gate::PI_SQUARED;
 use crate::estimation::heading_observer::HeadingObserver;
@@ -358,6 +363,8 @@ pub struct FusionEstimator {
     distance_since_fix_m: f32,
     disagreeing_ticks: u32,
     heading_resets: u32,
+    /// The wheel noise's scale from the crossings (EKF and UKF).
+    noise: WheelNoiseAdaptation,
     /// A heading known from outside before the first fix
     /// ([`PoseEstimator::assume_heading`]): the filter starts with it.
     start_heading_rad: Option<f32>,
@@ -378,6 +385,7 @@ impl FusionEstimator {
             distance_since_fix_m: 0.0,
             disagreeing_ticks: 0,
             heading_resets: 0,
+            noise: WheelNoiseAdaptation::new(),
             start_heading_rad: None,
             // The spacing is validated by `FusionSettings::new`.
             cells: TagCellTracker::with_validated(
@@ -480,15 +488,24 @@ impl FusionEstimator {
                     .correct_cell(&mut self.cells, tag, last_step)
                     .is_none()
                 {
-                    // By reference: the slice iterator has no bounds check
-                    // (the by-value iterator of heapless's Vec indexes, with
-                    // a panic path).
                     let measurements =
                         self.cells.measurements(tag, last_step, pose.position, || {
                             let covariance = filter.covariance();
                             [covariance.m11, covariance.m22]
                         });
+                    // Only crossings adapt the noise, once the pose is
+                    // acquired (`noise_adaptation`).
+                    let adapt = measurements.reading() == CellReading::Crossing
+                        && guide_error_bound(&self.guide, self.distance_m) < GUIDE_TRUST_BOUND;
                     for measurement in &measurements {
+                        if adapt
+                            && let Some(nis) = filter.crossing_innovation(measurement)
+                            && let Some(scale) = self.noise.observe(nis)
+                        {
+                            filter.set_wheel_variance_per_m(
+                                self.settings.filter.variance_per_m * scale,
+                            );
+                        }
                         filter.correct(measurement);
                     }
                 }
@@ -526,8 +543,7 @@ impl FusionEstimator {
             }
         }
         self.guide_position = now;
-        // |z̃| ≤ e^{−L s}: the guide's heading is within asin of that.
-        let bound = math::exp(-self.distance_m * self.guide.config().gain_per_m());
+        let bound = guide_error_bound(&self.guide, self.distance_m);
         let Some(filter) = self.started.then_some(&mut self.filter) else {
             return;
         };
@@ -565,6 +581,13 @@ impl FusionEstimator {
     pub fn blind_distance_lost(&self) -> Option<bool> {
         let limit = self.settings.max_blind_distance_m;
         (limit > 0.0).then_some(self.distance_since_fix_m > limit)
+    }
+
+    /// The wheel noise's adaptation to the crossings
+    /// ([`noise_adaptation`]): its scale now and its changes.
+    #[must_use]
+    pub fn wheel_noise(&self) -> &WheelNoiseAdaptation {
+        &self.noise
     }
 
     /// Times the filter's heading was reset to the guide's.
@@ -750,6 +773,31 @@ impl RunningFilter {
         with_filter!(self, f => f.predict(odometry), ());
     }
 
+    /// The EKF and the UKF: the normalised innovation squared `y²/S` of a
+    /// crossing, a measurement of one axis, against the belief now
+    /// ([`PoseFilter::axis_innovation`]); `None` for any other
+    /// measurement, one it cannot be formed for, and the particle filter
+    /// (not adapted, [`noise_adaptation`]).
+    pub fn crossing_innovation(&self, measurement: &PositionMeasurement) -> Option<f32> {
+        match self {
+            Self::Ekf(f) => f.axis_innovation(measurement),
+            #[cfg(feature = "fusion-ukf")]
+            Self::Ukf(f) => f.axis_innovation(measurement),
+            _ => None,
+        }
+    }
+
+    /// The EKF and the UKF: [`PoseFilter`]'s wheel noise per metre from
+    /// now on; the particle filter: nothing.
+    fn set_wheel_variance_per_m(&mut self, variance_per_m: f32) {
+        match self {
+            Self::Ekf(f) => f.set_wheel_variance_per_m(variance_per_m),
+            #[cfg(feature = "fusion-ukf")]
+            Self::Ukf(f) => f.set_wheel_variance_per_m(variance_per_m),
+            _ => {}
+        }
+    }
+
     /// [`PoseFilter::correct`].
     pub fn correct(&mut self, measurement: &PositionMeasurement) -> FixOutcome {
         with_filter!(self, f => f.correct(measurement), FixOutcome::Invalid)
@@ -855,6 +903,13 @@ const GUIDE_PATIENCE_TICKS: u32 = 100;
 /// The guide is trusted once its error bound `e^{−L s}` is below this
 /// (its heading then within 30°).
 const GUIDE_TRUST_BOUND: f32 = 0.5;
+
+/// The guide observer's error bound after `distance_m` driven with fixes:
+/// `|z̃| ≤ e^{−L s}`, its heading within `asin` of that (paper 001, the
+/// observer's convergence).
+fn guide_error_bound(guide: &HeadingObserver, distance_m: f32) -> f32 {
+    math::exp(-distance_m * guide.config().gain_per_m())
+}
 /// How far beyond the guide's own error bound the filter's heading may
 /// stray before it counts as disagreeing, rad.
 const GUIDE_MARGIN_RAD: f32 = 0.3;
@@ -924,6 +979,43 @@ mod tests {
 
     fn config() -> PoseFilterConfig {
         PoseFilterConfig::new(0.2, 1e-4, 1e-8, 3.0).unwrap()
+    }
+
+    /// Drives 6 m along x over a 10 cm grid on wheels that travel 3 %
+    /// more than the odometry says (the scale prior 0: not learnt), and
+    /// returns the EKF's wheel noise adaptation.
+    fn drive_on_long_wheels(wheel_variance_per_m: f32) -> WheelNoiseAdaptation {
+        use crate::estimation::heading_observer::HeadingObserverConfig;
+        let filter = PoseFilterConfig::new(0.2, wheel_variance_per_m, 1e-9, 3.0).unwrap();
+        let settings = FusionSettings::new(filter, 0.1, 0.0).unwrap();
+        let guide = HeadingObserver::new(HeadingObserverConfig::new(1.0, 0.01).unwrap());
+        let mut estimator = FusionEstimator::new(settings, guide);
+        estimator.assume_heading(0.0);
+        // The nearest tag on the x axis (x > 0 here).
+        let nearest = |x: f32| Vec2::new(((x / 0.1 + 0.5) as i32) as f32 * 0.1, 0.0);
+        let odometry = OdometryStep {
+            ds_m: 0.002,
+            ..OdometryStep::default()
+        };
+        let mut x = 0.02_f32;
+        for _ in 0..3000 {
+            x += 1.03 * odometry.ds_m;
+            let _ = estimator.step(&odometry, Some(nearest(x)), false);
+        }
+        *estimator.wheel_noise()
+    }
+
+    /// Tuned far below its wheels' error, the EKF raises its wheel noise
+    /// from the crossings (module [`noise_adaptation`]); tuned above it,
+    /// it keeps the configured noise.
+    #[test]
+    fn a_wheel_noise_too_small_is_raised_from_the_crossings() {
+        let low = drive_on_long_wheels(1e-7);
+        assert!(low.scale() > 1.0, "{low:?}");
+        assert!(low.changes().0 > 0, "{low:?}");
+        let high = drive_on_long_wheels(1e-3);
+        assert_eq!(high.scale(), 1.0, "{high:?}");
+        assert_eq!(high.changes(), (0, 0));
     }
 
     #[test]
@@ -1001,28 +1093,39 @@ mod tests {
             Vec2::ZERO,
             || [1e-4; 2],
         );
+        assert_eq!(first.reading(), CellReading::First);
         assert!(matches!(
-            first.first(),
+            first.as_slice().first(),
             Some(PositionMeasurement::Point { .. })
         ));
-        assert!(
-            cells
-                .measurements(
-                    Vec2::new(0.0, 0.0),
-                    Vec2::new(0.001, 0.0),
-                    Vec2::ZERO,
-                    || [1e-4; 2]
-                )
-                .is_empty()
+        let same = cells.measurements(
+            Vec2::new(0.0, 0.0),
+            Vec2::new(0.001, 0.0),
+            Vec2::ZERO,
+            || [1e-4; 2],
         );
+        assert_eq!(same.reading(), CellReading::SameTag);
+        assert!(same.as_slice().is_empty());
         assert_eq!(cells.same_tag_reads(), 1);
+        // A non-finite read gives nothing and leaves the tracker as it was.
+        let before = cells;
+        let invalid = cells.measurements(
+            Vec2::new(f32::NAN, 0.0),
+            Vec2::new(0.001, 0.0),
+            Vec2::ZERO,
+            || [1e-4; 2],
+        );
+        assert_eq!(invalid.reading(), CellReading::Invalid);
+        assert!(invalid.as_slice().is_empty());
+        assert_eq!(cells, before);
         let crossing = cells.measurements(
             Vec2::new(0.1, 0.0),
             Vec2::new(0.002, 0.0),
             Vec2::ZERO,
             || [1e-4; 2],
         );
-        match crossing.first() {
+        assert_eq!(crossing.reading(), CellReading::Crossing);
+        match crossing.as_slice().first() {
             Some(PositionMeasurement::X {
                 value_m,
                 variance_m2,
@@ -1039,8 +1142,9 @@ mod tests {
             Vec2::ZERO,
             || [1e-4; 2],
         );
+        assert_eq!(jump.reading(), CellReading::Jump);
         assert!(matches!(
-            jump.first(),
+            jump.as_slice().first(),
             Some(PositionMeasurement::Point { .. })
         ));
     }
@@ -1060,13 +1164,17 @@ mod tests {
         };
         let mut cells = TagCellTracker::new(0.1).unwrap();
         // 1.5 cm beyond the edge at x = 0.05, inside the cell in y.
-        assert!(read(&mut cells, Vec2::new(0.065, 0.0)).is_empty());
+        assert!(
+            read(&mut cells, Vec2::new(0.065, 0.0))
+                .as_slice()
+                .is_empty()
+        );
         assert_eq!(cells.edge_corrections(), 0);
         // 3 cm beyond the edge in x, 2.5 cm below the cell in y.
         let mut cells = TagCellTracker::new(0.1).unwrap();
         let estimate = Vec2::new(0.08, -0.075);
         let pulled = read(&mut cells, estimate);
-        assert_eq!(pulled.len(), 2);
+        assert_eq!(pulled.as_slice().len(), 2);
         assert_eq!(cells.edge_corrections(), 2);
         for m in &pulled {
             let (mean, value_m, variance_m2) = match *m {
@@ -1086,7 +1194,7 @@ mod tests {
         }
         // The edge constraint: to the edge, at variance (s/10)².
         let mut cells = TagCellTracker::new(0.1).unwrap().with_edge_constraint(true);
-        match read(&mut cells, Vec2::new(0.055, 0.0)).first() {
+        match read(&mut cells, Vec2::new(0.055, 0.0)).as_slice().first() {
             Some(PositionMeasurement::X {
                 value_m,
                 variance_m2,
@@ -1106,11 +1214,13 @@ mod tests {
         assert!(
             cells
                 .measurements(tag, step, Vec2::new(0.075, 0.0), || [variance; 2])
+                .as_slice()
                 .is_empty()
         );
         assert_eq!(
             cells
                 .measurements(tag, step, Vec2::new(0.082, 0.0), || [variance; 2])
+                .as_slice()
                 .len(),
             1
         );
@@ -1118,6 +1228,7 @@ mod tests {
         assert!(
             cells
                 .measurements(tag, step, Vec2::new(0.2, 0.0), || [f32::NAN; 2])
+                .as_slice()
                 .is_empty()
         );
     }
@@ -1139,7 +1250,8 @@ mod tests {
             let mut cells = aged(ticks);
             let _ = cells.measurements(Vec2::new(0.0, 0.0), step, Vec2::ZERO, || [1e-4; 2]);
             let crossing = cells.measurements(Vec2::new(0.1, 0.0), step, Vec2::ZERO, || [1e-4; 2]);
-            match crossing.first() {
+            assert_eq!(crossing.reading(), CellReading::Crossing);
+            match crossing.as_slice().first() {
                 Some(PositionMeasurement::X { value_m, .. }) => {
                     let expected = 0.05 + beyond * step.x;
                     assert!((value_m - expected).abs() < 1e-7, "{ticks}: {value_m}");

@@ -188,8 +188,74 @@ impl TagCell {
     }
 }
 
-/// At most two measurements from one fix (both axes crossed at once).
-pub type CellMeasurements = heapless::Vec<PositionMeasurement, 2>;
+/// What a fix told the tracker ([`TagCellTracker::measurements`]): the kind
+/// of the measurements it gave.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CellReading {
+    /// A non-finite tag, step or estimate: no measurement, and the tracker
+    /// is unchanged.
+    Invalid,
+    /// The first fix: the tag's uniform cell, a weak 2-D measurement.
+    First,
+    /// An unchanged tag: no measurement, or a stray estimate's truncation
+    /// or the edge constraint's pull, one per axis left (module docs).
+    SameTag,
+    /// A change to an adjacent tag: the crossing of the boundary between
+    /// the two, a sharp 1-D measurement per axis crossed.
+    Crossing,
+    /// A jump past a neighbour: the tag's uniform cell, a weak 2-D
+    /// measurement.
+    Jump,
+}
+
+/// The measurements of one fix (at most two: both axes crossed or left at
+/// once) and what kind they are.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellMeasurements {
+    reading: CellReading,
+    measurements: heapless::Vec<PositionMeasurement, 2>,
+}
+
+impl CellMeasurements {
+    const fn new(reading: CellReading) -> Self {
+        Self {
+            reading,
+            measurements: heapless::Vec::new(),
+        }
+    }
+
+    /// One measurement of the given kind.
+    fn one(reading: CellReading, measurement: PositionMeasurement) -> Self {
+        let mut out = Self::new(reading);
+        // Capacity 2: the first push cannot fail.
+        let _ = out.measurements.push(measurement);
+        out
+    }
+
+    /// What kind of fix gave these measurements.
+    #[must_use]
+    pub fn reading(&self) -> CellReading {
+        self.reading
+    }
+
+    /// The measurements, in the order the filter takes them.
+    #[must_use]
+    pub fn as_slice(&self) -> &[PositionMeasurement] {
+        &self.measurements
+    }
+}
+
+impl<'a> IntoIterator for &'a CellMeasurements {
+    type Item = &'a PositionMeasurement;
+    type IntoIter = core::slice::Iter<'a, PositionMeasurement>;
+
+    /// By reference: the slice iterator has no bounds check (the by-value
+    /// iterator of heapless's `Vec` indexes, with a panic path).
+    fn into_iter(self) -> Self::IntoIter {
+        self.measurements.iter()
+    }
+}
 
 impl TagCellTracker {
     /// For a grid of this spacing (m); `None` unless finite and positive.
@@ -358,19 +424,19 @@ impl TagCellTracker {
         estimate: Vec2,
         variance_m2: impl FnOnce() -> [f32; 2],
     ) -> CellMeasurements {
-        let mut out = CellMeasurements::new();
         if !(tag.is_finite() && last_step.is_finite() && estimate.is_finite()) {
-            return out;
+            return CellMeasurements::new(CellReading::Invalid);
         }
         let s = self.spacing_m;
         let cell = s * s / 12.0;
         let Some(last) = self.last_tag.replace(tag) else {
-            // Capacity 2: the first push cannot fail.
-            let _ = out.push(PositionMeasurement::Point {
-                position: tag,
-                variance_m2: [cell, cell],
-            });
-            return out;
+            return CellMeasurements::one(
+                CellReading::First,
+                PositionMeasurement::Point {
+                    position: tag,
+                    variance_m2: [cell, cell],
+                },
+            );
         };
         let (dx, dy) = (tag.x - last.x, tag.y - last.y);
         let crossed = |d: f32| d.abs() > 0.5 * s;
@@ -379,6 +445,7 @@ impl TagCellTracker {
             // Still in the same cell: an estimate that has left it is pulled
             // back (module docs, "Stray estimates" and the edge constraint).
             self.same_tag_reads = self.same_tag_reads.saturating_add(1);
+            let mut out = CellMeasurements::new(CellReading::SameTag);
             let edge = |estimate: f32, centre: f32| {
                 let offset = estimate - centre;
                 (offset.abs() > 0.5 * s).then(|| centre + 0.5 * s * offset.signum())
@@ -397,30 +464,34 @@ impl TagCellTracker {
                     estimate >= centre - 0.5 * s - STRAY_ESTIMATE_GAP_M
                         && estimate <= centre + 0.5 * s + STRAY_ESTIMATE_GAP_M
                 };
-                if within_gap(estimate.x, centre.x) && within_gap(estimate.y, centre.y) {
+                let (x_within, y_within) = (
+                    within_gap(estimate.x, centre.x),
+                    within_gap(estimate.y, centre.y),
+                );
+                if x_within && y_within {
                     return out;
                 }
                 let [variance_x, variance_y] = variance_m2();
-                let stray = |estimate: f32, variance: f32, centre: f32| {
-                    if within_gap(estimate, centre) {
+                let stray = |within: bool, estimate: f32, variance: f32, centre: f32| {
+                    if within {
                         return None;
                     }
                     truncation_measurement(estimate, variance, centre - 0.5 * s, centre + 0.5 * s)
                 };
                 (
-                    stray(estimate.x, variance_x, centre.x),
-                    stray(estimate.y, variance_y, centre.y),
+                    stray(x_within, estimate.x, variance_x, centre.x),
+                    stray(y_within, estimate.y, variance_y, centre.y),
                 )
             };
             if let Some((value_m, variance_m2)) = x {
-                let _ = out.push(PositionMeasurement::X {
+                let _ = out.measurements.push(PositionMeasurement::X {
                     value_m,
                     variance_m2,
                 });
                 self.edge_corrections = self.edge_corrections.saturating_add(1);
             }
             if let Some((value_m, variance_m2)) = y {
-                let _ = out.push(PositionMeasurement::Y {
+                let _ = out.measurements.push(PositionMeasurement::Y {
                     value_m,
                     variance_m2,
                 });
@@ -430,11 +501,13 @@ impl TagCellTracker {
         }
         if !(adjacent(dx) && adjacent(dy)) {
             // A jump past a neighbour: not one boundary crossed; weak fix.
-            let _ = out.push(PositionMeasurement::Point {
-                position: tag,
-                variance_m2: [cell, cell],
-            });
-            return out;
+            return CellMeasurements::one(
+                CellReading::Jump,
+                PositionMeasurement::Point {
+                    position: tag,
+                    variance_m2: [cell, cell],
+                },
+            );
         }
         // The robot crossed the boundary during the tick of the read and is
         // now beyond it by a uniform fraction of that tick's travel, plus
@@ -447,16 +520,17 @@ impl TagCellTracker {
             // Travel²/12, plus 1 mm² for the reader's own position error.
             (value, travel * travel / 12.0 + 1e-6)
         };
+        let mut out = CellMeasurements::new(CellReading::Crossing);
         if crossed(dx) {
             let (value_m, variance_m2) = crossing(last.x, tag.x, last_step.x);
-            let _ = out.push(PositionMeasurement::X {
+            let _ = out.measurements.push(PositionMeasurement::X {
                 value_m,
                 variance_m2,
             });
         }
         if crossed(dy) {
             let (value_m, variance_m2) = crossing(last.y, tag.y, last_step.y);
-            let _ = out.push(PositionMeasurement::Y {
+            let _ = out.measurements.push(PositionMeasurement::Y {
                 value_m,
                 variance_m2,
             });
