@@ -903,16 +903,16 @@ const GUIDE_PATIENCE_TICKS: u32 = 100;
 /// The guide is trusted once its error bound `e^{−L s}` is below this
 /// (its heading then within 30°).
 const GUIDE_TRUST_BOUND: f32 = 0.5;
-
-/// The guide observer's error bound after `distance_m` driven with fixes:
-/// `|z̃| ≤ e^{−L s}`, its heading within `asin` of that (paper 001, the
-/// observer's convergence).
-fn guide_error_bound(guide: &HeadingObserver, distance_m: f32) -> f32 {
-    math::exp(-distance_m * guide.config().gain_per_m())
-}
 /// How far beyond the guide's own error bound the filter's heading may
 /// stray before it counts as disagreeing, rad.
 const GUIDE_MARGIN_RAD: f32 = 0.3;
+
+/// The guide observer's error bound `b = e^{−L s}` after `distance_m`
+/// driven with fixes (paper 001, Theorem 1, (10)): its heading is within
+/// `asin b`.
+fn guide_error_bound(guide: &HeadingObserver, distance_m: f32) -> f32 {
+    math::exp(-distance_m * guide.config().gain_per_m())
+}
 
 /// What the pose filters' property tests share.
 #[cfg(test)]
