@@ -176,8 +176,9 @@ pub struct FusionSpec {
     /// Which filter (default the EKF).
     pub filter: FusionFilterSpec,
     /// Each wheel's travel variance per metre driven, m²/m (default 1e-3).
-    /// The EKF and the UKF take it as a floor: they raise it, up to 64×,
-    /// while the tag crossings show it too small (`noise_adaptation`).
+    /// A floor: on a grid of nearest-tag reads every filter raises it, up
+    /// to 64×, while the tag crossings show it too small
+    /// (`noise_adaptation`).
     pub wheel_variance_per_m: f32,
     /// Mahalanobis gate, standard deviations, ≥ 1 (default 3).
     pub gate_sigma: f32,

@@ -49,6 +49,11 @@
 //! where the estimator has said so; a collapse keeps each slot's level.
 //! The ladder, the prior and the jump rate were chosen by the starts
 //! table of docs/fusion.md ("The particle filter's noise levels").
+//! The ladder reaches only below the configured noise; a noise tuned
+//! below the wheels' own is raised by the estimator's wheel noise
+//! adaptation ([`crate::estimation::fusion::noise_adaptation`]), which
+//! scales the configured noise and so every level with it, from the next
+//! prediction on.
 //!
 //! # Correction
 //! (Nearest-tag reads: see "Tag cells" below; this is for the other
@@ -470,7 +475,8 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
         started
     }
 
-    fn predict(&mut self, _config: &PoseFilterConfig, odometry: &OdometryStep) -> bool {
+    fn predict(&mut self, config: &PoseFilterConfig, odometry: &OdometryStep) -> bool {
+        self.filter.model_mut().config = *config;
         let rejected = self.filter.rejected_inputs();
         self.filter.predict(odometry, 0.0);
         self.filter.rejected_inputs() == rejected

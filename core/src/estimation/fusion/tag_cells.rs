@@ -209,6 +209,17 @@ pub enum CellReading {
     Jump,
 }
 
+/// How a read's tag relates to the last read tag.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum TagChange {
+    /// The same tag (within half a spacing on both axes).
+    Same,
+    /// A neighbour: one or both boundaries crossed.
+    Adjacent,
+    /// Past a neighbour on some axis.
+    Jump,
+}
+
 /// The measurements of one fix (at most two: both axes crossed or left at
 /// once) and what kind they are.
 #[derive(Debug, Clone, PartialEq)]
@@ -438,10 +449,8 @@ impl TagCellTracker {
                 },
             );
         };
-        let (dx, dy) = (tag.x - last.x, tag.y - last.y);
-        let crossed = |d: f32| d.abs() > 0.5 * s;
-        let adjacent = |d: f32| d.abs() < 1.5 * s;
-        if !crossed(dx) && !crossed(dy) {
+        let change = self.tag_change(last, tag);
+        if change == TagChange::Same {
             // Still in the same cell: an estimate that has left it is pulled
             // back (module docs, "Stray estimates" and the edge constraint).
             self.same_tag_reads = self.same_tag_reads.saturating_add(1);
@@ -499,7 +508,7 @@ impl TagCellTracker {
             }
             return out;
         }
-        if !(adjacent(dx) && adjacent(dy)) {
+        if change == TagChange::Jump {
             // A jump past a neighbour: not one boundary crossed; weak fix.
             return CellMeasurements::one(
                 CellReading::Jump,
@@ -509,6 +518,46 @@ impl TagCellTracker {
                 },
             );
         }
+        self.crossings(last, tag, last_step)
+    }
+
+    /// The crossing a read of `tag` would be, without taking the read
+    /// (the tracker is unchanged): `None` unless the read changes to an
+    /// adjacent tag, or for a non-finite tag or step. For a particle
+    /// filter, which takes every read as its cell ([`Self::cell`]) but
+    /// adapts its wheel noise from the crossings' innovations as the other
+    /// filters do ([`crate::estimation::fusion::noise_adaptation`]).
+    #[must_use]
+    pub fn crossing(&self, tag: Vec2, last_step: Vec2) -> Option<CellMeasurements> {
+        if !(tag.is_finite() && last_step.is_finite()) {
+            return None;
+        }
+        let last = self.last_tag?;
+        (self.tag_change(last, tag) == TagChange::Adjacent)
+            .then(|| self.crossings(last, tag, last_step))
+    }
+
+    /// How a read of `tag` relates to the last read tag `last`.
+    fn tag_change(&self, last: Vec2, tag: Vec2) -> TagChange {
+        let s = self.spacing_m;
+        let (dx, dy) = (tag.x - last.x, tag.y - last.y);
+        let crossed = |d: f32| d.abs() > 0.5 * s;
+        let adjacent = |d: f32| d.abs() < 1.5 * s;
+        if !crossed(dx) && !crossed(dy) {
+            TagChange::Same
+        } else if adjacent(dx) && adjacent(dy) {
+            TagChange::Adjacent
+        } else {
+            TagChange::Jump
+        }
+    }
+
+    /// The measurements of a change from `last` to the adjacent `tag`: the
+    /// crossing of each boundary between them (module docs).
+    fn crossings(&self, last: Vec2, tag: Vec2, last_step: Vec2) -> CellMeasurements {
+        let s = self.spacing_m;
+        let crossed = |d: f32| d.abs() > 0.5 * s;
+        let (dx, dy) = (tag.x - last.x, tag.y - last.y);
         // The robot crossed the boundary during the tick of the read and is
         // now beyond it by a uniform fraction of that tick's travel, plus
         // the travel of the fix's age (module docs).

@@ -279,6 +279,11 @@ where
         &self.model
     }
 
+    /// The model, to change its parameters from the next step on.
+    pub fn model_mut(&mut self) -> &mut Model {
+        &mut self.model
+    }
+
     /// The configuration.
     #[must_use]
     pub fn config(&self) -> &ParticleFilterConfig<N, M> {
