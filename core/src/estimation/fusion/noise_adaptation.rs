@@ -53,15 +53,15 @@
 //! particles on three noise levels is narrower than its error, and its
 //! `d²` is heavy-tailed. Over the grid's 27 cases at 8 starts each, with the
 //! adaptation off, the average `d²` (clipped at 30) was 1.2–6.7 with the
-//! noise matched and 0.9–7.1 with it 10× high, so the mean test raised
+//! noise matched and 0.9–7.0 with it 10× high, so the mean test raised
 //! those filters too, and lost 13 grid cases it had won (up to 88 %
 //! worse). The particle filter is judged instead by the share of its
 //! crossings beyond two standard deviations (`d² > 4`,
 //! [`InnovationTest::ShareBeyondTwoSigma`]), an average over about the last
 //! fifty crossings: most of them out (the median `d²` above 4) doubles the
-//! scale. The same runs put that share at 0.04–0.33 matched and 0.03–0.33
-//! 10× high, and at 0.59–0.79 10× low at 1e-4 and 1e-2 m²/m (0.48–0.53 5×
-//! low). It starts at 0, since the first crossings of a pose still
+//! scale. The same runs put that share at 0.04–0.32 matched and 0.03–0.33
+//! 10× high, and at 0.59–0.79 10× low at 1e-4 and 1e-2 m²/m (about one
+//! half 5× low). It starts at 0, since the first crossings of a pose still
 //! settling are out more often than later ones, and restarts at 0.3 after
 //! each change; below 0.1 a raised scale is halved.
 
