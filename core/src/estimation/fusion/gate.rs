@@ -218,6 +218,13 @@ pub trait PoseFilterCore: Sized {
             None => false,
         }
     }
+
+    /// The configuration changed (the wheel noise adapted,
+    /// [`crate::estimation::fusion::noise_adaptation`]). Nothing by default: the EKF and the UKF take it at each
+    /// [`Self::predict`]; the particle filter's motion model keeps a copy.
+    fn reconfigure(&mut self, config: &PoseFilterConfig) {
+        let _ = config;
+    }
 }
 
 /// A pose filter on odometry and position fixes (module docs): the filter
@@ -358,6 +365,7 @@ impl<Core: PoseFilterCore> PoseFilter<Core> {
     pub(crate) fn set_wheel_variance_per_m(&mut self, variance_per_m: f32) {
         if variance_per_m.is_finite() && variance_per_m >= 0.0 {
             self.config.variance_per_m = variance_per_m;
+            self.core.reconfigure(&self.config);
         }
     }
 

@@ -475,11 +475,16 @@ impl<const P: usize> PoseFilterCore for ParticleCore<P> {
         started
     }
 
-    fn predict(&mut self, config: &PoseFilterConfig, odometry: &OdometryStep) -> bool {
-        self.filter.model_mut().config = *config;
+    fn predict(&mut self, _config: &PoseFilterConfig, odometry: &OdometryStep) -> bool {
         let rejected = self.filter.rejected_inputs();
         self.filter.predict(odometry, 0.0);
         self.filter.rejected_inputs() == rejected
+    }
+
+    /// The motion model takes the new wheel noise (its levels scale with
+    /// it) from the next prediction on.
+    fn reconfigure(&mut self, config: &PoseFilterConfig) {
+        self.filter.model_mut().config = *config;
     }
 
     fn mean(&self) -> PoseState {
