@@ -1024,7 +1024,7 @@ mod tests {
 
     /// Drives 6 m along x over a 10 cm grid on wheels that travel 3 %
     /// more than the odometry says (the scale prior 0: not learnt), and
-    /// returns the EKF's wheel noise adaptation.
+    /// returns the `kind` filter's wheel noise adaptation.
     fn drive_on_long_wheels(kind: FusionFilter, wheel_variance_per_m: f32) -> WheelNoiseAdaptation {
         use crate::estimation::heading_observer::HeadingObserverConfig;
         let filter = PoseFilterConfig::new(0.2, wheel_variance_per_m, 1e-9, 3.0).unwrap();

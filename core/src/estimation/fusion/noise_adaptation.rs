@@ -87,7 +87,9 @@ struct Rule {
     raise_above: f32,
     /// The average below which a raised scale is halved.
     lower_below: f32,
-    /// The average at the start and after each change.
+    /// The average before the first crossing.
+    start: f32,
+    /// The average after each change.
     restart: f32,
 }
 
@@ -99,12 +101,14 @@ impl InnovationTest {
                 weight: NIS_AVERAGE_WEIGHT,
                 raise_above: RAISE_ABOVE,
                 lower_below: LOWER_BELOW,
+                start: 1.0,
                 restart: 1.0,
             },
             Self::ShareBeyondTwoSigma => Rule {
                 weight: SHARE_AVERAGE_WEIGHT,
                 raise_above: SHARE_RAISE_ABOVE,
                 lower_below: SHARE_LOWER_BELOW,
+                start: 0.0,
                 restart: SHARE_RESTART,
             },
         }
@@ -187,10 +191,7 @@ impl WheelNoiseAdaptation {
     pub const fn new(test: InnovationTest) -> Self {
         Self {
             test,
-            average: match test {
-                InnovationTest::MeanNis => 1.0,
-                InnovationTest::ShareBeyondTwoSigma => 0.0,
-            },
+            average: test.rule().start,
             scale: 1.0,
             raised: 0,
             lowered: 0,

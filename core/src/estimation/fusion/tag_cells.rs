@@ -537,13 +537,17 @@ impl TagCellTracker {
             .then(|| self.crossings(last, tag, last_step))
     }
 
+    /// Whether tags `d` apart along an axis lie in different cells: the
+    /// boundary halfway between them crossed.
+    fn crossed(&self, d: f32) -> bool {
+        d.abs() > 0.5 * self.spacing_m
+    }
+
     /// How a read of `tag` relates to the last read tag `last`.
     fn tag_change(&self, last: Vec2, tag: Vec2) -> TagChange {
-        let s = self.spacing_m;
         let (dx, dy) = (tag.x - last.x, tag.y - last.y);
-        let crossed = |d: f32| d.abs() > 0.5 * s;
-        let adjacent = |d: f32| d.abs() < 1.5 * s;
-        if !crossed(dx) && !crossed(dy) {
+        let adjacent = |d: f32| d.abs() < 1.5 * self.spacing_m;
+        if !self.crossed(dx) && !self.crossed(dy) {
             TagChange::Same
         } else if adjacent(dx) && adjacent(dy) {
             TagChange::Adjacent
@@ -556,7 +560,6 @@ impl TagCellTracker {
     /// crossing of each boundary between them (module docs).
     fn crossings(&self, last: Vec2, tag: Vec2, last_step: Vec2) -> CellMeasurements {
         let s = self.spacing_m;
-        let crossed = |d: f32| d.abs() > 0.5 * s;
         let (dx, dy) = (tag.x - last.x, tag.y - last.y);
         // The robot crossed the boundary during the tick of the read and is
         // now beyond it by a uniform fraction of that tick's travel, plus
@@ -570,14 +573,14 @@ impl TagCellTracker {
             (value, travel * travel / 12.0 + 1e-6)
         };
         let mut out = CellMeasurements::new(CellReading::Crossing);
-        if crossed(dx) {
+        if self.crossed(dx) {
             let (value_m, variance_m2) = crossing(last.x, tag.x, last_step.x);
             let _ = out.measurements.push(PositionMeasurement::X {
                 value_m,
                 variance_m2,
             });
         }
-        if crossed(dy) {
+        if self.crossed(dy) {
             let (value_m, variance_m2) = crossing(last.y, tag.y, last_step.y);
             let _ = out.measurements.push(PositionMeasurement::Y {
                 value_m,
